@@ -1,0 +1,50 @@
+"""Command line: ``formation-traci run|analyze|compare``; each a thin layer over a library call."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+app = typer.Typer(add_completion=False, no_args_is_help=True,
+                  help="Formation control experiments: run scenarios, analyse recordings.")
+
+
+@app.callback()
+def _group() -> None:
+    """Formation control experiments: run scenarios, analyse recordings."""
+
+
+@app.command()
+def run(
+    scenario: Path = typer.Argument(..., help="scenario TOML file"),
+    out: Path = typer.Option(..., "--out", "-o", help="run directory to create"),
+    duration: Optional[float] = typer.Option(None, help="override run.duration [s]"),
+    seed: Optional[int] = typer.Option(None, help="override run.seed"),
+    model: Optional[str] = typer.Option(None, help="override vehicle.model: dynamic | kinematic"),
+    force: bool = typer.Option(False, "--force", help="replace an existing run directory"),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="show a progress bar"),
+) -> None:
+    """Run SCENARIO headless and record it under OUT (run.json, trajectories.parquet)."""
+    from .scenario import ScenarioError, load_scenario
+    from .sim.runner import RunDirExists, run_scenario
+
+    try:
+        sc = load_scenario(scenario, **{"run.duration": duration, "run.seed": seed,
+                                        "vehicle.model": model})
+        res = run_scenario(sc, out, scenario_path=str(scenario), force=force, progress=progress)
+    except (ScenarioError, RunDirExists) as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2)
+    typer.echo(f"{res.status}: t_end={res.t_end:.2f} s, steps={res.steps_done}, out={res.out_dir}"
+               + (f"\nreason: {res.reason}" if res.reason else ""))
+    if res.status != "completed":
+        raise typer.Exit(1 if res.status == "failed" else 130)
+
+
+def main() -> None:  # pragma: no cover
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

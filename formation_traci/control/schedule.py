@@ -1,0 +1,45 @@
+"""Error-scheduled proportional gain, eq (3.34), with the seed's tables as presets."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, slots=True)
+class GainSchedule:
+    """K(e) = (G_max - G_min) / exp(|e| K_min) + G_min, eq (3.34).
+
+    The gain is G_max at zero error and decays to G_min for large errors. Units of the
+    gains are those of (controller output) / (error): 1/s for the speed loop (a_r per m/s),
+    dimensionless for the steering-rate loop (rad/s per rad/s).
+    """
+
+    g_min: float  # gain for large errors
+    g_max: float  # gain at zero error
+    k_min: float  # decay rate [1/(error unit)]
+
+
+SPEED_GAINS_CAR = GainSchedule(g_min=0.27, g_max=8.0, k_min=1.0)
+"""Table 3.4: linear-velocity schedule for the passenger car."""
+SPEED_GAINS_POOR = GainSchedule(g_min=0.2, g_max=3.0, k_min=1.0)
+"""Table 3.12: the deliberately poor linear-velocity schedule of case 3.3.2.2."""
+SPEED_GAINS_TRUCK = GainSchedule(g_min=0.05, g_max=1.3, k_min=1.0)
+"""Table 3.6: linear-velocity schedule for the small truck."""
+YAW_GAINS = GainSchedule(g_min=1.0, g_max=9.0, k_min=10.0)
+"""Table 3.7: angular-velocity schedule."""
+YAW_GAINS_RETUNED = GainSchedule(g_min=0.7, g_max=3.0, k_min=10.0)
+"""Table 3.8: re-tuned angular-velocity schedule (used in section 3.3)."""
+
+GAIN_PRESETS: dict[str, GainSchedule] = {
+    "table_3_4": SPEED_GAINS_CAR,
+    "table_3_6": SPEED_GAINS_TRUCK,
+    "table_3_7": YAW_GAINS,
+    "table_3_8": YAW_GAINS_RETUNED,
+    "table_3_12": SPEED_GAINS_POOR,
+}
+
+
+def gain(error, sched: GainSchedule):
+    """Scheduled gain K(error), eq (3.34); broadcasts over ``error``."""
+    return (sched.g_max - sched.g_min) * np.exp(-np.abs(error) * sched.k_min) + sched.g_min

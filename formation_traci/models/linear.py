@@ -1,0 +1,76 @@
+"""Linearised lateral dynamics of the bicycle model, eqs (3.26)-(3.31).
+
+Linearised about v = v_lin, beta = 0, psi dot = 0, delta = 0, a_r = 0 with the linear tire
+(3.12) on both axles. The seed's (3.28)-(3.30) print the yaw-damping term without the
+1/v that its numbers in (3.31) keep, and print B's entries without the minus sign of
+(3.27)-(3.28) that its numbers also keep; :func:`lateral_ab` follows the physics and the
+numbers (see docs/model.md).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .params import VehicleParams, Tires
+
+
+def lateral_ab(v: float, veh: VehicleParams, tires: Tires) -> tuple[np.ndarray, np.ndarray]:
+    """A (2x2) and B (2x1) of d/dt [beta, psi dot] = A [beta, psi dot] + B delta, eq (3.30).
+
+    With front and rear cornering stiffness c_f = B_f C_f D_f, c_r = B_r C_r D_r [N/rad]
+    (negative in the seed's sign convention):
+        A = [[(c_f + c_r)/(m v),       (a c_f - b c_r)/(m v^2) - 1],
+             [(a c_f - b c_r)/Izz,     (a^2 c_f + b^2 c_r)/(Izz v)]]
+        B = [[-c_f/(m v)], [-a c_f/Izz]]
+    For identical tires this is the seed's 2BCD, BCD(a-b), BCD(a^2+b^2) form.
+
+    Parameters
+    ----------
+    v : float
+        Linearisation speed [m/s], > 0.
+    """
+    if v <= 0:
+        raise ValueError(f"linearisation speed must be > 0 m/s, got {v}")
+    cf = tires.front.B * tires.front.C * tires.front.D
+    cr = tires.rear.B * tires.rear.C * tires.rear.D
+    m, izz, a, b = veh.m, veh.Izz, veh.a, veh.b
+    A = np.array([
+        [(cf + cr) / (m * v), (a * cf - b * cr) / (m * v * v) - 1.0],
+        [(a * cf - b * cr) / izz, (a * a * cf + b * b * cr) / (izz * v)],
+    ])
+    B = np.array([[-cf / (m * v)], [-a * cf / izz]])
+    return A, B
+
+
+def full_ab(v: float, veh: VehicleParams, tires: Tires) -> tuple[np.ndarray, np.ndarray]:
+    """A (3x3) and B (3x2) of eq (3.29) for state [v, beta, psi dot] and input [delta, a_r].
+
+    Same physics as :func:`lateral_ab`; v dot = a_r (3.26).
+    """
+    a2, b2 = lateral_ab(v, veh, tires)
+    A = np.zeros((3, 3))
+    A[1:, 1:] = a2
+    B = np.zeros((3, 2))
+    B[1:, 0] = b2[:, 0]
+    B[0, 1] = 1.0
+    return A, B
+
+
+def understeer_gradient(veh: VehicleParams, tires: Tires) -> float:
+    """K_us = m (b / C_f - a / C_r) / L [rad s^2/m] with C = |B C D| per axle.
+
+    Positive: understeer; negative: oversteer with critical speed sqrt(-L / K_us).
+    """
+    cf = abs(tires.front.B * tires.front.C * tires.front.D)
+    cr = abs(tires.rear.B * tires.rear.C * tires.rear.D)
+    return veh.m * (veh.b / cf - veh.a / cr) / veh.wheelbase
+
+
+def steady_state_yaw_gain(v: float, veh: VehicleParams, tires: Tires) -> float:
+    """Closed-form steady-state yaw-rate gain psi dot / delta = v / (L + K_us v^2) [1/s]."""
+    return v / (veh.wheelbase + understeer_gradient(veh, tires) * v * v)
+
+
+def critical_speed(veh: VehicleParams, tires: Tires) -> float:
+    """Speed at which an oversteering vehicle becomes unstable, sqrt(-L / K_us) [m/s]; inf if K_us >= 0."""
+    k = understeer_gradient(veh, tires)
+    return float(np.sqrt(-veh.wheelbase / k)) if k < 0 else float("inf")

@@ -1,0 +1,213 @@
+"""Vehicle, tire and road parameters with the seed's tables as named presets.
+
+Every field is required and carries its unit. Presets are named after the seed table they
+reproduce (Tables 3.1, 3.2, 3.3, 3.5). Values the seed does not give are marked
+``# ours`` and explained in ``docs/model.md``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+from typing import Literal
+
+import numpy as np
+
+G = 9.81
+"""Gravitational acceleration [m/s^2]."""
+
+
+@dataclass(frozen=True, slots=True)
+class MagicFormula:
+    """Pacejka Magic Formula coefficients, eqs (3.9)-(3.10).
+
+    ``D`` is negative in the seed's sign convention: with alpha = atan(...) - delta (3.7),
+    a positive slip angle gives a negative (restoring) cornering force.
+    """
+
+    B: float  # stiffness factor [1/rad]
+    C: float  # shape factor [-]
+    D: float  # peak factor [N] (negative, see above)
+    E: float  # curvature factor [-]
+
+
+MF_SEED = MagicFormula(B=8.22, C=1.65, D=-1.7e4, E=-10.0)
+"""Table 3.2: the seed's tire, identical front and rear, D independent of load and road."""
+
+
+SURFACES: dict[str, float] = {
+    "good_dry": 1.00,
+    "good_wet": 0.90,
+    "poor_dry": 0.80,
+    "poor_wet": 0.60,
+    "ice": 0.25,
+}
+"""Table 3.3: maximum coefficient of road adhesion mu [-] by pavement condition."""
+
+
+@dataclass(frozen=True, slots=True)
+class VehicleParams:
+    """Chassis parameters of the single-track model (Tables 3.1, 3.5) and its limits."""
+
+    m: float  # mass [kg]
+    Izz: float  # yaw moment of inertia [kg m^2]
+    a: float  # CoG to front axle [m]
+    b: float  # CoG to rear axle [m]
+    h: float  # CoG height [m] (eq 3.14)
+    length: float  # body length, bumper to bumper [m]
+    width: float  # body width [m]
+    front_overhang: float  # front axle to front bumper [m]
+    steer_max: float  # steering angle limit [rad]
+    steer_rate_max: float  # steering rate limit [rad/s]
+    color: tuple[int, int, int]  # RGB shown in SUMO
+
+    @property
+    def wheelbase(self) -> float:
+        """a + b [m]."""
+        return self.a + self.b
+
+    @property
+    def cog_to_front_bumper(self) -> float:
+        """Distance from the centre of gravity to the front bumper [m]."""
+        return self.a + self.front_overhang
+
+
+PASSENGER_CAR = VehicleParams(
+    m=1480.0, Izz=1950.0, a=1.421, b=1.029,  # Table 3.1
+    h=0.55,  # section 3.1.4
+    length=4.6, width=1.8, front_overhang=0.9,  # ours: a mid-size sedan
+    steer_max=np.deg2rad(35.0), steer_rate_max=np.deg2rad(30.0),  # ours, road-wheel angle
+    color=(30, 144, 255),
+)
+"""Table 3.1 passenger car (body size, CoG height and steering limits: see docs/model.md)."""
+
+SMALL_TRUCK = VehicleParams(
+    m=7490.0, Izz=4700.0, a=1.7, b=2.55,  # Table 3.5
+    h=1.0,  # ours: the seed gives no CoG height for the truck
+    length=7.5, width=2.3, front_overhang=1.3,  # ours: a 7.5 t box truck
+    steer_max=np.deg2rad(35.0), steer_rate_max=np.deg2rad(20.0),  # ours
+    color=(255, 140, 0),
+)
+"""Table 3.5 small truck (CoG height, body size and steering limits: see docs/model.md)."""
+
+VEHICLE_PRESETS: dict[str, VehicleParams] = {
+    "passenger_car": PASSENGER_CAR,
+    "small_truck": SMALL_TRUCK,
+}
+
+TireKind = Literal["seed", "load"]
+"""``seed``: Table 3.2 as given (constant D). ``load``: D = -mu * axle load (eq 3.11)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Tires:
+    """Front and rear Magic Formula plus how cornering force is evaluated."""
+
+    front: MagicFormula
+    rear: MagicFormula
+    linear: bool  # True: linearised tire F = B C D alpha (eq 3.12)
+
+
+def axle_loads(veh: VehicleParams) -> tuple[float, float]:
+    """Static front and rear axle loads [N]: m g b / L and m g a / L."""
+    w = veh.m * G
+    return w * veh.b / veh.wheelbase, w * veh.a / veh.wheelbase
+
+
+def make_tires(veh: VehicleParams, mu: float, kind: TireKind = "load",
+               linear: bool = False, base: MagicFormula = MF_SEED) -> Tires:
+    """Build the tire pair for a vehicle on a road of adhesion ``mu``.
+
+    ``kind="seed"`` returns Table 3.2 on both axles (D = -1.7e4 N whatever the load and road).
+    ``kind="load"`` keeps B, C, E of ``base`` and sets D = -mu * axle load per axle
+    (eq 3.11 applied to the static axle load), so the peak force scales with the road.
+    """
+    if kind == "seed":
+        return Tires(base, base, linear)
+    if kind == "load":
+        fz_f, fz_r = axle_loads(veh)
+        return Tires(replace(base, D=-mu * fz_f), replace(base, D=-mu * fz_r), linear)
+    raise ValueError(f"tire kind must be 'seed' or 'load', got {kind!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class LowSpeedBlend:
+    """Blend from the dynamic to the kinematic single-track model at low speed.
+
+    Below ``v_low`` the kinematic bicycle is used alone, above ``v_high`` the dynamic
+    model alone, in between a smoothstep of v. ``tau`` is the relaxation time with which
+    side slip and yaw rate are pulled to their kinematic values; ``v_stop`` is the speed
+    below which braking fades out so that v never goes negative.
+    """
+
+    v_low: float  # [m/s]
+    v_high: float  # [m/s]
+    tau: float  # [s]
+    v_stop: float  # [m/s]
+
+
+LOW_SPEED_DEFAULT = LowSpeedBlend(v_low=1.0, v_high=3.0, tau=0.05, v_stop=0.2)
+
+
+@dataclass(frozen=True, slots=True)
+class BicycleParams:
+    """Everything the dynamic bicycle right-hand side needs.
+
+    Fields are floats for one vehicle, or arrays of shape (n,) for a mixed fleet
+    (see :func:`stack`); all formulas broadcast.
+    """
+
+    m: float | np.ndarray  # [kg]
+    Izz: float | np.ndarray  # [kg m^2]
+    a: float | np.ndarray  # [m]
+    b: float | np.ndarray  # [m]
+    h: float | np.ndarray  # [m]
+    mu: float | np.ndarray  # road adhesion [-]
+    Bf: float | np.ndarray  # front MF B [1/rad]
+    Cf: float | np.ndarray  # front MF C [-]
+    Df: float | np.ndarray  # front MF D [N]
+    Ef: float | np.ndarray  # front MF E [-]
+    Br: float | np.ndarray  # rear MF B [1/rad]
+    Cr: float | np.ndarray  # rear MF C [-]
+    Dr: float | np.ndarray  # rear MF D [N]
+    Er: float | np.ndarray  # rear MF E [-]
+    linear_tire: bool  # eq 3.12 instead of 3.9-3.10
+    steer_max: float | np.ndarray  # [rad]
+    steer_rate_max: float | np.ndarray  # [rad/s]
+    v_low: float  # [m/s] see LowSpeedBlend
+    v_high: float  # [m/s]
+    tau: float  # [s]
+    v_stop: float  # [m/s]
+
+
+def bicycle_params(veh: VehicleParams, mu: float, tires: Tires,
+                   blend: LowSpeedBlend = LOW_SPEED_DEFAULT) -> BicycleParams:
+    """Flatten chassis, road, tires and low-speed blend into one :class:`BicycleParams`."""
+    f, r = tires.front, tires.rear
+    return BicycleParams(
+        m=veh.m, Izz=veh.Izz, a=veh.a, b=veh.b, h=veh.h, mu=mu,
+        Bf=f.B, Cf=f.C, Df=f.D, Ef=f.E, Br=r.B, Cr=r.C, Dr=r.D, Er=r.E,
+        linear_tire=tires.linear,
+        steer_max=veh.steer_max, steer_rate_max=veh.steer_rate_max,
+        v_low=blend.v_low, v_high=blend.v_high, tau=blend.tau, v_stop=blend.v_stop,
+    )
+
+
+_SHARED = ("linear_tire", "v_low", "v_high", "tau", "v_stop")
+
+
+def stack(params: list[BicycleParams]) -> BicycleParams:
+    """Stack per-vehicle parameters into one set with (n,) arrays, for a mixed fleet.
+
+    The tire law and the low-speed blend must be the same for all vehicles.
+    """
+    first = params[0]
+    for p in params[1:]:
+        for name in _SHARED:
+            if getattr(p, name) != getattr(first, name):
+                raise ValueError(f"all members must share {name}")
+    values = {}
+    for f in fields(BicycleParams):
+        if f.name in _SHARED:
+            values[f.name] = getattr(first, f.name)
+        else:
+            values[f.name] = np.array([getattr(p, f.name) for p in params], dtype=float)
+    return BicycleParams(**values)

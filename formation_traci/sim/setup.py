@@ -1,0 +1,88 @@
+"""Turn a validated Scenario into the runtime objects: parameters, fleet, leader."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..control.formation import LeaderState, rigid_targets
+from ..control.schedule import GAIN_PRESETS, GainSchedule
+from ..models.params import (SURFACES, VEHICLE_PRESETS, VehicleParams, bicycle_params,
+                             make_tires, stack)
+from ..scenario.schema import GainSpec, ProfileSpec, Scenario
+from .fleet import FleetConfig, FleetState, initial_state
+from .leader import FreeLeader
+from .profile import Profile
+
+
+def road_mu(sc: Scenario) -> float:
+    """Road adhesion [-]: vehicle.mu if given, else Table 3.3 for vehicle.surface."""
+    return sc.vehicle.mu if sc.vehicle.mu is not None else SURFACES[sc.vehicle.surface]
+
+
+def vehicle_params(sc: Scenario) -> VehicleParams:
+    """The preset chassis with the scenario's overrides applied."""
+    veh = VEHICLE_PRESETS[sc.vehicle.preset]
+    o = sc.vehicle.params
+    changes = {k: v for k, v in o.model_dump().items()
+               if v is not None and k not in ("steer_max_deg", "steer_rate_max_deg_s")}
+    if o.steer_max_deg is not None:
+        changes["steer_max"] = float(np.deg2rad(o.steer_max_deg))
+    if o.steer_rate_max_deg_s is not None:
+        changes["steer_rate_max"] = float(np.deg2rad(o.steer_rate_max_deg_s))
+    return replace(veh, **changes)
+
+
+def gain_schedule(spec: str | GainSpec) -> GainSchedule:
+    if isinstance(spec, str):
+        return GAIN_PRESETS[spec]
+    return GainSchedule(spec.g_min, spec.g_max, spec.k_min)
+
+
+def profile(spec, scale: float = 1.0) -> Profile:
+    """A scenario signal (constant or ProfileSpec) as a Profile, values times ``scale``."""
+    if isinstance(spec, ProfileSpec):
+        return Profile(tuple(spec.t), tuple(v * scale for v in spec.values), spec.interp)
+    return Profile.constant(spec * scale)
+
+
+def build_fleet(sc: Scenario) -> FleetConfig:
+    veh = vehicle_params(sc)
+    mu = road_mu(sc)
+    params = None
+    if sc.vehicle.model == "dynamic":
+        tires = make_tires(veh, mu, sc.vehicle.tire, linear=sc.vehicle.tire_law == "linear")
+        params = stack([bicycle_params(veh, mu, tires)] * len(sc.members))
+    ctl = sc.controller
+    return FleetConfig(
+        ids=tuple(m.id for m in sc.members),
+        model=sc.vehicle.model,
+        params=params,
+        k=np.array([m.k if m.k is not None else ctl.k for m in sc.members]),
+        k_theta=np.array([m.k_theta if m.k_theta is not None else ctl.k_theta for m in sc.members]),
+        speed_gains=gain_schedule(ctl.speed_gains),
+        yaw_gains=gain_schedule(ctl.yaw_gains),
+        physics_step=sc.run.physics_step,
+    )
+
+
+def build_free_leader(sc: Scenario) -> tuple[FreeLeader, tuple[float, float, float]]:
+    ld = sc.leader
+    leader = FreeLeader(profile(ld.speed), profile(ld.yaw_rate_deg_s, np.pi / 180.0),
+                        sc.run.physics_step)
+    return leader, (ld.x, ld.y, float(np.deg2rad(ld.heading_deg)))
+
+
+def offsets(sc: Scenario) -> np.ndarray:
+    """(n, 2) offsets (d_x, d_y) [m] of the members in the virtual car frame."""
+    return np.array([m.offset for m in sc.members], dtype=float)
+
+
+def build_initial_state(sc: Scenario, cfg: FleetConfig, vc: LeaderState) -> FleetState:
+    pos = np.array([m.position for m in sc.members], dtype=float)
+    heading = np.array([np.deg2rad(m.heading_deg) if m.heading_deg is not None else vc.theta
+                        for m in sc.members])
+    speed = np.array([m.speed if m.speed is not None else vc.v for m in sc.members])
+    yaw_rate = np.deg2rad([m.yaw_rate_deg_s for m in sc.members])
+    steer = np.deg2rad([m.steer_deg for m in sc.members])
+    return initial_state(cfg, pos, heading, speed, yaw_rate, steer, rigid_targets(vc, offsets(sc)))
