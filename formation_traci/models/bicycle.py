@@ -166,8 +166,8 @@ def rhs(x, u, p: BicycleParams):
 
     w = _blend_weight(v, p)
     v_dot = w * v_dot_dyn + (1.0 - w) * v_dot_kin
-    # braking fades out below v_stop so that v never turns negative (no reversing)
-    v_dot = np.where(v_dot < 0.0, v_dot * np.clip(v / p.v_stop, 0.0, 1.0), v_dot)
+    # near standstill braking is capped at v / tau_stop: an exponential stop, no reversing
+    v_dot = np.maximum(v_dot, -np.maximum(v, 0.0) / p.tau_stop)
 
     dx = np.empty_like(x)
     course = psi + beta

@@ -134,17 +134,18 @@ class LowSpeedBlend:
 
     Below ``v_low`` the kinematic bicycle is used alone, above ``v_high`` the dynamic
     model alone, in between a smoothstep of v. ``tau`` is the relaxation time with which
-    side slip and yaw rate are pulled to their kinematic values; ``v_stop`` is the speed
-    below which braking fades out so that v never goes negative.
+    side slip and yaw rate are pulled to their kinematic values. Braking deceleration is
+    capped at v / ``tau_stop`` so that the car comes to rest exponentially and never
+    reverses (an RK4 step cannot overshoot through v = 0).
     """
 
     v_low: float  # [m/s]
     v_high: float  # [m/s]
     tau: float  # [s]
-    v_stop: float  # [m/s]
+    tau_stop: float  # [s]
 
 
-LOW_SPEED_DEFAULT = LowSpeedBlend(v_low=1.0, v_high=3.0, tau=0.05, v_stop=0.2)
+LOW_SPEED_DEFAULT = LowSpeedBlend(v_low=1.0, v_high=3.0, tau=0.05, tau_stop=0.05)
 
 
 @dataclass(frozen=True, slots=True)
@@ -175,7 +176,7 @@ class BicycleParams:
     v_low: float  # [m/s] see LowSpeedBlend
     v_high: float  # [m/s]
     tau: float  # [s]
-    v_stop: float  # [m/s]
+    tau_stop: float  # [s]
 
 
 def bicycle_params(veh: VehicleParams, mu: float, tires: Tires,
@@ -187,11 +188,11 @@ def bicycle_params(veh: VehicleParams, mu: float, tires: Tires,
         Bf=f.B, Cf=f.C, Df=f.D, Ef=f.E, Br=r.B, Cr=r.C, Dr=r.D, Er=r.E,
         linear_tire=tires.linear,
         steer_max=veh.steer_max, steer_rate_max=veh.steer_rate_max,
-        v_low=blend.v_low, v_high=blend.v_high, tau=blend.tau, v_stop=blend.v_stop,
+        v_low=blend.v_low, v_high=blend.v_high, tau=blend.tau, tau_stop=blend.tau_stop,
     )
 
 
-_SHARED = ("linear_tire", "v_low", "v_high", "tau", "v_stop")
+_SHARED = ("linear_tire", "v_low", "v_high", "tau", "tau_stop")
 
 
 def stack(params: list[BicycleParams]) -> BicycleParams:
