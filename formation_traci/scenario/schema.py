@@ -13,6 +13,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
+Pair = Annotated[list[Finite], Field(min_length=2, max_length=2)]
 
 
 class Strict(BaseModel):
@@ -128,8 +129,8 @@ class LeaderSpec(Strict):
 
 class MemberSpec(Strict):
     id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$")
-    offset: tuple[Finite, Finite] = Field(description="(d_x, d_y) in the virtual car frame [m], eq 2.4")
-    position: tuple[Finite, Finite] = Field(description="initial centre of gravity (x, y) [m]")
+    offset: Pair = Field(description="[d_x, d_y] in the virtual car frame [m], eq 2.4")
+    position: Pair = Field(description="initial centre of gravity [x, y] [m]")
     heading_deg: Finite | None = Field(None, description="initial heading [deg]; default the leader's")
     speed: NonNegFloat | None = Field(None, description="initial speed [m/s]; default the leader's")
     yaw_rate_deg_s: Finite = Field(0.0, description="initial yaw rate [deg/s] (dynamic model)")
