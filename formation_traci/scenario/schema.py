@@ -115,8 +115,13 @@ class LeaderSpec(Strict):
     x: Finite = Field(0.0, description="initial x [m]")
     y: Finite = Field(0.0, description="initial y [m]")
     heading_deg: Finite = Field(0.0, description="initial heading [deg], counter-clockwise from +x")
-    speed: Signal = Field(description="speed [m/s]: constant or profile")
-    yaw_rate_deg_s: Signal = Field(0.0, description="yaw rate [deg/s]: constant or profile")
+    speed: Signal = Field(description="speed [m/s]: constant or profile (on a road: the set speed)")
+    yaw_rate_deg_s: Signal = Field(0.0, description="yaw rate [deg/s]: constant or profile (free space only)")
+    time_gap: PosFloat = Field(1.5, description="time gap every member keeps to the vehicle ahead [s] (road)")
+    min_gap: PosFloat = Field(2.0, description="standstill gap to the vehicle ahead [m] (road)")
+    accel_max: PosFloat = Field(1.5, description="largest acceleration of the virtual car [m/s^2] (road)")
+    decel_max: PosFloat = Field(3.0, description="comfortable deceleration of the virtual car [m/s^2] (road)")
+    decel_emergency: PosFloat = Field(7.0, description="deceleration allowed to avoid a collision [m/s^2] (road)")
 
     @field_validator("speed")
     @classmethod
@@ -127,16 +132,85 @@ class LeaderSpec(Strict):
         return v
 
 
+class SlotSpec(Strict):
+    """A slot in road coordinates: along the reference lane and across it (left positive)."""
+
+    along: Finite = Field(0.0, description="arc length ahead of the virtual car [m]")
+    across: Finite | None = Field(None, description="lateral offset from the reference lane centre [m]")
+    lanes: int | None = Field(None, description="lateral offset in lanes from the reference lane (+1 = one lane left)")
+
+    @model_validator(mode="after")
+    def _one_lateral(self):
+        if (self.across is None) == (self.lanes is None):
+            raise ValueError("give exactly one of 'across' [m] or 'lanes'")
+        return self
+
+
 class MemberSpec(Strict):
     id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$")
-    offset: Pair = Field(description="[d_x, d_y] in the virtual car frame [m], eq 2.4")
-    position: Pair = Field(description="initial centre of gravity [x, y] [m]")
+    offset: Pair | None = Field(None, description="[d_x, d_y] in the virtual car frame [m], eq 2.4")
+    slot: SlotSpec | None = Field(None, description="slot in road coordinates (road scenarios)")
+    position: Pair | None = Field(None, description="initial centre of gravity [x, y] [m]; on a road default: the slot")
     heading_deg: Finite | None = Field(None, description="initial heading [deg]; default the leader's")
     speed: NonNegFloat | None = Field(None, description="initial speed [m/s]; default the leader's")
     yaw_rate_deg_s: Finite = Field(0.0, description="initial yaw rate [deg/s] (dynamic model)")
     steer_deg: Finite = Field(0.0, description="initial steering angle [deg] (dynamic model)")
     k: PosFloat | None = Field(None, description="per-member override of controller.k")
     k_theta: PosFloat | None = Field(None, description="per-member override of controller.k_theta")
+
+    @model_validator(mode="after")
+    def _one_slot(self):
+        if (self.offset is None) == (self.slot is None):
+            raise ValueError("give exactly one of 'offset' (virtual car frame) or 'slot' (road frame)")
+        return self
+
+
+class RoadSpec(Strict):
+    """The SUMO road the virtual car drives along (its presence makes the run a SUMO run)."""
+
+    net: str = Field(description="bundled network name (sumo_nets/) or a .net.xml path relative to the scenario file")
+    route: list[str] | None = Field(None, min_length=1, description="edges of the main route; default: the network's main route")
+    lane: int = Field(1, ge=0, description="reference lane index the virtual car follows (0 = rightmost)")
+    start: NonNegFloat = Field(200.0, description="virtual car's arc length along the route at t = 0 [m]")
+    end_margin: NonNegFloat = Field(150.0, description="the run stops when the formation's front is this close to the route end [m]")
+
+
+class FlowSpec(Strict):
+    id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$")
+    route: list[str] | None = Field(None, min_length=1, description="edges; default: the main route")
+    veh_per_hour_per_lane: PosFloat | None = Field(None, description="demand per lane of the first edge [veh/h]")
+    veh_per_hour: PosFloat | None = Field(None, description="total demand [veh/h]")
+    depart_lane: Literal["best", "random", "free", "allowed"] | Annotated[int, Field(ge=0)] = "best"
+    depart_speed: Literal["desired", "max", "avg", "random"] | NonNegFloat = "desired"
+    begin: NonNegFloat = Field(0.0, description="SUMO time the flow starts [s] (warm-up included)")
+    end: PosFloat | None = Field(None, description="SUMO time the flow ends [s]; default: end of the run")
+    mix: dict[Literal["car", "truck"], Annotated[float, Field(ge=0, le=1)]] = Field(
+        default_factory=lambda: {"car": 0.85, "truck": 0.15}, description="vehicle type shares, summing to 1")
+    speed_dev: NonNegFloat = Field(0.1, le=0.5, description="spread of the speed factor (normal, mean 1) [-]")
+
+    @model_validator(mode="after")
+    def _demand(self):
+        if (self.veh_per_hour is None) == (self.veh_per_hour_per_lane is None):
+            raise ValueError("give exactly one of 'veh_per_hour' or 'veh_per_hour_per_lane'")
+        if abs(sum(self.mix.values()) - 1.0) > 1e-9:
+            raise ValueError(f"mix shares must sum to 1 (got {sum(self.mix.values())})")
+        return self
+
+
+class TrafficSpec(Strict):
+    flows: list[FlowSpec] = Field(default_factory=list)
+    warmup: NonNegFloat = Field(0.0, description="SUMO time simulated before the formation is inserted [s]")
+    record_radius: PosFloat | None = Field(300.0, description="record background vehicles within this distance of a member [m]; omit for all")
+
+
+class SumoSpec(Strict):
+    backend: Literal["libsumo", "traci"] = "libsumo"
+    gui: bool = Field(False, description="run sumo-gui (traci backend only)")
+    lateral_resolution: PosFloat = Field(0.8, description="sublane width [m] (--lateral-resolution)")
+    ssm: bool = Field(True, description="SSM device on every vehicle (TTC, DRAC, PET)")
+    fcd: bool = Field(False, description="also write SUMO's FCD output (Parquet)")
+    friction_device: bool = Field(True, description="SUMO's cars slow down on low-friction lanes (device.friction)")
+    options: list[str] = Field(default_factory=list, description="extra SUMO command-line options")
 
 
 class Scenario(Strict):
@@ -147,6 +221,26 @@ class Scenario(Strict):
     controller: ControllerSpec = ControllerSpec()
     leader: LeaderSpec
     members: list[MemberSpec] = Field(min_length=1, description="at least one member")
+    road: RoadSpec | None = Field(None, description="SUMO road; without it the run is in free space")
+    traffic: TrafficSpec = TrafficSpec()
+    sumo: SumoSpec = SumoSpec()
+
+    @model_validator(mode="after")
+    def _world_rules(self):
+        if self.road is None:
+            bad = [f"members.{i}" for i, m in enumerate(self.members) if m.slot is not None or m.position is None]
+            if bad:
+                raise ValueError(f"free-space scenarios need 'offset' and 'position' for every member ({', '.join(bad)}); "
+                                 "road slots need a [road] table")
+            if self.traffic.flows:
+                raise ValueError("traffic flows need a [road] table")
+        else:
+            if self.leader.yaw_rate_deg_s != 0.0:
+                raise ValueError("on a road the virtual car's yaw rate comes from the road: remove leader.yaw_rate_deg_s")
+        ids = [f.id for f in self.traffic.flows]
+        if len(set(ids)) != len(ids):
+            raise ValueError("flow ids must be unique")
+        return self
 
     @model_validator(mode="after")
     def _unique_ids(self):
