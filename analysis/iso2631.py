@@ -396,10 +396,10 @@ def weighted_rms(a, dt: float, axis: int = -1, p: WeightingParams = WD) -> Weigh
             f"sample rate {fs:g} Hz: the digital Wd is within {WD_TOLERANCE:.0%} of "
             f"ISO 2631-1 Annex A only up to {f_valid:.3g} Hz, below the required "
             f"{WD_MIN_UPPER_HZ:g} Hz (needs fs >= {min_sample_rate(WD_MIN_UPPER_HZ, p):.0f} Hz)")
-    duration = a.shape[axis] * dt
-    if duration < MIN_DURATION_S:
-        return _none(f"record of {duration:g} s is shorter than the {MIN_DURATION_S:g} s "
-                     "needed for a weighted r.m.s.")
+    n = a.shape[axis]
+    if n * dt < MIN_DURATION_S * (1.0 - 1e-9):
+        return _none(f"record of {n} samples ({n * dt:.4g} s) is shorter than the "
+                     f"{MIN_DURATION_S:g} s needed for a weighted r.m.s.")
     n_bad = int(np.count_nonzero(~np.isfinite(a)))
     if n_bad:
         return _none(f"{n_bad} non-finite samples: the weighting filter needs a "

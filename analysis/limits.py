@@ -71,8 +71,9 @@ def exceedance(mask, dt: float, axis: int = -1) -> Exceedance:
 
     Examples
     --------
-    >>> exceedance([False, True, True, False, True], 0.1)
-    Exceedance(time_s=0.30000000000000004, episodes=np.int64(2))
+    >>> r = exceedance([False, True, True, False, True], 0.5)
+    >>> float(r.time_s), r.episodes
+    (1.5, 2)
     """
     m = np.asarray(mask, dtype=bool)
     return Exceedance(time_where(m, dt, axis=axis), count_episodes(m, axis=axis))

@@ -170,7 +170,7 @@ def count_episodes(mask, axis: int = -1):
     if m.shape[-1] == 0:
         return np.zeros(m.shape[:-1], dtype=int) if m.ndim > 1 else 0
     starts = m[..., 0].astype(int) + np.count_nonzero(m[..., 1:] & ~m[..., :-1], axis=-1)
-    return starts
+    return int(starts) if np.ndim(starts) == 0 else starts
 
 
 def contiguous_segments(t, dt: float, gap_factor: float = 1.5) -> list[slice]:

@@ -32,7 +32,7 @@ def run(
     try:
         sc = load_scenario(scenario, **{"run.duration": duration, "run.seed": seed,
                                         "vehicle.model": model})
-        res = run_scenario(sc, out, scenario_path=str(scenario), force=force, progress=progress)
+        res = run_scenario(sc, out, scenario_path=scenario, force=force, progress=progress)
     except (ScenarioError, RunDirExists) as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2)
@@ -40,6 +40,45 @@ def run(
                + (f"\nreason: {res.reason}" if res.reason else ""))
     if res.status != "completed":
         raise typer.Exit(1 if res.status == "failed" else 130)
+
+
+@app.command()
+def analyze(
+    run_dir: Path = typer.Argument(..., help="run directory (run.json, trajectories.parquet)"),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="where to write; default RUN_DIR"),
+    figures: bool = typer.Option(True, "--figures/--no-figures", help="write PNG figures and report.html"),
+) -> None:
+    """Compute metrics of a recorded run: metrics.json, metrics.csv, figures/, report.html."""
+    from analysis.api import analyze_run
+    from analysis.load import NoTrajectoryData
+
+    try:
+        res = analyze_run(run_dir, out, figures=figures)
+    except NoTrajectoryData as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2)
+    for name, path in res.files.items():
+        typer.echo(f"{name}: {path}")
+    if len(res.issues):
+        typer.echo(f"{len(res.issues)} issue(s) noted in metrics.json (missing or damaged data)")
+
+
+@app.command()
+def compare(
+    run_dirs: list[Path] = typer.Argument(..., help="two or more run directories"),
+    out: Path = typer.Option(..., "--out", "-o", help="directory for compare.csv, figures and report.html"),
+) -> None:
+    """Overlay several runs (e.g. kinematic vs dynamic model) and tabulate key metrics."""
+    from analysis.api import compare_runs
+    from analysis.load import NoTrajectoryData
+
+    try:
+        res = compare_runs(run_dirs, out)
+    except NoTrajectoryData as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2)
+    for name, path in res.files.items():
+        typer.echo(f"{name}: {path}")
 
 
 def main() -> None:  # pragma: no cover

@@ -46,6 +46,10 @@ TRAJECTORY_COLUMNS: tuple[Column, ...] = (
     Column("traction_force", "float64", "N", "applied longitudinal force F_lf, eq 3.13 after clipping"),
     Column("traction_force_max", "float64", "N", "adhesion limit of the driven axle, eq 3.14"),
     Column("friction_usage", "float64", "-", "sqrt(a_lon^2 + a_lat^2) / (mu g); above 1 violates eq 3.16"),
+    Column("s", "float64", "m", "arc length of the CoG along the road's reference line (road runs)"),
+    Column("d", "float64", "m", "lateral offset of the CoG from the reference line, left positive (road runs)"),
+    Column("lane_index", "float64", "-", "SUMO lane index the member is on, 0 = rightmost (SUMO runs)"),
+    Column("sumo_gap", "float64", "m", "distance between our CoG and the CoG SUMO reports (SUMO runs)"),
 )
 """Columns of ``trajectories.parquet``: one row per vehicle per recorded step.
 
@@ -56,3 +60,46 @@ car has no controller) are NaN.
 TRAJECTORY_FLOAT_COLUMNS: tuple[str, ...] = tuple(
     c.name for c in TRAJECTORY_COLUMNS if c.dtype == "float64"
 )
+
+
+EVENT_COLUMNS: tuple[Column, ...] = (
+    Column("t", "float64", "s", "simulated time (formation clock)"),
+    Column("kind", "string", "-", "collision | teleport | member_removed | move_refused | lane_change | "
+                                  "cut_in | cleared_at_insertion | emergency_brake | end_of_road | sumo_error"),
+    Column("vehicle_id", "string", "-", "the vehicle the event is about"),
+    Column("other_id", "string", "-", "the other vehicle involved, or empty"),
+    Column("detail", "string", "-", "free text"),
+)
+"""Columns of ``events.parquet``: one row per event."""
+
+BACKGROUND_COLUMNS: tuple[Column, ...] = (
+    Column("t", "float64", "s", "simulated time (formation clock)"),
+    Column("vehicle_id", "string", "-", "SUMO vehicle id"),
+    Column("type", "string", "-", "SUMO vType id"),
+    Column("x", "float64", "m", "centre of the body"),
+    Column("y", "float64", "m", "centre of the body"),
+    Column("heading", "float64", "rad", "counter-clockwise from +x"),
+    Column("v", "float64", "m/s", "speed"),
+    Column("a", "float64", "m/s^2", "longitudinal acceleration"),
+    Column("length", "float64", "m", "body length"),
+    Column("width", "float64", "m", "body width"),
+    Column("lane", "string", "-", "SUMO lane id"),
+    Column("lane_index", "int32", "-", "SUMO lane index, 0 = rightmost"),
+    Column("s", "float64", "m", "arc length of the centre along the reference line"),
+    Column("d", "float64", "m", "lateral offset of the centre from the reference line, left positive"),
+)
+"""Columns of ``background.parquet``: SUMO's vehicles near the formation, one row per vehicle per step."""
+
+SSM_COLUMNS: tuple[Column, ...] = (
+    Column("begin", "float64", "s", "encounter start (formation clock)"),
+    Column("end", "float64", "s", "encounter end (formation clock)"),
+    Column("ego", "string", "-", "vehicle carrying the SSM device"),
+    Column("foe", "string", "-", "other vehicle"),
+    Column("member_involved", "bool", "-", "ego or foe is a formation member"),
+    Column("min_ttc", "float64", "s", "minimum time to collision (NaN if undefined)"),
+    Column("min_ttc_time", "float64", "s", "when min_ttc occurred"),
+    Column("max_drac", "float64", "m/s^2", "maximum deceleration rate to avoid a crash"),
+    Column("max_drac_time", "float64", "s", "when max_drac occurred"),
+    Column("pet", "float64", "s", "post-encroachment time (crossing/merging conflicts)"),
+)
+"""Columns of ``ssm.parquet``: SUMO's SSM device conflicts, converted from its XML output."""

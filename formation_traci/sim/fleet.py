@@ -7,7 +7,7 @@ scheduled speed (3.32-3.34) and steering-rate (3.35-3.38) loops; the input is he
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -78,19 +78,27 @@ def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, target
     return FleetState(x, theta0, np.asarray(speed, dtype=float) * np.ones(n))
 
 
-def control(cfg: FleetConfig, state: FleetState, targets: Targets):
+def control(cfg: FleetConfig, state: FleetState, targets: Targets, v_cap=None, a_cap=None):
     """Controller evaluation at one sampling instant.
 
     Returns the input to hold, shape (n, 2), and the formation controller's output.
+    Traffic safety layer (not in the seed, docs/model.md): ``v_cap`` (n,) [m/s] caps the
+    speed reference and ``a_cap`` (n,) [m/s^2] the desired acceleration a_r of (3.32), so
+    a member keeps its time gap to a vehicle ahead even where the scheduled gain (3.34)
+    would brake too gently.
     """
     pos, vel, heading = kinematics(cfg, state)
     fo = formation_control(targets, pos, vel, heading, state.theta_star, cfg.k, cfg.k_theta)
+    if v_cap is not None:
+        fo = replace(fo, v_ref=np.minimum(fo.v_ref, v_cap))
     u = np.empty((cfg.n, 2))
     if cfg.model == "kinematic":
         u[:, KU.V] = fo.v_ref
         u[:, KU.OMEGA] = fo.omega_ref
     else:
         u[:, U.A_REF] = desired_acceleration(fo.v_ref, state.x[:, S.V], cfg.speed_gains)
+        if a_cap is not None:
+            u[:, U.A_REF] = np.minimum(u[:, U.A_REF], a_cap)
         u[:, U.STEER_RATE] = steering_rate(fo.omega_ref, state.x[:, S.R], cfg.yaw_gains)
     return u, fo
 

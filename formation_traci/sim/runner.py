@@ -20,15 +20,15 @@ from pathlib import Path
 
 import numpy as np
 
+from typing import Iterator
+
 from ..control.formation import rigid_targets
-from ..record.columns import TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID
-from ..record.writer import ChunkedTable, atomic_write_json
+from ..record.writer import atomic_write_json
+from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
 from . import fleet as fl
+from .recorder import Recorder
 from .setup import build_fleet, build_free_leader, build_initial_state, offsets, road_mu
-
-STEPS_PER_CHUNK = 1200
-"""Outer steps per Parquet part file (60 s of simulated time at the default 0.05 s step)."""
 
 
 class RunDirExists(FileExistsError):
@@ -108,7 +108,10 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
         "mu": road_mu(sc),
         "record_step": sc.run.step,
         "duration": sc.run.duration,
-        "members": [{"id": m.id, "offset": list(m.offset), "frame": "vehicle"} for m in sc.members],
+        "members": [{"id": m.id,
+                     "offset": list(m.offset) if m.offset is not None else [m.slot.along, m.slot.across],
+                     "lanes": None if m.slot is None else m.slot.lanes,
+                     "frame": "vehicle" if m.offset is not None else "road"} for m in sc.members],
         "versions": versions(),
         "started": _now(),
         "finished": None,
@@ -117,68 +120,86 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
     }
 
 
-def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | None = None,
-                 force: bool = False, progress: bool = True) -> RunResult:
-    """Run ``sc`` in free space and record it under ``out_dir``.
-
-    Writes ``run.json`` (status ``running`` at once, updated at every part file and at the
-    end) and the ``trajectories.parquet`` dataset. Never raises for a failure inside the
-    run: the status says ``failed`` with the reason, and all rows recorded so far are kept.
-    """
-    out_dir = prepare_out_dir(out_dir, force)
-    meta = run_meta(sc, scenario_path)
-    meta_path = out_dir / "run.json"
-    atomic_write_json(meta_path, meta)
-
+def free_space_steps(sc: Scenario, rec: Recorder, meta: dict) -> Iterator[tuple[int, float]]:
+    """Simulate ``sc`` in free space; yields (step index, time [s]) after recording each step."""
     run = sc.run
     n_steps = int(round(run.duration / run.step))
     n_ctrl = int(round(run.step / run.control_step))
     dt_c = run.step / n_ctrl
     ids = [m.id for m in sc.members]
-    n = len(ids)
-    table = ChunkedTable(out_dir / "trajectories.parquet", TRAJECTORY_COLUMNS,
-                         chunk_rows=(n + 1) * STEPS_PER_CHUNK, labels=ids + [VIRTUAL_CAR_ID])
-    member_codes = np.arange(n, dtype=np.int32)
-    vc_code = n
+    cfg = build_fleet(sc)
+    leader, pose = build_free_leader(sc)
+    d = offsets(sc)
+    state = build_initial_state(sc, cfg, leader.sample(0.0, pose))
+    for k in range(n_steps + 1):
+        t = k * run.step
+        for j in range(n_ctrl):
+            tc = t + j * dt_c
+            vc = leader.sample(tc, pose)
+            targets = rigid_targets(vc, d)
+            u, fo = fl.control(cfg, state, targets)
+            if j == 0:
+                rec.add_members(tc, cfg, state, u, fo, targets, vc.theta)
+                rec.add_vc(tc, vc)
+                yield k, tc
+                if k == n_steps:
+                    return
+            state = fl.advance(cfg, state, u, fo, dt_c)
+            pose = leader.advance(tc, pose, dt_c)
+        check_finite(state, ids, t + run.step)
+
+
+def check_finite(state, ids, t):
+    if not np.all(np.isfinite(state.x)):
+        bad = [ids[i] for i in np.flatnonzero(~np.all(np.isfinite(state.x), axis=1))]
+        raise ModelRangeError(f"vehicle state became non-finite for {bad} at t = {t:.3f} s")
+
+
+def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | None = None,
+                 force: bool = False, progress: bool = True) -> RunResult:
+    """Run ``sc`` (free space, or on a SUMO road when it has a [road]) and record it.
+
+    Writes ``run.json`` (status ``running`` at once, updated at every trajectory part file
+    and at the end) and the tables (docs/outputs.md). Never raises for a failure inside
+    the run: the status says ``failed`` with the reason, and all rows recorded so far are
+    kept. ``scenario_path`` resolves relative paths in the scenario (the network file).
+    """
+    src = None if scenario_path is None else Path(scenario_path)
+    plan = None
+    if sc.road is not None:  # road, route, lanes and slots are checked before anything runs
+        from .sumo_loop import prepare
+        plan = prepare(sc, src)
+    out_dir = prepare_out_dir(out_dir, force)
+    meta = run_meta(sc, None if scenario_path is None else str(scenario_path))
+    meta_path = out_dir / "run.json"
+    atomic_write_json(meta_path, meta)
+    rec = Recorder(out_dir, [m.id for m in sc.members], with_sumo=sc.road is not None)
+    n_steps = int(round(sc.run.duration / sc.run.step))
 
     status, reason, t, k = "completed", None, 0.0, 0
     bar = None
+    steps = None
     try:
-        cfg = build_fleet(sc)
-        leader, pose = build_free_leader(sc)
-        d = offsets(sc)
-        state = build_initial_state(sc, cfg, leader.sample(0.0, pose))
+        if sc.road is None:
+            steps = free_space_steps(sc, rec, meta)
+        else:
+            from .sumo_loop import sumo_steps
+            steps = sumo_steps(sc, rec, out_dir, src, meta, plan)
         if progress:
             from tqdm import tqdm
             bar = tqdm(total=n_steps, unit="step", desc=sc.name or "run", mininterval=0.5)
         with stop_on_signals() as stop:
-            for k in range(n_steps + 1):
-                t = k * run.step
-                for j in range(n_ctrl):
-                    tc = t + j * dt_c
-                    vc = leader.sample(tc, pose)
-                    targets = rigid_targets(vc, d)
-                    u, fo = fl.control(cfg, state, targets)
-                    if j == 0:
-                        _record(table, tc, cfg, state, u, fo, targets, vc, member_codes, vc_code)
-                        if table.rows_buffered == 0:  # a part file was just written
-                            _progress_meta(meta_path, meta, tc, k)
-                    if k == n_steps:
-                        break
-                    state = fl.advance(cfg, state, u, fo, dt_c)
-                    pose = leader.advance(tc, pose, dt_c)
-                if k == n_steps:
-                    break
-                if not np.all(np.isfinite(state.x)):
-                    bad = [ids[i] for i in np.flatnonzero(~np.all(np.isfinite(state.x), axis=1))]
-                    raise ModelRangeError(f"vehicle state became non-finite for {bad} "
-                                          f"at t = {t + run.step:.3f} s")
-                if bar is not None:
+            for k, t in steps:
+                if rec.part_written:
+                    _progress_meta(meta_path, meta, t, k)
+                if bar is not None and k > 0:
                     bar.update(1)
                 if stop.is_set():
                     status = "interrupted"
                     reason = f"{getattr(stop, 'signame', 'signal')} received"
                     break
+    except ScenarioError:
+        raise
     except Exception as exc:  # recorded, never lost: the status says what happened
         status = "failed"
         reason = f"{type(exc).__name__}: {exc}"
@@ -187,11 +208,14 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | None = Non
         if bar is not None:
             bar.close()
         try:
-            table.flush()
+            if steps is not None:
+                steps.close()  # a SUMO loop closes SUMO and converts its outputs here
         finally:
-            meta.update(status=status, reason=reason, finished=_now(),
-                        t_end=float(t), steps_done=int(k),
-                        rows_written=table.rows_written)
+            rec.flush()
+            meta.update(status=status, reason=reason, finished=_now(), t_end=float(t),
+                        steps_done=int(k), rows_written=rec.traj.rows_written)
+            if rec.events is not None:
+                meta["event_counts"] = rec.event_counts
             atomic_write_json(meta_path, meta)
     return RunResult(out_dir, status, reason, float(t), int(k))
 
@@ -201,19 +225,3 @@ def _progress_meta(path, meta, t, k):
     atomic_write_json(path, meta)
 
 
-def _record(table, t, cfg, state, u, fo, targets, vc, member_codes, vc_code):
-    sig = fl.member_signals(cfg, state, u, fo, targets, vc.theta)
-    sig["t"] = t
-    sig["vehicle_id"] = member_codes
-    table.append(sig, cfg.n)
-    table.append(_vc_row(t, vc, vc_code), 1)
-
-
-_VC_NAN = {c.name: np.nan for c in TRAJECTORY_COLUMNS if c.dtype == "float64"}
-
-
-def _vc_row(t, vc, code):
-    row = dict(_VC_NAN)
-    row.update(t=t, vehicle_id=code, x=vc.x, y=vc.y, heading=vc.theta, v=vc.v,
-               yaw_rate=vc.omega, a_lon=vc.v_dot, a_lat=vc.v * vc.omega)
-    return row

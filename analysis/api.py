@@ -1,0 +1,297 @@
+"""Entry points called by the CLI: ``analyze_run`` and ``compare_runs``.
+
+``formation-traci analyze RUN_DIR`` -> :func:`analyze_run`; ``formation-traci compare
+RUN_A RUN_B ... --out DIR`` -> :func:`compare_runs`. Both read only recorded files; a
+damaged run is analysed as far as possible and its problems are listed in the outputs.
+Only a run without any trajectory row raises (:class:`~analysis.load.NoTrajectoryData`).
+"""
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from analysis.load import Issue, NoTrajectoryData, load_run
+from analysis.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN_METRICS,
+                              AnalysisSettings, RunAnalysis, compute_run, settings_dict)
+
+__all__ = [
+    "SCHEMA",
+    "METRICS_JSON",
+    "METRICS_CSV",
+    "REPORT_HTML",
+    "FIGURES_DIR",
+    "AnalysisResult",
+    "CompareResult",
+    "NoTrajectoryData",
+    "analyze_run",
+    "compare_runs",
+]
+
+SCHEMA = "formation-traci/metrics/1"
+"""Identifier of the ``metrics.json`` layout."""
+
+METRICS_JSON = "metrics.json"
+METRICS_CSV = "metrics.csv"
+REPORT_HTML = "report.html"
+FIGURES_DIR = "figures"
+
+_COMPARE_RUN_ROWS = ("status", "model", "mu", "duration_s", "sample_rate_hz",
+                     "n_members_with_data", "shape_error_rms_m", "shape_error_max_m",
+                     "string_stable", "string_peak_ratio_max")
+
+
+@dataclass(frozen=True)
+class AnalysisResult:
+    """What :func:`analyze_run` computed and wrote."""
+
+    run_dir: Path
+    out_dir: Path  # where the files were written
+    run: dict[str, Any]  # run-level metrics (JSON-ready), including "worst"
+    members: pd.DataFrame  # one row per member, index "id"
+    string_stability: pd.DataFrame  # one row per (leader, follower) pair
+    issues: pd.DataFrame  # columns severity, kind, what, detail
+    files: dict[str, Path]  # "metrics_json", "metrics_csv", "report_html", "figure:<name>"
+
+
+@dataclass(frozen=True)
+class CompareResult:
+    """What :func:`compare_runs` computed and wrote."""
+
+    out_dir: Path
+    table: pd.DataFrame  # index metric, one column per run label, plus "unit"
+    runs: dict[str, Path]  # run label -> run directory (analysed runs only)
+    issues: pd.DataFrame  # columns run, severity, kind, what, detail
+    files: dict[str, Path]  # "compare_csv", "compare_json", "report_html", "figure:<name>"
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, Path):
+        return str(x)
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if x is pd.NA or x is pd.NaT:
+        return None
+    return x
+
+
+def _records(df: pd.DataFrame) -> list[dict[str, Any]]:
+    return [_jsonable(r) for r in df.to_dict(orient="records")]
+
+
+def _issues_df(issues: Sequence[Issue], run: str | None = None) -> pd.DataFrame:
+    cols = ["severity", "kind", "what", "detail"]
+    df = pd.DataFrame([i.as_dict() for i in issues], columns=cols)
+    if run is not None:
+        df.insert(0, "run", run)
+    return df
+
+
+def _figure_module():
+    from analysis import figures  # lazy: matplotlib is heavy and only needed here
+
+    return figures
+
+
+def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
+                settings: AnalysisSettings = DEFAULT_SETTINGS,
+                figures: bool = True) -> AnalysisResult:
+    """Analyse one recorded run and write its metrics, figures and report.
+
+    Parameters
+    ----------
+    run_dir : str or Path
+        Run directory (``run.json``, ``trajectories.parquet``, ...).
+    out_dir : str or Path, optional
+        Where to write; default ``run_dir``. Receives ``metrics.json``, ``metrics.csv``,
+        ``figures/*.png`` and ``report.html``.
+    settings : AnalysisSettings
+        Analysis choices (settling band, jerk window, ...).
+    figures : bool
+        Draw the PNG figures (and embed them in the report).
+
+    Returns
+    -------
+    AnalysisResult
+        The run-level metrics, per-member and string-stability tables, the issues and
+        the written files.
+
+    Raises
+    ------
+    NoTrajectoryData
+        If the run has no readable trajectory row at all.
+    """
+    run_dir = Path(run_dir)
+    out = Path(out_dir) if out_dir is not None else run_dir
+    out.mkdir(parents=True, exist_ok=True)
+    a = compute_run(load_run(run_dir), settings)
+    files: dict[str, Path] = {}
+    fig_paths: dict[str, Path] = {}
+    fig_errors: dict[str, str] = {}
+    extra: list[Issue] = []
+    if figures:
+        fig_paths, fig_errors = _figure_module().run_figures(a, out / FIGURES_DIR)
+        extra += [Issue("warning", "figure_failed", name, err) for name, err in fig_errors.items()]
+        files.update({f"figure:{k}": p for k, p in fig_paths.items()})
+    issues = list(a.issues) + extra
+
+    members_json = []
+    for mid, row in a.members.iterrows():
+        rec = {"id": mid, **row.to_dict(), "unavailable": a.unavailable.get(mid, {})}
+        members_json.append(_jsonable(rec))
+    traj = a.data.trajectories
+    doc = {
+        "schema": SCHEMA,
+        "run_dir": str(run_dir),
+        "run": a.run,
+        "members": members_json,
+        "string_stability": _records(a.string_stability),
+        "issues": [i.as_dict() for i in issues],
+        "damaged": any(i.severity == "error" for i in issues),
+        "tables": {
+            "trajectories": {"rows": len(traj),
+                             "vehicles": sorted(map(str, traj["vehicle_id"].unique())),
+                             "missing_columns": sorted(a.data.missing_columns)},
+            **{k: (None if v is None else {"rows": len(v)}) for k, v in a.data.tables.items()},
+        },
+        "meta": a.data.meta,
+        "settings": settings_dict(settings),
+        "units": {"run": RUN_METRICS, "members": MEMBER_METRICS},
+        "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()},
+    }
+    p_json = out / METRICS_JSON
+    p_json.write_text(json.dumps(_jsonable(doc), indent=2, allow_nan=False), encoding="utf-8")
+    files["metrics_json"] = p_json
+    p_csv = out / METRICS_CSV
+    a.members.reset_index().to_csv(p_csv, index=False)
+    files["metrics_csv"] = p_csv
+
+    from analysis import report  # lazy, like figures
+
+    p_html = out / REPORT_HTML
+    p_html.write_text(report.run_report(a, fig_paths, fig_errors, extra), encoding="utf-8")
+    files["report_html"] = p_html
+    return AnalysisResult(run_dir=run_dir, out_dir=out, run=_jsonable(a.run), members=a.members,
+                          string_stability=a.string_stability, issues=_issues_df(issues),
+                          files=files)
+
+
+def _labels(run_dirs: Sequence[Path]) -> list[str]:
+    names = [p.name or str(p) for p in run_dirs]
+    labels = [f"{p.parent.name}/{n}" if names.count(n) > 1 else n
+              for p, n in zip(run_dirs, names)]
+    seen: dict[str, int] = {}
+    for k, lab in enumerate(labels):
+        if lab in seen:
+            seen[lab] += 1
+            labels[k] = f"{lab}#{seen[lab]}"
+        else:
+            seen[lab] = 1
+    return labels
+
+
+def compare_runs(run_dirs: Sequence[str | Path], out_dir: str | Path, *,
+                 settings: AnalysisSettings = DEFAULT_SETTINGS) -> CompareResult:
+    """Compare several runs side by side (e.g. kinematic vs dynamic model).
+
+    Parameters
+    ----------
+    run_dirs : sequence of str or Path
+        Run directories; each is labelled by its directory name (parent added when
+        names repeat).
+    out_dir : str or Path
+        Output directory (created): ``compare.csv``, ``compare.json``,
+        ``figures/compare_*.png`` and ``report.html``. The run directories are not
+        written to.
+    settings : AnalysisSettings
+        Analysis choices, the same for every run.
+
+    Returns
+    -------
+    CompareResult
+        Key metrics side by side (worst member of each run), the issues of every run and
+        the written files. A run without trajectory data is listed in the issues and
+        left out of the table.
+
+    Raises
+    ------
+    NoTrajectoryData
+        If none of the runs has trajectory data.
+    ValueError
+        If ``run_dirs`` is empty.
+    """
+    dirs = [Path(p) for p in run_dirs]
+    if not dirs:
+        raise ValueError("run_dirs is empty: give at least one run directory")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    analyses: dict[str, RunAnalysis] = {}
+    issues: dict[str, list[Issue]] = {}
+    runs: dict[str, Path] = {}
+    for label, d in zip(_labels(dirs), dirs):
+        try:
+            a = compute_run(load_run(d), settings)
+        except NoTrajectoryData as exc:
+            issues[label] = [Issue("error", "no_trajectory_data", str(d), str(exc))]
+            continue
+        analyses[label], issues[label], runs[label] = a, list(a.issues), d
+    if not analyses:
+        raise NoTrajectoryData("none of the runs has trajectory data: "
+                               + "; ".join(i.detail for v in issues.values() for i in v))
+
+    units = {**RUN_METRICS, **MEMBER_METRICS}
+    index = list(_COMPARE_RUN_ROWS) + [f"worst {k}" for k in KEY_METRICS] + ["data problems"]
+    table = pd.DataFrame(index=index, columns=["unit", *analyses], dtype=object)
+    table.index.name = "metric"
+    for k in _COMPARE_RUN_ROWS:
+        table.loc[k, "unit"] = units.get(k, "")
+    for k in KEY_METRICS:
+        table.loc[f"worst {k}", "unit"] = units.get(k, "")
+    table.loc["data problems", "unit"] = "-"
+    for label, a in analyses.items():
+        for k in _COMPARE_RUN_ROWS:
+            table.loc[k, label] = _jsonable(a.run.get(k))
+        for k in KEY_METRICS:
+            table.loc[f"worst {k}", label] = a.run["worst"].get(k)
+        table.loc["data problems", label] = sum(i.severity == "error" for i in issues[label])
+
+    files: dict[str, Path] = {}
+    fig_paths, fig_errors = _figure_module().compare_figures(analyses, out / FIGURES_DIR)
+    files.update({f"figure:{k}": p for k, p in fig_paths.items()})
+    p_csv = out / "compare.csv"
+    table.to_csv(p_csv)
+    files["compare_csv"] = p_csv
+    p_json = out / "compare.json"
+    doc = {"schema": SCHEMA, "runs": {k: str(v) for k, v in runs.items()},
+           "metrics": {idx: {"unit": table.loc[idx, "unit"],
+                             **{lab: table.loc[idx, lab] for lab in analyses}}
+                       for idx in table.index},
+           "issues": {lab: [i.as_dict() for i in iss] for lab, iss in issues.items()},
+           "settings": settings_dict(settings),
+           "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()}}
+    p_json.write_text(json.dumps(_jsonable(doc), indent=2, allow_nan=False), encoding="utf-8")
+    files["compare_json"] = p_json
+
+    from analysis import report
+
+    p_html = out / REPORT_HTML
+    p_html.write_text(report.compare_report(table, fig_paths, {**runs, **{
+        lab: Path(iss[0].what) for lab, iss in issues.items() if lab not in runs}},
+        issues, fig_errors), encoding="utf-8")
+    files["report_html"] = p_html
+    all_issues = pd.concat([_issues_df(v, run=k) for k, v in issues.items()], ignore_index=True)
+    return CompareResult(out_dir=out, table=table, runs=runs, issues=all_issues, files=files)

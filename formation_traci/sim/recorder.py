@@ -1,0 +1,83 @@
+"""Recording of a run: trajectories, events and background vehicles as chunked Parquet."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..record.columns import (BACKGROUND_COLUMNS, EVENT_COLUMNS, TRAJECTORY_COLUMNS,
+                              VIRTUAL_CAR_ID)
+from ..record.writer import ChunkedTable
+from . import fleet as fl
+
+STEPS_PER_CHUNK = 1200
+"""Outer steps per trajectory part file (60 s of simulated time at the default 0.05 s step)."""
+
+_NAN_ROW = {c.name: np.nan for c in TRAJECTORY_COLUMNS if c.dtype == "float64"}
+
+
+class Recorder:
+    """Owns the run's tables; every ``add_*`` appends rows, :meth:`flush` writes the rest."""
+
+    def __init__(self, out_dir: Path, member_ids: list[str], with_sumo: bool):
+        n = len(member_ids)
+        self.traj = ChunkedTable(out_dir / "trajectories.parquet", TRAJECTORY_COLUMNS,
+                                 chunk_rows=(n + 1) * STEPS_PER_CHUNK,
+                                 labels=list(member_ids) + [VIRTUAL_CAR_ID])
+        self.codes = np.arange(n, dtype=np.int32)
+        self.vc_code = n
+        self.events = self.background = None
+        if with_sumo:
+            self.events = ChunkedTable(out_dir / "events.parquet", EVENT_COLUMNS, chunk_rows=2000,
+                                       labels=[""])
+            self.background = ChunkedTable(out_dir / "background.parquet", BACKGROUND_COLUMNS,
+                                           chunk_rows=50_000)
+        self.event_counts: dict[str, int] = {}
+
+    @property
+    def part_written(self) -> bool:
+        """True right after a trajectory part file was written."""
+        return self.traj.rows_buffered == 0
+
+    def add_members(self, t, cfg, state, u, fo, targets, vc_theta, extra=None, mask=None):
+        sig = fl.member_signals(cfg, state, u, fo, targets, vc_theta)
+        sig["t"] = t
+        sig["vehicle_id"] = self.codes
+        for name in ("s", "d", "lane_index", "sumo_gap"):
+            sig[name] = (extra or {}).get(name, np.nan)
+        n = cfg.n
+        if mask is not None and not mask.all():
+            sig = {k: (v[mask] if np.ndim(v) else v) for k, v in sig.items()}
+            n = int(mask.sum())
+        self.traj.append(sig, n)
+
+    def add_vc(self, t, vc, s=np.nan):
+        row = dict(_NAN_ROW)
+        row.update(t=t, vehicle_id=self.vc_code, x=vc.x, y=vc.y, heading=vc.theta, v=vc.v,
+                   yaw_rate=vc.omega, a_lon=vc.v_dot, a_lat=vc.v * vc.omega, s=s,
+                   d=0.0 if np.isfinite(s) else np.nan)
+        self.traj.append(row, 1)
+
+    def add_event(self, t, kind, vehicle_id, other_id="", detail=""):
+        ev = self.events
+        ev.append({"t": t, "kind": ev.code(kind), "vehicle_id": ev.code(vehicle_id),
+                   "other_id": ev.code(other_id), "detail": ev.code(detail)}, 1)
+        self.event_counts[kind] = self.event_counts.get(kind, 0) + 1
+
+    def add_background(self, t, nb, s, d):
+        n = len(nb.ids)
+        if n == 0:
+            return
+        bg = self.background
+        self.background.append({
+            "t": t, "vehicle_id": np.array([bg.code(i) for i in nb.ids], dtype=np.int32),
+            "type": np.array([bg.code(i) for i in nb.types], dtype=np.int32),
+            "x": nb.x, "y": nb.y, "heading": nb.heading, "v": nb.v, "a": nb.a,
+            "length": nb.length, "width": nb.width,
+            "lane": np.array([bg.code(i) for i in nb.lane_ids], dtype=np.int32),
+            "lane_index": nb.lane_index.astype(np.int32), "s": s, "d": d}, n)
+
+    def flush(self):
+        for table in (self.traj, self.events, self.background):
+            if table is not None:
+                table.flush()

@@ -1,0 +1,165 @@
+"""Resolve a scenario's [road] into geometry and check the formation fits, before SUMO starts.
+
+Every problem is a :class:`ScenarioError` naming the scenario file, the field and what was
+expected: unknown network, edge or lane, a route whose lanes do not connect, a slot off the
+road anywhere along the route, members that would be inserted on top of each other.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..models.params import VehicleParams
+from ..road.geometry import ReferenceLine, lane_offsets, load_net, reference_line_from_net, route_lanes
+from ..scenario.load import ScenarioError
+from ..scenario.schema import Scenario
+
+MAIN_ROUTES = {
+    "straight3": ["entry", "main"],
+    "curved3": ["entry", "main"],
+    "onramp": ["mw_up", "mw_accel", "mw_down"],
+    "lanedrop": ["mw_up", "mw_down"],
+}
+"""Default main route of each bundled network (sumo_nets/README.md)."""
+
+
+@dataclass(frozen=True)
+class RoadSegment:
+    """Lateral extent of the road along part of the reference line."""
+
+    edge: str
+    s0: float  # [m]
+    s1: float  # [m]
+    d_min: float  # right road edge [m], relative to the reference line
+    d_max: float  # left road edge [m]
+
+
+@dataclass(frozen=True)
+class Road:
+    net_file: Path
+    route: list[str]
+    line: ReferenceLine
+    segments: tuple[RoadSegment, ...]
+    lane_width: float  # width of the reference lane on the first edge [m]
+    edge_lanes: dict[str, int]  # lane count per route edge
+
+
+def resolve_net(sc: Scenario, source: Path | None) -> Path:
+    from sumo_nets import NETWORK_NAMES, net_path
+    name = sc.road.net
+    if name in NETWORK_NAMES:
+        return net_path(name)
+    base = source.parent if source is not None else Path.cwd()
+    path = (base / name).resolve()
+    if not path.is_file():
+        raise ScenarioError(source or "<scenario>", [(
+            "road.net", f"no such network {name!r}: expected a bundled name "
+            f"({', '.join(NETWORK_NAMES)}) or a .net.xml path relative to the scenario file")])
+    return path
+
+
+def build_road(sc: Scenario, source: Path | None) -> Road:
+    src = source or "<scenario>"
+    net_file = resolve_net(sc, source)
+    net = load_net(net_file)
+    route = list(sc.road.route or MAIN_ROUTES.get(sc.road.net) or [])
+    if not route:
+        raise ScenarioError(src, [("road.route", "required for a network that is not bundled "
+                                                 "(list of edge ids in driving order)")])
+    missing = [e for e in route if not net.hasEdge(e)]
+    if missing:
+        raise ScenarioError(src, [("road.route", f"edges not in {net_file.name}: {missing}")])
+    first = net.getEdge(route[0])
+    if sc.road.lane >= first.getLaneNumber():
+        raise ScenarioError(src, [("road.lane", f"edge {route[0]!r} has lanes 0..{first.getLaneNumber() - 1}, "
+                                                f"got {sc.road.lane}")])
+    try:
+        lanes = route_lanes(net, route, sc.road.lane)
+        line = reference_line_from_net(net, route, sc.road.lane)
+    except ValueError as exc:
+        raise ScenarioError(src, [("road.route", f"lane {sc.road.lane} cannot be followed along the route: {exc}")]) from None
+    segments = []
+    for lane_id in lanes:
+        if lane_id.startswith(":"):
+            continue
+        lane = net.getLane(lane_id)
+        edge = lane.getEdge()
+        shape = np.asarray([p[:2] for p in lane.getShape()], dtype=float)
+        s_ends, _ = line.to_frenet(shape[[0, -1]])
+        offs = lane_offsets(net, edge.getID(), lane.getIndex())
+        widths = np.array([ln.getWidth() for ln in edge.getLanes()])
+        segments.append(RoadSegment(edge.getID(), float(s_ends[0]), float(s_ends[1]),
+                                    float(np.min(offs - widths / 2)), float(np.max(offs + widths / 2))))
+    if sc.road.start >= line.length - sc.road.end_margin:
+        raise ScenarioError(src, [("road.start", f"must be less than the route length minus end_margin "
+                                                 f"({line.length - sc.road.end_margin:.1f} m)")])
+    return Road(net_file, route, line, tuple(segments), first.getLane(sc.road.lane).getWidth(),
+                {e: net.getEdge(e).getLaneNumber() for e in route})
+
+
+def slot_offsets(sc: Scenario, road: Road) -> np.ndarray:
+    """(n, 2) road-frame slots (along, across) [m]; lane units times the reference lane width."""
+    out = []
+    for m in sc.members:
+        if m.slot is None:
+            out.append([np.nan, np.nan])
+        else:
+            across = m.slot.across if m.slot.across is not None else m.slot.lanes * road.lane_width
+            out.append([m.slot.along, across])
+    return np.array(out, dtype=float)
+
+
+def check_slots(sc: Scenario, road: Road, slots: np.ndarray, veh: VehicleParams, source) -> None:
+    """A slot must keep the member's body on the road everywhere the formation will drive."""
+    problems = []
+    half = veh.width / 2
+    for i, m in enumerate(sc.members):
+        if m.slot is None:
+            continue
+        dx, dy = slots[i]
+        s_first = sc.road.start + dx
+        for seg in road.segments:
+            if seg.s1 < s_first:
+                continue
+            if dy - half < seg.d_min - 1e-6 or dy + half > seg.d_max + 1e-6:
+                problems.append((f"members.{i}.slot", (
+                    f"member {m.id!r} lies off the road on edge {seg.edge!r}: its body spans "
+                    f"d = {dy - half:.2f}..{dy + half:.2f} m, the road {seg.d_min:.2f}..{seg.d_max:.2f} m "
+                    f"(d relative to lane {sc.road.lane} of the first edge, left positive)")))
+                break
+    if problems:
+        raise ScenarioError(source or "<scenario>", problems)
+
+
+def check_no_overlap(sc: Scenario, pos: np.ndarray, heading: np.ndarray, veh: VehicleParams, source) -> None:
+    """Members' initial footprints must not overlap each other."""
+    problems = []
+    for i, j in itertools.combinations(range(len(sc.members)), 2):
+        if rectangles_overlap(pos[i], heading[i], pos[j], heading[j], veh.length, veh.width):
+            problems.append((f"members.{j}", f"member {sc.members[j].id!r} would be inserted on top of "
+                                             f"{sc.members[i].id!r} (their bodies overlap at t = 0)"))
+    if problems:
+        raise ScenarioError(source or "<scenario>", problems)
+
+
+def rectangles_overlap(p1, h1, p2, h2, length, width, length2=None, width2=None) -> bool:
+    """Separating-axis test of two oriented rectangles centred at p1, p2 [m] with headings [rad]."""
+    l2 = length if length2 is None else length2
+    w2 = width if width2 is None else width2
+
+    def corners(p, h, L, W):
+        c, s = np.cos(h), np.sin(h)
+        ax = np.array([c, s]) * L / 2
+        ay = np.array([-s, c]) * W / 2
+        return np.array([p + ax + ay, p + ax - ay, p - ax - ay, p - ax + ay])
+
+    a, b = corners(np.asarray(p1), h1, length, width), corners(np.asarray(p2), h2, l2, w2)
+    for h in (h1, h1 + np.pi / 2, h2, h2 + np.pi / 2):
+        axis = np.array([np.cos(h), np.sin(h)])
+        pa, pb = a @ axis, b @ axis
+        if pa.max() <= pb.min() or pb.max() <= pa.min():
+            return False
+    return True

@@ -1,0 +1,329 @@
+"""The only module that talks to SUMO (libsumo in-process, or traci over a socket).
+
+It owns starting/stepping/closing SUMO, inserting and placing the formation members with
+``vehicle.moveToXY``, batched reads through subscriptions, and every frame conversion:
+SUMO's vehicle position is the front bumper and its angle is degrees clockwise from north;
+ours is the centre of gravity (CoG) and radians counter-clockwise from +x
+(:func:`cog_to_sumo`, :func:`sumo_to_cog`). Outside this module code sees only numpy
+arrays and the small dataclasses below. SUMO behaviours relied on here are documented in
+docs/sumo.md (each with the test that shows it).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+KEEP_ROUTE = 1
+"""moveToXY keepRoute bits: 1 = map only onto edges of the member's route (never off the road,
+never a different carriageway); sublane mode keeps the exact lateral position."""
+
+MATCH_THRESHOLD = 5.0
+"""moveToXY raises instead of silently snapping a pose farther than this from the road [m]."""
+
+REMOVED_REASONS = ("arrived", "vanished")
+
+
+def cog_to_sumo(x, y, psi, d_front):
+    """CoG pose [m, m, rad CCW from +x] -> SUMO front bumper [m, m] and angle [deg, CW from north]."""
+    xf = x + d_front * np.cos(psi)
+    yf = y + d_front * np.sin(psi)
+    angle = np.mod(90.0 - np.degrees(psi), 360.0)
+    return xf, yf, angle
+
+
+def sumo_to_cog(xf, yf, angle_deg, d_front):
+    """SUMO front bumper [m] and angle [deg, CW from north] -> CoG [m] and heading [rad CCW from +x]."""
+    psi = np.radians(90.0 - np.asarray(angle_deg, dtype=float))
+    return xf - d_front * np.cos(psi), yf - d_front * np.sin(psi), psi
+
+
+@dataclass(frozen=True)
+class MemberType:
+    """SUMO vType of a formation member."""
+
+    id: str
+    length: float  # [m]
+    width: float  # [m]
+    d_front: float  # CoG to front bumper [m]
+    color: tuple[int, int, int]
+    vclass: str  # SUMO vehicle class
+    max_speed: float = 70.0  # [m/s] above anything a member reaches, so SUMO never clamps
+
+
+@dataclass
+class StepEvents:
+    """What SUMO reported during one step (ids are SUMO vehicle ids)."""
+
+    collisions: list[tuple[str, str, str]] = field(default_factory=list)  # (collider, victim, lane)
+    teleports: list[str] = field(default_factory=list)
+    arrived: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Neighbours:
+    """Vehicles near the members after a step (one entry per vehicle), CoG frame."""
+
+    ids: list[str]
+    types: list[str]
+    x: np.ndarray  # centre of the vehicle [m]
+    y: np.ndarray
+    heading: np.ndarray  # [rad]
+    v: np.ndarray  # [m/s]
+    a: np.ndarray  # [m/s^2]
+    length: np.ndarray  # [m]
+    width: np.ndarray  # [m]
+    lane_ids: list[str]
+    lane_index: np.ndarray
+    lat: np.ndarray  # lateral position in the lane [m]
+
+
+class SumoError(RuntimeError):
+    """SUMO refused a command or raised during a step."""
+
+
+def _api(backend: str):
+    if backend == "libsumo":
+        import libsumo as api
+    elif backend == "traci":
+        import traci as api
+    else:  # pragma: no cover - validated by the schema
+        raise ValueError(backend)
+    from libsumo import constants as tc  # the same module as traci.constants
+    return api, tc
+
+
+def sumo_binary(gui: bool = False) -> str:
+    """Path of the sumo (or sumo-gui) binary of the eclipse-sumo wheel."""
+    import sumolib
+    return sumolib.checkBinary("sumo-gui" if gui else "sumo")
+
+
+class SumoAdapter:
+    """One SUMO simulation. Call :meth:`start`, then per step :meth:`place` -> :meth:`step`
+    -> :meth:`after_step`, and :meth:`close` at the end (also after errors)."""
+
+    def __init__(self, backend: str = "libsumo", gui: bool = False):
+        self.api, self.tc = _api(backend)
+        self.backend = backend
+        self.gui = gui
+        self.version = ""
+        self.members: dict[str, MemberType] = {}
+        self._member_lane: dict[str, tuple[str, int, float]] = {}
+        self._started = False
+
+    # -- lifecycle -------------------------------------------------------------------
+    def start(self, args: list[str]) -> str:
+        """Start SUMO with command-line ``args`` (without the binary); returns SUMO's version."""
+        cmd = [sumo_binary(self.gui and self.backend == "traci")] + list(args)
+        try:
+            _, self.version = self.api.start(cmd)
+        except Exception as exc:
+            raise SumoError(f"SUMO did not start: {exc}") from exc
+        self._started = True
+        return self.version
+
+    def close(self) -> None:
+        if self._started:
+            try:
+                self.api.close()
+            except Exception:  # closing a dead connection must not hide the real error
+                pass
+            self._started = False
+
+    @property
+    def time(self) -> float:
+        """SUMO's simulation time [s]."""
+        return self.api.simulation.getTime()
+
+    def simulation_step(self) -> None:
+        """Advance SUMO by one step (no member handling; used for the warm-up)."""
+        self.api.simulationStep()
+
+    # -- network helpers -------------------------------------------------------------
+    def set_friction(self, mu: float) -> None:
+        """Set the friction of every lane of the network [-] (SUMO's cars with the friction
+        device slow down on slippery lanes)."""
+        for lane in self.api.lane.getIDList():
+            if not lane.startswith(":"):
+                self.api.lane.setFriction(lane, mu)
+
+    def add_route(self, route_id: str, edges: list[str]) -> None:
+        self.api.route.add(route_id, edges)
+
+    def add_member_type(self, mt: MemberType) -> None:
+        vt = self.api.vehicletype
+        vt.copy("DEFAULT_VEHTYPE", mt.id)
+        vt.setLength(mt.id, mt.length)
+        vt.setWidth(mt.id, mt.width)
+        vt.setColor(mt.id, (*mt.color, 255))
+        vt.setVehicleClass(mt.id, mt.vclass)
+        vt.setMaxSpeed(mt.id, mt.max_speed)
+        vt.setMinGap(mt.id, 0.5)
+        vt.setImperfection(mt.id, 0.0)
+        vt.setSpeedDeviation(mt.id, 0.0)
+        vt.setAccel(mt.id, 10.0)
+        vt.setDecel(mt.id, 10.0)
+        vt.setEmergencyDecel(mt.id, 12.0)
+        vt.setMaxSpeedLat(mt.id, 10.0)
+
+    # -- members ---------------------------------------------------------------------
+    def insert_member(self, vid: str, route_id: str, mt: MemberType, x, y, psi, v) -> None:
+        """Add a member and pin it to its CoG pose (x, y [m], psi [rad]) with speed v [m/s];
+        it appears in SUMO at that exact pose during the next step."""
+        self.members[vid] = mt
+        self.api.vehicle.add(vid, route_id, typeID=mt.id, depart="now", departLane="best",
+                             departPos="base", departSpeed=f"{max(float(v), 0.0):.6f}")
+        self.api.vehicle.setSpeedMode(vid, 0)
+        self.api.vehicle.setLaneChangeMode(vid, 0)
+        self.api.vehicle.subscribe(vid, self._member_vars())
+        self._move(vid, x, y, psi)
+
+    def _member_vars(self):
+        tc = self.tc
+        return [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_LANE_ID, tc.VAR_LANE_INDEX,
+                tc.VAR_LANEPOSITION, tc.VAR_LANEPOSITION_LAT, tc.VAR_SPEED]
+
+    def _move(self, vid, x, y, psi):
+        xf, yf, ang = cog_to_sumo(x, y, psi, self.members[vid].d_front)
+        try:
+            self.api.vehicle.moveToXY(vid, "", -1, float(xf), float(yf), float(ang), KEEP_ROUTE,
+                                      MATCH_THRESHOLD)
+        except self.api.TraCIException as exc:
+            raise SumoError(f"moveToXY refused for {vid} at ({x:.2f}, {y:.2f}): {exc}") from exc
+
+    def place(self, ids: list[str], x, y, psi) -> list[tuple[str, str]]:
+        """Pin members to CoG poses for the coming step. Returns (id, message) of moves SUMO refused.
+
+        A member whose body overlaps a neighbour lane is first put on that lane (``moveTo``)
+        so that the ``moveToXY`` is a lane change: SUMO then registers the member on both
+        lanes (its "shadow lane") and followers in the other lane see it (docs/sumo.md).
+        """
+        refused = []
+        for i, vid in enumerate(ids):
+            mt = self.members[vid]
+            info = self._member_lane.get(vid)
+            if info is not None:
+                lane_id, lane_index, lat = info
+                other = self._overlapped_lane(lane_id, lane_index, lat, mt.width)
+                if other is not None:
+                    try:
+                        pos = min(self.api.vehicle.getLanePosition(vid),
+                                  self.api.lane.getLength(other) - 0.1)
+                        self.api.vehicle.moveTo(vid, other, max(pos, 0.0))
+                    except self.api.TraCIException:
+                        pass  # only a hint for SUMO's lane bookkeeping
+            try:
+                self._move(vid, x[i], y[i], psi[i])
+            except SumoError as exc:
+                refused.append((vid, str(exc)))
+        return refused
+
+    def _overlapped_lane(self, lane_id: str, lane_index: int, lat: float, width: float):
+        if not lane_id or lane_id.startswith(":"):
+            return None
+        lane_w = self.api.lane.getWidth(lane_id)
+        if abs(lat) + width / 2 <= lane_w / 2:
+            return None
+        edge = lane_id.rsplit("_", 1)[0]
+        other = lane_index + (1 if lat > 0 else -1)
+        if other < 0 or other >= self.api.edge.getLaneNumber(edge):
+            return None
+        return f"{edge}_{other}"
+
+    def step(self) -> StepEvents:
+        """One SUMO step; returns the collisions, teleports and arrivals it reported."""
+        try:
+            self.api.simulationStep()
+        except Exception as exc:
+            raise SumoError(f"SUMO raised during the step to t = {self.time:.2f} s: {exc}") from exc
+        sim = self.api.simulation
+        ev = StepEvents()
+        for c in sim.getCollisions():
+            ev.collisions.append((c.collider, c.victim, c.lane))
+        ev.teleports = list(sim.getStartingTeleportIDList())
+        ev.arrived = list(sim.getArrivedIDList())
+        return ev
+
+    def set_true_speeds(self, ids: list[str], v, a) -> None:
+        """Tell SUMO each member's true speed [m/s] and acceleration [m/s^2] (it would infer
+        a half-step-late mean speed clamped to the lane limit from the distance moved)."""
+        for i, vid in enumerate(ids):
+            self.api.vehicle.setPreviousSpeed(vid, float(max(v[i], 0.0)), float(a[i]))
+
+    def read_members(self, ids: list[str]):
+        """Where SUMO put each member: CoG x, y [m], heading [rad], lane id, lane index,
+        lateral position in the lane [m]; ``present`` is False for members SUMO no longer has."""
+        tc = self.tc
+        res = self.api.vehicle.getAllSubscriptionResults()
+        n = len(ids)
+        x, y, psi, lat = (np.full(n, np.nan) for _ in range(4))
+        lane_index = np.full(n, -1, dtype=int)
+        lanes = [""] * n
+        present = np.zeros(n, dtype=bool)
+        for i, vid in enumerate(ids):
+            r = res.get(vid)
+            if not r:
+                self._member_lane.pop(vid, None)
+                continue
+            present[i] = True
+            xf, yf = r[tc.VAR_POSITION]
+            x[i], y[i], psi[i] = sumo_to_cog(xf, yf, r[tc.VAR_ANGLE], self.members[vid].d_front)
+            lanes[i] = r[tc.VAR_LANE_ID]
+            lane_index[i] = r[tc.VAR_LANE_INDEX]
+            lat[i] = r[tc.VAR_LANEPOSITION_LAT]
+            self._member_lane[vid] = (lanes[i], int(lane_index[i]), float(lat[i]))
+        return x, y, psi, lanes, lane_index, lat, present
+
+    # -- neighbours ------------------------------------------------------------------
+    def subscribe_neighbours(self, vid: str, radius: float) -> None:
+        """Context subscription: every vehicle within ``radius`` [m] of member ``vid``."""
+        tc = self.tc
+        self.api.vehicle.subscribeContext(vid, tc.CMD_GET_VEHICLE_VARIABLE, radius, self._neighbour_vars())
+
+    def _neighbour_vars(self):
+        tc = self.tc
+        return [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VAR_LENGTH,
+                tc.VAR_WIDTH, tc.VAR_LANE_ID, tc.VAR_LANE_INDEX, tc.VAR_LANEPOSITION_LAT, tc.VAR_TYPE]
+
+    def subscribe_departed(self) -> None:
+        """Subscribe every vehicle that entered in the last step (recording 'all' vehicles)."""
+        for vid in self.api.simulation.getDepartedIDList():
+            if vid not in self.members:
+                self.api.vehicle.subscribe(vid, self._neighbour_vars())
+
+    def neighbours(self, all_vehicles: bool) -> Neighbours:
+        """Non-member vehicles from the context subscriptions (or from all subscriptions)."""
+        tc = self.tc
+        rows: dict[str, dict] = {}
+        if all_vehicles:
+            for vid, r in self.api.vehicle.getAllSubscriptionResults().items():
+                if vid not in self.members and r:
+                    rows[vid] = r
+        else:
+            for ego, ctx in self.api.vehicle.getAllContextSubscriptionResults().items():
+                for vid, r in ctx.items():
+                    if vid not in self.members:
+                        rows[vid] = r
+        ids = sorted(rows)
+        n = len(ids)
+        xf = np.empty(n); yf = np.empty(n); ang = np.empty(n); v = np.empty(n); a = np.empty(n)
+        length = np.empty(n); width = np.empty(n); li = np.empty(n, dtype=int); lat = np.empty(n)
+        lanes, types = [], []
+        for i, vid in enumerate(ids):
+            r = rows[vid]
+            xf[i], yf[i] = r[tc.VAR_POSITION]
+            ang[i], v[i], a[i] = r[tc.VAR_ANGLE], r[tc.VAR_SPEED], r[tc.VAR_ACCELERATION]
+            length[i], width[i] = r[tc.VAR_LENGTH], r[tc.VAR_WIDTH]
+            li[i], lat[i] = r[tc.VAR_LANE_INDEX], r[tc.VAR_LANEPOSITION_LAT]
+            lanes.append(r[tc.VAR_LANE_ID])
+            types.append(r[tc.VAR_TYPE])
+        x, y, psi = sumo_to_cog(xf, yf, ang, length / 2.0)  # centre of the body
+        return Neighbours(ids, types, x, y, psi, v, a, length, width, lanes, li, lat)
+
+    def remove_vehicle(self, vid: str) -> None:
+        self.api.vehicle.remove(vid, self.tc.REMOVE_VAPORIZED)
+
+    def vehicle_ids(self) -> list[str]:
+        return list(self.api.vehicle.getIDList())

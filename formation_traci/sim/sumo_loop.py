@@ -1,0 +1,368 @@
+"""A formation run on a SUMO road among SUMO's traffic.
+
+Per SUMO step (formation time t, SUMO time = warm-up + t):
+1. read back where SUMO put the members and the vehicles near them, and what SUMO reported;
+2. the governor sets the virtual car's acceleration for the step (time gaps of every member
+   to the vehicle ahead of it) and caps the speed reference of members with a cut-in ahead;
+3. record row t; 4. run the controllers and models over the step (control sub-steps);
+5. place the members with moveToXY, step SUMO, tell SUMO their true speed and acceleration.
+The virtual car drives along the reference lane (road/leader.py), slots follow the road
+(road/targets.py) or the virtual car's frame (eq 2.4).
+"""
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+
+from ..control.formation import rigid_targets, Targets
+from ..models.params import VehicleParams
+from ..record.columns import SSM_COLUMNS
+from ..record.writer import ChunkedTable
+from ..road.leader import road_leader_state
+from ..road.targets import road_targets
+from ..scenario.schema import Scenario
+from . import fleet as fl
+from .governor import leader_accel, member_speed_cap, time_gap_accel, vehicles_ahead
+from .recorder import Recorder
+from .road_setup import (Road, build_road, check_no_overlap, check_slots, rectangles_overlap,
+                         slot_offsets)
+from .setup import build_fleet, gain_schedule, profile, road_mu, vehicle_params
+from .sumo_adapter import MemberType, SumoAdapter
+from .traffic import flow_vehicles_per_hour, write_routes
+
+MEMBER_ROUTE = "formation_route"
+
+INSERT_CLEAR_TIME = 1.0
+"""Free space kept behind every member when it is inserted, as time at its speed [s]."""
+
+
+@dataclass(frozen=True)
+class RoadPlan:
+    """Everything prepared and checked before SUMO starts."""
+
+    road: Road
+    veh: VehicleParams
+    slots: np.ndarray  # (n, 2) road-frame (along, across) [m]; NaN rows for rigid members
+    rigid: np.ndarray  # (n, 2) virtual-car-frame offsets [m]; NaN rows for road members
+    is_road: np.ndarray  # (n,) bool
+    pos0: np.ndarray  # (n, 2) initial CoG [m]
+    heading0: np.ndarray  # (n,) [rad]
+    speed0: np.ndarray  # (n,) [m/s]
+
+
+def prepare(sc: Scenario, source: Path | None) -> RoadPlan:
+    """Resolve and check the road and the formation; raises ScenarioError before anything runs."""
+    road = build_road(sc, source)
+    veh = vehicle_params(sc)
+    slots = slot_offsets(sc, road)
+    check_slots(sc, road, slots, veh, source)
+    is_road = np.array([m.slot is not None for m in sc.members])
+    rigid = np.array([m.offset if m.offset is not None else [np.nan, np.nan] for m in sc.members], float)
+    v0, v0_dot = profile(sc.leader.speed)(0.0)
+    tg = _targets(road, slots, rigid, is_road, sc.road.start, v0, 0.0)
+    pos0 = tg.p.copy()
+    heading0 = np.arctan2(tg.v[:, 1], tg.v[:, 0])
+    speed0 = np.hypot(tg.v[:, 0], tg.v[:, 1])
+    for i, m in enumerate(sc.members):
+        if m.position is not None:
+            pos0[i] = m.position
+            heading0[i] = float(road.line.heading(road.line.to_frenet(np.asarray([m.position]))[0][0]))
+        if m.heading_deg is not None:
+            heading0[i] = math.radians(m.heading_deg)
+        if m.speed is not None:
+            speed0[i] = m.speed
+    check_no_overlap(sc, pos0, heading0, veh, source)
+    return RoadPlan(road, veh, slots, rigid, is_road, pos0, heading0, speed0)
+
+
+def _targets(road: Road, slots, rigid, is_road, s, v, a) -> Targets:
+    """Desired points of all members at virtual-car arc length s [m], speed v, acceleration a."""
+    if is_road.all():
+        return road_targets(road.line, s, v, a, slots)
+    vc = road_leader_state(road.line, s, v, a)
+    rt = rigid_targets(vc, np.nan_to_num(rigid))
+    if not is_road.any():
+        return rt
+    tr = road_targets(road.line, s, v, a, np.nan_to_num(slots))
+    m = is_road[:, None]
+    return Targets(np.where(m, tr.p, rt.p), np.where(m, tr.v, rt.v), np.where(m, tr.a, rt.a))
+
+
+def sumo_args(sc: Scenario, net: Path, routes: Path, sumo_dir: Path, t_end: float) -> list[str]:
+    args = ["-n", str(net), "-r", str(routes), "--step-length", repr(sc.run.step),
+            "--begin", "0", "--end", repr(t_end), "--seed", str(sc.run.seed),
+            "--lateral-resolution", repr(sc.sumo.lateral_resolution),
+            "--collision.action", "warn", "--collision.mingap-factor", "0",
+            "--collision.check-junctions", "true",
+            "--no-step-log", "true", "--log", str(sumo_dir / "sumo.log"),
+            "--duration-log.disable", "true"]
+    if sc.sumo.ssm:
+        args += ["--device.ssm.probability", "1", "--device.ssm.file", str(sumo_dir / "ssm.xml"),
+                 "--device.ssm.measures", "TTC DRAC PET", "--device.ssm.thresholds", "3.0 3.0 2.0",
+                 "--device.ssm.range", "50"]
+    if sc.sumo.friction_device:
+        args += ["--device.friction.probability", "1", "--device.friction.stdDev", "0"]
+    if sc.sumo.fcd:
+        args += ["--fcd-output", str(sumo_dir / "fcd.parquet")]
+    return args + list(sc.sumo.options)
+
+
+def member_type(sc: Scenario, veh: VehicleParams) -> MemberType:
+    return MemberType(id=f"member_{sc.vehicle.preset}", length=veh.length, width=veh.width,
+                      d_front=veh.cog_to_front_bumper, color=veh.color,
+                      vclass="truck" if sc.vehicle.preset == "small_truck" else "passenger")
+
+
+def _advance_vc(s, v, a, dt):
+    """Virtual car along the line with constant acceleration a over dt; stops at v = 0."""
+    if v + a * dt >= 0.0:
+        return s + v * dt + 0.5 * a * dt * dt, v + a * dt
+    t_stop = v / -a
+    return s + v * t_stop + 0.5 * a * t_stop * t_stop, 0.0
+
+
+def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, meta: dict,
+               plan: RoadPlan | None = None) -> Iterator[tuple[int, float]]:
+    """Run ``sc`` on its SUMO road; yields (step index, time [s]) after recording each step."""
+    plan = plan or prepare(sc, source)
+    road, veh, line = plan.road, plan.veh, plan.road.line
+    run, ld = sc.run, sc.leader
+    n_steps = int(round(run.duration / run.step))
+    n_ctrl = int(round(run.step / run.control_step))
+    dt_c = run.step / n_ctrl
+    ids = [m.id for m in sc.members]
+    n = len(ids)
+    cfg = build_fleet(sc)
+    speed_profile = profile(ld.speed)
+    half_w = np.full(n, veh.width / 2)
+    d_front = veh.cog_to_front_bumper
+    along_max = float(np.nanmax(np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])))
+
+    sumo_dir = out_dir / "sumo"
+    sumo_dir.mkdir(exist_ok=True)
+    warm_steps = int(round(sc.traffic.warmup / run.step))
+    t0 = warm_steps * run.step
+    t_sumo_end = t0 + run.duration + 2 * run.step
+    flows = []
+    for f in sc.traffic.flows:
+        edges = list(f.route or road.route)
+        lanes = road.edge_lanes.get(edges[0]) or 3
+        flows.append((f, edges, flow_vehicles_per_hour(f, lanes)))
+    routes = write_routes(sumo_dir / "traffic.rou.xml", flows, t_sumo_end)
+
+    s_vc, v_vc = float(sc.road.start), speed_profile(0.0)[0]
+    tg0 = _targets(road, plan.slots, plan.rigid, plan.is_road, s_vc, v_vc, 0.0)
+    x0 = plan.pos0
+    yaw0 = plan.speed0 * line.curvature(line.to_frenet(x0)[0])
+    state = fl.initial_state(cfg, x0, plan.heading0, plan.speed0, yaw0, np.zeros(n), tg0)
+
+    adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
+    args = sumo_args(sc, road.net_file, routes, sumo_dir, t_sumo_end)
+    meta["sumo"] = {"args": args, "warmup": t0, "net": str(road.net_file), "route": road.route,
+                    "reference_lane": sc.road.lane}
+    meta["members"] = [{"id": m.id, "frame": "road" if plan.is_road[i] else "vehicle",
+                        "offset": (plan.slots[i] if plan.is_road[i] else plan.rigid[i]).tolist(),
+                        "lanes": None if m.slot is None else m.slot.lanes}
+                       for i, m in enumerate(sc.members)]
+    try:
+        meta["sumo"]["version"] = adapter.start(args)
+        meta["versions"]["sumo"] = meta["sumo"]["version"]
+        mu = road_mu(sc)
+        adapter.set_friction(mu)
+        adapter.add_route(MEMBER_ROUTE, road.route)
+        mtype = member_type(sc, veh)
+        adapter.add_member_type(mtype)
+        for _ in range(warm_steps):
+            adapter.simulation_step()
+
+        active = np.ones(n, dtype=bool)
+        inserted = False
+        all_bg = sc.traffic.record_radius is None
+        prev_lane: dict[str, tuple[str, int]] = {}
+        member_lane_prev = np.full(n, -1)
+        emergency = False
+        ev = None
+        for k in range(n_steps + 1):
+            t = k * run.step
+            pos, vel, heading = fl.kinematics(cfg, state)
+            v_m = np.hypot(vel[:, 0], vel[:, 1])
+            m_s, m_d = line.to_frenet(pos)
+            extra = {"s": m_s, "d": m_d}
+            nb = None
+            if inserted:
+                act = [ids[i] for i in np.flatnonzero(active)]
+                xs, ys, _, lanes, lane_idx, _, present = adapter.read_members(act)
+                idx_act = np.flatnonzero(active)
+                for j, i in enumerate(idx_act):
+                    if not present[j]:
+                        rec.add_event(t, "member_removed", ids[i], "", "SUMO no longer has the member")
+                        active[i] = False
+                gap_sumo = np.full(n, np.nan)
+                lane_index = np.full(n, np.nan)
+                gap_sumo[idx_act] = np.hypot(xs - pos[idx_act, 0], ys - pos[idx_act, 1])
+                lane_index[idx_act] = np.where(present, lane_idx, np.nan)
+                extra.update(sumo_gap=gap_sumo, lane_index=lane_index)
+                for j, i in enumerate(idx_act):
+                    if present[j] and member_lane_prev[i] >= 0 and lane_idx[j] != member_lane_prev[i] \
+                            and lanes[j].rsplit("_", 1)[0] == prev_lane.get(ids[i], ("", -1))[0]:
+                        rec.add_event(t, "lane_change", ids[i], "", f"{member_lane_prev[i]} -> {lane_idx[j]}")
+                    if present[j]:
+                        member_lane_prev[i] = lane_idx[j]
+                        prev_lane[ids[i]] = (lanes[j].rsplit("_", 1)[0], int(lane_idx[j]))
+                _log_sumo_events(rec, t, ev, set(ids))
+                nb = adapter.neighbours(all_bg)
+            # governor: time gaps to the vehicles ahead of every member
+            if nb is not None and len(nb.ids):
+                nb_s, nb_d = line.to_frenet(np.column_stack([nb.x, nb.y]))
+                gap, v_lead, lead_idx = vehicles_ahead(m_s + d_front, m_d, half_w, nb_s - nb.length / 2,
+                                                       nb_d, nb.width / 2, nb.v)
+            else:
+                nb_s = nb_d = np.empty(0)
+                gap, v_lead, lead_idx = np.full(n, np.inf), np.full(n, np.nan), np.full(n, -1)
+            acc = time_gap_accel(gap, v_m, v_lead, ld.time_gap, ld.min_gap)
+            v_set, v_set_dot = speed_profile(t)
+            a_vc = leader_accel(v_vc, v_set, v_set_dot, acc[active], ld.accel_max, ld.decel_emergency)
+            if a_vc < -ld.decel_max - 1e-9 and not emergency:
+                rec.add_event(t, "emergency_brake", "vc", "", f"virtual car decelerates at {-a_vc:.2f} m/s^2")
+            emergency = a_vc < -ld.decel_max - 1e-9
+            v_cap = member_speed_cap(gap, v_lead, ld.time_gap, ld.min_gap)
+            a_cap = np.maximum(acc, -ld.decel_emergency)
+            if nb is not None:
+                _lane_changes(rec, t, nb, prev_lane, lead_idx, gap, v_m, ids, active, ld)
+                rec.add_background(t, nb, nb_s, nb_d)
+
+            vc = road_leader_state(line, s_vc, v_vc, a_vc)
+            targets = _targets(road, plan.slots, plan.rigid, plan.is_road, s_vc, v_vc, a_vc)
+            u, fo = fl.control(cfg, state, targets, v_cap, a_cap)
+            rec.add_members(t, cfg, state, u, fo, targets, vc.theta, extra, mask=active)
+            rec.add_vc(t, vc, s=s_vc)
+            yield k, t
+            if k == n_steps:
+                return
+            if s_vc + along_max + d_front + sc.road.end_margin > line.length:
+                rec.add_event(t, "end_of_road", "vc", "", f"formation front within {sc.road.end_margin} m of the route end")
+                meta["stopped_early"] = f"end of the route reached at t = {t:.2f} s"
+                return
+            if not active.any():
+                meta["stopped_early"] = f"no member left in SUMO at t = {t:.2f} s"
+                return
+
+            v_before = state.x[:, 3].copy() if cfg.model == "dynamic" else state.speed_in.copy()
+            for j in range(n_ctrl):
+                if j > 0:
+                    targets = _targets(road, plan.slots, plan.rigid, plan.is_road, s_vc, v_vc, a_vc)
+                    u, fo = fl.control(cfg, state, targets, v_cap, a_cap)
+                state = fl.advance(cfg, state, u, fo, dt_c)
+                s_vc, v_vc = _advance_vc(s_vc, v_vc, a_vc, dt_c)
+            if not np.all(np.isfinite(state.x)):
+                from .runner import check_finite
+                check_finite(state, ids, t + run.step)
+            pos, vel, heading = fl.kinematics(cfg, state)
+            v_after = state.x[:, 3] if cfg.model == "dynamic" else state.speed_in
+            a_mean = (v_after - v_before) / run.step
+            act_idx = np.flatnonzero(active)
+            act = [ids[i] for i in act_idx]
+            if not inserted:
+                _clear_insertion_zone(adapter, rec, t + run.step, pos, heading, v_after, veh,
+                                      ld.min_gap + ld.time_gap * v_after)
+                for i in act_idx:
+                    adapter.insert_member(ids[i], MEMBER_ROUTE, mtype, pos[i, 0], pos[i, 1], heading[i], v_after[i])
+            else:
+                for vid, msg in adapter.place(act, pos[act_idx, 0], pos[act_idx, 1], heading[act_idx]):
+                    rec.add_event(t + run.step, "move_refused", vid, "", msg)
+            ev = adapter.step()
+            adapter.set_true_speeds(act, v_after[act_idx], a_mean[act_idx])
+            if not inserted:
+                inserted = True
+                if not all_bg:
+                    for vid in act:
+                        adapter.subscribe_neighbours(vid, sc.traffic.record_radius)
+            if all_bg:
+                adapter.subscribe_departed()
+    finally:
+        adapter.close()
+        _convert_ssm(sumo_dir / "ssm.xml", out_dir / "ssm.parquet", t0, set(ids))
+
+
+def _log_sumo_events(rec, t, ev, members):
+    if ev is None:
+        return
+    for collider, victim, lane in ev.collisions:
+        rec.add_event(t, "collision", collider, victim, f"lane {lane}")
+    for vid in ev.teleports:
+        rec.add_event(t, "teleport", vid, "", "member" if vid in members else "")
+
+
+def _lane_changes(rec, t, nb, prev_lane, lead_idx, gap, v_m, ids, active, ld):
+    """Lane-change events of nearby vehicles; a cut-in when one becomes the vehicle right
+    ahead of a member inside its time gap."""
+    changed = set()
+    for j, vid in enumerate(nb.ids):
+        edge = nb.lane_ids[j].rsplit("_", 1)[0]
+        li = int(nb.lane_index[j])
+        old = prev_lane.get(vid)
+        if old is not None and old[0] == edge and old[1] != li and not edge.startswith(":"):
+            rec.add_event(t, "lane_change", vid, "", f"{old[1]} -> {li}")
+            changed.add(j)
+        prev_lane[vid] = (edge, li)
+    for i in np.flatnonzero(active):
+        j = lead_idx[i]
+        if j >= 0 and j in changed and gap[i] < ld.min_gap + ld.time_gap * v_m[i]:
+            rec.add_event(t, "cut_in", nb.ids[j], ids[i], f"gap {gap[i]:.1f} m ahead of the member")
+
+
+def _clear_insertion_zone(adapter, rec, t, pos, heading, v, veh, front):
+    """Remove SUMO vehicles that stand where a member is inserted, or inside its time gap
+    ahead (``front`` [m]) or within INSERT_CLEAR_TIME of its speed behind it."""
+    nb_ids = adapter.vehicle_ids()
+    if not nb_ids:
+        return
+    api, tc = adapter.api, adapter.tc
+    for vid in nb_ids:
+        xf, yf = api.vehicle.getPosition(vid)
+        ang = api.vehicle.getAngle(vid)
+        length, width = api.vehicle.getLength(vid), api.vehicle.getWidth(vid)
+        psi = math.radians(90.0 - ang)
+        centre = np.array([xf - length / 2 * math.cos(psi), yf - length / 2 * math.sin(psi)])
+        for i in range(len(pos)):
+            back = max(2.0, v[i] * INSERT_CLEAR_TIME)
+            zone_len = veh.length + front[i] + back
+            shift = (front[i] - back) / 2
+            zc = pos[i] + shift * np.array([math.cos(heading[i]), math.sin(heading[i])])
+            if rectangles_overlap(zc, heading[i], centre, psi, zone_len, veh.width + 0.6, length, width):
+                adapter.remove_vehicle(vid)
+                rec.add_event(t, "cleared_at_insertion", vid, "", "removed: it stood where a member is inserted")
+                break
+
+
+def _convert_ssm(xml_path: Path, out: Path, t0: float, members: set[str]) -> None:
+    """SUMO's SSM XML (one <conflict> per encounter) -> ssm.parquet; a truncated file keeps
+    the conflicts read before the damage."""
+    if not xml_path.exists():
+        return
+    table = ChunkedTable(out, SSM_COLUMNS, chunk_rows=100_000, labels=[""])
+    f = lambda v: float(v) if v not in (None, "", "NA") else np.nan
+    try:
+        for _, el in ET.iterparse(xml_path):
+            if el.tag != "conflict":
+                continue
+            ego, foe = el.get("ego", ""), el.get("foe", "")
+            ttc, drac, pet = el.find("minTTC"), el.find("maxDRAC"), el.find("PET")
+            table.append({
+                "begin": f(el.get("begin")) - t0, "end": f(el.get("end")) - t0,
+                "ego": table.code(ego), "foe": table.code(foe),
+                "member_involved": ego in members or foe in members,
+                "min_ttc": f(ttc.get("value")) if ttc is not None else np.nan,
+                "min_ttc_time": (f(ttc.get("time")) - t0) if ttc is not None else np.nan,
+                "max_drac": f(drac.get("value")) if drac is not None else np.nan,
+                "max_drac_time": (f(drac.get("time")) - t0) if drac is not None else np.nan,
+                "pet": f(pet.get("value")) if pet is not None else np.nan}, 1)
+            el.clear()
+    except ET.ParseError:
+        pass  # keep what was parsed
+    table.flush()

@@ -1,0 +1,141 @@
+"""Synthetic run directories for the analysis tests (no simulator needed).
+
+The virtual car drives straight at constant speed ``v`` along ``heading``; each member's
+desired position follows eq. 2.4 of the seed from its offset, and its actual position is
+``desired - error`` with the error ``(e_lon, e_lat)`` given per member as a function of
+time, so every formation metric has a closed form.
+"""
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from formation_traci.record.columns import TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID
+
+Signal = Callable[[str, np.ndarray], np.ndarray]
+
+OFFSETS: dict[str, tuple[float, float]] = {
+    "m1": (0.0, 0.0),
+    "m2": (-12.0, 0.0),
+    "m3": (-24.0, 0.0),
+    "m4": (-12.0, 3.5),
+}
+"""Default formation: a column m1 -> m2 -> m3 (dy = 0) and m4 in the left lane."""
+
+TIRE_COLUMNS = ("steer", "steer_rate", "beta", "slip_front", "slip_rear", "traction_force",
+                "traction_force_max")
+CONTROLLER_COLUMNS = ("ex", "ey", "e_lon", "e_lat", "x_des", "y_des", "v_ref", "omega_ref")
+
+
+def time_vector(dt: float, t_end: float) -> np.ndarray:
+    """Sample times 0, dt, ..., t_end (inclusive), rounded to 1e-9 s."""
+    return np.round(np.arange(0.0, t_end + dt / 2, dt), 9)
+
+
+def trajectories(*, dt: float = 0.01, t_end: float = 20.0, v: float = 20.0,
+                 heading: float = 0.0, offsets: Mapping[str, tuple[float, float]] = OFFSETS,
+                 error: Callable[[str, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
+                 columns: Mapping[str, Signal] | None = None,
+                 model: str = "dynamic") -> pd.DataFrame:
+    """Trajectory table with every contract column, one row per vehicle per step."""
+    t = time_vector(dt, t_end)
+    n = t.size
+    c, s = np.cos(heading), np.sin(heading)
+    x_vc, y_vc = v * t * c, v * t * s
+    nan = np.full(n, np.nan)
+    frames = [pd.DataFrame({
+        "t": t, "vehicle_id": VIRTUAL_CAR_ID, "x": x_vc, "y": y_vc,
+        "heading": np.full(n, heading), "v": np.full(n, v), "yaw_rate": np.zeros(n),
+        "a_lon": np.zeros(n), "a_lat": np.zeros(n),
+        **{k: nan for k in CONTROLLER_COLUMNS + TIRE_COLUMNS + ("friction_usage",)},
+    })]
+    for mid, (dx, dy) in offsets.items():
+        e_lon, e_lat = error(mid, t) if error else (np.zeros(n), np.zeros(n))
+        e_lon = np.broadcast_to(np.asarray(e_lon, float), (n,)).copy()
+        e_lat = np.broadcast_to(np.asarray(e_lat, float), (n,)).copy()
+        x_des, y_des = x_vc + c * dx - s * dy, y_vc + s * dx + c * dy
+        ex, ey = c * e_lon - s * e_lat, s * e_lon + c * e_lat
+        cols: dict[str, Any] = {
+            "t": t, "vehicle_id": mid, "x": x_des - ex, "y": y_des - ey,
+            "heading": np.full(n, heading), "v": np.full(n, v), "yaw_rate": np.zeros(n),
+            "a_lon": np.zeros(n), "a_lat": np.zeros(n), "ex": ex, "ey": ey,
+            "e_lon": e_lon, "e_lat": e_lat, "x_des": x_des, "y_des": y_des,
+            "v_ref": np.full(n, v), "omega_ref": np.zeros(n), "steer": np.zeros(n),
+            "steer_rate": np.zeros(n), "beta": np.zeros(n),
+            "slip_front": np.full(n, 0.01), "slip_rear": np.full(n, 0.01),
+            "traction_force": np.full(n, 500.0), "traction_force_max": np.full(n, 8000.0),
+        }
+        for name, fn in (columns or {}).items():
+            cols[name] = np.broadcast_to(np.asarray(fn(mid, t), float), (n,)).copy()
+        if "friction_usage" not in (columns or {}):
+            cols["friction_usage"] = np.hypot(cols["a_lon"], cols["a_lat"]) / 9.81
+        if model == "kinematic":
+            for k in TIRE_COLUMNS:
+                cols[k] = nan
+        frames.append(pd.DataFrame(cols))
+    df = pd.concat(frames, ignore_index=True)
+    for col in TRAJECTORY_COLUMNS:  # contract columns this helper does not model: NaN
+        if col.name not in df.columns:
+            df[col.name] = np.nan
+    return df[[col.name for col in TRAJECTORY_COLUMNS]]
+
+
+def arrow_schema(columns) -> pa.Schema:
+    types = {col.name: (pa.string() if col.dtype == "string" else pa.float64())
+             for col in TRAJECTORY_COLUMNS}
+    return pa.schema([(name, types.get(name, pa.float64())) for name in columns])
+
+
+def write_run(path: Path, df: pd.DataFrame, *, n_parts: int = 3,
+              offsets: Mapping[str, tuple[float, float]] = OFFSETS,
+              meta: Mapping[str, Any] | None = None, write_meta: bool = True,
+              single_file: bool = False) -> Path:
+    """Write ``run.json`` and ``trajectories.parquet`` (dataset of time-chunked parts)."""
+    path = Path(path)
+    path.mkdir(parents=True, exist_ok=True)
+    t = np.sort(df["t"].unique())
+    dt = round(float(np.median(np.diff(t))), 12) if t.size > 1 else 0.01
+    if write_meta:
+        content = {
+            "status": "completed", "reason": None, "t_end": float(t[-1]),
+            "record_step": dt, "model": "dynamic", "mu": 1.0,
+            "members": [{"id": k, "offset": list(v), "frame": "vehicle"}
+                        for k, v in offsets.items()],
+            "scenario": {"name": "synthetic"}, "versions": {"formation_traci": "test"},
+        }
+        content.update(meta or {})
+        (path / "run.json").write_text(json.dumps(content, indent=2))
+    schema = arrow_schema(df.columns)
+    target = path / "trajectories.parquet"
+    if single_file:
+        pq.write_table(pa.Table.from_pandas(df, schema=schema, preserve_index=False), target)
+        return path
+    target.mkdir(exist_ok=True)
+    for k, chunk in enumerate(np.array_split(t, n_parts)):
+        part = df[df["t"].isin(chunk)]
+        table = pa.Table.from_pandas(part, schema=schema, preserve_index=False)
+        pq.write_table(table, target / f"part-{k:05d}.parquet")
+    return path
+
+
+def make_run(path: Path, *, n_parts: int = 3, meta: Mapping[str, Any] | None = None,
+             offsets: Mapping[str, tuple[float, float]] = OFFSETS, **kwargs) -> Path:
+    """Build trajectories with :func:`trajectories` and write them with :func:`write_run`."""
+    df = trajectories(offsets=offsets, **kwargs)
+    meta = dict(meta or {})
+    meta.setdefault("model", kwargs.get("model", "dynamic"))
+    return write_run(path, df, n_parts=n_parts, offsets=offsets, meta=meta)
+
+
+def exp_error(e0: Mapping[str, float], tau: float = 2.0):
+    """Error functions ``e_lon = e0[id] exp(-t/tau)``, ``e_lat = 0``."""
+    def fn(mid: str, t: np.ndarray):
+        return e0.get(mid, 0.0) * np.exp(-t / tau), np.zeros_like(t)
+    return fn

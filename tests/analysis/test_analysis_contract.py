@@ -1,0 +1,85 @@
+"""Package rules: imports (STYLE 7, 12), numpydoc parameters (STYLE 11), doctests."""
+from __future__ import annotations
+
+import ast
+import doctest
+import importlib
+import inspect
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PKG = ROOT / "analysis"
+MODULES = sorted(p.stem for p in PKG.glob("*.py") if p.stem != "__init__")
+FORBIDDEN = {"libsumo", "traci", "sumolib"}
+
+
+def imported_modules(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text())
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out.add(node.module)
+    return out
+
+
+@pytest.mark.parametrize("path", sorted(PKG.glob("*.py")), ids=lambda p: p.name)
+def test_import_rules(path):
+    mods = imported_modules(path)
+    tops = {m.split(".")[0] for m in mods}
+    assert not tops & FORBIDDEN, f"{path.name} imports the simulator"
+    assert {m for m in mods if m.startswith("formation_traci")} <= {
+        "formation_traci.record.columns"}, f"{path.name} imports formation_traci beyond columns"
+    if path.name != "figures.py":
+        assert "matplotlib" not in tops, f"{path.name} imports matplotlib"
+    if path.name != "report.py":
+        assert "html" not in tops and "<html" not in path.read_text().lower()
+
+
+def test_importing_analysis_pulls_neither_simulator_nor_matplotlib():
+    code = ("import sys, analysis, analysis.api, analysis.summary, analysis.iso2631; "
+            "bad = sorted(m for m in sys.modules if m.split('.')[0] in "
+            "{'libsumo', 'traci', 'sumolib', 'matplotlib'}); print(bad)")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                         text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def public_callables():
+    for name in MODULES:
+        mod = importlib.import_module(f"analysis.{name}")
+        for attr in getattr(mod, "__all__", []):
+            obj = getattr(mod, attr)
+            if inspect.isfunction(obj):
+                yield f"{name}.{attr}", obj
+            elif inspect.isclass(obj):
+                for mname, meth in vars(obj).items():
+                    if inspect.isfunction(meth) and not mname.startswith("_"):
+                        yield f"{name}.{attr}.{mname}", meth
+
+
+@pytest.mark.parametrize("qualname, fn", list(public_callables()), ids=lambda x: x
+                         if isinstance(x, str) else "")
+def test_public_functions_document_every_parameter(qualname, fn):
+    doc = inspect.getdoc(fn) or ""
+    params = [p for p in inspect.signature(fn).parameters if p not in ("self", "cls")]
+    if params:
+        assert "Parameters\n----------" in doc, f"{qualname} has no Parameters section"
+        section = doc.split("Parameters\n----------", 1)[1]
+        section = re.split(r"\n(Returns|Raises|Notes|Examples|See Also)\n-+", section)[0]
+        documented = set(re.findall(r"^(\w+) :", section, flags=re.M))
+        assert set(params) <= documented, f"{qualname}: undocumented {set(params) - documented}"
+    assert "Returns\n-------" in doc, f"{qualname} has no Returns section"
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_docstring_examples_run(name):
+    mod = importlib.import_module(f"analysis.{name}")
+    res = doctest.testmod(mod, optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert res.failed == 0
