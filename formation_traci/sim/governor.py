@@ -15,6 +15,8 @@ K_GAP = 0.2
 """Gap-error gain of the time-gap law [1/s^2]."""
 K_REL = 0.7
 """Relative-speed gain of the time-gap law [1/s]."""
+B_COMFORT = 1.5
+"""Braking [m/s^2] below which the constant-time-gap law alone handles a closing vehicle."""
 LATERAL_MARGIN = 0.3
 """Vehicles whose bodies come closer than this sideways count as 'in the lane' [m]."""
 
@@ -60,9 +62,10 @@ def vehicles_ahead(m_s_front, m_d, m_half_w, o_s_rear, o_d, o_half_w, o_v):
 def time_gap_accel(gap, v, v_lead, time_gap, min_gap):
     """Acceleration [m/s^2] that keeps gap -> min_gap + time_gap v behind a leader.
 
-    Constant-time-gap law a = K_GAP (gap - g*) + K_REL (v_lead - v), bounded above by the
-    constant deceleration that stops the closing speed within the free gap
-    (-(v^2 - v_lead^2) / (2 (gap - min_gap))). +inf where there is no leader.
+    Constant-time-gap law a = K_GAP (gap - g*) + K_REL (v_lead - v). When matching the
+    leader's speed within the free gap needs more than B_COMFORT of braking,
+    b = (v^2 - v_lead^2) / (2 (gap - min_gap)), the law is bounded above by -b (a far, slower
+    vehicle needs no braking yet; a near one gets all it needs). +inf where there is no leader.
     """
     a = np.full(np.shape(gap), np.inf)
     has = np.isfinite(gap)
@@ -72,7 +75,8 @@ def time_gap_accel(gap, v, v_lead, time_gap, min_gap):
     law = K_GAP * (g - min_gap - time_gap * vv) + K_REL * (vl - vv)
     free = np.maximum(g - min_gap, 0.1)
     closing = np.maximum(vv * vv - vl * vl, 0.0)
-    law = np.minimum(law, -closing / (2.0 * free))
+    b_need = closing / (2.0 * free)
+    law = np.where(b_need > B_COMFORT, np.minimum(law, -b_need), law)
     a[has] = law
     return a
 

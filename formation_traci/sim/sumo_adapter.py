@@ -143,11 +143,12 @@ class SumoAdapter:
 
     # -- network helpers -------------------------------------------------------------
     def set_friction(self, mu: float) -> None:
-        """Set the friction of every lane of the network [-] (SUMO's cars with the friction
-        device slow down on slippery lanes)."""
-        for lane in self.api.lane.getIDList():
-            if not lane.startswith(":"):
-                self.api.lane.setFriction(lane, mu)
+        """Set the friction of every edge of the network [-] (SUMO's cars with the friction
+        device slow down on slippery lanes). ``edge.setFriction``: the traci server rejects
+        ``lane.setFriction`` in SUMO 1.28."""
+        for edge in self.api.edge.getIDList():
+            if not edge.startswith(":"):
+                self.api.edge.setFriction(edge, mu)
 
     def add_route(self, route_id: str, edges: list[str]) -> None:
         self.api.route.add(route_id, edges)

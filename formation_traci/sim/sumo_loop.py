@@ -141,7 +141,8 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
     speed_profile = profile(ld.speed)
     half_w = np.full(n, veh.width / 2)
     d_front = veh.cog_to_front_bumper
-    along_max = float(np.nanmax(np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])))
+    along = np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])  # slot ahead of the virtual car [m]
+    along_max = float(np.max(along))
 
     sumo_dir = out_dir / "sumo"
     sumo_dir.mkdir(exist_ok=True)
@@ -216,22 +217,27 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                         prev_lane[ids[i]] = (lanes[j].rsplit("_", 1)[0], int(lane_idx[j]))
                 _log_sumo_events(rec, t, ev, set(ids))
                 nb = adapter.neighbours(all_bg)
-            # governor: time gaps to the vehicles ahead of every member
+            # governor: the virtual car keeps every slot a time gap behind the vehicle ahead of
+            # it; each member keeps its own gap to whatever is between it and its slot
+            slot_s = s_vc + along
+            slot_d = np.where(plan.is_road, plan.slots[:, 1], m_d)
             if nb is not None and len(nb.ids):
                 nb_s, nb_d = line.to_frenet(np.column_stack([nb.x, nb.y]))
-                gap, v_lead, lead_idx = vehicles_ahead(m_s + d_front, m_d, half_w, nb_s - nb.length / 2,
-                                                       nb_d, nb.width / 2, nb.v)
+                nb_rear, nb_hw = nb_s - nb.length / 2, nb.width / 2
+                gap, v_lead, lead_idx = vehicles_ahead(m_s + d_front, m_d, half_w, nb_rear, nb_d, nb_hw, nb.v)
+                gap_slot, v_lead_slot, _ = vehicles_ahead(slot_s + d_front, slot_d, half_w, nb_rear, nb_d, nb_hw, nb.v)
             else:
                 nb_s = nb_d = np.empty(0)
                 gap, v_lead, lead_idx = np.full(n, np.inf), np.full(n, np.nan), np.full(n, -1)
-            acc = time_gap_accel(gap, v_m, v_lead, ld.time_gap, ld.min_gap)
+                gap_slot, v_lead_slot = gap, v_lead
+            acc_slot = time_gap_accel(gap_slot, np.full(n, v_vc), v_lead_slot, ld.time_gap, ld.min_gap)
             v_set, v_set_dot = speed_profile(t)
-            a_vc = leader_accel(v_vc, v_set, v_set_dot, acc[active], ld.accel_max, ld.decel_emergency)
+            a_vc = leader_accel(v_vc, v_set, v_set_dot, acc_slot[active], ld.accel_max, ld.decel_emergency)
             if a_vc < -ld.decel_max - 1e-9 and not emergency:
                 rec.add_event(t, "emergency_brake", "vc", "", f"virtual car decelerates at {-a_vc:.2f} m/s^2")
             emergency = a_vc < -ld.decel_max - 1e-9
             v_cap = member_speed_cap(gap, v_lead, ld.time_gap, ld.min_gap)
-            a_cap = np.maximum(acc, -ld.decel_emergency)
+            a_cap = np.maximum(time_gap_accel(gap, v_m, v_lead, ld.time_gap, ld.min_gap), -ld.decel_emergency)
             if nb is not None:
                 _lane_changes(rec, t, nb, prev_lane, lead_idx, gap, v_m, ids, active, ld)
                 rec.add_background(t, nb, nb_s, nb_d)

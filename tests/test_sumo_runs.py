@@ -1,0 +1,148 @@
+"""Formation runs on real SUMO roads through libsumo (no mocks), on shortened scenarios."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from formation_traci.scenario import ScenarioError, load_scenario
+from formation_traci.sim.runner import run_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+HIGHWAY = sorted((ROOT / "scenarios" / "highway").glob("*.toml"))
+
+
+def run(tmp_path, path, **overrides):
+    sc = load_scenario(path, **overrides)
+    res = run_scenario(sc, tmp_path / "run", scenario_path=path, progress=False, force=True)
+    out = tmp_path / "run"
+    meta = json.loads((out / "run.json").read_text())
+    traj = pd.read_parquet(out / "trajectories.parquet")
+    events = pd.read_parquet(out / "events.parquet") if any((out / "events.parquet").glob("*.parquet")) \
+        else pd.DataFrame(columns=["t", "kind", "vehicle_id", "other_id", "detail"])
+    return res, meta, traj, events, out
+
+
+@pytest.mark.parametrize("path", HIGHWAY, ids=lambda p: p.stem)
+def test_bundled_highway_scenario_runs_to_the_end(tmp_path, path):
+    """Each bundled scenario, shortened (30 s warm-up, 12 s of formation), runs headless to its
+    end with SUMO: no collision, every member present, SUMO's positions equal ours within 1 cm."""
+    res, meta, traj, events, out = run(tmp_path, path, **{"run.duration": 12.0, "traffic.warmup": 30.0})
+    assert res.status == "completed", res.reason
+    assert meta["t_end"] == pytest.approx(12.0)
+    assert meta["sumo"]["version"].startswith("SUMO 1.28")
+    assert not (events.kind == "collision").any(), events[events.kind == "collision"]
+    assert not (events.kind == "member_removed").any()
+    members = traj[traj.vehicle_id != "vc"]
+    assert set(members.vehicle_id) == {m["id"] for m in meta["members"]}
+    placed = members[members.t > 0]
+    assert placed.sumo_gap.notna().all()
+    assert placed.sumo_gap.max() < 0.01  # m: bumper/angle conversion exact
+    assert np.isfinite(members[["x", "y", "v", "e_lon", "e_lat"]].to_numpy()).all()
+    assert any(out.joinpath("background.parquet").glob("part-*.parquet"))
+
+
+def test_members_hold_their_slots_on_straight_and_curved_roads(tmp_path):
+    """Light traffic: after settling, lateral error < 0.3 m and longitudinal error < 1 m,
+    including the clothoid and the R = 800 m arc of the curved motorway."""
+    for name, duration in (("straight_3lane_light", 40.0), ("curved_3lane", 60.0)):
+        _, meta, traj, events, _ = run(tmp_path / name, ROOT / "scenarios" / "highway" / f"{name}.toml",
+                                       **{"run.duration": duration, "traffic.warmup": 60.0,
+                                          "road.start": 700.0})
+        m = traj[(traj.vehicle_id != "vc") & (traj.t > 10.0)]
+        assert m.e_lat.abs().max() < 0.3, name
+        assert m.e_lon.abs().max() < 1.0, name
+        if name == "curved_3lane":  # the run really drives the curve: 800 m clothoid + arc
+            vc = traj[traj.vehicle_id == "vc"]
+            assert np.abs(vc.yaw_rate / vc.v).max() > 0.9 / 800
+
+
+def test_slot_keeping_in_road_frame_is_exact_on_arcs(tmp_path):
+    """Road-frame slots follow the lanes: on the arc the desired points of the outer members
+    stay 3.5 m from the reference lane (the seed's rigid frame would cut the curve)."""
+    _, _, traj, _, _ = run(tmp_path, ROOT / "scenarios" / "highway" / "curved_3lane.toml",
+                           **{"run.duration": 40.0, "traffic.warmup": 0.0, "road.start": 900.0,
+                              "traffic.flows": []})
+    m = traj[(traj.vehicle_id != "vc") & (traj.t > 5.0)]
+    for vid, lanes in (("left", 1), ("right", -1)):
+        g = m[m.vehicle_id == vid]
+        np.testing.assert_allclose(g.d, lanes * 3.5, atol=0.3)
+
+
+def test_sumo_cars_brake_behind_a_slow_member_and_change_lanes(tmp_path):
+    """A single member at 15 m/s in the right lane of ~33 m/s traffic: SUMO's cars that come
+    up behind it in its lane brake well below their free speed, then change lanes and pass
+    it; nobody hits it."""
+    sc_text = (ROOT / "scenarios" / "highway" / "straight_3lane_light.toml").read_text()
+    head = sc_text.split("[[members]]")[0].replace("speed = 30.0", "speed = 15.0").replace("lane = 1", "lane = 0")
+    tail = "[traffic]" + sc_text.split("[traffic]")[1]
+    p = tmp_path / "slow.toml"
+    p.write_text(head + '[[members]]\nid = "slow"\nslot = { along = 0.0, lanes = 0 }\n\n' + tail)
+    _, _, traj, events, out = run(tmp_path, p, **{"run.duration": 60.0, "traffic.warmup": 60.0})
+    assert not (events.kind == "collision").any()
+    bg = pd.read_parquet(out / "background.parquet")
+    slow = traj[traj.vehicle_id == "slow"].set_index("t")
+    assert slow.v.max() < 16.0  # it stays slow (small catch-ups after disturbances)
+    bg = bg.join(slow[["s"]].rename(columns={"s": "s_member"}), on="t")
+    near_behind = bg[(bg.lane_index == 0) & (bg.s < bg.s_member) & (bg.s > bg.s_member - 50.0) & (bg.t > 5)]
+    min_speed = near_behind.groupby("vehicle_id").v.min()
+    braked = set(min_speed[min_speed < 24.0].index)  # free flow here is ~33 m/s
+    assert len(braked) >= 3, min_speed
+    changes = events[(events.kind == "lane_change") & events.vehicle_id.isin(braked)]
+    assert changes.vehicle_id.nunique() >= 3  # ... and went around it
+    ahead_later = bg[bg.vehicle_id.isin(braked) & (bg.s > bg.s_member + 10.0)].vehicle_id.unique()
+    assert len(ahead_later) >= 3  # they passed it
+
+
+@pytest.mark.parametrize("edit,field,expect", [
+    (("net = \"straight3\"", "net = \"nowhere\""), "road.net", "no such network"),
+    (("lane = 1", "lane = 7"), "road.lane", "lanes 0..2"),
+    (("lane = 1", "lane = 1\nroute = [\"entry\", \"nope\"]"), "road.route", "not in"),
+    (("slot = { along = 0.0, lanes = 1 }", "slot = { along = 0.0, lanes = 2 }"), "members.2.slot", "off the road"),
+    (("slot = { along = 0.0, lanes = 1 }", "slot = { along = 2.0, lanes = 0 }"), "members.2", "on top of"),
+])
+def test_bad_road_scenarios_are_refused_before_the_run(tmp_path, edit, field, expect):
+    text = (ROOT / "scenarios" / "highway" / "straight_3lane_light.toml").read_text().replace(*edit)
+    p = tmp_path / "bad.toml"
+    p.write_text(text)
+    sc = load_scenario(p)
+    with pytest.raises(ScenarioError) as ei:
+        run_scenario(sc, tmp_path / "out", scenario_path=p, progress=False)
+    assert any(f == field and expect in m for f, m in ei.value.problems), ei.value
+    assert str(p) in str(ei.value)
+    assert not (tmp_path / "out").exists()
+
+
+def test_lane_drop_slot_in_the_ending_lane_is_refused(tmp_path):
+    text = (ROOT / "scenarios" / "highway" / "lanedrop.toml").read_text().replace(
+        'id = "front_right"\nslot = { along = 0.0, lanes = 0 }', 'id = "front_right"\nslot = { along = 0.0, lanes = -1 }')
+    p = tmp_path / "drop.toml"
+    p.write_text(text)
+    with pytest.raises(ScenarioError, match="off the road on edge 'mw_down'"):
+        run_scenario(load_scenario(p), tmp_path / "out", scenario_path=p, progress=False)
+
+
+def test_same_seed_same_results_and_traci_backend_matches_libsumo(tmp_path):
+    """Same scenario and seed: identical trajectories and background, through libsumo twice
+    and through the traci socket backend."""
+    path = ROOT / "scenarios" / "highway" / "straight_3lane_medium.toml"
+    kw = {"run.duration": 5.0, "traffic.warmup": 20.0}
+    _, _, a, _, oa = run(tmp_path / "a", path, **kw)
+    _, _, b, _, ob = run(tmp_path / "b", path, **kw)
+    _, mc, c, _, oc = run(tmp_path / "c", path, **kw, **{"sumo.backend": "traci"})
+    pd.testing.assert_frame_equal(a, b, check_exact=True)
+    pd.testing.assert_frame_equal(a, c, check_exact=True)
+    ba, bc = pd.read_parquet(oa / "background.parquet"), pd.read_parquet(oc / "background.parquet")
+    pd.testing.assert_frame_equal(ba, bc, check_exact=True)
+    _, _, d, _, _ = run(tmp_path / "d", path, **kw, **{"run.seed": 2})
+    bd = pd.read_parquet(tmp_path / "d" / "run" / "background.parquet")
+    assert not ba.equals(bd)  # another seed, other traffic
+
+
+def test_fcd_output_as_parquet(tmp_path):
+    path = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
+    _, meta, traj, _, out = run(tmp_path, path, **{"run.duration": 3.0, "traffic.warmup": 10.0, "sumo.fcd": True})
+    fcd = pd.read_parquet(out / "sumo" / "fcd.parquet")
+    assert {"timestep_time", "vehicle_id", "vehicle_x", "vehicle_y"} <= set(fcd.columns)
+    assert set(meta and [m["id"] for m in meta["members"]]) <= set(fcd.vehicle_id)
