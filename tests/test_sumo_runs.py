@@ -74,7 +74,7 @@ def test_sumo_cars_brake_behind_a_slow_member_and_change_lanes(tmp_path):
     """A single member at 15 m/s in the right lane of ~33 m/s traffic: SUMO's cars that come
     up behind it in its lane brake well below their free speed, then change lanes and pass
     it; nobody hits it."""
-    sc_text = (ROOT / "scenarios" / "highway" / "straight_3lane_light.toml").read_text()
+    sc_text = (ROOT / "scenarios" / "highway" / "straight_3lane_medium.toml").read_text()
     head = sc_text.split("[[members]]")[0].replace("speed = 30.0", "speed = 15.0").replace("lane = 1", "lane = 0")
     tail = "[traffic]" + sc_text.split("[traffic]")[1]
     p = tmp_path / "slow.toml"
@@ -87,12 +87,14 @@ def test_sumo_cars_brake_behind_a_slow_member_and_change_lanes(tmp_path):
     bg = bg.join(slow[["s"]].rename(columns={"s": "s_member"}), on="t")
     near_behind = bg[(bg.lane_index == 0) & (bg.s < bg.s_member) & (bg.s > bg.s_member - 50.0) & (bg.t > 5)]
     min_speed = near_behind.groupby("vehicle_id").v.min()
-    braked = set(min_speed[min_speed < 24.0].index)  # free flow here is ~33 m/s
-    assert len(braked) >= 3, min_speed
+    free_speed = bg[bg.vehicle_id.isin(min_speed.index)].groupby("vehicle_id").v.max()
+    braked = set(min_speed[min_speed < 0.8 * free_speed[min_speed.index]].index)
+    assert len(braked) >= 3, (min_speed, free_speed)
     changes = events[(events.kind == "lane_change") & events.vehicle_id.isin(braked)]
-    assert changes.vehicle_id.nunique() >= 3  # ... and went around it
+    assert changes.vehicle_id.nunique() >= 2  # ... and went around it (in medium traffic
+    # some of them wait for a gap beyond the end of the run)
     ahead_later = bg[bg.vehicle_id.isin(braked) & (bg.s > bg.s_member + 10.0)].vehicle_id.unique()
-    assert len(ahead_later) >= 3  # they passed it
+    assert len(ahead_later) >= 2  # they passed it
 
 
 @pytest.mark.parametrize("edit,field,expect", [
