@@ -24,15 +24,16 @@ def run(
     model: Optional[str] = typer.Option(None, help="override vehicle.model: dynamic | kinematic"),
     force: bool = typer.Option(False, "--force", help="replace an existing run directory"),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="show a progress bar"),
+    baseline: bool = typer.Option(False, "--baseline", help="road scenarios: the twin run with the same traffic and seed but no formation"),
 ) -> None:
-    """Run SCENARIO headless and record it under OUT (run.json, trajectories.parquet)."""
+    """Run SCENARIO headless and record it under OUT (run.json, trajectories.parquet, ...)."""
     from .scenario import ScenarioError, load_scenario
     from .sim.runner import RunDirExists, run_scenario
 
     try:
         sc = load_scenario(scenario, **{"run.duration": duration, "run.seed": seed,
                                         "vehicle.model": model})
-        res = run_scenario(sc, out, scenario_path=scenario, force=force, progress=progress)
+        res = run_scenario(sc, out, scenario_path=scenario, force=force, progress=progress, baseline=baseline)
     except (ScenarioError, RunDirExists) as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2)

@@ -148,3 +148,21 @@ def test_fcd_output_as_parquet(tmp_path):
     fcd = pd.read_parquet(out / "sumo" / "fcd.parquet")
     assert {"timestep_time", "vehicle_id", "vehicle_x", "vehicle_y"} <= set(fcd.columns)
     assert set(meta and [m["id"] for m in meta["members"]]) <= set(fcd.vehicle_id)
+
+
+def test_baseline_twin_has_the_same_traffic_without_the_formation(tmp_path):
+    """`--baseline`: same scenario and seed, no member enters SUMO, every vehicle recorded; the
+    vehicles that departed are the same ones as in the formation run (seeded departures)."""
+    path = ROOT / "scenarios" / "highway" / "straight_3lane_medium.toml"
+    kw = {"run.duration": 8.0, "traffic.warmup": 20.0}
+    sc = load_scenario(path, **kw)
+    run_scenario(sc, tmp_path / "twin", scenario_path=path, progress=False, baseline=True)
+    meta = json.loads((tmp_path / "twin" / "run.json").read_text())
+    assert meta["baseline"] is True and meta["status"] == "completed"
+    traj = pd.read_parquet(tmp_path / "twin" / "trajectories.parquet")
+    assert set(traj.vehicle_id) == {"vc"}
+    twin_bg = pd.read_parquet(tmp_path / "twin" / "background.parquet")
+    _, _, _, _, out = run(tmp_path / "form", path, **kw)
+    form_bg = pd.read_parquet(out / "background.parquet")
+    assert set(form_bg.vehicle_id) <= set(twin_bg.vehicle_id)  # recorded near vs everywhere
+    assert twin_bg.vehicle_id.nunique() > form_bg.vehicle_id.nunique()

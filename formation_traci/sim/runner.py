@@ -156,14 +156,18 @@ def check_finite(state, ids, t):
 
 
 def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | None = None,
-                 force: bool = False, progress: bool = True) -> RunResult:
+                 force: bool = False, progress: bool = True, baseline: bool = False) -> RunResult:
     """Run ``sc`` (free space, or on a SUMO road when it has a [road]) and record it.
 
     Writes ``run.json`` (status ``running`` at once, updated at every trajectory part file
     and at the end) and the tables (docs/outputs.md). Never raises for a failure inside
     the run: the status says ``failed`` with the reason, and all rows recorded so far are
     kept. ``scenario_path`` resolves relative paths in the scenario (the network file).
+    ``baseline`` (road scenarios): the twin run with the same traffic and seed but without
+    the formation, for ``formation-traci analyze RUN --baseline TWIN``.
     """
+    if baseline and sc.road is None:
+        raise ScenarioError(scenario_path or "<scenario>", [("road", "--baseline needs a road scenario")])
     src = None if scenario_path is None else Path(scenario_path)
     plan = None
     if sc.road is not None:  # road, route, lanes and slots are checked before anything runs
@@ -171,6 +175,7 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
         plan = prepare(sc, src)
     out_dir = prepare_out_dir(out_dir, force)
     meta = run_meta(sc, None if scenario_path is None else str(scenario_path))
+    meta["baseline"] = baseline
     meta_path = out_dir / "run.json"
     atomic_write_json(meta_path, meta)
     rec = Recorder(out_dir, [m.id for m in sc.members], with_sumo=sc.road is not None)
@@ -184,7 +189,7 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
             steps = free_space_steps(sc, rec, meta)
         else:
             from .sumo_loop import sumo_steps
-            steps = sumo_steps(sc, rec, out_dir, src, meta, plan)
+            steps = sumo_steps(sc, rec, out_dir, src, meta, plan, baseline)
         if progress:
             from tqdm import tqdm
             bar = tqdm(total=n_steps, unit="step", desc=sc.name or "run", mininterval=0.5)

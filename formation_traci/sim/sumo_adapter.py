@@ -289,8 +289,14 @@ class SumoAdapter:
                 tc.VAR_WIDTH, tc.VAR_LANE_ID, tc.VAR_LANE_INDEX, tc.VAR_LANEPOSITION_LAT, tc.VAR_TYPE]
 
     def subscribe_departed(self) -> None:
-        """Subscribe every vehicle that entered in the last step (recording 'all' vehicles)."""
-        for vid in self.api.simulation.getDepartedIDList():
+        """Subscribe every vehicle that entered in the last step (recording 'all' vehicles);
+        the first call also subscribes the vehicles already on the road."""
+        if not getattr(self, "_subscribed_all", False):
+            self._subscribed_all = True
+            fresh = self.api.vehicle.getIDList()
+        else:
+            fresh = self.api.simulation.getDepartedIDList()
+        for vid in fresh:
             if vid not in self.members:
                 self.api.vehicle.subscribe(vid, self._neighbour_vars())
 

@@ -127,8 +127,12 @@ def _advance_vc(s, v, a, dt):
 
 
 def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, meta: dict,
-               plan: RoadPlan | None = None) -> Iterator[tuple[int, float]]:
-    """Run ``sc`` on its SUMO road; yields (step index, time [s]) after recording each step."""
+               plan: RoadPlan | None = None, baseline: bool = False) -> Iterator[tuple[int, float]]:
+    """Run ``sc`` on its SUMO road; yields (step index, time [s]) after recording each step.
+
+    ``baseline``: the twin run for comparisons: the same traffic and seed without the
+    formation (no member enters SUMO; every vehicle is recorded; the virtual car's rows are
+    kept as the reference of where the formation would have been)."""
     plan = plan or prepare(sc, source)
     road, veh, line = plan.road, plan.veh, plan.road.line
     run, ld = sc.run, sc.leader
@@ -183,7 +187,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
 
         active = np.ones(n, dtype=bool)
         inserted = False
-        all_bg = sc.traffic.record_radius is None
+        all_bg = sc.traffic.record_radius is None or baseline
         prev_lane: dict[str, tuple[str, int]] = {}
         member_lane_prev = np.full(n, -1)
         emergency = False
@@ -195,7 +199,10 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             m_s, m_d = line.to_frenet(pos)
             extra = {"s": m_s, "d": m_d}
             nb = None
-            if inserted:
+            if inserted and baseline:
+                _log_sumo_events(rec, t, ev, set(ids))
+                nb = adapter.neighbours(True)
+            elif inserted:
                 act = [ids[i] for i in np.flatnonzero(active)]
                 xs, ys, _, lanes, lane_idx, _, present = adapter.read_members(act)
                 idx_act = np.flatnonzero(active)
@@ -245,7 +252,8 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             vc = road_leader_state(line, s_vc, v_vc, a_vc)
             targets = _targets(road, plan.slots, plan.rigid, plan.is_road, s_vc, v_vc, a_vc)
             u, fo = fl.control(cfg, state, targets, v_cap, a_cap)
-            rec.add_members(t, cfg, state, u, fo, targets, vc.theta, extra, mask=active)
+            if not baseline:
+                rec.add_members(t, cfg, state, u, fo, targets, vc.theta, extra, mask=active)
             rec.add_vc(t, vc, s=s_vc)
             yield k, t
             if k == n_steps:
@@ -273,7 +281,9 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             a_mean = (v_after - v_before) / run.step
             act_idx = np.flatnonzero(active)
             act = [ids[i] for i in act_idx]
-            if not inserted:
+            if baseline:
+                pass  # the formation stays out of SUMO
+            elif not inserted:
                 _clear_insertion_zone(adapter, rec, t + run.step, pos, heading, v_after, veh,
                                       ld.min_gap + ld.time_gap * v_after)
                 for i in act_idx:
@@ -282,6 +292,10 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 for vid, msg in adapter.place(act, pos[act_idx, 0], pos[act_idx, 1], heading[act_idx]):
                     rec.add_event(t + run.step, "move_refused", vid, "", msg)
             ev = adapter.step()
+            if baseline:
+                adapter.subscribe_departed()
+                inserted = True  # reads neighbours (every vehicle) from now on
+                continue
             adapter.set_true_speeds(act, v_after[act_idx], a_mean[act_idx])
             if not inserted:
                 inserted = True
