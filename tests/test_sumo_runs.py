@@ -166,3 +166,35 @@ def test_baseline_twin_has_the_same_traffic_without_the_formation(tmp_path):
     form_bg = pd.read_parquet(out / "background.parquet")
     assert set(form_bg.vehicle_id) <= set(twin_bg.vehicle_id)  # recorded near vs everywhere
     assert twin_bg.vehicle_id.nunique() > form_bg.vehicle_id.nunique()
+
+
+def test_attach_to_a_running_sumo_over_traci(tmp_path):
+    """A SUMO started by the user (with --remote-port and its own traffic): the run attaches
+    through traci, places the members there and leaves the traffic to that SUMO."""
+    import socket
+    import subprocess
+
+    import sumolib
+    with socket.socket() as so:
+        so.bind(("127.0.0.1", 0))
+        port = so.getsockname()[1]
+    routes = tmp_path / "own.rou.xml"
+    routes.write_text('<routes><route id="r" edges="entry main"/>'
+                      '<flow id="own" route="r" begin="0" end="500" vehsPerHour="2000" departLane="best"/></routes>')
+    net = ROOT / "sumo_nets" / "straight3.net.xml"
+    proc = subprocess.Popen([sumolib.checkBinary("sumo"), "-n", str(net), "-r", str(routes), "--remote-port",
+                             str(port), "--step-length", "0.05", "--lateral-resolution", "0.8",
+                             "--no-step-log", "true"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        path = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
+        res, meta, traj, events, out = run(tmp_path, path, **{
+            "run.duration": 4.0, "traffic.warmup": 10.0, "traffic.flows": [],
+            "sumo.backend": "traci", "sumo.attach_port": port})
+        assert res.status == "completed", res.reason
+        assert "attached" in meta["sumo"]["args"]
+        members = traj[(traj.vehicle_id != "vc") & (traj.t > 0)]
+        assert members.sumo_gap.max() < 0.01
+        bg = pd.read_parquet(out / "background.parquet")
+        assert bg.vehicle_id.str.startswith("own").any()  # the running SUMO's own traffic
+    finally:
+        proc.wait(timeout=30)

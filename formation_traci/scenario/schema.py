@@ -211,6 +211,14 @@ class SumoSpec(Strict):
     fcd: bool = Field(False, description="also write SUMO's FCD output (Parquet)")
     friction_device: bool = Field(True, description="SUMO's cars slow down on low-friction lanes (device.friction)")
     options: list[str] = Field(default_factory=list, description="extra SUMO command-line options")
+    attach_port: int | None = Field(None, ge=1, le=65535, description="attach (traci) to a SUMO already "
+                                    "running with --remote-port PORT instead of starting one")
+
+    @model_validator(mode="after")
+    def _attach(self):
+        if self.attach_port is not None and self.backend != "traci":
+            raise ValueError("attach_port needs backend = \"traci\"")
+        return self
 
 
 class Scenario(Strict):
@@ -237,6 +245,8 @@ class Scenario(Strict):
         else:
             if self.leader.yaw_rate_deg_s != 0.0:
                 raise ValueError("on a road the virtual car's yaw rate comes from the road: remove leader.yaw_rate_deg_s")
+        if self.sumo.attach_port is not None and self.traffic.flows:
+            raise ValueError("with sumo.attach_port the traffic comes from the running SUMO: remove traffic.flows")
         ids = [f.id for f in self.traffic.flows]
         if len(set(ids)) != len(ids):
             raise ValueError("flow ids must be unique")

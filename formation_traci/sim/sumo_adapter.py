@@ -124,6 +124,16 @@ class SumoAdapter:
         self._started = True
         return self.version
 
+    def attach(self, port: int) -> str:
+        """Connect (traci) to a SUMO started elsewhere with ``--remote-port port``."""
+        try:
+            self.api.init(port)
+            self.version = self.api.getVersion()[1]
+        except Exception as exc:
+            raise SumoError(f"could not attach to SUMO on port {port}: {exc}") from exc
+        self._started = True
+        return self.version
+
     def close(self) -> None:
         if self._started:
             try:

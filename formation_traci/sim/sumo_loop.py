@@ -175,7 +175,11 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                         "lanes": None if m.slot is None else m.slot.lanes}
                        for i, m in enumerate(sc.members)]
     try:
-        meta["sumo"]["version"] = adapter.start(args)
+        if sc.sumo.attach_port is not None:
+            meta["sumo"]["args"] = f"attached to port {sc.sumo.attach_port}"
+            meta["sumo"]["version"] = adapter.attach(sc.sumo.attach_port)
+        else:
+            meta["sumo"]["version"] = adapter.start(args)
         meta["versions"]["sumo"] = meta["sumo"]["version"]
         mu = road_mu(sc)
         adapter.set_friction(mu)
