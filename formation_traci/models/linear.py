@@ -74,3 +74,29 @@ def critical_speed(veh: VehicleParams, tires: Tires) -> float:
     """Speed at which an oversteering vehicle becomes unstable, sqrt(-L / K_us) [m/s]; inf if K_us >= 0."""
     k = understeer_gradient(veh, tires)
     return float(np.sqrt(-veh.wheelbase / k)) if k < 0 else float("inf")
+
+
+def closed_loop_lateral(v: float, veh: VehicleParams, tires: Tires, K: float, k_theta: float,
+                        k: float = 1.0) -> np.ndarray:
+    """Linearised lateral closed loop of one member on a straight path at speed v [m/s].
+
+    State [beta, psi dot, delta, psi, y] (y: lateral offset from the slot [m]). Plant: (3.30)
+    plus delta' = K (omega_ref - psi dot) (3.37 with the scheduled gain at small error,
+    K = G_max), psi' = psi dot, y' = v (psi + beta). Outer loop: eqs (2.7)-(2.9) linearised
+    about the slot with tanh(e) ~ e: theta* = -k y / v, theta* dot = -k y' / v, so
+    omega_ref = -k (psi + beta) + k_theta (-k y / v - psi) (eq 2.8).
+
+    Returns the 5x5 system matrix; the loop is stable when all eigenvalues have negative real part.
+    """
+    A, B = lateral_ab(v, veh, tires)
+    M = np.zeros((5, 5))
+    M[:2, :2] = A
+    M[:2, 2] = B[:, 0]
+    M[2, 0] = -K * k
+    M[2, 1] = -K
+    M[2, 3] = -K * (k + k_theta)
+    M[2, 4] = -K * k_theta * k / v
+    M[3, 1] = 1.0
+    M[4, 0] = v
+    M[4, 3] = v
+    return M

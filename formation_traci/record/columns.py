@@ -65,7 +65,7 @@ TRAJECTORY_FLOAT_COLUMNS: tuple[str, ...] = tuple(
 EVENT_COLUMNS: tuple[Column, ...] = (
     Column("t", "float64", "s", "simulated time (formation clock)"),
     Column("kind", "string", "-", "collision | teleport | member_removed | move_refused | lane_change | "
-                                  "cut_in | cleared_at_insertion | emergency_brake | end_of_road | sumo_error"),
+                                  "cut_in | cleared_at_insertion | emergency_brake | end_of_road | placement_mismatch | model_range"),
     Column("vehicle_id", "string", "-", "the vehicle the event is about"),
     Column("other_id", "string", "-", "the other vehicle involved, or empty"),
     Column("detail", "string", "-", "free text"),

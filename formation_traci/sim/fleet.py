@@ -16,11 +16,11 @@ from ..control.formation import FormationOutput, Targets, formation_control, ini
 from ..control.schedule import GainSchedule
 from ..control.speed import desired_acceleration
 from ..control.yaw import steering_rate
-from ..models import bicycle, kinematic
+from ..models import bicycle, bicycle_fast, kinematic
 from ..models.bicycle import S, U
 from ..models.kinematic import KS, KU
 from ..models.params import BicycleParams
-from .integrate import integrate
+from .integrate import substeps
 
 
 @dataclass(frozen=True)
@@ -39,6 +39,15 @@ class FleetConfig:
     @property
     def n(self) -> int:
         return len(self.ids)
+
+    @property
+    def packed(self) -> np.ndarray:
+        """Parameters packed for the compiled model (bicycle_fast.pack_params), built once."""
+        p = self.__dict__.get("_packed")
+        if p is None:
+            p = bicycle_fast.pack_params(self.params, self.n)
+            object.__setattr__(self, "_packed", p)
+        return p
 
 
 @dataclass
@@ -104,12 +113,18 @@ def control(cfg: FleetConfig, state: FleetState, targets: Targets, v_cap=None, a
 
 
 def advance(cfg: FleetConfig, state: FleetState, u: np.ndarray, fo: FormationOutput, dt: float) -> FleetState:
-    """Hold u for dt [s]: RK4 on the vehicles, forward Euler on theta* (2.11)."""
+    """Hold u for dt [s]: RK4 on the vehicles, forward Euler on theta* (2.11).
+
+    The compiled kernels of models/bicycle_fast.py compute exactly what
+    ``integrate(bicycle.rhs, ...)`` / ``integrate(kinematic.rhs, ...)`` compute (tests pin it
+    to 1e-11), about 100x faster for a few vehicles.
+    """
     theta_star = state.theta_star + fo.theta_star_dot * dt
+    n_sub = substeps(dt, cfg.physics_step)
     if cfg.model == "kinematic":
-        x = integrate(kinematic.rhs, state.x, u, None, dt, cfg.physics_step)
+        x = bicycle_fast.integrate_unicycle(state.x, u, dt, n_sub)
         return FleetState(x, theta_star, np.maximum(u[:, KU.V], 0.0))
-    x = integrate(bicycle.rhs, state.x, u, cfg.params, dt, cfg.physics_step, bicycle.project)
+    x = bicycle_fast.integrate_bicycle(state.x, u, cfg.packed, dt, n_sub)
     return FleetState(x, theta_star, state.speed_in)
 
 

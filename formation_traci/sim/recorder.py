@@ -13,6 +13,13 @@ from . import fleet as fl
 STEPS_PER_CHUNK = 1200
 """Outer steps per trajectory part file (60 s of simulated time at the default 0.05 s step)."""
 
+MAX_SLIP = np.radians(10.0)
+"""Tire slip beyond which the Magic Formula fit of Table 3.2 is far past its peak [rad]."""
+MAX_FRICTION_USAGE = 1.0
+"""Friction circle (eq 3.16): above 1 the tires cannot deliver the accelerations."""
+MAX_SPEED = 60.0
+"""Speeds above this are outside anything the parameters were meant for [m/s]."""
+
 _NAN_ROW = {c.name: np.nan for c in TRAJECTORY_COLUMNS if c.dtype == "float64"}
 
 
@@ -26,10 +33,11 @@ class Recorder:
                                  labels=list(member_ids) + [VIRTUAL_CAR_ID])
         self.codes = np.arange(n, dtype=np.int32)
         self.vc_code = n
-        self.events = self.background = None
+        self.events = ChunkedTable(out_dir / "events.parquet", EVENT_COLUMNS, chunk_rows=2000, labels=[""])
+        self.background = None
+        self.member_ids = list(member_ids)
+        self._out_of_range = np.zeros(n, dtype=bool)
         if with_sumo:
-            self.events = ChunkedTable(out_dir / "events.parquet", EVENT_COLUMNS, chunk_rows=2000,
-                                       labels=[""])
             self.background = ChunkedTable(out_dir / "background.parquet", BACKGROUND_COLUMNS,
                                            chunk_rows=50_000)
         self.event_counts: dict[str, int] = {}
@@ -45,11 +53,25 @@ class Recorder:
         sig["vehicle_id"] = self.codes
         for name in ("s", "d", "lane_index", "sumo_gap"):
             sig[name] = (extra or {}).get(name, np.nan)
+        self._check_range(t, sig, mask)
         n = cfg.n
         if mask is not None and not mask.all():
             sig = {k: (v[mask] if np.ndim(v) else v) for k, v in sig.items()}
             n = int(mask.sum())
         self.traj.append(sig, n)
+
+    def _check_range(self, t, sig, mask):
+        """A ``model_range`` event when a member enters the region where the single-track
+        model is no longer trustworthy (docs/reliability.md); one per episode."""
+        slip = np.fmax(np.abs(sig["slip_front"]), np.abs(sig["slip_rear"]))
+        bad = (slip > MAX_SLIP) | (sig["friction_usage"] > MAX_FRICTION_USAGE) | (sig["v"] > MAX_SPEED)
+        if mask is not None:
+            bad &= mask
+        for i in np.flatnonzero(bad & ~self._out_of_range):
+            self.add_event(t, "model_range", self.member_ids[i], "",
+                           f"slip {np.degrees(slip[i]):.1f} deg, friction usage {sig['friction_usage'][i]:.2f}, "
+                           f"v {sig['v'][i]:.1f} m/s")
+        self._out_of_range = bad
 
     def add_vc(self, t, vc, s=np.nan):
         row = dict(_NAN_ROW)

@@ -45,6 +45,7 @@ class Road:
     segments: tuple[RoadSegment, ...]
     lane_width: float  # width of the reference lane on the first edge [m]
     edge_lanes: dict[str, int]  # lane count per route edge
+    lane_d: dict[str, np.ndarray]  # per route edge: lateral offset of each lane centre from the reference line [m]
 
 
 def resolve_net(sc: Scenario, source: Path | None) -> Path:
@@ -82,6 +83,7 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
     except ValueError as exc:
         raise ScenarioError(src, [("road.route", f"lane {sc.road.lane} cannot be followed along the route: {exc}")]) from None
     segments = []
+    lane_d = {}
     for lane_id in lanes:
         if lane_id.startswith(":"):
             continue
@@ -91,13 +93,14 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
         s_ends, _ = line.to_frenet(shape[[0, -1]])
         offs = lane_offsets(net, edge.getID(), lane.getIndex())
         widths = np.array([ln.getWidth() for ln in edge.getLanes()])
+        lane_d[edge.getID()] = offs
         segments.append(RoadSegment(edge.getID(), float(s_ends[0]), float(s_ends[1]),
                                     float(np.min(offs - widths / 2)), float(np.max(offs + widths / 2))))
     if sc.road.start >= line.length - sc.road.end_margin:
         raise ScenarioError(src, [("road.start", f"must be less than the route length minus end_margin "
                                                  f"({line.length - sc.road.end_margin:.1f} m)")])
     return Road(net_file, route, line, tuple(segments), first.getLane(sc.road.lane).getWidth(),
-                {e: net.getEdge(e).getLaneNumber() for e in route})
+                {e: net.getEdge(e).getLaneNumber() for e in route}, lane_d)
 
 
 def slot_offsets(sc: Scenario, road: Road) -> np.ndarray:

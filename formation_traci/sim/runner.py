@@ -156,7 +156,8 @@ def check_finite(state, ids, t):
 
 
 def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | None = None,
-                 force: bool = False, progress: bool = True, baseline: bool = False) -> RunResult:
+                 force: bool = False, progress: bool = True, baseline: bool = False,
+                 step_hook=None) -> RunResult:
     """Run ``sc`` (free space, or on a SUMO road when it has a [road]) and record it.
 
     Writes ``run.json`` (status ``running`` at once, updated at every trajectory part file
@@ -164,7 +165,8 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
     the run: the status says ``failed`` with the reason, and all rows recorded so far are
     kept. ``scenario_path`` resolves relative paths in the scenario (the network file).
     ``baseline`` (road scenarios): the twin run with the same traffic and seed but without
-    the formation, for ``formation-traci analyze RUN --baseline TWIN``.
+    the formation, for ``formation-traci analyze RUN --baseline TWIN``. ``step_hook(k, t,
+    adapter)`` is called after every SUMO step (fault injection, extensions).
     """
     if baseline and sc.road is None:
         raise ScenarioError(scenario_path or "<scenario>", [("road", "--baseline needs a road scenario")])
@@ -189,7 +191,7 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
             steps = free_space_steps(sc, rec, meta)
         else:
             from .sumo_loop import sumo_steps
-            steps = sumo_steps(sc, rec, out_dir, src, meta, plan, baseline)
+            steps = sumo_steps(sc, rec, out_dir, src, meta, plan, baseline, step_hook)
         if progress:
             from tqdm import tqdm
             bar = tqdm(total=n_steps, unit="step", desc=sc.name or "run", mininterval=0.5)
@@ -219,8 +221,7 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
             rec.flush()
             meta.update(status=status, reason=reason, finished=_now(), t_end=float(t),
                         steps_done=int(k), rows_written=rec.traj.rows_written)
-            if rec.events is not None:
-                meta["event_counts"] = rec.event_counts
+            meta["event_counts"] = rec.event_counts
             atomic_write_json(meta_path, meta)
     return RunResult(out_dir, status, reason, float(t), int(k))
 

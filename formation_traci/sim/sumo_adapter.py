@@ -111,6 +111,8 @@ class SumoAdapter:
         self.version = ""
         self.members: dict[str, MemberType] = {}
         self._member_lane: dict[str, tuple[str, int, float]] = {}
+        self._context: dict[str, float] = {}  # vehicle -> radius of its context subscription
+        self._subscribed: set[str] = set()  # vehicles with a variable subscription
         self._started = False
 
     # -- lifecycle -------------------------------------------------------------------
@@ -189,6 +191,7 @@ class SumoAdapter:
         self.api.vehicle.setSpeedMode(vid, 0)
         self.api.vehicle.setLaneChangeMode(vid, 0)
         self.api.vehicle.subscribe(vid, self._member_vars())
+        self._subscribed.add(vid)
         self._move(vid, x, y, psi)
 
     def _member_vars(self):
@@ -261,7 +264,10 @@ class SumoAdapter:
         """Tell SUMO each member's true speed [m/s] and acceleration [m/s^2] (it would infer
         a half-step-late mean speed clamped to the lane limit from the distance moved)."""
         for i, vid in enumerate(ids):
-            self.api.vehicle.setPreviousSpeed(vid, float(max(v[i], 0.0)), float(a[i]))
+            try:
+                self.api.vehicle.setPreviousSpeed(vid, float(max(v[i], 0.0)), float(a[i]))
+            except self.api.TraCIException:
+                pass  # removed during the step: the next read_members reports it
 
     def read_members(self, ids: list[str]):
         """Where SUMO put each member: CoG x, y [m], heading [rad], lane id, lane index,
@@ -292,6 +298,7 @@ class SumoAdapter:
         """Context subscription: every vehicle within ``radius`` [m] of member ``vid``."""
         tc = self.tc
         self.api.vehicle.subscribeContext(vid, tc.CMD_GET_VEHICLE_VARIABLE, radius, self._neighbour_vars())
+        self._context[vid] = radius
 
     def _neighbour_vars(self):
         tc = self.tc
@@ -309,6 +316,7 @@ class SumoAdapter:
         for vid in fresh:
             if vid not in self.members:
                 self.api.vehicle.subscribe(vid, self._neighbour_vars())
+                self._subscribed.add(vid)
 
     def neighbours(self, all_vehicles: bool) -> Neighbours:
         """Non-member vehicles from the context subscriptions (or from all subscriptions)."""
@@ -340,6 +348,15 @@ class SumoAdapter:
         return Neighbours(ids, types, x, y, psi, v, a, length, width, lanes, li, lat)
 
     def remove_vehicle(self, vid: str) -> None:
+        """Take a vehicle out of SUMO. Its subscriptions are dropped first: libsumo 1.28 raises
+        "Vehicle is not known" at the next step when a vehicle with a (context) subscription is
+        vaporised through TraCI (docs/sumo.md)."""
+        radius = self._context.pop(vid, None)
+        if radius is not None:
+            self.api.vehicle.unsubscribeContext(vid, self.tc.CMD_GET_VEHICLE_VARIABLE, radius)
+        if vid in self._subscribed:
+            self._subscribed.discard(vid)
+            self.api.vehicle.unsubscribe(vid)
         self.api.vehicle.remove(vid, self.tc.REMOVE_VAPORIZED)
 
     def vehicle_ids(self) -> list[str]:

@@ -36,6 +36,14 @@ from .sumo_adapter import MemberType, SumoAdapter
 from .traffic import flow_vehicles_per_hour, write_routes
 
 MEMBER_ROUTE = "formation_route"
+ADHESION_SHARE_COMFORT = 0.5
+"""The virtual car's acceleration and comfortable deceleration are at most this share of mu g."""
+ADHESION_SHARE_EMERGENCY = 0.8
+"""Its emergency deceleration is at most this share of mu g (the members must be able to follow)."""
+PLACEMENT_TOLERANCE = 0.1
+"""SUMO's position of a member farther than this from ours is a placement_mismatch event [m]."""
+MAX_REFUSED = 20
+"""A member whose moveToXY is refused this many steps in a row is taken out of the run."""
 
 INSERT_CLEAR_TIME = 1.0
 """Free space kept behind every member when it is inserted, as time at its speed [s]."""
@@ -127,12 +135,15 @@ def _advance_vc(s, v, a, dt):
 
 
 def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, meta: dict,
-               plan: RoadPlan | None = None, baseline: bool = False) -> Iterator[tuple[int, float]]:
+               plan: RoadPlan | None = None, baseline: bool = False,
+               step_hook=None) -> Iterator[tuple[int, float]]:
     """Run ``sc`` on its SUMO road; yields (step index, time [s]) after recording each step.
 
     ``baseline``: the twin run for comparisons: the same traffic and seed without the
     formation (no member enters SUMO; every vehicle is recorded; the virtual car's rows are
-    kept as the reference of where the formation would have been)."""
+    kept as the reference of where the formation would have been).
+    ``step_hook(k, t, adapter)``, if given, is called after every SUMO step (fault injection in
+    tests, extensions)."""
     plan = plan or prepare(sc, source)
     road, veh, line = plan.road, plan.veh, plan.road.line
     run, ld = sc.run, sc.leader
@@ -143,6 +154,11 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
     n = len(ids)
     cfg = build_fleet(sc)
     speed_profile = profile(ld.speed)
+    # the virtual car never asks for more than the road's adhesion allows the members
+    mu_g = road_mu(sc) * 9.81
+    accel_max = min(ld.accel_max, ADHESION_SHARE_COMFORT * mu_g)
+    decel_max = min(ld.decel_max, ADHESION_SHARE_COMFORT * mu_g)
+    decel_emergency = min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g)
     half_w = np.full(n, veh.width / 2)
     d_front = veh.cog_to_front_bumper
     along = np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])  # slot ahead of the virtual car [m]
@@ -194,6 +210,8 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
         all_bg = sc.traffic.record_radius is None or baseline
         prev_lane: dict[str, tuple[str, int]] = {}
         member_lane_prev = np.full(n, -1)
+        refused_run = np.zeros(n, dtype=int)
+        mismatch = np.zeros(n, dtype=bool)
         emergency = False
         ev = None
         for k in range(n_steps + 1):
@@ -208,7 +226,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 nb = adapter.neighbours(True)
             elif inserted:
                 act = [ids[i] for i in np.flatnonzero(active)]
-                xs, ys, _, lanes, lane_idx, _, present = adapter.read_members(act)
+                xs, ys, _, lanes, lane_idx, lat, present = adapter.read_members(act)
                 idx_act = np.flatnonzero(active)
                 for j, i in enumerate(idx_act):
                     if not present[j]:
@@ -216,9 +234,14 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                         active[i] = False
                 gap_sumo = np.full(n, np.nan)
                 lane_index = np.full(n, np.nan)
-                gap_sumo[idx_act] = np.hypot(xs - pos[idx_act, 0], ys - pos[idx_act, 1])
+                gap_sumo[idx_act] = _sumo_gap(road, pos[idx_act], m_d[idx_act], xs, ys, lanes, lane_idx, lat)
                 lane_index[idx_act] = np.where(present, lane_idx, np.nan)
                 extra.update(sumo_gap=gap_sumo, lane_index=lane_index)
+                off = gap_sumo > PLACEMENT_TOLERANCE
+                for i in np.flatnonzero(off & ~mismatch):
+                    rec.add_event(t, "placement_mismatch", ids[i], "",
+                                  f"SUMO has the member {gap_sumo[i]:.2f} m from where the model put it")
+                mismatch = off
                 for j, i in enumerate(idx_act):
                     if present[j] and member_lane_prev[i] >= 0 and lane_idx[j] != member_lane_prev[i] \
                             and lanes[j].rsplit("_", 1)[0] == prev_lane.get(ids[i], ("", -1))[0]:
@@ -243,12 +266,12 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 gap_slot, v_lead_slot = gap, v_lead
             acc_slot = time_gap_accel(gap_slot, np.full(n, v_vc), v_lead_slot, ld.time_gap, ld.min_gap)
             v_set, v_set_dot = speed_profile(t)
-            a_vc = leader_accel(v_vc, v_set, v_set_dot, acc_slot[active], ld.accel_max, ld.decel_emergency)
-            if a_vc < -ld.decel_max - 1e-9 and not emergency:
+            a_vc = leader_accel(v_vc, v_set, v_set_dot, acc_slot[active], accel_max, decel_emergency)
+            if a_vc < -decel_max - 1e-9 and not emergency:
                 rec.add_event(t, "emergency_brake", "vc", "", f"virtual car decelerates at {-a_vc:.2f} m/s^2")
-            emergency = a_vc < -ld.decel_max - 1e-9
+            emergency = a_vc < -decel_max - 1e-9
             v_cap = member_speed_cap(gap, v_lead, ld.time_gap, ld.min_gap)
-            a_cap = np.maximum(time_gap_accel(gap, v_m, v_lead, ld.time_gap, ld.min_gap), -ld.decel_emergency)
+            a_cap = np.maximum(time_gap_accel(gap, v_m, v_lead, ld.time_gap, ld.min_gap), -decel_emergency)
             if nb is not None:
                 _lane_changes(rec, t, nb, prev_lane, lead_idx, gap, v_m, ids, active, ld)
                 rec.add_background(t, nb, nb_s, nb_d)
@@ -293,9 +316,23 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 for i in act_idx:
                     adapter.insert_member(ids[i], MEMBER_ROUTE, mtype, pos[i, 0], pos[i, 1], heading[i], v_after[i])
             else:
-                for vid, msg in adapter.place(act, pos[act_idx, 0], pos[act_idx, 1], heading[act_idx]):
-                    rec.add_event(t + run.step, "move_refused", vid, "", msg)
+                refused = dict(adapter.place(act, pos[act_idx, 0], pos[act_idx, 1], heading[act_idx]))
+                for i in act_idx:
+                    if ids[i] in refused:
+                        refused_run[i] += 1
+                        rec.add_event(t + run.step, "move_refused", ids[i], "", refused[ids[i]])
+                        if refused_run[i] >= MAX_REFUSED:
+                            active[i] = False
+                            adapter.remove_vehicle(ids[i])
+                            rec.add_event(t + run.step, "member_removed", ids[i], "",
+                                          f"dropped after {MAX_REFUSED} refused moves in a row")
+                    else:
+                        refused_run[i] = 0
+                act_idx = np.flatnonzero(active)
+                act = [ids[i] for i in act_idx]
             ev = adapter.step()
+            if step_hook is not None:
+                step_hook(k, t + run.step, adapter)
             if baseline:
                 adapter.subscribe_departed()
                 inserted = True  # reads neighbours (every vehicle) from now on
@@ -311,6 +348,18 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
     finally:
         adapter.close()
         _convert_ssm(sumo_dir / "ssm.xml", out_dir / "ssm.parquet", t0, set(ids))
+
+
+def _sumo_gap(road, pos, d, xs, ys, lanes, lane_idx, lat):
+    """How far SUMO has each member from our pose [m]: the larger of the position gap and the
+    lateral gap implied by SUMO's lane and lateral lane position. (In the step of a move SUMO
+    echoes the commanded x, y even where it put the vehicle on another lane.)"""
+    gap = np.hypot(xs - pos[:, 0], ys - pos[:, 1])
+    for j, lane in enumerate(lanes):
+        offs = road.lane_d.get(lane.rsplit("_", 1)[0]) if lane else None
+        if offs is not None and 0 <= lane_idx[j] < len(offs) and np.isfinite(lat[j]):
+            gap[j] = max(gap[j], abs(offs[lane_idx[j]] + lat[j] - d[j]))
+    return gap
 
 
 def _log_sumo_events(rec, t, ev, members):

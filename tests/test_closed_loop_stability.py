@@ -1,0 +1,60 @@
+"""Lateral closed-loop stability (linearised, then simulated): the seed's gains on ice.
+
+First principles: eigenvalues of the linearised member loop (models/linear.closed_loop_lateral).
+Finding recorded in docs/model.md: with Table 3.8 and k_theta = 3 the loop is stable on a dry
+road with either tire, but with the load-consistent tire on ice (mu = 0.25) it is unstable from
+11.5 m/s; k_theta = 1 restores it up to about 36 m/s.
+"""
+import numpy as np
+import pandas as pd
+import pytest
+
+from formation_traci.control.schedule import YAW_GAINS_RETUNED
+from formation_traci.models.linear import closed_loop_lateral
+from formation_traci.models.params import PASSENGER_CAR, make_tires
+from formation_traci.scenario import parse_scenario
+from formation_traci.sim.runner import run_scenario
+
+K = YAW_GAINS_RETUNED.g_max
+
+
+def max_re(v, mu, k_theta, kind="load"):
+    return np.linalg.eigvals(closed_loop_lateral(v, PASSENGER_CAR, make_tires(PASSENGER_CAR, mu, kind),
+                                                 K, k_theta)).real.max()
+
+
+@pytest.mark.parametrize("kind", ["seed", "load"])
+@pytest.mark.parametrize("v", [10.0, 20.0, 30.0])
+def test_seed_gains_are_stable_on_a_dry_road(kind, v):
+    assert max_re(v, 1.0, 3.0, kind) < -0.5
+
+
+def test_seed_gains_are_unstable_on_ice_and_k_theta_1_fixes_it():
+    speeds = np.arange(8.0, 30.5, 0.5)
+    re3 = np.array([max_re(v, 0.25, 3.0) for v in speeds])
+    from scipy.optimize import brentq
+    onset = brentq(lambda v: max_re(v, 0.25, 3.0), 8.0, 20.0)
+    assert onset == pytest.approx(11.51, abs=0.02)  # unstable above 11.5 m/s
+    assert re3[speeds == 20.0][0] == pytest.approx(0.54, abs=0.02)
+    assert all(max_re(v, 0.25, 1.0) < 0 for v in speeds)
+
+
+def _ice_run(tmp_path, k_theta):
+    doc = {"run": {"duration": 30.0}, "vehicle": {"surface": "ice"},
+           "controller": {"k": 1.0, "k_theta": k_theta},
+           "leader": {"speed": 20.0},
+           "members": [{"id": "a", "offset": [0.0, 0.0], "position": [0.0, 0.3]}]}
+    res = run_scenario(parse_scenario(doc), tmp_path / f"kth{k_theta}", progress=False)
+    assert res.status == "completed"
+    df = pd.read_parquet(tmp_path / f"kth{k_theta}" / "trajectories.parquet")
+    return df[df.vehicle_id == "a"]
+
+
+def test_simulation_agrees_with_the_eigenvalues(tmp_path):
+    """20 m/s on ice, 0.3 m initial lateral error: the oscillation grows with k_theta = 3
+    (until the tires saturate) and dies out with k_theta = 1."""
+    bad, good = _ice_run(tmp_path, 3.0), _ice_run(tmp_path, 1.0)
+    early = lambda g: g[(g.t > 1) & (g.t < 5)].e_lat.abs().max()
+    late = lambda g: g[(g.t > 20)].e_lat.abs().max()
+    assert late(bad) > 5 * early(bad)
+    assert late(good) < 0.01 * early(good) + 1e-3
