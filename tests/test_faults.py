@@ -112,7 +112,7 @@ def test_teleports_are_recorded(tmp_path):
                     api.vehicle.setSpeed(v, 0.0)
                     lanes_done.add(lane)
 
-    _, _, _, ev = run(tmp_path, hook, **{"run.duration": 15.0, "traffic.record_radius": None,
+    _, _, _, ev = run(tmp_path, hook, **{"run.duration": 15.0,
                                          "sumo.options": ["--time-to-teleport", "2"]})
     assert (ev.kind == "teleport").any()
 

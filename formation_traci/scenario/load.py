@@ -48,27 +48,42 @@ def _describe(err: dict) -> str:
     return msg
 
 
-def _set_dotted(doc: dict, dotted: str, value: Any) -> None:
+def _set_dotted(doc: dict, dotted: str, value: Any) -> str | None:
+    """Set ``doc[a][b]... = value`` for ``dotted = "a.b..."`` (list items by index); returns
+    why it cannot be applied, or None."""
     keys = dotted.split(".")
     node = doc
-    for i, key in enumerate(keys[:-1]):
+    for i, key in enumerate(keys):
+        last = i == len(keys) - 1
+        where = ".".join(keys[:i]) or "(document)"
         if isinstance(node, list):
-            node = node[int(key)]
-            continue
-        node = node.setdefault(key, {})
-    last = keys[-1]
-    if isinstance(node, list):
-        node[int(last)] = value
-    else:
-        node[last] = value
+            if not key.isdigit() or int(key) >= len(node):
+                return f"{where} has no item {key!r}"
+            if last:
+                node[int(key)] = value
+            else:
+                node = node[int(key)]
+        elif isinstance(node, dict):
+            if last:
+                node[key] = value
+            else:
+                node = node.setdefault(key, {})
+        else:
+            return f"{where} is not a table, so {dotted} cannot be set"
+    return None
 
 
 def parse_scenario(doc: dict, source: str | Path = "<scenario>", **overrides: Any) -> Scenario:
     """Validate a TOML-like dict, with dotted-path overrides (``run.seed=3``), into a Scenario."""
     doc = copy.deepcopy(doc)
+    problems = []
     for dotted, value in overrides.items():
         if value is not None:
-            _set_dotted(doc, dotted, value)
+            why = _set_dotted(doc, dotted, value)
+            if why:
+                problems.append((dotted, f"override not applied: {why}"))
+    if problems:
+        raise ScenarioError(source, problems)
     try:
         return Scenario.model_validate(doc)
     except ValidationError as exc:
