@@ -295,7 +295,8 @@ class SumoAdapter:
 
     # -- neighbours ------------------------------------------------------------------
     def subscribe_neighbours(self, vid: str, radius: float) -> None:
-        """Context subscription: every vehicle within ``radius`` [m] of member ``vid``."""
+        """Context subscription: every vehicle within ``radius`` [m] of member ``vid`` (one per
+        formation: overlapping subscriptions would return the same vehicles several times)."""
         tc = self.tc
         self.api.vehicle.subscribeContext(vid, tc.CMD_GET_VEHICLE_VARIABLE, radius, self._neighbour_vars())
         self._context[vid] = radius

@@ -12,6 +12,7 @@ The virtual car drives along the reference lane (road/leader.py), slots follow t
 from __future__ import annotations
 
 import math
+import time
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -212,9 +213,15 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
         member_lane_prev = np.full(n, -1)
         refused_run = np.zeros(n, dtype=int)
         mismatch = np.zeros(n, dtype=bool)
+        ctx_owner = None
+        slot_d_0 = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
         emergency = False
         ev = None
+        tm = meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
+                                 "governor": 0.0, "control_model": 0.0, "record": 0.0}
+        clock = time.perf_counter
         for k in range(n_steps + 1):
+            c0 = clock()
             t = k * run.step
             pos, vel, heading = fl.kinematics(cfg, state)
             v_m = np.hypot(vel[:, 0], vel[:, 1])
@@ -251,6 +258,8 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                         prev_lane[ids[i]] = (lanes[j].rsplit("_", 1)[0], int(lane_idx[j]))
                 _log_sumo_events(rec, t, ev, set(ids))
                 nb = adapter.neighbours(all_bg)
+            c1 = clock()
+            tm["sumo_read"] += c1 - c0
             # governor: the virtual car keeps every slot a time gap behind the vehicle ahead of
             # it; each member keeps its own gap to whatever is between it and its slot
             slot_s = s_vc + along
@@ -272,6 +281,8 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             emergency = a_vc < -decel_max - 1e-9
             v_cap = member_speed_cap(gap, v_lead, ld.time_gap, ld.min_gap)
             a_cap = np.maximum(time_gap_accel(gap, v_m, v_lead, ld.time_gap, ld.min_gap), -decel_emergency)
+            c2 = clock()
+            tm["governor"] += c2 - c1
             if nb is not None:
                 _lane_changes(rec, t, nb, prev_lane, lead_idx, gap, v_m, ids, active, ld)
                 rec.add_background(t, nb, nb_s, nb_d)
@@ -282,6 +293,8 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             if not baseline:
                 rec.add_members(t, cfg, state, u, fo, targets, vc.theta, extra, mask=active)
             rec.add_vc(t, vc, s=s_vc)
+            c3 = clock()
+            tm["record"] += c3 - c2
             yield k, t
             if k == n_steps:
                 return
@@ -293,6 +306,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 meta["stopped_early"] = f"no member left in SUMO at t = {t:.2f} s"
                 return
 
+            c3 = clock()
             v_before = state.x[:, 3].copy() if cfg.model == "dynamic" else state.speed_in.copy()
             for j in range(n_ctrl):
                 if j > 0:
@@ -306,6 +320,8 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             pos, vel, heading = fl.kinematics(cfg, state)
             v_after = state.x[:, 3] if cfg.model == "dynamic" else state.speed_in
             a_mean = (v_after - v_before) / run.step
+            c4 = clock()
+            tm["control_model"] += c4 - c3
             act_idx = np.flatnonzero(active)
             act = [ids[i] for i in act_idx]
             if baseline:
@@ -330,7 +346,11 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                         refused_run[i] = 0
                 act_idx = np.flatnonzero(active)
                 act = [ids[i] for i in act_idx]
+            c5 = clock()
             ev = adapter.step()
+            c6 = clock()
+            tm["sumo_place"] += c5 - c4
+            tm["sumo_step"] += c6 - c5
             if step_hook is not None:
                 step_hook(k, t + run.step, adapter)
             if baseline:
@@ -338,13 +358,12 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 inserted = True  # reads neighbours (every vehicle) from now on
                 continue
             adapter.set_true_speeds(act, v_after[act_idx], a_mean[act_idx])
-            if not inserted:
-                inserted = True
-                if not all_bg:
-                    for vid in act:
-                        adapter.subscribe_neighbours(vid, sc.traffic.record_radius)
+            if not all_bg and (not inserted or ctx_owner is None or not active[ctx_owner]):
+                ctx_owner = _subscribe_context(adapter, ids, active, along, slot_d_0, sc.traffic.record_radius)
+            inserted = True
             if all_bg:
                 adapter.subscribe_departed()
+            tm["sumo_place"] += clock() - c6
     finally:
         adapter.close()
         _convert_ssm(sumo_dir / "ssm.xml", out_dir / "ssm.parquet", t0, set(ids))
@@ -360,6 +379,19 @@ def _sumo_gap(road, pos, d, xs, ys, lanes, lane_idx, lat):
         if offs is not None and 0 <= lane_idx[j] < len(offs) and np.isfinite(lat[j]):
             gap[j] = max(gap[j], abs(offs[lane_idx[j]] + lat[j] - d[j]))
     return gap
+
+
+def _subscribe_context(adapter, ids, active, along, across, radius):
+    """One context subscription for the whole formation: on the active member nearest the
+    middle of the formation, with the radius grown by the formation's extent around it.
+    Returns that member's index."""
+    idx = np.flatnonzero(active)
+    centre = np.array([along[idx].mean(), across[idx].mean()])
+    dist = np.hypot(along[idx] - centre[0], across[idx] - centre[1])
+    owner = int(idx[np.argmin(dist)])
+    extent = float(np.max(np.hypot(along[idx] - along[owner], across[idx] - across[owner])))
+    adapter.subscribe_neighbours(ids[owner], radius + extent)
+    return owner
 
 
 def _log_sumo_events(rec, t, ev, members):

@@ -1,0 +1,229 @@
+"""What the formation layer costs on top of SUMO (issue: performance).
+
+Runs, alternating to cancel machine noise, the reference case and its twin, each in a fresh
+process (libsumo allows one simulation per process; peak memory is per process):
+
+- formation: a 120 km straight 3-lane motorway, 1500 veh/h/lane of background traffic, a
+  5-member wedge with the dynamic model, SUMO step 0.05 s, 600 s simulated, recording on;
+- twin: the same network, demand and seed through libsumo, the five members as ordinary SUMO
+  vehicles of the same type, departure, lanes and speed, driven by SUMO;
+- bare: the same traffic without the members.
+
+Then the scaling with 1, 5, 20 and 50 members, and a 600 s versus 3600 s run for memory
+(there the flows stop after 240 s so SUMO's own vehicle count is the same in both).
+
+    python benchmarks/overhead.py                 # full (about 15-25 minutes on 2 cores)
+    python benchmarks/overhead.py --quick         # 60 s runs, 1 pair, small scaling table
+
+Timings are wall-clock seconds of the simulation loop (after SUMO has started, until the run
+ends); setup (network reading, reference line, SUMO start) is printed separately.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+CACHE = HERE / ".cache"
+ROAD_M = 120_000.0
+SPEED = 30.0  # set speed of the formation [m/s]
+START = 600.0  # formation's start along the road [m]
+
+
+def long_net() -> Path:
+    """Build (once) a straight 3-lane motorway of ROAD_M metres with the wheel's netconvert."""
+    net = CACHE / "long3.net.xml"
+    if net.exists():
+        return net
+    CACHE.mkdir(exist_ok=True)
+    (CACHE / "long3.nod.xml").write_text(
+        f'<nodes><node id="a" x="0" y="0"/><node id="b" x="{ROAD_M}" y="0"/></nodes>\n')
+    (CACHE / "long3.edg.xml").write_text(
+        '<edges><edge id="e0" from="a" to="b" numLanes="3" speed="36.11" width="3.5" '
+        'disallow="pedestrian bicycle"/></edges>\n')
+    import sumolib
+    subprocess.run([sumolib.checkBinary("netconvert"), "-n", "long3.nod.xml", "-e", "long3.edg.xml",
+                    "-o", "long3.net.xml", "--offset.disable-normalization", "true", "--no-turnarounds", "true",
+                    "--precision", "4", "--default.lanewidth", "3.5"], cwd=CACHE, check=True,
+                   stdout=subprocess.DEVNULL)
+    return net
+
+
+def formation_slots(n: int) -> list[dict]:
+    """n members in a multi-lane wedge/column block: apex in the centre lane, then rows of
+    three lanes 20 m apart."""
+    slots = [{"along": 0.0, "lanes": 0}]
+    row = 1
+    while len(slots) < n:
+        for lanes in (-1, 1, 0):
+            if len(slots) < n:
+                slots.append({"along": -20.0 * row, "lanes": lanes})
+        row += 1
+    return [{"id": f"m{i:02d}", "slot": s} for i, s in enumerate(slots)]
+
+
+def scenario(n: int, duration: float, flow_end: float | None, seed: int) -> dict:
+    flow = {"id": "main", "veh_per_hour_per_lane": 1500}
+    if flow_end is not None:
+        flow["end"] = flow_end
+    return {
+        "name": f"bench-{n}",
+        "run": {"duration": duration, "step": 0.05, "seed": seed},
+        "vehicle": {"model": "dynamic"},
+        "road": {"net": str(long_net()), "route": ["e0"], "lane": 1, "start": START},
+        "leader": {"speed": SPEED},
+        "members": formation_slots(n),
+        "traffic": {"warmup": 0.0, "flows": [flow]},
+    }
+
+
+def peak_rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+# --------------------------------------------------------------------------- children
+def child_formation(n, duration, flow_end, seed):
+    from formation_traci.scenario import parse_scenario
+    from formation_traci.sim.runner import run_scenario
+    sc = parse_scenario(scenario(n, duration, flow_end, seed), "benchmark")
+    out = Path(tempfile.mkdtemp(prefix="bench_"))
+    t0 = time.perf_counter()
+    res = run_scenario(sc, out / "run", progress=False)
+    total = time.perf_counter() - t0
+    meta = json.loads((out / "run" / "run.json").read_text())
+    timing = meta.get("timing_s", {})
+    loop = sum(timing.values())
+    shutil.rmtree(out, ignore_errors=True)
+    return {"status": res.status, "total_s": total, "loop_s": loop, "setup_s": total - loop,
+            "timing_s": timing, "steps": res.steps_done, "peak_rss_mb": peak_rss_mb()}
+
+
+def child_sumo(n, duration, flow_end, seed):
+    """The twin (n > 0: members as SUMO vehicles) or the bare traffic (n = 0)."""
+    from formation_traci.scenario import parse_scenario
+    from formation_traci.models.params import PASSENGER_CAR
+    from formation_traci.sim.sumo_adapter import SumoAdapter
+    from formation_traci.sim.sumo_loop import sumo_args
+    from formation_traci.sim.traffic import write_routes
+    sc = parse_scenario(scenario(max(n, 1), duration, flow_end, seed), "benchmark")
+    out = Path(tempfile.mkdtemp(prefix="bench_"))
+    t0 = time.perf_counter()
+    f = sc.traffic.flows[0]
+    routes = write_routes(out / "traffic.rou.xml", [(f, ["e0"], 1500 * 3)], duration + 1)
+    if n:
+        text = routes.read_text().replace("</routes>", "")
+        car = PASSENGER_CAR
+        text += (f'  <vType id="member" length="{car.length}" width="{car.width}" maxSpeed="{SPEED}" '
+                 f'speedFactor="1" sigma="0" minGap="2"/>\n  <route id="member_route" edges="e0"/>\n')
+        for m in formation_slots(n):
+            pos = START + m["slot"]["along"] + car.cog_to_front_bumper
+            text += (f'  <vehicle id="{m["id"]}" type="member" route="member_route" depart="0" '
+                     f'departLane="{1 + m["slot"]["lanes"]}" departPos="{pos:.2f}" departSpeed="{SPEED}"/>\n')
+        routes.write_text(text + "</routes>\n")
+    args = sumo_args(sc, long_net(), routes, out, duration + 1)
+    adapter = SumoAdapter("libsumo")
+    adapter.start(args)
+    t1 = time.perf_counter()
+    steps = int(round(duration / sc.run.step))
+    for _ in range(steps):
+        adapter.simulation_step()
+    t2 = time.perf_counter()
+    adapter.close()
+    shutil.rmtree(out, ignore_errors=True)
+    return {"status": "completed", "total_s": time.perf_counter() - t0, "loop_s": t2 - t1,
+            "setup_s": t1 - t0, "steps": steps, "peak_rss_mb": peak_rss_mb()}
+
+
+def spawn(kind: str, n: int, duration: float, flow_end: float | None, seed: int) -> dict:
+    cmd = [sys.executable, __file__, "--child", kind, str(n), str(duration), str(flow_end), str(seed)]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"{kind} child failed:\n{r.stderr[-3000:]}")
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+# --------------------------------------------------------------------------- report
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--pairs", type=int, default=3)
+    ap.add_argument("--duration", type=float, default=600.0)
+    ap.add_argument("--long-duration", type=float, default=3600.0)
+    ap.add_argument("--members", type=int, nargs="*", default=[1, 5, 20, 50])
+    ap.add_argument("--skip-scaling", action="store_true")
+    ap.add_argument("--skip-long", action="store_true")
+    ap.add_argument("--quick", action="store_true", help="60 s runs, 1 pair, members 1 5, no long run")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.child:
+        kind, n, duration, flow_end, seed = a.child
+        fe = None if flow_end == "None" else float(flow_end)
+        fn = child_formation if kind == "formation" else child_sumo
+        print(json.dumps(fn(int(n), float(duration), fe, int(seed))))
+        return
+    if a.quick:
+        a.pairs, a.duration, a.members, a.skip_long = 1, 60.0, [1, 5], True
+
+    long_net()
+    print(f"machine: {os.cpu_count()} cores, Python {sys.version.split()[0]}; "
+          f"reference: 5-member wedge, dynamic model, 1500 veh/h/lane, step 0.05 s, {a.duration:.0f} s")
+    form, twin, bare = [], [], []
+    for i in range(a.pairs):
+        order = [("formation", form), ("twin", twin)] if i % 2 == 0 else [("twin", twin), ("formation", form)]
+        for kind, bucket in order:
+            r = spawn("formation" if kind == "formation" else "sumo", 5 if kind != "bare" else 0,
+                      a.duration, None, a.seed)
+            bucket.append(r)
+            print(f"  pair {i + 1} {kind:9s} loop {r['loop_s']:7.2f} s  setup {r['setup_s']:5.2f} s  "
+                  f"peak {r['peak_rss_mb']:6.0f} MB")
+        r = spawn("sumo", 0, a.duration, None, a.seed)
+        bare.append(r)
+        print(f"  pair {i + 1} bare      loop {r['loop_s']:7.2f} s  setup {r['setup_s']:5.2f} s  "
+              f"peak {r['peak_rss_mb']:6.0f} MB")
+    ratios = [f["loop_s"] / t["loop_s"] for f, t in zip(form, twin)]
+    ratios_bare = [f["loop_s"] / b["loop_s"] for f, b in zip(form, bare)]
+    med = statistics.median(ratios)
+    spread = (min(ratios), max(ratios))
+    steps = form[0]["steps"]
+    sim_time = a.duration
+    print()
+    print(f"formation / twin  : median {med:.3f}  (min {spread[0]:.3f}, max {spread[1]:.3f}, {len(ratios)} pairs)")
+    print(f"formation / bare  : median {statistics.median(ratios_bare):.3f}")
+    print(f"real-time factor  : formation {sim_time / statistics.median(f['loop_s'] for f in form):.1f}x, "
+          f"twin {sim_time / statistics.median(t['loop_s'] for t in twin):.1f}x, "
+          f"bare {sim_time / statistics.median(b['loop_s'] for b in bare):.1f}x")
+    print(f"peak memory       : formation {max(f['peak_rss_mb'] for f in form):.0f} MB, "
+          f"twin {max(t['peak_rss_mb'] for t in twin):.0f} MB")
+    tm = {k: statistics.median(f["timing_s"][k] for f in form) for k in form[0]["timing_s"]}
+    print("split per step (median run, microseconds): " + ", ".join(
+        f"{k} {1e6 * v / steps:.0f}" for k, v in tm.items()))
+
+    if not a.skip_scaling:
+        print()
+        print("members | loop s | ours per step [us] | ours per member per step [us] | peak MB")
+        for n in a.members:
+            r = spawn("formation", n, a.duration, None, a.seed)
+            ours = sum(v for k, v in r["timing_s"].items() if k != "sumo_step")
+            print(f"{n:7d} | {r['loop_s']:6.1f} | {1e6 * ours / r['steps']:18.0f} | "
+                  f"{1e6 * ours / r['steps'] / n:29.1f} | {r['peak_rss_mb']:7.0f}")
+    if not a.skip_long:
+        print()
+        print("run length | loop s | peak MB   (5 members, flows stop at 240 s)")
+        for d in (a.duration, a.long_duration):
+            r = spawn("formation", 5, d, 240.0, a.seed)
+            print(f"{d:9.0f}s | {r['loop_s']:6.1f} | {r['peak_rss_mb']:7.0f}")
+    print()
+    print(f"overhead ratio: {med:.2f} (median of {len(ratios)} pairs)")
+
+
+if __name__ == "__main__":
+    main()

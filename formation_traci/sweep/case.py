@@ -1,0 +1,126 @@
+"""One sweep case in this process: load, run, analyse, summarise.
+
+``python -m formation_traci.sweep.case SPEC_JSON`` is how every executor runs a case (one
+process per case, so one libsumo simulation per process). The process writes the case's
+row to ``<case_dir>/case.json`` and exits 0 whatever happened to the run; a non-zero exit
+means the process itself broke (the launcher records that).
+"""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import sys
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict
+
+from .expand import Case
+from .row import empty_row, metric_values
+
+CASE_JSON = "case.json"
+"""Per-case record in the case directory: ``{"spec": ..., "row": ...}``."""
+
+
+class CaseSpec(BaseModel):
+    """Everything a case process needs: the case, the base scenario, where to write."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    case: Case
+    base: str  # absolute path of the scenario file
+    case_dir: str  # absolute path of DIR/cases/<id>
+    log_path: str  # absolute path of DIR/logs/<id>.log (written by the launcher)
+
+
+def _plain(x: Any) -> Any:
+    """NaN/inf -> None, numpy scalars -> Python, so the row is strict JSON."""
+    if hasattr(x, "item") and not isinstance(x, (list, dict, str)):
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def write_case_json(case_dir: Path, spec: CaseSpec, row: dict) -> None:
+    """Write ``case.json`` atomically (spec and row; NaN stored as null)."""
+    from ..record.writer import atomic_write_json
+
+    case_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(case_dir / CASE_JSON, {"spec": spec.model_dump(mode="json"),
+                                             "row": {k: _plain(v) for k, v in row.items()}})
+
+
+def run_case(case_spec: dict | CaseSpec) -> dict[str, Any]:
+    """Run one case here: load the scenario with the overrides, run, analyse, summarise.
+
+    Parameters
+    ----------
+    case_spec : dict or CaseSpec
+        The case (id, values, seed, overrides), the base scenario path and the case
+        directory (replaced if it exists).
+
+    Returns
+    -------
+    dict
+        The summary row (docs/sweeps.md, "summary.parquet"); also written to
+        ``<case_dir>/case.json``. Never raises for a failing case: an invalid scenario,
+        a failed run or a failed analysis gives ``status = "failed"`` and the reason.
+    """
+    spec = CaseSpec.model_validate(case_spec)
+    case = spec.case.model_dump(mode="json")
+    out = Path(spec.case_dir)
+    row = empty_row(case, "failed", None)
+    if out.exists():  # the case directory belongs to the sweep: a retry starts clean
+        shutil.rmtree(out)
+    try:
+        from ..scenario import ScenarioError, load_scenario
+        from ..sim.runner import run_scenario
+
+        try:
+            sc = load_scenario(spec.base, **spec.case.overrides)
+        except ScenarioError as exc:
+            row["reason"] = str(exc)
+            return row
+        res = run_scenario(sc, out, scenario_path=spec.base, force=True, progress=False)
+        row.update(status=res.status, reason=res.reason, t_end_s=res.t_end)
+        row.update(_analyse(out, row))
+    except Exception as exc:  # anything else: recorded, never lost
+        row.update(status="failed", reason=f"{type(exc).__name__}: {exc}")
+        traceback.print_exc()
+    finally:
+        write_case_json(out, spec, row)
+    return row
+
+
+def _analyse(run_dir: Path, row: dict) -> dict[str, Any]:
+    from analysis.api import analyze_run
+    from analysis.load import NoTrajectoryData
+
+    try:
+        a = analyze_run(run_dir, figures=False)
+    except NoTrajectoryData as exc:
+        return {} if row["status"] != "completed" else {"status": "failed",
+                                                        "reason": f"analysis: {exc}"}
+    meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+    return metric_values(run_dir, a.members, meta)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the case process: ``SPEC_JSON`` is the CaseSpec as JSON text."""
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 1:
+        print("usage: python -m formation_traci.sweep.case SPEC_JSON", file=sys.stderr)
+        return 2
+    t0 = time.monotonic()
+    row = run_case(json.loads(argv[0]))
+    print(f"{row['case_id']}: {row['status']} in {time.monotonic() - t0:.1f} s"
+          + (f"\n{row['reason']}" if row["reason"] else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

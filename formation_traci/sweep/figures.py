@@ -1,0 +1,115 @@
+"""Sweep figures: one PNG per metric, one panel per swept field (matplotlib, imported lazily).
+
+Each point is the mean over the seeds of one combination of swept values; the error bar
+spans the spread (min-max or +-1 std) over those seeds. With other swept fields, one line
+per combination of them (up to :data:`MAX_LINES`; beyond that the others are pooled).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+MAX_LINES = 8
+"""More combinations of the other swept fields than this are pooled into one line."""
+
+
+def _agg(df: pd.DataFrame, by: list[str], metric: str, spread: str) -> pd.DataFrame:
+    g = df.groupby(by, dropna=False, sort=True)[metric]
+    s = pd.DataFrame({"mean": g.mean(), "lo": g.min(), "hi": g.max(), "std": g.std(ddof=0)})
+    if spread == "std":
+        s["lo"], s["hi"] = s["mean"] - s["std"], s["mean"] + s["std"]
+    return s.reset_index()
+
+
+def _xpos(values: pd.Series) -> tuple[np.ndarray, list | None]:
+    if pd.api.types.is_numeric_dtype(values) and not pd.api.types.is_bool_dtype(values):
+        return values.to_numpy(dtype=float), None
+    cats = sorted(values.astype(str).unique())
+    return np.array([cats.index(v) for v in values.astype(str)], dtype=float), cats
+
+
+def _panel(ax, df: pd.DataFrame, param: str, others: list[str], metric: str, spread: str,
+           connect: bool, labels: dict[str, str]) -> None:
+    groups: list = [(None, df)]
+    if others:
+        split = list(df.groupby(others, dropna=False, sort=True))
+        if len(split) > MAX_LINES:
+            groups = [("other fields pooled", df)]
+        else:
+            groups = [(", ".join(f"{labels.get(k, k)}={v}" for k, v in zip(others, key)), sub)
+                      for key, sub in split]
+    cats_all = None
+    for label, sub in groups:
+        s = _agg(sub, [param], metric, spread).dropna(subset=["mean"])
+        if s.empty:
+            continue
+        x, cats = _xpos(s[param])
+        cats_all = cats or cats_all
+        order = np.argsort(x)
+        x, m = x[order], s["mean"].to_numpy()[order]
+        yerr = np.vstack([m - s["lo"].to_numpy()[order], s["hi"].to_numpy()[order] - m])
+        ax.errorbar(x, m, yerr=np.nan_to_num(np.clip(yerr, 0, None)), marker="o", ms=4,
+                    capsize=3, linestyle="-" if connect else "none", label=label)
+    if cats_all:
+        ax.set_xticks(range(len(cats_all)))
+        ax.set_xticklabels([c[:14] for c in cats_all], rotation=30, ha="right")
+    ax.set_xlabel(param)
+    ax.grid(True, alpha=0.3)
+    if len(groups) > 1 or groups[0][0]:
+        ax.legend(fontsize=7)
+
+
+def sweep_figures(done: pd.DataFrame, swept: list[str], grid_keys: list[str], metrics: list[str],
+                  units: dict[str, str], out_dir: Path, spread: str = "minmax",
+                  labels: dict[str, str] | None = None) -> tuple[dict[str, Path], dict[str, str]]:
+    """Draw one PNG per metric against every swept field.
+
+    Parameters
+    ----------
+    done : DataFrame
+        Completed rows of ``summary.parquet``.
+    swept : list of str
+        Swept dotted paths (panels); none: the metric against the seed.
+    grid_keys : list of str
+        Swept paths from [grid] (points joined by lines); the others are random samples.
+    metrics : list of str
+        Columns to plot.
+    units : dict
+        Metric -> unit, for the axis labels.
+    out_dir : Path
+        Directory for ``<metric>.png`` (created).
+    spread : {"minmax", "std"}
+        Error bars over the seeds.
+    labels : dict, optional
+        Swept path -> short name for legends.
+
+    Returns
+    -------
+    (dict, dict)
+        Metric -> written PNG, and metric -> error message for figures that failed.
+    """
+    from matplotlib.figure import Figure  # lazy: heavy, and only the figures need it
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    params = swept or ["seed"]
+    paths, errors = {}, {}
+    for metric in metrics:
+        try:
+            fig = Figure(figsize=(4.2 * len(params), 3.4), layout="constrained")
+            axes = fig.subplots(1, len(params), squeeze=False)[0]
+            for ax, p in zip(axes, params):
+                others = [k for k in swept if k != p]
+                _panel(ax, done, p, others, metric, spread, p in grid_keys or p == "seed",
+                       labels or {})
+            unit = units.get(metric, "")
+            axes[0].set_ylabel(f"{metric} [{unit}]" if unit and unit != "-" else metric)
+            fig.suptitle(f"{metric}: mean over seeds, bars {'min-max' if spread == 'minmax' else '±1 std'}",
+                         fontsize=10)
+            path = out_dir / f"{metric}.png"
+            fig.savefig(path, dpi=100)
+            paths[metric] = path
+        except Exception as exc:  # one bad figure must not lose the others
+            errors[metric] = f"{type(exc).__name__}: {exc}"
+    return paths, errors

@@ -1,0 +1,174 @@
+"""One summary row per case: identity, swept values, status and the sweep metrics.
+
+The metrics condense ``analysis.analyze_run`` (docs/metrics.md) over the members, so one
+number per run can be plotted against the swept values; docs/sweeps.md lists them.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+ID_COLUMNS: tuple[str, ...] = ("case_id", "case_index", "seed")
+STATUS_COLUMNS: tuple[str, ...] = ("status", "reason", "t_end_s")
+WALL_COLUMNS: tuple[str, ...] = ("wall_s", "host", "pid")
+"""Columns that depend on the machine and the clock, not on the case (ignored in comparisons)."""
+
+METRICS: dict[str, tuple[str, str]] = {
+    # name: (unit, meaning) -- "max" is the largest value over the members
+    "e_rms_m": ("m", "max of each member's r.m.s. formation error |e| over the whole run (eq 2.5)"),
+    "e_max_settled_m": ("m", "max of each member's peak |e| after it settled; NaN if one never settles"),
+    "e_rms_settled_m": ("m", "r.m.s. over members of each member's settled r.m.s. |e|; NaN if one never settles"),
+    "settling_time_s": ("s", "max settling time into the 0.2 m band; NaN if one never settles"),
+    "n_unsettled": ("-", "members that never settle into the 0.2 m band"),
+    "a_lat_peak_mps2": ("m/s^2", "max peak |a_lat|"),
+    "jerk_lat_rms_mps3": ("m/s^3", "max r.m.s. lateral jerk"),
+    "jerk_lon_rms_mps3": ("m/s^3", "max r.m.s. longitudinal jerk"),
+    "t_lat_above_comfort_s": ("s", "max time with |a_lat| > 1.8 m/s^2 (medium, uncomfortable and beyond bands)"),
+    "t_lon_above_comfort_s": ("s", "max time with |a_lon| > 2 m/s^2"),
+    "slip_over_s": ("s", "max time over the tire slip limit (dynamic model; NaN for kinematic)"),
+    "traction_over_s": ("s", "max time over the traction limit (dynamic model; NaN for kinematic)"),
+    "friction_over_s": ("s", "max time outside the friction circle"),
+    "collisions": ("-", "SUMO runs: collision events involving a member (NaN in free space)"),
+    "min_ttc_s": ("s", "SUMO runs: smallest SSM time to collision of a conflict involving a member"),
+    "emergency_brakes": ("-", "SUMO runs: emergency_brake events of the virtual car"),
+}
+"""Metric columns of ``summary.parquet``: unit and meaning."""
+
+COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes"})
+
+
+def empty_row(case: dict, status: str, reason: str | None) -> dict[str, Any]:
+    """A row with the case's identity and values and every metric missing."""
+    row: dict[str, Any] = {"case_id": case["id"], "case_index": case["index"], "seed": case["seed"],
+                           **case["values"], "status": status, "reason": reason, "t_end_s": None}
+    row.update({k: None for k in METRICS})
+    row.update({k: None for k in WALL_COLUMNS})
+    return row
+
+
+def _col(members: pd.DataFrame, name: str) -> np.ndarray:
+    if name not in members:
+        return np.full(len(members), np.nan)
+    return pd.to_numeric(members[name], errors="coerce").to_numpy(dtype=float)
+
+
+def _max(x: np.ndarray) -> float | None:
+    x = x[~np.isnan(x)]
+    return float(np.max(x)) if x.size else None
+
+
+def _all_or_none(x: np.ndarray, fn) -> float | None:
+    return float(fn(x)) if x.size and np.isfinite(x).all() else None
+
+
+def _sumo_metrics(run_dir: Path, member_ids: set[str], meta: dict) -> dict[str, Any]:
+    from analysis.load import read_table  # skips damaged parts, never raises
+
+    events, _ = read_table(run_dir / "events.parquet")
+    n_coll = 0
+    if events is not None and len(events):
+        c = events[events["kind"] == "collision"]
+        n_coll = int((c["vehicle_id"].isin(member_ids) | c["other_id"].isin(member_ids)).sum())
+    ssm, _ = read_table(run_dir / "ssm.parquet")
+    ttc = None
+    if ssm is not None and len(ssm):
+        x = pd.to_numeric(ssm.loc[ssm["member_involved"].astype(bool), "min_ttc"], errors="coerce")
+        ttc = float(x.min()) if x.notna().any() else None
+    return {"collisions": n_coll, "min_ttc_s": ttc,
+            "emergency_brakes": int((meta.get("event_counts") or {}).get("emergency_brake", 0))}
+
+
+def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str, Any]:
+    """The :data:`METRICS` of one analysed run.
+
+    Parameters
+    ----------
+    run_dir : Path
+        Run directory (for the SUMO tables).
+    members : DataFrame
+        ``AnalysisResult.members``: one row per member.
+    meta : dict
+        ``run.json`` content.
+
+    Returns
+    -------
+    dict
+        Metric name -> float, int or None (not available).
+    """
+    ts = _col(members, "settling_time_s")
+    above = sum(np.nan_to_num(_col(members, f"t_lat_{b}_s"))
+                for b in ("medium", "uncomfortable", "beyond"))
+    out: dict[str, Any] = {
+        "e_rms_m": _max(_col(members, "e_rms_m")),
+        "e_max_settled_m": _all_or_none(_col(members, "e_max_settled_m"), np.max),
+        "e_rms_settled_m": _all_or_none(_col(members, "e_rms_settled_m"),
+                                        lambda x: math.sqrt(float(np.mean(x ** 2)))),
+        "settling_time_s": _all_or_none(ts, np.max),
+        "n_unsettled": int(np.isnan(ts).sum()),
+        "a_lat_peak_mps2": _max(_col(members, "a_lat_peak_mps2")),
+        "jerk_lat_rms_mps3": _max(_col(members, "jerk_lat_rms_mps3")),
+        "jerk_lon_rms_mps3": _max(_col(members, "jerk_lon_rms_mps3")),
+        "t_lat_above_comfort_s": _max(above) if np.isfinite(_col(members, "t_lat_medium_s")).any() else None,
+        "t_lon_above_comfort_s": _max(_col(members, "t_lon_above_comfort_s")),
+        "slip_over_s": _max(_col(members, "slip_over_s")),
+        "traction_over_s": _max(_col(members, "traction_over_s")),
+        "friction_over_s": _max(_col(members, "friction_over_s")),
+        "collisions": None, "min_ttc_s": None, "emergency_brakes": None,
+    }
+    if (meta.get("scenario") or {}).get("road") is not None:
+        out.update(_sumo_metrics(run_dir, set(map(str, members.index)), meta))
+    return out
+
+
+def summary_frame(rows: list[dict], swept: dict[str, str]) -> pd.DataFrame:
+    """Rows (any order) -> the summary table sorted by case index, with fixed dtypes.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Case rows (:func:`empty_row` layout).
+    swept : dict
+        Swept dotted path -> pandas dtype of its column (``"json"``: values as JSON text).
+
+    Returns
+    -------
+    DataFrame
+        Columns :data:`ID_COLUMNS`, the swept paths, :data:`STATUS_COLUMNS`,
+        :data:`METRICS`, :data:`WALL_COLUMNS`.
+    """
+    import json
+
+    cols = [*ID_COLUMNS, *swept, *STATUS_COLUMNS, *METRICS, *WALL_COLUMNS]
+    df = pd.DataFrame(sorted(rows, key=lambda r: r["case_index"]), columns=cols)
+    dtypes = {"case_id": "string", "case_index": "int64", "seed": "int64", "status": "string",
+              "reason": "string", "t_end_s": "float64", "wall_s": "float64", "host": "string",
+              "pid": "Int64"}
+    dtypes.update({k: ("Int64" if k in COUNT_METRICS else "float64") for k in METRICS})
+    for k, t in swept.items():
+        if t == "json":
+            df[k] = df[k].map(lambda v: json.dumps(v, sort_keys=True))
+            t = "string"
+        dtypes[k] = t
+    return df.astype(dtypes).reset_index(drop=True)
+
+
+def swept_dtypes(cases: list[dict], keys: list[str]) -> dict[str, str]:
+    """Column dtype of each swept path over every case (``"json"`` for mixed or nested)."""
+    out = {}
+    for k in keys:
+        vals = [c["values"][k] for c in cases]
+        if all(isinstance(v, bool) for v in vals):
+            out[k] = "boolean"
+        elif all(isinstance(v, int) and not isinstance(v, bool) for v in vals):
+            out[k] = "int64"
+        elif all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in vals):
+            out[k] = "float64"
+        elif all(isinstance(v, str) for v in vals):
+            out[k] = "string"
+        else:
+            out[k] = "json"
+    return out

@@ -1,0 +1,217 @@
+"""``run_sweep``: expand a sweep file, run the cases not yet done, keep the summary current.
+
+Layout of the sweep directory (docs/sweeps.md): ``sweep.json``, ``summary.parquet``,
+``cases/<case-id>/`` (the run, its metrics and ``case.json``), ``logs/<case-id>.log``.
+"""
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import fcntl
+import importlib.metadata
+import json
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from .case import CASE_JSON, CaseSpec
+from .executors import run_dask, run_local
+from .expand import Sweep, load_sweep
+from .row import METRICS, summary_frame, swept_dtypes
+from .spec import SweepError
+
+SCHEMA = "formation-traci/sweep/1"
+SWEEP_JSON = "sweep.json"
+SUMMARY = "summary.parquet"
+CASES_DIR = "cases"
+LOGS_DIR = "logs"
+LOCK_FILE = ".sweep.lock"
+WRITE_EVERY_S = 2.0
+"""The summary is rewritten at most this often while cases finish, and always at the end [s]."""
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """What :func:`run_sweep` did."""
+
+    out_dir: Path
+    summary: pd.DataFrame  # one row per case with a result, by case index
+    n_cases: int  # cases of the sweep
+    n_completed: int  # rows with status completed (this and earlier invocations)
+    n_failed: int  # rows with status failed or interrupted
+    n_skipped: int  # completed earlier with the same overrides: not run again
+    n_run: int  # cases run by this invocation
+    files: dict[str, Path]  # "sweep_json", "summary"
+
+
+def _now() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+@contextlib.contextmanager
+def _lock(out: Path):
+    with open(out / LOCK_FILE, "a+") as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            raise SweepError(out, [("(directory)", "another sweep is running in this directory")]) from None
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def case_spec(sweep: Sweep, index: int, out: Path) -> CaseSpec:
+    """The :class:`CaseSpec` of case ``index`` of ``sweep`` in sweep directory ``out``."""
+    case = sweep.cases[index]
+    return CaseSpec(case=case, base=str(sweep.base), case_dir=str(out / CASES_DIR / case.id),
+                    log_path=str(out / LOGS_DIR / f"{case.id}.log"))
+
+
+def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
+    """The stored row of this case if it was run with the same scenario and overrides,
+    and whether it counts as done (row and run.json both completed)."""
+    d = Path(spec.case_dir)
+    try:
+        doc = json.loads((d / CASE_JSON).read_text(encoding="utf-8"))
+        old = CaseSpec.model_validate(doc["spec"])
+        row = doc["row"]
+    except Exception:
+        return None, False
+    if old.case != spec.case or old.base != spec.base or row.get("case_id") != spec.case.id:
+        return None, False
+    try:
+        run_ok = json.loads((d / "run.json").read_text(encoding="utf-8")).get("status") == "completed"
+    except (OSError, ValueError):
+        run_ok = False
+    return row, bool(run_ok and row.get("status") == "completed")
+
+
+def _versions() -> dict[str, str]:
+    from ..sim.runner import versions
+
+    out = versions()
+    for dist in ("dask", "distributed"):
+        try:
+            out[dist] = importlib.metadata.version(dist)
+        except importlib.metadata.PackageNotFoundError:
+            out[dist] = "not installed"
+    return out
+
+
+def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str]) -> pd.DataFrame:
+    df = summary_frame(list(rows.values()), swept)
+    tmp = path.with_name(f".{path.name}.tmp")
+    df.to_parquet(tmp, index=False)
+    os.replace(tmp, path)
+    return df
+
+
+def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None = None,
+              workers: int | None = None, progress: bool = True) -> SweepResult:
+    """Run every case of a sweep file that is not done yet and summarise them.
+
+    Parameters
+    ----------
+    sweep_path : str or Path
+        Sweep TOML file (docs/sweeps.md).
+    out_dir : str or Path
+        Sweep directory, created if needed. Running again into the same directory skips
+        the cases whose ``cases/<id>/run.json`` and stored row say completed with the
+        same overrides, and runs the others (failed, interrupted, new or changed).
+    scheduler : str, optional
+        Dask scheduler address (``tcp://HOST:PORT``) or scheduler-file path; default: a
+        local pool on this machine. Workers need this package installed and ``out_dir``
+        on a shared filesystem at the same path.
+    workers : int, optional
+        Local pool only: cases run at once (default ``os.cpu_count()``).
+    progress : bool
+        Show a progress bar (cases done, failed, remaining).
+
+    Returns
+    -------
+    SweepResult
+        The summary table and counts. ``summary.parquet`` holds one row per case with a
+        result (see docs/sweeps.md for the columns).
+
+    Raises
+    ------
+    SweepError
+        If the sweep file is invalid, or another sweep is running in ``out_dir``.
+    KeyboardInterrupt
+        On Ctrl-C, after the running cases stopped and the summary was written.
+    """
+    sweep = load_sweep(sweep_path)
+    out = Path(out_dir).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    with _lock(out):
+        specs = [case_spec(sweep, i, out) for i in range(len(sweep.cases))]
+        swept = swept_dtypes([c.model_dump(mode="json") for c in sweep.cases], sweep.spec.swept())
+        rows: dict[str, dict] = {}
+        todo = []
+        for s in specs:
+            row, done = _previous(s)
+            if row is not None:
+                rows[s.case.id] = row
+            if not done:
+                todo.append(s)
+        n_skipped = len(specs) - len(todo)
+        meta = {"schema": SCHEMA, "status": "running", "sweep_file": str(sweep.path),
+                "sweep_text": sweep.path.read_text(encoding="utf-8"), "sweep": sweep.raw,
+                "base": str(sweep.base), "swept": sweep.spec.swept(), "grid_keys": list(sweep.spec.grid),
+                "random_keys": list(sweep.random_keys), "dtypes": swept,
+                "metrics": {k: {"unit": u, "meaning": m} for k, (u, m) in METRICS.items()},
+                "executor": {"kind": "dask" if scheduler else "local", "scheduler": scheduler,
+                             "workers": None if scheduler else (workers or os.cpu_count())},
+                "cases": [c.model_dump(mode="json") for c in sweep.cases],
+                "versions": _versions(), "started": _now(), "finished": None,
+                "counts": {"cases": len(specs), "skipped": n_skipped, "to_run": len(todo)}}
+        from ..record.writer import atomic_write_json
+
+        atomic_write_json(out / SWEEP_JSON, meta)
+        summary_path = out / SUMMARY
+        _write_summary(summary_path, rows, swept)
+        bar = None
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=len(specs), initial=n_skipped, unit="case",
+                       desc=sweep.spec.name or sweep.path.stem)
+        state = {"ok": 0, "failed": 0, "written": time.monotonic()}
+
+        def on_row(spec: CaseSpec, row: dict) -> None:
+            rows[spec.case.id] = row
+            state["ok" if row["status"] == "completed" else "failed"] += 1
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(done=state["ok"], failed=state["failed"],
+                                remaining=len(todo) - state["ok"] - state["failed"])
+            if time.monotonic() - state["written"] >= WRITE_EVERY_S:
+                _write_summary(summary_path, rows, swept)
+                state["written"] = time.monotonic()
+
+        interrupted = None  # stays None if the executor raised (e.g. no scheduler there)
+        try:
+            if scheduler:
+                interrupted = run_dask(todo, scheduler, sweep.spec.timeout_s, on_row)
+            else:
+                interrupted = run_local(todo, workers, sweep.spec.timeout_s, on_row)
+        finally:
+            if bar is not None:
+                bar.close()
+            df = _write_summary(summary_path, rows, swept)
+            n_ok = int((df["status"] == "completed").sum())
+            meta.update(status={True: "interrupted", False: "completed"}.get(interrupted, "error"),
+                        finished=_now())
+            meta["counts"].update(run=state["ok"] + state["failed"], completed=n_ok,
+                                  failed=len(df) - n_ok, pending=len(specs) - len(df))
+            atomic_write_json(out / SWEEP_JSON, meta)
+    if interrupted:
+        raise KeyboardInterrupt(f"sweep interrupted; {summary_path} holds the {len(df)} cases with a result")
+    return SweepResult(out_dir=out, summary=df, n_cases=len(specs), n_completed=n_ok,
+                       n_failed=len(df) - n_ok, n_skipped=n_skipped,
+                       n_run=state["ok"] + state["failed"],
+                       files={"sweep_json": out / SWEEP_JSON, "summary": summary_path})
