@@ -348,6 +348,19 @@ class SumoAdapter:
         x, y, psi = sumo_to_cog(xf, yf, ang, length / 2.0)  # centre of the body
         return Neighbours(ids, types, x, y, psi, v, a, length, width, lanes, li, lat)
 
+    def vehicle_bodies(self):
+        """Every vehicle in SUMO: ids, body centre x, y [m], heading [rad], length, width [m]
+        (direct getters: used once, at insertion)."""
+        v = self.api.vehicle
+        ids = list(v.getIDList())
+        n = len(ids)
+        xf, yf, ang, length, width = (np.empty(n) for _ in range(5))
+        for i, vid in enumerate(ids):
+            xf[i], yf[i] = v.getPosition(vid)
+            ang[i], length[i], width[i] = v.getAngle(vid), v.getLength(vid), v.getWidth(vid)
+        x, y, psi = sumo_to_cog(xf, yf, ang, length / 2.0)
+        return ids, x, y, psi, length, width
+
     def remove_vehicle(self, vid: str) -> None:
         """Take a vehicle out of SUMO. Its subscriptions are dropped first: libsumo 1.28 raises
         "Vehicle is not known" at the next step when a vehicle with a (context) subscription is

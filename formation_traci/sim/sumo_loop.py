@@ -424,22 +424,15 @@ def _lane_changes(rec, t, nb, prev_lane, lead_idx, gap, v_m, ids, active, ld):
 def _clear_insertion_zone(adapter, rec, t, pos, heading, v, veh, front):
     """Remove SUMO vehicles that stand where a member is inserted, or inside its time gap
     ahead (``front`` [m]) or within INSERT_CLEAR_TIME of its speed behind it."""
-    nb_ids = adapter.vehicle_ids()
-    if not nb_ids:
-        return
-    api, tc = adapter.api, adapter.tc
-    for vid in nb_ids:
-        xf, yf = api.vehicle.getPosition(vid)
-        ang = api.vehicle.getAngle(vid)
-        length, width = api.vehicle.getLength(vid), api.vehicle.getWidth(vid)
-        psi = math.radians(90.0 - ang)
-        centre = np.array([xf - length / 2 * math.cos(psi), yf - length / 2 * math.sin(psi)])
+    ids, x, y, psi, length, width = adapter.vehicle_bodies()
+    for j, vid in enumerate(ids):
         for i in range(len(pos)):
             back = max(2.0, v[i] * INSERT_CLEAR_TIME)
             zone_len = veh.length + front[i] + back
             shift = (front[i] - back) / 2
             zc = pos[i] + shift * np.array([math.cos(heading[i]), math.sin(heading[i])])
-            if rectangles_overlap(zc, heading[i], centre, psi, zone_len, veh.width + 0.6, length, width):
+            if rectangles_overlap(zc, heading[i], np.array([x[j], y[j]]), psi[j], zone_len, veh.width + 0.6,
+                                  length[j], width[j]):
                 adapter.remove_vehicle(vid)
                 rec.add_event(t, "cleared_at_insertion", vid, "", "removed: it stood where a member is inserted")
                 break

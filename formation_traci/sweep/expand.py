@@ -50,19 +50,18 @@ class Sweep:
     random_keys: tuple[str, ...]
 
 
-def _auto_labels(keys: list[str]) -> dict[str, str]:
+def _labels(keys: list[str], given: dict[str, str]) -> dict[str, str]:
+    """Case-id label of each swept path: [labels], else its last name (initials if long)."""
     def short(k: str) -> str:
         name = [p for p in k.split(".") if not p.isdigit()][-1]
-        if len(name) <= 8:
-            return name
-        return "".join(w[0] for w in name.split("_") if w)
+        return name if len(name) <= 8 else "".join(w[0] for w in name.split("_") if w)
 
-    labels = {k: short(k) for k in keys}
-    dup = {v for v in labels.values() if list(labels.values()).count(v) > 1}
-    for k in keys:
-        if labels[k] in dup:
-            labels[k] = "".join(p if p.isdigit() else p[0] for p in k.split(".")[:-1]) + labels[k]
-    return labels
+    auto = {k: short(k) for k in keys if k not in given}
+    taken = list(auto.values()) + list(given.values())
+    for k, lab in list(auto.items()):
+        if taken.count(lab) > 1:  # members.0.k, members.1.k -> m0k, m1k
+            auto[k] = "".join(p if p.isdigit() else p[0] for p in k.split(".")[:-1]) + lab
+    return {k: given.get(k) or auto[k] for k in keys}
 
 
 def _fmt(value: Any, sampled: bool) -> str:
@@ -152,7 +151,7 @@ def load_sweep(path: str | Path) -> Sweep:
     if problems:
         raise SweepError(path, problems)
 
-    labels = {**_auto_labels(spec.swept()), **spec.labels}
+    labels = _labels(spec.swept(), spec.labels)
     if len(set(labels.values())) != len(labels):
         raise SweepError(path, [("labels", f"case-id labels collide ({labels}); name them in [labels]")])
     grid_points = [dict(zip(spec.grid, combo)) for combo in itertools.product(*spec.grid.values())]

@@ -41,7 +41,7 @@ class SweepResult:
     summary: pd.DataFrame  # one row per case with a result, by case index
     n_cases: int  # cases of the sweep
     n_completed: int  # rows with status completed (this and earlier invocations)
-    n_failed: int  # rows with status failed or interrupted
+    n_failed: int  # rows with status failed or interrupted (not completed)
     n_skipped: int  # completed earlier with the same overrides: not run again
     n_run: int  # cases run by this invocation
     files: dict[str, Path]  # "sweep_json", "summary"
@@ -206,8 +206,9 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
             n_ok = int((df["status"] == "completed").sum())
             meta.update(status={True: "interrupted", False: "completed"}.get(interrupted, "error"),
                         finished=_now())
-            meta["counts"].update(run=state["ok"] + state["failed"], completed=n_ok,
-                                  failed=len(df) - n_ok, pending=len(specs) - len(df))
+            meta["counts"].update(run=state["ok"] + state["failed"], pending=len(specs) - len(df),
+                                  **{s: int((df["status"] == s).sum())
+                                     for s in ("completed", "failed", "interrupted")})
             atomic_write_json(out / SWEEP_JSON, meta)
     if interrupted:
         raise KeyboardInterrupt(f"sweep interrupted; {summary_path} holds the {len(df)} cases with a result")
