@@ -96,9 +96,16 @@ class ChunkedTable:
             if self._n == self.chunk_rows:
                 self.flush()
 
-    def flush(self) -> None:
+    def close(self) -> None:
+        """Flush; a table that got no row at all gets one empty part file, so readers find
+        a table (with its schema) of zero rows rather than an empty directory."""
+        self.flush()
+        if self.parts_written == 0:
+            self.flush(allow_empty=True)
+
+    def flush(self, allow_empty: bool = False) -> None:
         """Write buffered rows (if any) as the next part file."""
-        if self._n == 0:
+        if self._n == 0 and not allow_empty:
             return
         labels = np.array(self.labels, dtype=object)
         arrays = []

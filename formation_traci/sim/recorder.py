@@ -100,6 +100,7 @@ class Recorder:
             "lane_index": nb.lane_index.astype(np.int32), "s": s, "d": d}, n)
 
     def flush(self):
+        """End of the run: write what is buffered; empty tables get a zero-row part."""
         for table in (self.traj, self.events, self.background):
             if table is not None:
-                table.flush()
+                table.close()

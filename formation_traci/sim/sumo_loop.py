@@ -463,4 +463,4 @@ def _convert_ssm(xml_path: Path, out: Path, t0: float, members: set[str]) -> Non
             el.clear()
     except ET.ParseError:
         pass  # keep what was parsed
-    table.flush()
+    table.close()
