@@ -82,6 +82,52 @@ def compare(
         typer.echo(f"{name}: {path}")
 
 
+@app.command()
+def sweep(
+    sweep_file: Path = typer.Argument(..., help="sweep TOML file (docs/sweeps.md)"),
+    out: Path = typer.Option(..., "--out", "-o", help="study directory (summary.parquet, cases/)"),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler tcp://HOST:PORT or scheduler file"),
+    workers: Optional[int] = typer.Option(None, "--workers", min=1, help="local cases at once (default: cores)"),
+    progress: bool = typer.Option(True, "--progress/--no-progress"),
+) -> None:
+    """Run every case of a sweep (each in its own process), analyse each, write summary.parquet.
+
+    Re-running the same command skips finished cases and retries failed ones."""
+    from .sweep import SweepError, run_sweep
+
+    try:
+        res = run_sweep(sweep_file, out, scheduler=scheduler, workers=workers, progress=progress)
+    except SweepError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2)
+    except KeyboardInterrupt as exc:
+        typer.echo(f"interrupted: {exc}; run the same command again to finish", err=True)
+        raise typer.Exit(130)
+    typer.echo(f"{res.n_cases} cases: {res.n_completed} completed, {res.n_failed} not completed "
+               f"({res.n_run} run now, {res.n_skipped} done before); summary: {res.files['summary']}")
+    if res.n_failed:
+        raise typer.Exit(1)
+
+
+@app.command("analyze-sweep")
+def analyze_sweep_cmd(
+    sweep_dir: Path = typer.Argument(..., help="study directory written by `sweep`"),
+    metric: Optional[list[str]] = typer.Option(None, "--metric", "-m", help="metric column(s) to plot"),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="where to write; default SWEEP_DIR"),
+    spread: str = typer.Option("minmax", help="spread over seeds: minmax | std"),
+) -> None:
+    """Plot metrics against the swept values (spread over seeds) and write sweep_report.html."""
+    from .sweep import SweepError, analyze_sweep
+
+    try:
+        rep = analyze_sweep(sweep_dir, metrics=metric or None, out=out, spread=spread)
+    except SweepError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2)
+    for name, path in rep.files.items():
+        typer.echo(f"{name}: {path}")
+
+
 def main() -> None:  # pragma: no cover
     app()
 

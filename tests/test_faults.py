@@ -161,3 +161,17 @@ def test_network_path_resolves_relative_to_the_scenario_file(tmp_path, monkeypat
     assert res.status == "completed"
     meta = json.loads((tmp_path / "out" / "run.json").read_text())
     assert meta["sumo"]["net"] == str((tmp_path / "nets" / "mine.net.xml").resolve())
+
+
+def test_all_members_gone_ends_the_run_cleanly(tmp_path):
+    """Every member removed: the run stops early as completed and says why (it used to crash
+    choosing a member for the neighbour subscription)."""
+    def hook(k, t, adapter):
+        if k == 30:
+            for vid in ("right", "centre", "left"):
+                adapter.remove_vehicle(vid)
+
+    res, meta, traj, ev = run(tmp_path, hook)
+    assert res.status == "completed", res.reason
+    assert "no member left" in meta["stopped_early"]
+    assert set(ev[ev.kind == "member_removed"].vehicle_id) == {"right", "centre", "left"}

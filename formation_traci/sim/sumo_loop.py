@@ -358,7 +358,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 inserted = True  # reads neighbours (every vehicle) from now on
                 continue
             adapter.set_true_speeds(act, v_after[act_idx], a_mean[act_idx])
-            if not all_bg and (not inserted or ctx_owner is None or not active[ctx_owner]):
+            if not all_bg and active.any() and (not inserted or ctx_owner is None or not active[ctx_owner]):
                 ctx_owner = _subscribe_context(adapter, ids, active, along, slot_d_0, sc.traffic.record_radius)
             inserted = True
             if all_bg:

@@ -46,7 +46,21 @@ def _plain(x: Any) -> Any:
 
 
 def write_case_json(case_dir: Path, spec: CaseSpec, row: dict) -> None:
-    """Write ``case.json`` atomically (spec and row; NaN stored as null)."""
+    """Write ``case.json`` atomically (spec and row; NaN stored as null).
+
+    Parameters
+    ----------
+    case_dir : Path
+        Case directory (created if needed).
+    spec : CaseSpec
+        The case as run.
+    row : dict
+        Its summary row.
+
+    Returns
+    -------
+    None
+    """
     from ..record.writer import atomic_write_json
 
     case_dir.mkdir(parents=True, exist_ok=True)
@@ -110,7 +124,18 @@ def _analyse(run_dir: Path, row: dict) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the case process: ``SPEC_JSON`` is the CaseSpec as JSON text."""
+    """Entry point of the case process: ``SPEC_JSON`` is the CaseSpec as JSON text.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        ``[SPEC_JSON]``; default ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        Exit code: 0 once the row is written (whatever the run's status), 2 for bad usage.
+    """
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
         print("usage: python -m formation_traci.sweep.case SPEC_JSON", file=sys.stderr)

@@ -18,6 +18,7 @@ from typing import Callable
 from .case import CaseSpec
 from .launch import GRACE_S, dask_case, launch_case
 from .row import empty_row
+from .spec import SweepError
 
 OnRow = Callable[[CaseSpec, dict], None]
 DRAIN_S = GRACE_S + 15.0
@@ -31,7 +32,24 @@ def _error_row(spec: CaseSpec, exc: BaseException) -> dict:
 
 def run_local(specs: list[CaseSpec], workers: int | None, timeout_s: float | None,
               on_row: OnRow) -> bool:
-    """Run the cases on this machine, ``workers`` at a time (default ``os.cpu_count()``)."""
+    """Run the cases on this machine, ``workers`` at a time.
+
+    Parameters
+    ----------
+    specs : list of CaseSpec
+        Cases to run.
+    workers : int or None
+        Cases at once; default ``os.cpu_count()``.
+    timeout_s : float or None
+        Wall-clock limit per case [s].
+    on_row : callable
+        ``on_row(spec, row)``, called in this thread as each case finishes.
+
+    Returns
+    -------
+    bool
+        True if interrupted by Ctrl-C (running cases were stopped and collected).
+    """
     stop = threading.Event()
     n = max(1, workers or os.cpu_count() or 1)
     pool = ThreadPoolExecutor(max_workers=n, thread_name_prefix="sweep-case")
@@ -68,14 +86,35 @@ def run_local(specs: list[CaseSpec], workers: int | None, timeout_s: float | Non
 def _client(scheduler: str):
     from distributed import Client
 
-    if Path(scheduler).is_file():
-        return Client(scheduler_file=str(scheduler))
-    return Client(scheduler)
+    try:
+        if Path(scheduler).is_file():
+            return Client(scheduler_file=str(scheduler))
+        return Client(scheduler)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SweepError(scheduler, [("scheduler", f"cannot connect to the Dask scheduler: "
+                                                   f"{type(exc).__name__}: {exc}")]) from None
 
 
 def run_dask(specs: list[CaseSpec], scheduler: str, timeout_s: float | None,
              on_row: OnRow) -> bool:
-    """Run the cases on a Dask cluster (``tcp://HOST:PORT`` or a scheduler-file path)."""
+    """Run the cases on a Dask cluster.
+
+    Parameters
+    ----------
+    specs : list of CaseSpec
+        Cases to run.
+    scheduler : str
+        ``tcp://HOST:PORT`` or the path of a scheduler file.
+    timeout_s : float or None
+        Wall-clock limit per case [s].
+    on_row : callable
+        ``on_row(spec, row)``, called in this thread as each case finishes.
+
+    Returns
+    -------
+    bool
+        True if interrupted by Ctrl-C (running cases were stopped and collected).
+    """
     from distributed import Event, as_completed as dask_completed
 
     client = _client(scheduler)

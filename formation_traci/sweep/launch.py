@@ -29,7 +29,18 @@ process is killed [s]."""
 
 
 def case_command(spec_json: str) -> list[str]:
-    """Command line of a case process (the interpreter running this code)."""
+    """Command line of a case process (the interpreter running this code).
+
+    Parameters
+    ----------
+    spec_json : str
+        The :class:`CaseSpec` as JSON text.
+
+    Returns
+    -------
+    list of str
+        ``[sys.executable, "-m", "formation_traci.sweep.case", spec_json]``.
+    """
     return [sys.executable, "-m", "formation_traci.sweep.case", spec_json]
 
 
@@ -146,7 +157,22 @@ def launch_case(case_spec: dict | CaseSpec, should_stop: Callable[[], bool] | No
 
 
 def dask_case(case_spec: dict, stop_event: str, timeout_s: float | None) -> dict[str, Any] | None:
-    """The Dask task: :func:`launch_case` with a ``distributed.Event`` as the stop flag."""
+    """The Dask task: :func:`launch_case` with a ``distributed.Event`` as the stop flag.
+
+    Parameters
+    ----------
+    case_spec : dict
+        The :class:`CaseSpec` as a dict.
+    stop_event : str
+        Name of the ``distributed.Event`` the sweep sets on Ctrl-C (polled once a second).
+    timeout_s : float or None
+        Wall-clock limit of the case [s].
+
+    Returns
+    -------
+    dict or None
+        As :func:`launch_case`.
+    """
     from distributed import Event
 
     event = Event(stop_event)

@@ -34,8 +34,23 @@ class SweepReport:
 
 
 def seed_stats(done: pd.DataFrame, swept: list[str], metrics: list[str]) -> pd.DataFrame:
-    """Mean, std (ddof 0), min, max and count of each metric over the seeds of each
-    combination of swept values (completed rows only)."""
+    """Statistics of each metric over the seeds of each combination of swept values.
+
+    Parameters
+    ----------
+    done : DataFrame
+        Completed rows of ``summary.parquet``.
+    swept : list of str
+        Swept dotted paths (none: one group per seed).
+    metrics : list of str
+        Metric columns.
+
+    Returns
+    -------
+    DataFrame
+        One row per combination: the swept values, ``n_seeds`` and
+        ``<metric>_{mean,std,min,max,n}`` (std with ddof 0).
+    """
     by = swept or ["seed"]
     g = done.groupby(by, dropna=False, sort=True)
     parts = {"n_seeds": g["seed"].count()}

@@ -42,7 +42,22 @@ COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes"})
 
 
 def empty_row(case: dict, status: str, reason: str | None) -> dict[str, Any]:
-    """A row with the case's identity and values and every metric missing."""
+    """A row with the case's identity and values and every metric missing.
+
+    Parameters
+    ----------
+    case : dict
+        ``Case.model_dump(mode="json")``.
+    status : str
+        ``completed``, ``failed`` or ``interrupted``.
+    reason : str or None
+        Why not completed.
+
+    Returns
+    -------
+    dict
+        Every summary column, metrics None.
+    """
     row: dict[str, Any] = {"case_id": case["id"], "case_index": case["index"], "seed": case["seed"],
                            **case["values"], "status": status, "reason": reason, "t_end_s": None}
     row.update({k: None for k in METRICS})
@@ -157,7 +172,21 @@ def summary_frame(rows: list[dict], swept: dict[str, str]) -> pd.DataFrame:
 
 
 def swept_dtypes(cases: list[dict], keys: list[str]) -> dict[str, str]:
-    """Column dtype of each swept path over every case (``"json"`` for mixed or nested)."""
+    """Column dtype of each swept path over every case.
+
+    Parameters
+    ----------
+    cases : list of dict
+        ``Case.model_dump(mode="json")`` of every case.
+    keys : list of str
+        Swept dotted paths.
+
+    Returns
+    -------
+    dict
+        Path -> ``"boolean"``, ``"int64"``, ``"float64"``, ``"string"`` or ``"json"`` (tables,
+        lists or mixed types, stored as JSON text).
+    """
     out = {}
     for k in keys:
         vals = [c["values"][k] for c in cases]

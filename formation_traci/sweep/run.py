@@ -65,7 +65,22 @@ def _lock(out: Path):
 
 
 def case_spec(sweep: Sweep, index: int, out: Path) -> CaseSpec:
-    """The :class:`CaseSpec` of case ``index`` of ``sweep`` in sweep directory ``out``."""
+    """The :class:`CaseSpec` of one case.
+
+    Parameters
+    ----------
+    sweep : Sweep
+        The loaded sweep.
+    index : int
+        Case index.
+    out : Path
+        Sweep directory (absolute).
+
+    Returns
+    -------
+    CaseSpec
+        The case with its scenario, case directory and log paths.
+    """
     case = sweep.cases[index]
     return CaseSpec(case=case, base=str(sweep.base), case_dir=str(out / CASES_DIR / case.id),
                     log_path=str(out / LOGS_DIR / f"{case.id}.log"))
@@ -140,7 +155,8 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     Raises
     ------
     SweepError
-        If the sweep file is invalid, or another sweep is running in ``out_dir``.
+        If the sweep file is invalid, another sweep is running in ``out_dir``, or the Dask
+        scheduler cannot be reached.
     KeyboardInterrupt
         On Ctrl-C, after the running cases stopped and the summary was written.
     """

@@ -57,7 +57,18 @@ class Distribution(Strict):
         return self
 
     def draw(self, rng) -> JsonValue:
-        """One sample from ``rng`` (a ``numpy.random.Generator``), as a plain Python value."""
+        """One sample, as a plain Python value.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            The sweep's sampler.
+
+        Returns
+        -------
+        float or JSON value
+            A draw of the distribution.
+        """
         if self.uniform is not None:
             return float(rng.uniform(*self.uniform))
         if self.log_uniform is not None:
@@ -129,7 +140,13 @@ class SweepFile(Strict):
         return self
 
     def swept(self) -> list[str]:
-        """Swept dotted paths in case-id order: the grid's, then the random ones."""
+        """Swept dotted paths in case-id order: the grid's, then the random ones.
+
+        Returns
+        -------
+        list of str
+            The paths.
+        """
         return list(self.grid) + (list(self.random.fields) if self.random else [])
 
 
@@ -163,7 +180,17 @@ def _describe(err: dict) -> str:
 
 
 def read_sweep_file(path: str | Path) -> tuple[SweepFile, dict]:
-    """Read and validate a sweep TOML file; returns the model and the raw document.
+    """Read and validate a sweep TOML file.
+
+    Parameters
+    ----------
+    path : str or Path
+        Sweep TOML file.
+
+    Returns
+    -------
+    (SweepFile, dict)
+        The validated model and the parsed TOML document.
 
     Raises
     ------
