@@ -20,12 +20,15 @@ import pandas as pd
 from analysis.load import Issue, NoTrajectoryData, load_run
 from analysis.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN_METRICS,
                               AnalysisSettings, RunAnalysis, compute_run, settings_dict)
+from analysis.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
+                                  TrafficAnalysis, load_baseline)
 
 __all__ = [
     "SCHEMA",
     "METRICS_JSON",
     "METRICS_CSV",
     "REPORT_HTML",
+    "BASELINE_CSV",
     "FIGURES_DIR",
     "AnalysisResult",
     "CompareResult",
@@ -40,6 +43,7 @@ SCHEMA = "formation-traci/metrics/1"
 METRICS_JSON = "metrics.json"
 METRICS_CSV = "metrics.csv"
 REPORT_HTML = "report.html"
+BASELINE_CSV = "baseline.csv"
 FIGURES_DIR = "figures"
 
 _COMPARE_RUN_ROWS = ("status", "model", "mu", "duration_s", "sample_rate_hz",
@@ -58,6 +62,8 @@ class AnalysisResult:
     string_stability: pd.DataFrame  # one row per (leader, follower) pair
     issues: pd.DataFrame  # columns severity, kind, what, detail
     files: dict[str, Path]  # "metrics_json", "metrics_csv", "report_html", "figure:<name>"
+    traffic: dict[str, Any] | None = None  # run-level traffic metrics (TRAFFIC_RUN_METRICS)
+    baseline: pd.DataFrame | None = None  # per-vehicle comparison with the baseline twin
 
 
 @dataclass(frozen=True)
@@ -107,9 +113,26 @@ def _figure_module():
     return figures
 
 
+def _traffic_json(t: TrafficAnalysis | None) -> dict[str, Any] | None:
+    if t is None:
+        return None
+    base = None
+    if t.baseline is not None:
+        base = _records(t.baseline.reset_index())
+    return {
+        "run": _jsonable(t.run),
+        "units": TRAFFIC_RUN_METRICS,
+        "ssm": {g: _jsonable(r.to_dict()) for g, r in t.ssm.iterrows()},
+        "member_conflicts": _records(t.member_conflicts),
+        "baseline_vehicles": base,
+        "unavailable": dict(t.unavailable),
+    }
+
+
 def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
                 settings: AnalysisSettings = DEFAULT_SETTINGS,
-                figures: bool = True) -> AnalysisResult:
+                figures: bool = True,
+                baseline: str | Path | None = None) -> AnalysisResult:
     """Analyse one recorded run and write its metrics, figures and report.
 
     Parameters
@@ -122,13 +145,20 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
     settings : AnalysisSettings
         Analysis choices (settling band, jerk window, ...).
     figures : bool
-        Draw the PNG figures (and embed them in the report).
+        Draw the figures (PNG; for road runs also the traffic space-time diagram and the
+        bird's-eye animation) and embed them in the report.
+    baseline : str or Path, optional
+        Directory of the twin run with the same traffic and seed but no formation
+        (``formation-traci run SCENARIO --out DIR --baseline``). Adds the per-vehicle
+        travel-time comparison (``traffic.baseline_vehicles`` in ``metrics.json``,
+        ``baseline.csv``) and the ``baseline_*`` traffic metrics. A missing or damaged
+        baseline is listed in the issues; the rest is still computed.
 
     Returns
     -------
     AnalysisResult
-        The run-level metrics, per-member and string-stability tables, the issues and
-        the written files.
+        The run-level metrics, per-member and string-stability tables, the issues, the
+        written files, the run-level traffic metrics and the baseline comparison.
 
     Raises
     ------
@@ -138,7 +168,8 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
     run_dir = Path(run_dir)
     out = Path(out_dir) if out_dir is not None else run_dir
     out.mkdir(parents=True, exist_ok=True)
-    a = compute_run(load_run(run_dir), settings)
+    base = load_baseline(baseline) if baseline is not None else None
+    a = compute_run(load_run(run_dir), settings, baseline=base)
     files: dict[str, Path] = {}
     fig_paths: dict[str, Path] = {}
     fig_errors: dict[str, str] = {}
@@ -171,6 +202,7 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
         "meta": a.data.meta,
         "settings": settings_dict(settings),
         "units": {"run": RUN_METRICS, "members": MEMBER_METRICS},
+        "traffic": _traffic_json(a.traffic),
         "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()},
     }
     p_json = out / METRICS_JSON
@@ -179,15 +211,25 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
     p_csv = out / METRICS_CSV
     a.members.reset_index().to_csv(p_csv, index=False)
     files["metrics_csv"] = p_csv
+    base_tab = a.traffic.baseline if a.traffic is not None else None
+    p_base = out / BASELINE_CSV
+    if base_tab is not None:
+        base_tab.reset_index().to_csv(p_base, index=False)
+        files["baseline_csv"] = p_base
+    else:
+        p_base.unlink(missing_ok=True)
 
     from analysis import report  # lazy, like figures
 
     p_html = out / REPORT_HTML
-    p_html.write_text(report.run_report(a, fig_paths, fig_errors, extra), encoding="utf-8")
+    p_html.write_text(report.run_report(a, fig_paths, fig_errors, extra, report_dir=out),
+                      encoding="utf-8")
     files["report_html"] = p_html
     return AnalysisResult(run_dir=run_dir, out_dir=out, run=_jsonable(a.run), members=a.members,
                           string_stability=a.string_stability, issues=_issues_df(issues),
-                          files=files)
+                          files=files,
+                          traffic=_jsonable(a.traffic.run) if a.traffic is not None else None,
+                          baseline=base_tab)
 
 
 def _labels(run_dirs: Sequence[Path]) -> list[str]:
@@ -205,7 +247,8 @@ def _labels(run_dirs: Sequence[Path]) -> list[str]:
 
 
 def compare_runs(run_dirs: Sequence[str | Path], out_dir: str | Path, *,
-                 settings: AnalysisSettings = DEFAULT_SETTINGS) -> CompareResult:
+                 settings: AnalysisSettings = DEFAULT_SETTINGS,
+                 baselines: Sequence[str | Path | None] | None = None) -> CompareResult:
     """Compare several runs side by side (e.g. kinematic vs dynamic model).
 
     Parameters
@@ -219,32 +262,40 @@ def compare_runs(run_dirs: Sequence[str | Path], out_dir: str | Path, *,
         written to.
     settings : AnalysisSettings
         Analysis choices, the same for every run.
+    baselines : sequence of (str, Path or None), optional
+        Baseline twin of each run (same order as ``run_dirs``, None where there is
+        none) for the ``traffic baseline_*`` rows.
 
     Returns
     -------
     CompareResult
-        Key metrics side by side (worst member of each run), the issues of every run and
-        the written files. A run without trajectory data is listed in the issues and
-        left out of the table.
+        Key metrics side by side (worst member of each run, then the traffic metrics),
+        the issues of every run and the written files. A run without trajectory data is
+        listed in the issues and left out of the table.
 
     Raises
     ------
     NoTrajectoryData
         If none of the runs has trajectory data.
     ValueError
-        If ``run_dirs`` is empty.
+        If ``run_dirs`` is empty, or ``baselines`` does not have one entry per run.
     """
     dirs = [Path(p) for p in run_dirs]
     if not dirs:
         raise ValueError("run_dirs is empty: give at least one run directory")
+    bases = list(baselines) if baselines is not None else [None] * len(dirs)
+    if len(bases) != len(dirs):
+        raise ValueError(f"baselines has {len(bases)} entries, run_dirs {len(dirs)}: give "
+                         "one per run (None where there is none)")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     analyses: dict[str, RunAnalysis] = {}
     issues: dict[str, list[Issue]] = {}
     runs: dict[str, Path] = {}
-    for label, d in zip(_labels(dirs), dirs):
+    for label, d, b in zip(_labels(dirs), dirs, bases):
         try:
-            a = compute_run(load_run(d), settings)
+            a = compute_run(load_run(d), settings,
+                            baseline=load_baseline(b) if b is not None else None)
         except NoTrajectoryData as exc:
             issues[label] = [Issue("error", "no_trajectory_data", str(d), str(exc))]
             continue
@@ -254,19 +305,25 @@ def compare_runs(run_dirs: Sequence[str | Path], out_dir: str | Path, *,
                                + "; ".join(i.detail for v in issues.values() for i in v))
 
     units = {**RUN_METRICS, **MEMBER_METRICS}
-    index = list(_COMPARE_RUN_ROWS) + [f"worst {k}" for k in KEY_METRICS] + ["data problems"]
+    index = (list(_COMPARE_RUN_ROWS) + [f"worst {k}" for k in KEY_METRICS]
+             + [f"traffic {k}" for k in TRAFFIC_COMPARE_METRICS] + ["data problems"])
     table = pd.DataFrame(index=index, columns=["unit", *analyses], dtype=object)
     table.index.name = "metric"
     for k in _COMPARE_RUN_ROWS:
         table.loc[k, "unit"] = units.get(k, "")
     for k in KEY_METRICS:
         table.loc[f"worst {k}", "unit"] = units.get(k, "")
+    for k in TRAFFIC_COMPARE_METRICS:
+        table.loc[f"traffic {k}", "unit"] = TRAFFIC_RUN_METRICS[k]
     table.loc["data problems", "unit"] = "-"
     for label, a in analyses.items():
         for k in _COMPARE_RUN_ROWS:
             table.loc[k, label] = _jsonable(a.run.get(k))
         for k in KEY_METRICS:
             table.loc[f"worst {k}", label] = a.run["worst"].get(k)
+        for k in TRAFFIC_COMPARE_METRICS:
+            table.loc[f"traffic {k}", label] = _jsonable(
+                a.traffic.run.get(k) if a.traffic is not None else None)
         table.loc["data problems", label] = sum(i.severity == "error" for i in issues[label])
 
     files: dict[str, Path] = {}

@@ -405,9 +405,13 @@ def load_run(run_dir: str | Path) -> RunData:
                             "no virtual-car rows: its path is not drawn and offsets cannot "
                             "be inferred"))
     declared = {m.id for m in members}
+    twin = meta.get("baseline") is True
     for m in members:
         if m.id not in set(ids_data):
-            issues.append(Issue("error", "missing_vehicle", m.id,
+            issues.append(Issue("info", "baseline_run", m.id,
+                                "baseline twin run: the formation is not driven, so the "
+                                "member has no rows by design") if twin else
+                          Issue("error", "missing_vehicle", m.id,
                                 "member declared in run.json has no trajectory rows"))
     if "members" not in meta or not members:
         for mid in ids_data:

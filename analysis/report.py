@@ -16,9 +16,19 @@ from typing import Any
 import pandas as pd
 
 from analysis.load import Issue
-from analysis.summary import MEMBER_METRICS, RUN_METRICS, RunAnalysis
+from analysis.summary import FORMATION_MEMBER_METRICS, RUN_METRICS, RunAnalysis
+from analysis.traffic_run import TRAFFIC_MEMBER_METRICS, TRAFFIC_RUN_METRICS
 
-__all__ = ["run_report", "compare_report"]
+__all__ = ["MAX_EMBED_BYTES", "BASELINE_ROWS", "run_report", "compare_report"]
+
+MAX_EMBED_BYTES = 4_000_000
+"""Figures larger than this (e.g. a long animation) are linked instead of embedded."""
+
+BASELINE_ROWS = 25
+"""Vehicles listed in the report's baseline table (largest delay first); all are in
+``baseline.csv`` and ``metrics.json``."""
+
+_MIME = {".png": "image/png", ".gif": "image/gif"}
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:1.5em auto;
@@ -51,9 +61,65 @@ def _fmt(x: Any) -> str:
     return _e(x)
 
 
-def _img(path: Path, alt: str) -> str:
-    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
-    return f'<img alt="{_e(alt)}" src="data:image/png;base64,{data}">'
+def _img(path: Path, alt: str, base: Path | None = None) -> str:
+    path = Path(path)
+    if path.stat().st_size > MAX_EMBED_BYTES:
+        href = path.name
+        if base is not None:
+            try:
+                href = path.resolve().relative_to(base.resolve()).as_posix()
+            except ValueError:
+                href = path.resolve().as_uri()
+        return (f'<p><a href="{_e(href)}">{_e(path.name)}</a> '
+                f"({path.stat().st_size / 1e6:.1f} MB, linked, not embedded)</p>")
+    mime = _MIME.get(path.suffix.lower(), "image/png")
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    return f'<img alt="{_e(alt)}" src="data:{mime};base64,{data}">'
+
+
+def _traffic_html(analysis: RunAnalysis) -> str:
+    t = analysis.traffic
+    if t is None:
+        return ""
+    run = t.run
+    have = [k for k in TRAFFIC_RUN_METRICS if run.get(k) not in (None, {}, [])]
+    if not have or have == ["member_footprint"]:
+        why = "; ".join(f"{k}: {v}" for k, v in t.unavailable.items())
+        return ("<h2>Traffic interaction</h2><p>No traffic data in this run"
+                + (f" ({_e(why)})" if why else "") + ".</p>")
+    parts = ["<h2>Traffic interaction</h2>",
+             "<p>SSM: SUMO's conflicts (duplicates for ego and foe merged, warm-up "
+             "conflicts left out). Clearance, lateral gap, 2-D TTC and headways: our "
+             "measures from the recorded outlines (docs/metrics.md).</p>"]
+    rows = []
+    for k, u in TRAFFIC_RUN_METRICS.items():
+        v = run.get(k)
+        if isinstance(v, dict):
+            v = ", ".join(f"lane {a}: {b:.4g}" for a, b in v.items()) if v else None
+        rows.append([k, v, u])
+    parts.append(_table(["metric", "value", "unit"], rows, left=1))
+    ids = list(analysis.members.index)
+    if ids:
+        rows = [[k, u, *[analysis.members.loc[i, k] for i in ids]]
+                for k, u in TRAFFIC_MEMBER_METRICS.items()]
+        parts.append("<h3>Per member</h3>" + _table(["metric", "unit", *ids], rows, left=2))
+    if len(t.member_conflicts):
+        mc = t.member_conflicts
+        cols = [c for c in ("begin", "end", "ego", "foe", "min_ttc", "min_ttc_time",
+                            "max_drac", "max_drac_time", "pet") if c in mc.columns]
+        parts.append("<h3>SSM conflicts involving a member</h3>"
+                     + _table(cols, mc[cols].values.tolist(), left=0))
+    if t.baseline is not None:
+        b = t.baseline.reset_index()
+        n = len(b)
+        parts.append("<h3>Against the baseline twin (largest delay first, "
+                     f"{min(n, BASELINE_ROWS)} of {n} vehicles; all in baseline.csv)</h3>"
+                     + _table(list(b.columns), b.head(BASELINE_ROWS).values.tolist(), left=1))
+    if t.unavailable:
+        parts.append("<h3>Traffic metrics not computed</h3>"
+                     + _table(["group", "why"], [[k, v] for k, v in t.unavailable.items()],
+                              left=2))
+    return "".join(parts)
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[Any]], row_class=None,
@@ -87,7 +153,7 @@ def _page(title: str, body: str) -> str:
 
 def run_report(analysis: RunAnalysis, figures: Mapping[str, Path],
                figure_errors: Mapping[str, str] | None = None,
-               extra_issues: Sequence[Issue] = ()) -> str:
+               extra_issues: Sequence[Issue] = (), report_dir: Path | None = None) -> str:
     """Render the report of one run as a self-contained HTML page.
 
     Parameters
@@ -95,11 +161,14 @@ def run_report(analysis: RunAnalysis, figures: Mapping[str, Path],
     analysis : RunAnalysis
         Output of :func:`analysis.summary.compute_run`.
     figures : mapping of str to Path
-        Figure name to PNG file, embedded in order.
+        Figure name to PNG or GIF file, embedded in order (linked when large).
     figure_errors : mapping of str to str, optional
         Figures that could not be drawn, with the error.
     extra_issues : sequence of Issue
         Issues found after the computation (e.g. while writing outputs).
+    report_dir : Path, optional
+        Directory the report is written to; figures too large to embed are linked
+        relative to it.
 
     Returns
     -------
@@ -128,8 +197,8 @@ def run_report(analysis: RunAnalysis, figures: Mapping[str, Path],
 
     ids = list(a.members.index)
     if ids:
-        rows = [[k, MEMBER_METRICS[k], *[a.members.loc[i, k] for i in ids]]
-                for k in MEMBER_METRICS]
+        rows = [[k, FORMATION_MEMBER_METRICS[k], *[a.members.loc[i, k] for i in ids]]
+                for k in FORMATION_MEMBER_METRICS]
         parts.append("<h2>Members</h2>" + _table(["metric", "unit", *ids], rows, left=2))
     if a.unavailable:
         rows = [[mid, grp, why] for mid, d in a.unavailable.items() for grp, why in d.items()]
@@ -146,7 +215,9 @@ def run_report(analysis: RunAnalysis, figures: Mapping[str, Path],
     if w:
         parts.append("<h2>Worst member per key metric</h2>"
                      + _table(["metric", "worst", "unit"],
-                              [[k, v, MEMBER_METRICS.get(k, "")] for k, v in w.items()]))
+                              [[k, v, FORMATION_MEMBER_METRICS.get(k, "")]
+                               for k, v in w.items()]))
+    parts.append(_traffic_html(a))
     s = a.settings
     parts.append(
         "<h2>Settings</h2>" + _table(["setting", "value"], [
@@ -154,11 +225,24 @@ def run_report(analysis: RunAnalysis, figures: Mapping[str, Path],
             ["jerk polynomial order", s.jerk_polyorder],
             ["same-column tolerance on dy [m]", s.column_dy_tol_m],
             ["ISO 2631-1 weighting", "Wd (x = a_lon, y = a_lat), k = 1 (comfort)"],
-            ["ISO 2631-1 band", run.get("iso2631_note")]]))
+            ["ISO 2631-1 band", run.get("iso2631_note")],
+            ["interaction range [m]", s.interaction_range_m],
+            ["clearance threshold [m]", s.clearance_threshold_m],
+            ["lateral gap threshold [m]", s.lateral_gap_threshold_m],
+            ["2-D TTC threshold / horizon [s]",
+             f"{s.ttc2d_threshold_s:g} / {s.ttc2d_horizon_s:g}"],
+            ["time headway threshold [s]", s.headway_threshold_s],
+            ["SSM TTC warning / critical [s]",
+             f"{s.ssm_ttc_warning_s:g} / {s.ssm_ttc_critical_s:g}"],
+            ["SSM DRAC high [m/s^2]", s.ssm_drac_high_mps2],
+            ["baseline: shortest common section [m]", s.baseline_min_length_m],
+            ["animation: duration [s], fps, start [s]",
+             f"{s.anim_duration_s:g}, {s.anim_fps:g}, "
+             + ("auto (closest approach)" if s.anim_start_s is None else f"{s.anim_start_s:g}")]]))
     if figures or figure_errors:
         parts.append("<h2>Figures</h2>")
         for name, p in figures.items():
-            parts.append(f"<h3>{_e(name)}</h3>{_img(p, name)}")
+            parts.append(f"<h3>{_e(name)}</h3>{_img(p, name, base=report_dir)}")
         for name, err in (figure_errors or {}).items():
             parts.append(f'<p class="bad">figure {_e(name)} not drawn: {_e(err)}</p>')
     return _page(f"Run {a.data.run_dir.name}", "".join(parts))

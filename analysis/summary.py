@@ -14,8 +14,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis import comfort, formation, iso2631, limits
+from analysis import comfort, formation, iso2631, limits, traffic
 from analysis.load import GAP_FACTOR, Issue, Member, RunData
+from analysis.traffic_run import (TRAFFIC_MEMBER_METRICS, BaselineData, TrafficAnalysis,
+                                  compute_traffic)
 from analysis.signals import (contiguous_segments, peak_abs, percentile_abs, rms,
                               trapezoid_integral)
 from formation_traci.record.columns import VIRTUAL_CAR_ID
@@ -23,6 +25,7 @@ from formation_traci.record.columns import VIRTUAL_CAR_ID
 __all__ = [
     "AnalysisSettings",
     "DEFAULT_SETTINGS",
+    "FORMATION_MEMBER_METRICS",
     "MEMBER_METRICS",
     "RUN_METRICS",
     "KEY_METRICS",
@@ -40,6 +43,19 @@ class AnalysisSettings:
     jerk_window_s: float  # s, Savitzky-Golay window span
     jerk_polyorder: int  # -, Savitzky-Golay polynomial order
     column_dy_tol_m: float  # m, same-column tolerance on the lateral offset
+    interaction_range_m: float  # m, pairs farther apart are not evaluated; "near" window
+    clearance_threshold_m: float  # m, time with outline clearance below it
+    lateral_gap_threshold_m: float  # m, time with side-by-side lateral gap below it
+    ttc2d_threshold_s: float  # s, time with 2-D TTC below it
+    ttc2d_horizon_s: float  # s, constant-velocity extrapolation horizon of the 2-D TTC
+    headway_threshold_s: float  # s, time with time headway below it
+    ssm_ttc_warning_s: float  # s, SSM conflicts counted with min TTC below it
+    ssm_ttc_critical_s: float  # s, SSM conflicts counted as critical below it
+    ssm_drac_high_mps2: float  # m/s^2, SSM conflicts counted with max DRAC above it
+    baseline_min_length_m: float  # m, shortest common section timed against the baseline
+    anim_duration_s: float  # s, length of the bird's-eye animation
+    anim_fps: float  # 1/s, frames per second of the animation (and per simulated second)
+    anim_start_s: float | None  # s, first animated instant; None: around the closest approach
 
 
 DEFAULT_SETTINGS = AnalysisSettings(
@@ -47,9 +63,22 @@ DEFAULT_SETTINGS = AnalysisSettings(
     jerk_window_s=comfort.JERK_WINDOW_S,
     jerk_polyorder=comfort.JERK_POLYORDER,
     column_dy_tol_m=formation.COLUMN_DY_TOLERANCE_M,
+    interaction_range_m=traffic.INTERACTION_RANGE_M,
+    clearance_threshold_m=traffic.CLEARANCE_THRESHOLD_M,
+    lateral_gap_threshold_m=traffic.LATERAL_GAP_THRESHOLD_M,
+    ttc2d_threshold_s=traffic.TTC2D_THRESHOLD_S,
+    ttc2d_horizon_s=traffic.TTC2D_HORIZON_S,
+    headway_threshold_s=traffic.HEADWAY_THRESHOLD_S,
+    ssm_ttc_warning_s=traffic.SSM_TTC_WARNING_S,
+    ssm_ttc_critical_s=traffic.SSM_TTC_CRITICAL_S,
+    ssm_drac_high_mps2=traffic.SSM_DRAC_HIGH_MPS2,
+    baseline_min_length_m=50.0,
+    anim_duration_s=30.0,
+    anim_fps=5.0,
+    anim_start_s=None,
 )
 
-MEMBER_METRICS: dict[str, str] = {
+FORMATION_MEMBER_METRICS: dict[str, str] = {
     # key: unit
     "offset_dx_m": "m", "offset_dy_m": "m", "offset_frame": "-",
     "n_samples": "-", "n_segments": "-", "t_first_s": "s", "t_last_s": "s",
@@ -74,7 +103,12 @@ MEMBER_METRICS: dict[str, str] = {
     "friction_over_s": "s", "friction_over_n": "-",
     "a_lat_over_s": "s", "a_lat_over_n": "-",
 }
-"""Per-member metrics, in output order, with their units (see docs/metrics.md)."""
+"""Per-member formation, comfort and limit metrics with their units."""
+
+MEMBER_METRICS: dict[str, str] = {**FORMATION_MEMBER_METRICS, **TRAFFIC_MEMBER_METRICS}
+"""Per-member metrics, in output order, with their units (see docs/metrics.md): the
+formation metrics, then the traffic ones
+(:data:`analysis.traffic_run.TRAFFIC_MEMBER_METRICS`)."""
 
 RUN_METRICS: dict[str, str] = {
     "status": "-", "reason": "-", "model": "-", "mu": "-", "t_end_s": "s",
@@ -115,6 +149,7 @@ class RunAnalysis:
     signals: pd.DataFrame  # derived time series: t, vehicle_id, e_norm, jerk_lon, jerk_lat
     shape: pd.DataFrame  # t, shape_error [m]
     issues: tuple[Issue, ...]
+    traffic: TrafficAnalysis | None = None  # traffic interaction (None if not computed)
 
 
 class _Member:
@@ -201,7 +236,7 @@ def _weighted(a: np.ndarray, segs: list[slice], dt: float) -> iso2631.WeightedRM
 def _member_metrics(data: RunData, member: Member, vc: pd.DataFrame,
                     st: AnalysisSettings) -> tuple[dict[str, Any], dict[str, str], pd.DataFrame]:
     traj, dt = data.trajectories, data.dt
-    out: dict[str, Any] = {k: None for k in MEMBER_METRICS}
+    out: dict[str, Any] = {k: None for k in FORMATION_MEMBER_METRICS}
     out.update(offset_dx_m=member.offset[0], offset_dy_m=member.offset[1],
                offset_frame=member.frame)
     g = traj.loc[traj["vehicle_id"] == member.id]
@@ -432,7 +467,8 @@ def _string_stability(members: list[Member], signals: pd.DataFrame,
     return pd.DataFrame(rows, columns=cols)
 
 
-def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS) -> RunAnalysis:
+def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
+                baseline: BaselineData | None = None) -> RunAnalysis:
     """Compute every metric of a loaded run.
 
     Parameters
@@ -441,6 +477,9 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS) ->
         Output of :func:`analysis.load.load_run`.
     settings : AnalysisSettings
         Analysis choices; default :data:`DEFAULT_SETTINGS`.
+    baseline : BaselineData, optional
+        Twin run without the formation (:func:`analysis.traffic_run.load_baseline`) for
+        the traffic comparison.
 
     Returns
     -------
@@ -460,7 +499,10 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS) ->
         if why:
             unavailable[mem.id] = why
         sigs.append(sig)
-    mdf = pd.DataFrame(rows, columns=["id", *MEMBER_METRICS]).set_index("id")
+    mdf = pd.DataFrame(rows, columns=["id", *FORMATION_MEMBER_METRICS]).set_index("id")
+    tra = compute_traffic(data, settings, baseline)
+    issues += list(tra.issues)
+    mdf = mdf.join(tra.members, how="left")[list(MEMBER_METRICS)]
     signals = pd.concat([s for s in sigs if len(s)], ignore_index=True) if any(
         len(s) for s in sigs) else pd.DataFrame(columns=["t", "vehicle_id", "e_norm",
                                                          "jerk_lon", "jerk_lat"])
@@ -501,7 +543,7 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS) ->
     run["worst"] = worst
     return RunAnalysis(data=data, settings=settings, run=run, members=mdf,
                        string_stability=ss, unavailable=unavailable, signals=signals,
-                       shape=shape_df, issues=tuple(issues))
+                       shape=shape_df, issues=tuple(issues), traffic=tra)
 
 
 def settings_dict(settings: AnalysisSettings) -> dict[str, Any]:

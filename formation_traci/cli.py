@@ -48,13 +48,14 @@ def analyze(
     run_dir: Path = typer.Argument(..., help="run directory (run.json, trajectories.parquet)"),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="where to write; default RUN_DIR"),
     figures: bool = typer.Option(True, "--figures/--no-figures", help="write PNG figures and report.html"),
+    baseline: Optional[Path] = typer.Option(None, "--baseline", help="twin run from `run --baseline` (same traffic and seed, no formation)"),
 ) -> None:
     """Compute metrics of a recorded run: metrics.json, metrics.csv, figures/, report.html."""
     from analysis.api import analyze_run
     from analysis.load import NoTrajectoryData
 
     try:
-        res = analyze_run(run_dir, out, figures=figures)
+        res = analyze_run(run_dir, out, figures=figures, baseline=baseline)
     except NoTrajectoryData as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2)

@@ -17,7 +17,8 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from formation_traci.record.columns import TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID
+from formation_traci.record.columns import (BACKGROUND_COLUMNS, EVENT_COLUMNS, SSM_COLUMNS,
+                                            TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID)
 
 Signal = Callable[[str, np.ndarray], np.ndarray]
 
@@ -28,6 +29,16 @@ OFFSETS: dict[str, tuple[float, float]] = {
     "m4": (-12.0, 3.5),
 }
 """Default formation: a column m1 -> m2 -> m3 (dy = 0) and m4 in the left lane."""
+
+LANE_WIDTH = 3.5
+"""Lane width of the synthetic road [m]."""
+
+REFERENCE_LANE = 1
+"""Lane index of the reference line d = 0 on the synthetic road (lanes 0, 1, 2)."""
+
+ROAD_META = {"scenario": {"name": "synthetic-road", "vehicle": {"preset": "passenger_car"}},
+             "seed": 1, "baseline": False}
+"""run.json keys of a synthetic road run (members are passenger cars)."""
 
 TIRE_COLUMNS = ("steer", "steer_rate", "beta", "slip_front", "slip_rear", "traction_force",
                 "traction_force_max")
@@ -43,8 +54,13 @@ def trajectories(*, dt: float = 0.01, t_end: float = 20.0, v: float = 20.0,
                  heading: float = 0.0, offsets: Mapping[str, tuple[float, float]] = OFFSETS,
                  error: Callable[[str, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
                  columns: Mapping[str, Signal] | None = None,
-                 model: str = "dynamic") -> pd.DataFrame:
-    """Trajectory table with every contract column, one row per vehicle per step."""
+                 model: str = "dynamic", road: bool = False) -> pd.DataFrame:
+    """Trajectory table with every contract column, one row per vehicle per step.
+
+    ``road=True`` makes it a road run on a straight road along +x whose reference line is
+    y = 0 (so ``s = x``, ``d = y``; needs ``heading = 0``); ``lane_index`` is
+    ``round(d / LANE_WIDTH) + REFERENCE_LANE`` for members.
+    """
     t = time_vector(dt, t_end)
     n = t.size
     c, s = np.cos(heading), np.sin(heading)
@@ -84,6 +100,12 @@ def trajectories(*, dt: float = 0.01, t_end: float = 20.0, v: float = 20.0,
     for col in TRAJECTORY_COLUMNS:  # contract columns this helper does not model: NaN
         if col.name not in df.columns:
             df[col.name] = np.nan
+    if road:
+        if heading != 0.0:
+            raise ValueError("road=True needs heading = 0 (road along +x)")
+        df["s"], df["d"] = df["x"], df["y"]
+        mem = df["vehicle_id"] != VIRTUAL_CAR_ID
+        df.loc[mem, "lane_index"] = np.round(df.loc[mem, "d"] / LANE_WIDTH) + REFERENCE_LANE
     return df[[col.name for col in TRAJECTORY_COLUMNS]]
 
 
@@ -139,3 +161,79 @@ def exp_error(e0: Mapping[str, float], tau: float = 2.0):
     def fn(mid: str, t: np.ndarray):
         return e0.get(mid, 0.0) * np.exp(-t / tau), np.zeros_like(t)
     return fn
+
+
+_ARROW = {"float64": pa.float64(), "string": pa.string(), "int32": pa.int32(),
+          "bool": pa.bool_()}
+
+
+def write_table(path: Path, name: str, df: pd.DataFrame, contract, *, n_parts: int = 1) -> Path:
+    """Write ``<name>.parquet`` as a dataset directory following a column contract."""
+    target = Path(path) / f"{name}.parquet"
+    target.mkdir(parents=True, exist_ok=True)
+    types = {c.name: _ARROW[c.dtype] for c in contract}
+    schema = pa.schema([(c, types.get(c, pa.float64())) for c in df.columns])
+    df = df.copy()
+    for c in df.columns:
+        kind = types.get(c)
+        if kind == pa.string():
+            df[c] = df[c].astype(str)
+        elif kind == pa.int32():
+            df[c] = df[c].astype("int32")
+        elif kind == pa.bool_():
+            df[c] = df[c].astype(bool)
+    for k, chunk in enumerate(np.array_split(np.arange(len(df)), max(1, n_parts))):
+        part = df.iloc[chunk] if len(df) else df
+        pq.write_table(pa.Table.from_pandas(part, schema=schema, preserve_index=False),
+                       target / f"part-{k:05d}.parquet")
+        if not len(df):
+            break
+    return target
+
+
+def background(t: np.ndarray, vehicles: Mapping[str, Mapping[str, Any]]) -> pd.DataFrame:
+    """Background rows on the synthetic road (``s = x``, ``d = y``, heading 0).
+
+    ``vehicles`` maps an id to ``s0`` [m] (centre at t = 0), ``d`` [m], ``v`` [m/s] and
+    optionally ``length`` (4.5), ``width`` (1.8), ``type`` ("main_car"), ``s`` (a
+    function of t replacing ``s0 + v t``) and ``d_of_t`` (a function of t).
+    """
+    frames = []
+    for vid, spec in vehicles.items():
+        t = np.asarray(t, float)
+        s = spec["s"](t) if "s" in spec else spec["s0"] + spec["v"] * t
+        d = spec["d_of_t"](t) if "d_of_t" in spec else np.full(t.size, float(spec["d"]))
+        v = np.gradient(s, t) if "s" in spec and t.size > 1 else np.full(t.size, float(spec["v"]))
+        lane = np.round(d / LANE_WIDTH).astype(int) + REFERENCE_LANE
+        frames.append(pd.DataFrame({
+            "t": t, "vehicle_id": vid, "type": spec.get("type", "main_car"), "x": s, "y": d,
+            "heading": 0.0, "v": v, "a": 0.0, "length": spec.get("length", 4.5),
+            "width": spec.get("width", 1.8), "lane": [f"main_{k}" for k in lane],
+            "lane_index": lane, "s": s, "d": d}))
+    cols = [c.name for c in BACKGROUND_COLUMNS]
+    if not frames:
+        return pd.DataFrame({c: [] for c in cols})
+    return pd.concat(frames, ignore_index=True)[cols]
+
+
+def events(rows) -> pd.DataFrame:
+    """Events table from ``(t, kind, vehicle_id, other_id, detail)`` tuples."""
+    return pd.DataFrame(list(rows), columns=[c.name for c in EVENT_COLUMNS])
+
+
+def ssm(rows) -> pd.DataFrame:
+    """SSM table from ``(begin, end, ego, foe, member_involved, min_ttc, min_ttc_time,
+    max_drac, max_drac_time, pet)`` tuples."""
+    return pd.DataFrame(list(rows), columns=[c.name for c in SSM_COLUMNS])
+
+
+def write_traffic(path: Path, *, background_df: pd.DataFrame | None = None,
+                  events_df: pd.DataFrame | None = None, ssm_df: pd.DataFrame | None = None,
+                  n_parts: int = 1) -> Path:
+    """Write whichever of ``background``/``events``/``ssm`` tables are given."""
+    for name, df, contract in (("background", background_df, BACKGROUND_COLUMNS),
+                               ("events", events_df, EVENT_COLUMNS),
+                               ("ssm", ssm_df, SSM_COLUMNS)):
+        if df is not None:
+            write_table(path, name, df, contract, n_parts=n_parts)
+    return Path(path)
