@@ -204,6 +204,11 @@ def test_local_and_dask_give_identical_summaries(local, dask):
         a, b = _no_wall(local[kind].summary), _no_wall(res[kind].summary)
         pd.testing.assert_frame_equal(a, b, check_exact=True)
         assert (res[kind].out_dir / "cases" / a["case_id"][0] / "run.json").is_file()
+        # ... and every completed case's trajectory file is bit for bit the same on both executors
+        for case in a.loc[a.status == "completed", "case_id"]:
+            ta = pd.read_parquet(local[kind].out_dir / "cases" / case / "trajectories.parquet")
+            tb = pd.read_parquet(res[kind].out_dir / "cases" / case / "trajectories.parquet")
+            pd.testing.assert_frame_equal(ta, tb, check_exact=True)
 
 
 def test_second_invocation_runs_only_what_is_missing(local, files, tmp_path):
