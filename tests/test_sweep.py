@@ -230,7 +230,7 @@ def test_second_invocation_runs_only_what_is_missing(local, files, tmp_path):
 
 def test_interrupt_leaves_a_consistent_summary(tmp_path):
     path = sweep_file(tmp_path, "long.toml", THESIS,
-                      'seeds = [1]\n[grid]\n"run.duration" = [1.0, 900.0, 901.0, 1.5]\n')
+                      'seeds = [1]\n[grid]\n"run.duration" = [1.0, 200000.0, 200001.0, 1.5]\n')
     out = tmp_path / "out"
     code = ("import sys\nfrom formation_traci.sweep import run_sweep\n"
             f"try:\n    run_sweep({str(path)!r}, {str(out)!r}, workers=2, progress=False)\n"
@@ -238,7 +238,7 @@ def test_interrupt_leaves_a_consistent_summary(tmp_path):
     proc = subprocess.Popen([sys.executable, "-c", code])
     first = out / "cases" / "c0000-duration1.0-s1" / "case.json"
     deadline = time.time() + 60
-    while time.time() < deadline and not (first.is_file() and (out / "logs" / "c0002-duration901.0-s1.log").is_file()):
+    while time.time() < deadline and not (first.is_file() and (out / "logs" / "c0002-duration200001.0-s1.log").is_file()):
         time.sleep(0.1)
     time.sleep(2.5)  # c0002's process is past its imports and simulating
     proc.send_signal(signal.SIGINT)
@@ -246,9 +246,9 @@ def test_interrupt_leaves_a_consistent_summary(tmp_path):
     df = pd.read_parquet(out / "summary.parquet")
     status = dict(zip(df["case_id"], df["status"]))
     assert status["c0000-duration1.0-s1"] == "completed"
-    assert status["c0001-duration900.0-s1"] == "interrupted"
-    assert status["c0002-duration901.0-s1"] == "interrupted"
-    assert df.set_index("case_id").loc["c0001-duration900.0-s1", "t_end_s"] < 900.0
+    assert status["c0001-duration200000.0-s1"] == "interrupted"
+    assert status["c0002-duration200001.0-s1"] == "interrupted"
+    assert df.set_index("case_id").loc["c0001-duration200000.0-s1", "t_end_s"] < 200000.0
     meta = json.loads((out / "sweep.json").read_text())
     assert meta["status"] == "interrupted" and meta["counts"]["pending"] == 4 - len(df)
     assert not (out / ".summary.parquet.tmp").exists()

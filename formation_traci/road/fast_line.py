@@ -2,27 +2,31 @@
 
 The ReferenceLine is a quintic B-spline ``c(u)`` (u: chord-length parameter) composed with a
 quintic Hermite map ``u(s)`` in Bernstein form (s: arc length), plus the unwrapped heading at
-the knots and 1 m samples of ``c`` that seed the Frenet projection. :class:`FastLine` turns
-that into plain float arrays that ``@njit`` code can evaluate:
+the knots and 1 m samples of ``c`` that seed the Frenet projection. :class:`FastLine` packs
+all of it into one float64 buffer ``G`` that ``@njit`` code evaluates:
 
 * the B-spline's polynomial pieces in the power basis, one per knot interval of the base
-  interval ``[0, U]``: ``c(u) = sum_j C[i, j] (u - u_i)^j`` (coefficients from the spline's
-  own derivatives at the left knot, as ``PPoly.from_spline`` does); the first and last
+  interval ``[0, U]``: ``c(u) = sum_j a_ij (u - u_i)^j``, with the coefficients
+  ``PPoly.from_spline`` computes (FITPACK derivatives at the left knot); the first and last
   pieces extend beyond ``[0, U]`` exactly as scipy's ``BSpline(extrapolate=True)`` does;
-* the Bernstein coefficients of ``u(s)`` as stored by the ``BPoly`` (evaluated with scipy's
-  formula), the arc-length nodes and the heading at them;
-* the ReferenceLine's own 1 m samples (its cKDTree data) and a ball tree over contiguous
-  runs of them, so that the nearest sample (the Newton seed of ``ReferenceLine.to_frenet``)
-  is found exactly, whatever the guess: the guess only makes the search cheaper.
+* the Bernstein coefficients of ``u(s)`` as stored by the ``BPoly`` (summed with scipy's
+  formula), the arc-length nodes and the unwrapped heading at them;
+* the ReferenceLine's own 1 m samples (its cKDTree data), for each sample the distance to
+  the nearest sample more than WINDOW samples away, and a ball tree over contiguous runs of
+  samples: the nearest sample (the Newton seed of ``ReferenceLine.to_frenet``) is found
+  exactly whatever the guess; a good guess only makes it cheaper (a short walk and a
+  certificate instead of the tree search).
 
-:func:`frame_at` and :func:`to_frenet_many` are the kernels; they reproduce
-``ReferenceLine.frame`` and ``ReferenceLine.to_frenet`` with the same formulas (straight
-extension past the ends, unwrapped heading from the nearest knot, the same Newton step,
-step clip, tolerance and iteration limit). Results agree to rounding (~1e-12 m, ~1e-14
-rad; the last Newton step of the reference may add up to its 1e-10 m tolerance).
+:func:`frame_at` and :func:`to_frenet_many` reproduce ``ReferenceLine.frame`` and
+``ReferenceLine.to_frenet`` with the same formulas: straight extension past the ends,
+unwrapped heading from the knot ``searchsorted`` picks, the same Newton step, step clip,
+tolerance and iteration limit from the same seed. Results agree to rounding (~1e-12 m,
+~1e-15 rad, tests/test_fast_step.py).
 
-All kernels take the line as one tuple ``L = FastLine.arrays`` (numba passes it at no cost
-inside compiled code; from Python the call costs about a microsecond).
+Why one buffer: numba reference-counts every array it takes out of a tuple or passes
+between compiled functions that it does not inline; with a dozen arrays per evaluation the
+atomic counter updates cost more than the arithmetic. Offsets into ``G`` are in its header
+(``_H_*``).
 """
 from __future__ import annotations
 
@@ -37,27 +41,40 @@ from .geometry import _DEGREE, _NEWTON_ITERATIONS, _NEWTON_TOL, ReferenceLine
 
 LEAF_SIZE = 8
 """Samples per leaf of the ball tree over the line's samples."""
+WINDOW = 50
+"""Half window [samples] within which the distance to a point is certified unimodal."""
 
-# indices into the tuple L (FastLine.arrays)
-_I_SCAL = 0  # [length, max_step, sample spacing ds, newton_tol, n_newton]
-_I_UK = 1  # (m+1,) breakpoints of c(u)
-_I_CC = 2  # (m, 6, 2) power-basis coefficients of c(u) per interval, about _I_UM
-_I_SN = 3  # (k+1,) arc-length nodes of u(s)
-_I_UC = 4  # (6, k) Bernstein coefficients of u(s) (BPoly.c)
-_I_HN = 5  # (k+1,) unwrapped heading at the arc-length nodes
-_I_SXY = 6  # (N, 2) samples of c at samp_s (the ReferenceLine's cKDTree data)
-_I_SS = 7  # (N,) arc length of the samples
-_I_TI = 8  # (K, 4) int64 ball tree: lo, hi, left child, right child (-1: leaf)
-_I_TF = 9  # (K, 3) ball tree: centre x, y, radius
-_I_UM = 10  # (m,) expansion points (left knots) of the pieces of c(u)
+# header of G: scalars, then sizes and offsets (stored as floats, exact below 2**53)
+_H_LENGTH = 0  # line length [m]
+_H_MAX_STEP = 1  # Newton step clip: two sample spacings [m]
+_H_DS = 2  # sample spacing [m]
+_H_TOL = 3  # Newton tolerance [m]
+_H_N_IT = 4  # Newton iterations
+_H_KAPPA = 5  # bound on |kappa| over the line [1/m]
+_H_WINDOW = 6  # WINDOW
+_H_INV_SN = 7  # (n_sn - 1) / (s_nodes[-1] - s_nodes[0]) (interval guess)
+_H_INV_UK = 8  # (n_uk - 1) / (u_knots[-1] - u_knots[0])
+_H_N_UK = 9  # number of u breakpoints (m + 1)
+_H_N_SN = 10  # number of arc-length nodes
+_H_N_SAMP = 11  # number of samples
+_H_OFF_UK = 12  # u breakpoints (n_uk)
+_H_OFF_CC = 13  # c(u) pieces: [(m, 6, 2)] ascending powers of (u - u_i)
+_H_OFF_SN = 14  # arc-length nodes (n_sn)
+_H_OFF_UC = 15  # u(s) Bernstein coefficients [(n_sn - 1, 6)]
+_H_OFF_HN = 16  # unwrapped heading at the nodes (n_sn)
+_H_OFF_SXY = 17  # samples [(n_samp, 2)]
+_H_OFF_SS = 18  # arc length of the samples (n_samp)
+_H_OFF_CLR = 19  # clearance of the samples (n_samp)
+_H_OFF_TREE = 20  # ball tree [(n_nodes, 7)]: lo, hi, left, right (-1: leaf), cx, cy, r
+_H_SIZE = 24
 
 
 @dataclass(frozen=True, eq=False)
 class FastLine:
-    """Array form of a ReferenceLine for the numba kernels of this module."""
+    """A ReferenceLine packed into one float64 buffer ``G`` for the kernels of this module."""
 
     length: float
-    arrays: tuple  # L, see the _I_* indices
+    G: np.ndarray
 
     @classmethod
     def from_reference_line(cls, line: ReferenceLine) -> "FastLine":
@@ -67,72 +84,100 @@ class FastLine:
             raise ValueError("expected a quintic planar BSpline c(u)")
         t = np.asarray(curve.t, dtype=float)
         n_coef = len(t) - k - 1
-        u_knots = t[k:n_coef + 1].copy()  # base interval breakpoints, t[k] .. t[n]
+        u_knots = t[k:n_coef + 1].copy()  # base interval breakpoints t[k] .. t[n]
         if np.any(np.diff(u_knots) <= 0.0):
             raise ValueError("the spline's base knots must be strictly increasing")
         m = len(u_knots) - 1
-        # power-basis pieces about the left knot of every base interval, as
-        # PPoly.from_spline computes them (FITPACK derivatives at the knots)
         coef = np.empty((m, k + 1, 2))
         for dim in range(2):
             pp = PPoly.from_spline((t, np.asarray(curve.c[:, dim], dtype=float), k))
             if not np.array_equal(pp.x[k:n_coef + 1], u_knots):
                 raise ValueError("unexpected PPoly breakpoints")
-            coef[:, :, dim] = pp.c[::-1, k:n_coef].T  # ascending powers
-        u_mid = u_knots[:-1].copy()  # expansion points: the left knots
+            coef[:, :, dim] = pp.c[::-1, k:n_coef].T  # ascending powers about the left knot
         bp: BPoly = line.u_of_s
-        uc = np.ascontiguousarray(np.asarray(bp.c, dtype=float).reshape(bp.c.shape[0], -1))
-        s_nodes = np.ascontiguousarray(bp.x, dtype=float)
-        if uc.shape[1] != len(s_nodes) - 1:
-            raise ValueError("u(s) must be a scalar BPoly")
+        uc = np.asarray(bp.c, dtype=float).reshape(bp.c.shape[0], -1)
+        s_nodes = np.asarray(bp.x, dtype=float)
+        if uc.shape != (k + 1, len(s_nodes) - 1):
+            raise ValueError("u(s) must be a scalar quintic BPoly")
         if not np.array_equal(s_nodes, line.s_nodes):
             raise ValueError("u(s) breakpoints differ from s_nodes")
-        samp_xy = np.ascontiguousarray(line.tree.data, dtype=float)
-        samp_s = np.ascontiguousarray(line.tree_s, dtype=float)
+        samp_xy = np.asarray(line.tree.data, dtype=float)
+        samp_s = np.asarray(line.tree_s, dtype=float)
         ds = float(samp_s[1] - samp_s[0])
-        scal = np.array([line.length, 2.0 * ds, ds, _NEWTON_TOL, float(_NEWTON_ITERATIONS)])
-        ti, tf = _build_tree(samp_xy)
-        arrays = (scal, u_knots, np.ascontiguousarray(coef), s_nodes, uc,
-                  np.ascontiguousarray(line.heading_nodes, dtype=float), samp_xy, samp_s, ti, tf,
-                  u_mid)
-        return cls(float(line.length), arrays)
+        kappa_bound = 1.25 * float(np.max(np.abs(line.curvature(
+            np.linspace(0.0, line.length, 4 * len(samp_s) + 1))))) + 1e-9
+        tree = _build_tree(samp_xy)
+        parts = [
+            (_H_OFF_UK, u_knots), (_H_OFF_CC, coef), (_H_OFF_SN, s_nodes), (_H_OFF_UC, uc.T),
+            (_H_OFF_HN, np.asarray(line.heading_nodes, dtype=float)), (_H_OFF_SXY, samp_xy),
+            (_H_OFF_SS, samp_s), (_H_OFF_CLR, _clearance(line.tree, samp_xy, WINDOW)),
+            (_H_OFF_TREE, tree),
+        ]
+        G = np.zeros(_H_SIZE + sum(np.size(a) for _, a in parts))
+        G[:_H_N_SAMP + 1] = [line.length, 2.0 * ds, ds, _NEWTON_TOL, float(_NEWTON_ITERATIONS),
+                             kappa_bound, float(WINDOW),
+                             (len(s_nodes) - 1) / (s_nodes[-1] - s_nodes[0]),
+                             (len(u_knots) - 1) / (u_knots[-1] - u_knots[0]),
+                             len(u_knots), len(s_nodes), len(samp_s)]
+        off = _H_SIZE
+        for h, a in parts:
+            G[h] = off
+            G[off:off + np.size(a)] = np.ascontiguousarray(a, dtype=float).ravel()
+            off += np.size(a)
+        return cls(float(line.length), G)
 
-    # convenience wrappers (Python level) --------------------------------------------------
+    # Python-level conveniences ------------------------------------------------------------
     def frame(self, s: float):
         """(x, y, tx, ty, heading, kappa, kappa_rate) at arc length s [m]."""
-        return frame_at(self.arrays, float(s))
+        return frame_at(self.G, float(s))
 
     def to_frenet(self, xy, s_guess=None):
-        """(s, d) of points xy (n, 2); ``s_guess`` (n,) speeds up the search (NaN: none)."""
-        xy = np.ascontiguousarray(xy, dtype=float).reshape(-1, 2)
-        if s_guess is None:
-            g = np.full(len(xy), np.nan)
-        else:
-            g = np.ascontiguousarray(np.broadcast_to(np.asarray(s_guess, dtype=float), (len(xy),)))
-        return to_frenet_many(self.arrays, xy, g)
+        """(s, d) of points xy (n, 2) [m]; ``s_guess`` (n,) (e.g. last step's s; NaN: none)
+        only makes the search cheaper, the result is the same."""
+        xy = np.asarray(xy, dtype=float)
+        if xy.ndim != 2 or xy.shape[1] != 2 or not xy.flags.c_contiguous or not xy.flags.writeable:
+            xy = np.array(xy, dtype=float, order="C").reshape(-1, 2)
+        n = xy.shape[0]
+        g = np.empty(n)
+        g[:] = np.nan if s_guess is None else s_guess
+        return to_frenet_many(self.G, xy, g)
 
 
-def _build_tree(xy: np.ndarray):
-    """Ball tree over contiguous runs of samples: node (lo, hi, left, right), (cx, cy, r)."""
-    nodes_i: list[list[int]] = []
-    nodes_f: list[list[float]] = []
+def _clearance(tree, xy: np.ndarray, window: int) -> np.ndarray:
+    """Distance from every sample to the nearest sample more than ``window`` samples away
+    (inf if none is within 4 window spacings: then only the tree search is used)."""
+    n = len(xy)
+    k = min(2 * window + 2, n)
+    ds = float(np.hypot(*(xy[1] - xy[0]))) if n > 1 else 1.0
+    dist, idx = tree.query(xy, k=k, distance_upper_bound=4.0 * window * max(ds, 1e-9))
+    dist = np.asarray(dist).reshape(n, -1)
+    idx = np.asarray(idx).reshape(n, -1)
+    outside = (np.abs(idx - np.arange(n)[:, None]) > window) & np.isfinite(dist)
+    out = np.where(outside, dist, np.inf).min(axis=1)
+    if k < 2 * window + 2:  # fewer samples than a window: no certificate
+        out[:] = 0.0
+    return out
+
+
+def _build_tree(xy: np.ndarray) -> np.ndarray:
+    """Ball tree over contiguous runs of samples: rows (lo, hi, left, right, cx, cy, r)."""
+    nodes: list[list[float]] = []
 
     def build(lo: int, hi: int) -> int:
-        idx = len(nodes_i)
+        idx = len(nodes)
         pts = xy[lo:hi]
         c = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
         r = float(np.max(np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1])))
-        nodes_i.append([lo, hi, -1, -1])
-        nodes_f.append([float(c[0]), float(c[1]), r * (1.0 + 1e-12) + 1e-9])
+        nodes.append([lo, hi, -1, -1, float(c[0]), float(c[1]), r * (1.0 + 1e-12) + 1e-9])
         if hi - lo > LEAF_SIZE:
             mid = (lo + hi) // 2
             left = build(lo, mid)
             right = build(mid, hi)
-            nodes_i[idx][2], nodes_i[idx][3] = left, right
+            nodes[idx][2], nodes[idx][3] = left, right
         return idx
 
     build(0, len(xy))
-    return np.array(nodes_i, dtype=np.int64), np.array(nodes_f, dtype=float)
+    return np.array(nodes, dtype=float)
 
 
 # ------------------------------------------------------------------------------ kernels
@@ -145,19 +190,32 @@ def _wrap(a):
 
 
 @njit(cache=True, error_model="numpy")
-def _interval(x, xv):
-    """scipy's find_interval: x[i] <= xv < x[i+1], closed at the right end, extrapolating
-    with the first / last interval (xv must not be NaN)."""
-    n = x.shape[0]
-    if xv <= x[0]:
+def _interval(G, off, n, xv, inv):
+    """scipy's find_interval over the n breakpoints x = G[off:off + n]: x[i] <= xv < x[i+1],
+    closed at the right end, the first / last interval outside (xv not NaN). The breakpoints
+    are close to uniform: start from the linear guess and walk; bisect if that gets long."""
+    x0 = G[off]
+    if xv <= x0:
         return 0
-    if xv >= x[n - 1]:
+    if xv >= G[off + n - 1]:
         return n - 2
+    i = int((xv - x0) * inv)
+    if i > n - 2:
+        i = n - 2
+    if i < 0:
+        i = 0
+    for _ in range(8):
+        if xv < G[off + i]:
+            i -= 1
+        elif xv >= G[off + i + 1]:
+            i += 1
+        else:
+            return i
     lo = 0
     hi = n - 1  # x[lo] <= xv < x[hi]
     while hi - lo > 1:
         mid = (lo + hi) >> 1
-        if xv >= x[mid]:
+        if xv >= G[off + mid]:
             lo = mid
         else:
             hi = mid
@@ -165,25 +223,79 @@ def _interval(x, xv):
 
 
 @njit(cache=True, error_model="numpy")
-def _u_of_s(L, sc):
-    """u(s) for s in [0, length] (BPoly, Bernstein basis, scipy's evaluate_bpoly1); also the
-    interval index of s."""
-    xs = L[_I_SN]
-    c = L[_I_UC]
-    i = _interval(xs, sc)
-    s = (sc - xs[i]) / (xs[i + 1] - xs[i])
-    s1 = 1.0 - s
-    k = c.shape[0] - 1
-    res = 0.0
-    comb = 1.0
-    for j in range(k + 1):
-        res += comb * math.pow(s, float(j)) * math.pow(s1, float(k - j)) * c[j, i]
-        comb *= 1.0 * (k - j) / (j + 1.0)
-    return res, i
+def _curve(G, s):
+    """c(u(s)) and the u-derivatives c', c'', c''' at s clipped to [0, length]; returns
+    (sc, interval of sc in s_nodes, x0, y0, x1, y1, x2, y2, x3, y3)."""
+    length = G[_H_LENGTH]
+    sc = s
+    if sc < 0.0:
+        sc = 0.0
+    elif sc > length:
+        sc = length
+    # u(s): the BPoly's quintic in Bernstein form, summed as scipy's evaluate_bpoly1 does
+    off_sn = int(G[_H_OFF_SN])
+    si = _interval(G, off_sn, int(G[_H_N_SN]), sc, G[_H_INV_SN])
+    t = (sc - G[off_sn + si]) / (G[off_sn + si + 1] - G[off_sn + si])
+    t1 = 1.0 - t
+    t2 = t * t
+    t3 = t2 * t
+    t4 = t3 * t
+    q2 = t1 * t1
+    q3 = q2 * t1
+    q4 = q3 * t1
+    cu = int(G[_H_OFF_UC]) + 6 * si
+    u = q4 * t1 * G[cu]
+    u += 5.0 * t * q4 * G[cu + 1]
+    u += 10.0 * t2 * q3 * G[cu + 2]
+    u += 10.0 * t3 * q2 * G[cu + 3]
+    u += 5.0 * t4 * t1 * G[cu + 4]
+    u += t4 * t * G[cu + 5]
+    # c(u) and derivatives by Horner on the power-basis piece
+    off_uk = int(G[_H_OFF_UK])
+    i = _interval(G, off_uk, int(G[_H_N_UK]), u, G[_H_INV_UK]) if u == u else 0
+    du = u - G[off_uk + i]
+    c = int(G[_H_OFF_CC]) + 12 * i  # a_j (x, y) at c + 2 j
+    x0 = G[c + 10]
+    y0 = G[c + 11]
+    x1 = 5.0 * G[c + 10]
+    y1 = 5.0 * G[c + 11]
+    x2 = 20.0 * G[c + 10]
+    y2 = 20.0 * G[c + 11]
+    x3 = 60.0 * G[c + 10]
+    y3 = 60.0 * G[c + 11]
+    x0 = x0 * du + G[c + 8]
+    y0 = y0 * du + G[c + 9]
+    x1 = x1 * du + 4.0 * G[c + 8]
+    y1 = y1 * du + 4.0 * G[c + 9]
+    x2 = x2 * du + 12.0 * G[c + 8]
+    y2 = y2 * du + 12.0 * G[c + 9]
+    x3 = x3 * du + 24.0 * G[c + 8]
+    y3 = y3 * du + 24.0 * G[c + 9]
+    x0 = x0 * du + G[c + 6]
+    y0 = y0 * du + G[c + 7]
+    x1 = x1 * du + 3.0 * G[c + 6]
+    y1 = y1 * du + 3.0 * G[c + 7]
+    x2 = x2 * du + 6.0 * G[c + 6]
+    y2 = y2 * du + 6.0 * G[c + 7]
+    x3 = x3 * du + 6.0 * G[c + 6]
+    y3 = y3 * du + 6.0 * G[c + 7]
+    x0 = x0 * du + G[c + 4]
+    y0 = y0 * du + G[c + 5]
+    x1 = x1 * du + 2.0 * G[c + 4]
+    y1 = y1 * du + 2.0 * G[c + 5]
+    x2 = x2 * du + 2.0 * G[c + 4]
+    y2 = y2 * du + 2.0 * G[c + 5]
+    x0 = x0 * du + G[c + 2]
+    y0 = y0 * du + G[c + 3]
+    x1 = x1 * du + G[c + 2]
+    y1 = y1 * du + G[c + 3]
+    x0 = x0 * du + G[c]
+    y0 = y0 * du + G[c + 1]
+    return sc, si, x0, y0, x1, y1, x2, y2, x3, y3
 
 
 @njit(cache=True, error_model="numpy")
-def frame_at(L, s):
+def frame_at(G, s):
     """ReferenceLine.frame(s) for one arc length s [m].
 
     Returns (x, y, tx, ty, heading, kappa, kappa_rate): position [m], unit tangent,
@@ -193,69 +305,22 @@ def frame_at(L, s):
     nan = np.nan
     if s != s:
         return nan, nan, nan, nan, nan, nan, nan
-    length = L[_I_SCAL][0]
-    sc = s
-    if sc < 0.0:
-        sc = 0.0
-    elif sc > length:
-        sc = length
-    u, si = _u_of_s(L, sc)
-    uk = L[_I_UK]
-    C = L[_I_CC]
-    i = _interval(uk, u) if u == u else 0
-    du = u - L[_I_UM][i]
-    # c, c', c'', c''' by Horner on the power-basis piece
-    x0 = C[i, 5, 0]
-    y0 = C[i, 5, 1]
-    x1 = 5.0 * C[i, 5, 0]
-    y1 = 5.0 * C[i, 5, 1]
-    x2 = 20.0 * C[i, 5, 0]
-    y2 = 20.0 * C[i, 5, 1]
-    x3 = 60.0 * C[i, 5, 0]
-    y3 = 60.0 * C[i, 5, 1]
-    x0 = x0 * du + C[i, 4, 0]
-    y0 = y0 * du + C[i, 4, 1]
-    x1 = x1 * du + 4.0 * C[i, 4, 0]
-    y1 = y1 * du + 4.0 * C[i, 4, 1]
-    x2 = x2 * du + 12.0 * C[i, 4, 0]
-    y2 = y2 * du + 12.0 * C[i, 4, 1]
-    x3 = x3 * du + 24.0 * C[i, 4, 0]
-    y3 = y3 * du + 24.0 * C[i, 4, 1]
-    x0 = x0 * du + C[i, 3, 0]
-    y0 = y0 * du + C[i, 3, 1]
-    x1 = x1 * du + 3.0 * C[i, 3, 0]
-    y1 = y1 * du + 3.0 * C[i, 3, 1]
-    x2 = x2 * du + 6.0 * C[i, 3, 0]
-    y2 = y2 * du + 6.0 * C[i, 3, 1]
-    x3 = x3 * du + 6.0 * C[i, 3, 0]
-    y3 = y3 * du + 6.0 * C[i, 3, 1]
-    x0 = x0 * du + C[i, 2, 0]
-    y0 = y0 * du + C[i, 2, 1]
-    x1 = x1 * du + 2.0 * C[i, 2, 0]
-    y1 = y1 * du + 2.0 * C[i, 2, 1]
-    x2 = x2 * du + 2.0 * C[i, 2, 0]
-    y2 = y2 * du + 2.0 * C[i, 2, 1]
-    x0 = x0 * du + C[i, 1, 0]
-    y0 = y0 * du + C[i, 1, 1]
-    x1 = x1 * du + C[i, 1, 0]
-    y1 = y1 * du + C[i, 1, 1]
-    x0 = x0 * du + C[i, 0, 0]
-    y0 = y0 * du + C[i, 0, 1]
-
-    g = math.hypot(x1, y1)
+    sc, si, x0, y0, x1, y1, x2, y2, x3, y3 = _curve(G, s)
+    g = math.sqrt(x1 * x1 + y1 * y1)
     tx = x1 / g
     ty = y1 / g
     cr12 = x1 * y2 - y1 * x2
-    g3 = math.pow(g, 3.0)
+    g3 = g * g * g
     kappa = cr12 / g3
-    dkappa_du = (x1 * y3 - y1 * x3) / g3 - 3.0 * cr12 * (x1 * x2 + y1 * y2) / math.pow(g, 5.0)
+    dkappa_du = (x1 * y3 - y1 * x3) / g3 - 3.0 * cr12 * (x1 * x2 + y1 * y2) / (g3 * g * g)
     kappa_rate = dkappa_du / g
-    # unwrapped heading: np.searchsorted(s_nodes, sc) (side left), clipped
-    sn = L[_I_SN]
-    idx = si if sn[si] == sc else si + 1
-    if idx > sn.shape[0] - 1:
-        idx = sn.shape[0] - 1
-    ref = L[_I_HN][idx]
+    # unwrapped heading: the node np.searchsorted(s_nodes, sc) (side left) picks, clipped
+    off_sn = int(G[_H_OFF_SN])
+    n_sn = int(G[_H_N_SN])
+    idx = si if G[off_sn + si] == sc else si + 1
+    if idx > n_sn - 1:
+        idx = n_sn - 1
+    ref = G[int(G[_H_OFF_HN]) + idx]
     heading = ref + _wrap(math.atan2(ty, tx) - ref)
     ext = s - sc
     px = x0 + ext * tx
@@ -267,72 +332,92 @@ def frame_at(L, s):
 
 
 @njit(cache=True, error_model="numpy")
-def _nearest_sample(L, px, py, s_guess):
-    """Index of the line sample nearest to (px, py): exact (ball tree), seeded by the guess."""
-    sxy = L[_I_SXY]
-    ti = L[_I_TI]
-    tf = L[_I_TF]
-    n = sxy.shape[0]
+def _point_at(G, s):
+    """What the projection needs of frame_at (same arithmetic): x, y, tx, ty, kappa."""
+    sc, si, x0, y0, x1, y1, x2, y2, x3, y3 = _curve(G, s)
+    g = math.sqrt(x1 * x1 + y1 * y1)
+    tx = x1 / g
+    ty = y1 / g
+    kappa = (x1 * y2 - y1 * x2) / (g * g * g)
+    ext = s - sc
+    if s != sc:
+        kappa = 0.0
+    return x0 + ext * tx, y0 + ext * ty, tx, ty, kappa
+
+
+@njit(cache=True, error_model="numpy")
+def _nearest_sample(G, px, py, s_guess, stack):
+    """Index of the line sample nearest to (px, py), exactly (the ReferenceLine's cKDTree
+    query). With a guess: walk downhill from the guess's sample and accept the local minimum
+    when certified; otherwise (or without a guess) search the ball tree.
+    ``stack``: int64 scratch longer than twice the tree depth."""
+    n = int(G[_H_N_SAMP])
+    sxy = int(G[_H_OFF_SXY])
     best = np.inf
     best_i = 0
     if s_guess == s_guess:
-        ds = L[_I_SCAL][2]
-        g = (s_guess - L[_I_SS][0]) / ds
-        if g < 0.0:
+        gi = (s_guess - G[int(G[_H_OFF_SS])]) / G[_H_DS]
+        if gi < 0.0:
             j = 0
-        elif g > n - 1:
+        elif gi > n - 1:
             j = n - 1
         else:
-            j = int(g + 0.5)
-        dx = sxy[j, 0] - px
-        dy = sxy[j, 1] - py
+            j = int(gi + 0.5)
+        dx = G[sxy + 2 * j] - px
+        dy = G[sxy + 2 * j + 1] - py
         best = dx * dx + dy * dy
         best_i = j
-        # walk downhill along the samples (a cheap, usually final, bound)
-        for step in (-1, 1):
+        for step in (-1, 1):  # walk downhill to a local minimum of the sample distance
             while True:
                 jn = best_i + step
                 if jn < 0 or jn >= n:
                     break
-                dx = sxy[jn, 0] - px
-                dy = sxy[jn, 1] - py
+                dx = G[sxy + 2 * jn] - px
+                dy = G[sxy + 2 * jn + 1] - py
                 d2 = dx * dx + dy * dy
                 if d2 < best:
                     best = d2
                     best_i = jn
                 else:
                     break
-    stack = np.empty(64, dtype=np.int64)
-    top = 0
+        # certificate that it is the nearest of all samples: (1) within +-W samples the
+        # squared distance along the curve is convex (its second derivative 1 - kappa
+        # (p - c).n > 0 when kappa_max (d + (W + 1) ds) < 1), so a discrete local minimum is
+        # the minimum there; (2) a sample more than W away is at least clear - d from p
+        # (triangle inequality), more than d when 2 d < clear
+        dmin = math.sqrt(best)
+        if (G[_H_KAPPA] * (dmin + (G[_H_WINDOW] + 1.0) * G[_H_DS]) < 0.5
+                and 2.0 * dmin + 1e-9 < G[int(G[_H_OFF_CLR]) + best_i]):
+            return best_i
+    tr = int(G[_H_OFF_TREE])
     stack[0] = 0
     top = 1
     while top > 0:
         top -= 1
-        node = stack[top]
-        dx = tf[node, 0] - px
-        dy = tf[node, 1] - py
-        lb = math.sqrt(dx * dx + dy * dy) - tf[node, 2]
+        node = tr + 7 * stack[top]
+        dx = G[node + 4] - px
+        dy = G[node + 5] - py
+        lb = math.sqrt(dx * dx + dy * dy) - G[node + 6]
         if lb > 0.0 and lb * lb > best:
             continue
-        lo = ti[node, 0]
-        hi = ti[node, 1]
-        left = ti[node, 2]
+        left = int(G[node + 2])
         if left < 0:
-            for j in range(lo, hi):
-                dx = sxy[j, 0] - px
-                dy = sxy[j, 1] - py
+            for j in range(int(G[node]), int(G[node + 1])):
+                dx = G[sxy + 2 * j] - px
+                dy = G[sxy + 2 * j + 1] - py
                 d2 = dx * dx + dy * dy
                 if d2 < best or (d2 == best and j < best_i):
                     best = d2
                     best_i = j
         else:
-            right = ti[node, 3]
-            # push the farther child first: the nearer one is searched first
-            dlx = tf[left, 0] - px
-            dly = tf[left, 1] - py
-            drx = tf[right, 0] - px
-            dry = tf[right, 1] - py
-            if dlx * dlx + dly * dly <= drx * drx + dry * dry:
+            right = int(G[node + 3])
+            nl = tr + 7 * left
+            nr = tr + 7 * right
+            dlx = G[nl + 4] - px
+            dly = G[nl + 5] - py
+            drx = G[nr + 4] - px
+            dry = G[nr + 5] - py
+            if dlx * dlx + dly * dly <= drx * drx + dry * dry:  # nearer child searched first
                 stack[top] = right
                 stack[top + 1] = left
             else:
@@ -343,56 +428,97 @@ def _nearest_sample(L, px, py, s_guess):
 
 
 @njit(cache=True, error_model="numpy")
-def to_frenet_one(L, px, py, s_guess):
-    """ReferenceLine.to_frenet for one point: (s, d). ``s_guess`` (NaN: none) only seeds the
-    search for the nearest 1 m sample, which seeds the same Newton iteration as the
-    reference: step (p - c(s)).t / (1 - kappa d), clipped to 2 sample spacings."""
+def _newton_step(G, s, px, py, max_step):
+    """One step of ReferenceLine.to_frenet's Newton iteration on (p - c(s)).t = 0."""
+    x, y, tx, ty, kappa = _point_at(G, s)
+    rx = px - x
+    ry = py - y
+    along = rx * tx + ry * ty
+    d = rx * (-ty) + ry * tx
+    denom = 1.0 - kappa * d
+    if not denom > 0.1:
+        denom = 1.0
+    step = along / denom
+    if step < -max_step:
+        step = -max_step
+    elif step > max_step:
+        step = max_step
+    return step
+
+
+@njit(cache=True, error_model="numpy")
+def to_frenet_one(G, px, py, s_guess):
+    """ReferenceLine.to_frenet for one point: (s, d). ``s_guess`` (NaN: none) only speeds up
+    the exact search for the nearest 1 m sample; from it the Newton iteration is the
+    reference's: step (p - c(s)).t / (1 - kappa d) (denominator 1 where <= 0.1), clipped to
+    two sample spacings, until a step is below 1e-10 m or after 50 steps."""
     if px != px or py != py:
         return np.nan, np.nan
-    sc = L[_I_SCAL]
-    max_step = sc[1]
-    tol = sc[3]
-    n_it = int(sc[4])
-    s = L[_I_SS][_nearest_sample(L, px, py, s_guess)]
-    for _ in range(n_it):
-        x, y, tx, ty, hd, kappa, kr = frame_at(L, s)
-        rx = px - x
-        ry = py - y
-        along = rx * tx + ry * ty
-        d = rx * (-ty) + ry * tx
-        denom = 1.0 - kappa * d
-        if not denom > 0.1:
-            denom = 1.0
-        step = along / denom
-        if step < -max_step:
-            step = -max_step
-        elif step > max_step:
-            step = max_step
+    stack = np.empty(128, dtype=np.int64)
+    s = G[int(G[_H_OFF_SS]) + _nearest_sample(G, px, py, s_guess, stack)]
+    max_step = G[_H_MAX_STEP]
+    tol = G[_H_TOL]
+    for _ in range(int(G[_H_N_IT])):
+        step = _newton_step(G, s, px, py, max_step)
         s = s + step
         if abs(step) < tol:
             break
-    x, y, tx, ty, hd, kappa, kr = frame_at(L, s)
-    d = (px - x) * (-ty) + (py - y) * tx
-    return s, d
+    x, y, tx, ty, kappa = _point_at(G, s)
+    return s, (px - x) * (-ty) + (py - y) * tx
 
 
 @njit(cache=True, error_model="numpy")
-def to_frenet_many(L, xy, s_guess):
-    """to_frenet_one for points xy (n, 2) with guesses s_guess (n,) (NaN: none): (s, d)."""
+def to_frenet_many(G, xy, s_guess):
+    """to_frenet_one for points xy (n, 2) with guesses s_guess (n,) (NaN: none): (s, d).
+
+    The points iterate in lockstep, each until its own convergence (so each gets exactly
+    to_frenet_one's iterates): independent points overlap in the CPU pipeline."""
     n = xy.shape[0]
     s = np.empty(n)
     d = np.empty(n)
+    stack = np.empty(128, dtype=np.int64)
+    active = np.empty(n, dtype=np.int64)
+    max_step = G[_H_MAX_STEP]
+    tol = G[_H_TOL]
+    off_ss = int(G[_H_OFF_SS])
+    na = 0
     for i in range(n):
-        s[i], d[i] = to_frenet_one(L, xy[i, 0], xy[i, 1], s_guess[i])
+        px = xy[i, 0]
+        py = xy[i, 1]
+        if px != px or py != py:
+            s[i] = np.nan
+            d[i] = np.nan
+        else:
+            s[i] = G[off_ss + _nearest_sample(G, px, py, s_guess[i], stack)]
+            active[na] = i
+            na += 1
+    for _ in range(int(G[_H_N_IT])):
+        if na == 0:
+            break
+        k = 0
+        for a in range(na):
+            i = active[a]
+            step = _newton_step(G, s[i], xy[i, 0], xy[i, 1], max_step)
+            s[i] = s[i] + step
+            if not abs(step) < tol:
+                active[k] = i
+                k += 1
+        na = k
+    for i in range(n):
+        if s[i] == s[i]:
+            x, y, tx, ty, kappa = _point_at(G, s[i])
+            d[i] = (xy[i, 0] - x) * (-ty) + (xy[i, 1] - y) * tx
+        else:
+            d[i] = np.nan
     return s, d
 
 
 @njit(cache=True, error_model="numpy")
-def frame_many(L, s):
+def frame_many(G, s):
     """frame_at over an array s (n,): (n, 7) columns x, y, tx, ty, heading, kappa, kappa_rate."""
     out = np.empty((s.shape[0], 7))
     for i in range(s.shape[0]):
-        r = frame_at(L, s[i])
+        r = frame_at(G, s[i])
         for j in range(7):
             out[i, j] = r[j]
     return out

@@ -48,13 +48,19 @@ class Recorder:
         return self.traj.rows_buffered == 0
 
     def add_members(self, t, cfg, state, u, fo, targets, vc_theta, extra=None, mask=None):
-        sig = fl.member_signals(cfg, state, u, fo, targets, vc_theta)
+        """Record the members from the numpy reference path (fleet.member_signals)."""
+        self.add_member_signals(t, fl.member_signals(cfg, state, u, fo, targets, vc_theta), extra, mask)
+
+    def add_member_signals(self, t, sig, extra=None, mask=None):
+        """Record the members' signals (dict column -> (n,) array); ``extra`` adds the road and
+        SUMO columns, ``mask`` keeps only the members still in the run."""
+        sig = dict(sig)
         sig["t"] = t
         sig["vehicle_id"] = self.codes
         for name in ("s", "d", "lane_index", "sumo_gap"):
             sig[name] = (extra or {}).get(name, np.nan)
         self._check_range(t, sig, mask)
-        n = cfg.n
+        n = len(self.codes)
         if mask is not None and not mask.all():
             sig = {k: (v[mask] if np.ndim(v) else v) for k, v in sig.items()}
             n = int(mask.sum())

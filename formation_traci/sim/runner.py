@@ -22,7 +22,6 @@ import numpy as np
 
 from typing import Iterator
 
-from ..control.formation import rigid_targets
 from ..record.writer import atomic_write_json
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
@@ -121,7 +120,11 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
 
 
 def free_space_steps(sc: Scenario, rec: Recorder, meta: dict) -> Iterator[tuple[int, float]]:
-    """Simulate ``sc`` in free space; yields (step index, time [s]) after recording each step."""
+    """Simulate ``sc`` in free space; yields (step index, time [s]) after recording each step.
+
+    The per-step work runs in the compiled kernels of sim/fast.py, checked against the numpy
+    reference path (fleet.control/advance) when the fleet is built."""
+    from .fast import FastFleet, SIGNAL_COLUMNS, signals_dict
     run = sc.run
     n_steps = int(round(run.duration / run.step))
     n_ctrl = int(round(run.step / run.control_step))
@@ -131,21 +134,16 @@ def free_space_steps(sc: Scenario, rec: Recorder, meta: dict) -> Iterator[tuple[
     leader, pose = build_free_leader(sc)
     d = offsets(sc)
     state = build_initial_state(sc, cfg, leader.sample(0.0, pose))
+    ff = FastFleet.free_space(cfg, d, leader)
+    buf = np.full((cfg.n, len(SIGNAL_COLUMNS)), np.nan)
     for k in range(n_steps + 1):
         t = k * run.step
-        for j in range(n_ctrl):
-            tc = t + j * dt_c
-            vc = leader.sample(tc, pose)
-            targets = rigid_targets(vc, d)
-            u, fo = fl.control(cfg, state, targets)
-            if j == 0:
-                rec.add_members(tc, cfg, state, u, fo, targets, vc.theta)
-                rec.add_vc(tc, vc)
-                yield k, tc
-                if k == n_steps:
-                    return
-            state = fl.advance(cfg, state, u, fo, dt_c)
-            pose = leader.advance(tc, pose, dt_c)
+        rec.add_member_signals(t, signals_dict(ff.signals_free(state, t, pose, out=buf)))
+        rec.add_vc(t, leader.sample(t, pose))
+        yield k, t
+        if k == n_steps:
+            return
+        state, pose = ff.step_free(state, t, pose, dt_c, n_ctrl)
         check_finite(state, ids, t + run.step)
 
 

@@ -29,6 +29,7 @@ from ..road.targets import road_targets
 from ..scenario.schema import Scenario
 from . import fleet as fl
 from .governor import leader_accel, member_speed_cap, time_gap_accel, vehicles_ahead
+from .fast import FastFleet, SIGNAL_COLUMNS, signals_dict
 from .recorder import Recorder
 from .road_setup import (Road, build_road, check_no_overlap, check_slots, rectangles_overlap,
                          slot_offsets)
@@ -182,6 +183,10 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
     x0 = plan.pos0
     yaw0 = plan.speed0 * line.curvature(line.to_frenet(x0)[0])
     state = fl.initial_state(cfg, x0, plan.heading0, plan.speed0, yaw0, np.zeros(n), tg0)
+    # compiled per-step path, checked against the numpy reference on a synthetic state here
+    ff = FastFleet.from_config(cfg, line, plan.slots, plan.rigid, plan.is_road)
+    sig_buf = np.full((n, len(SIGNAL_COLUMNS)), np.nan)
+    m_s = None
 
     adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
     args = sumo_args(sc, road.net_file, routes, sumo_dir, t_sumo_end)
@@ -223,9 +228,9 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
         for k in range(n_steps + 1):
             c0 = clock()
             t = k * run.step
-            pos, vel, heading = fl.kinematics(cfg, state)
+            pos, vel, heading = ff.kinematics(state)
             v_m = np.hypot(vel[:, 0], vel[:, 1])
-            m_s, m_d = line.to_frenet(pos)
+            m_s, m_d = ff.to_frenet(pos, m_s)
             extra = {"s": m_s, "d": m_d}
             nb = None
             if inserted and baseline:
@@ -265,7 +270,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             slot_s = s_vc + along
             slot_d = np.where(plan.is_road, plan.slots[:, 1], m_d)
             if nb is not None and len(nb.ids):
-                nb_s, nb_d = line.to_frenet(np.column_stack([nb.x, nb.y]))
+                nb_s, nb_d = ff.to_frenet(np.column_stack([nb.x, nb.y]))
                 nb_rear, nb_hw = nb_s - nb.length / 2, nb.width / 2
                 gap, v_lead, lead_idx = vehicles_ahead(m_s + d_front, m_d, half_w, nb_rear, nb_d, nb_hw, nb.v)
                 gap_slot, v_lead_slot, _ = vehicles_ahead(slot_s + d_front, slot_d, half_w, nb_rear, nb_d, nb_hw, nb.v)
@@ -287,11 +292,10 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 _lane_changes(rec, t, nb, prev_lane, lead_idx, gap, v_m, ids, active, ld)
                 rec.add_background(t, nb, nb_s, nb_d)
 
-            vc = road_leader_state(line, s_vc, v_vc, a_vc)
-            targets = _targets(road, plan.slots, plan.rigid, plan.is_road, s_vc, v_vc, a_vc)
-            u, fo = fl.control(cfg, state, targets, v_cap, a_cap)
+            vc = ff.leader_state(s_vc, v_vc, a_vc)
             if not baseline:
-                rec.add_members(t, cfg, state, u, fo, targets, vc.theta, extra, mask=active)
+                sig = signals_dict(ff.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap, out=sig_buf))
+                rec.add_member_signals(t, sig, extra, mask=active)
             rec.add_vc(t, vc, s=s_vc)
             c3 = clock()
             tm["record"] += c3 - c2
@@ -308,16 +312,11 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
 
             c3 = clock()
             v_before = state.x[:, 3].copy() if cfg.model == "dynamic" else state.speed_in.copy()
-            for j in range(n_ctrl):
-                if j > 0:
-                    targets = _targets(road, plan.slots, plan.rigid, plan.is_road, s_vc, v_vc, a_vc)
-                    u, fo = fl.control(cfg, state, targets, v_cap, a_cap)
-                state = fl.advance(cfg, state, u, fo, dt_c)
-                s_vc, v_vc = _advance_vc(s_vc, v_vc, a_vc, dt_c)
+            state, s_vc, v_vc = ff.step(state, s_vc, v_vc, a_vc, v_cap, a_cap, dt_c, n_ctrl)
             if not np.all(np.isfinite(state.x)):
                 from .runner import check_finite
                 check_finite(state, ids, t + run.step)
-            pos, vel, heading = fl.kinematics(cfg, state)
+            pos, vel, heading = ff.kinematics(state)
             v_after = state.x[:, 3] if cfg.model == "dynamic" else state.speed_in
             a_mean = (v_after - v_before) / run.step
             c4 = clock()
