@@ -121,3 +121,18 @@ def test_inner_loops_signs():
     assert desired_acceleration(18.0, 20.0, SPEED_GAINS_CAR) < 0
     assert steering_rate(0.1, 0.0, YAW_GAINS_RETUNED) == pytest.approx(0.1 * gain(0.1, YAW_GAINS_RETUNED))
     assert steering_angle(-0.1, 0.0, YAW_GAINS) < 0
+
+
+def test_a_member_past_its_stopped_slot_waits_instead_of_turning_around():
+    """Leader stopped, member 0.5 m past its slot: eq (2.6)-(2.8) would command a speed of
+    k tanh(0.5) with theta* pointing backwards (a U-turn); the member waits (v_ref = 0,
+    omega_ref = 0) and theta* relaxes to its heading. Driving normally nothing changes."""
+    tg = Targets(np.array([[0.0, 0.0]]), np.zeros((1, 2)), np.zeros((1, 2)))
+    fo = formation_control(tg, np.array([[0.5, 0.0]]), np.zeros((1, 2)), np.array([0.1]),
+                           np.array([np.pi]), 1.0, 3.0)
+    assert fo.v_ref[0] == 0.0 and fo.omega_ref[0] == 0.0 and fo.v_ref_dot[0] == 0.0
+    assert fo.theta_star_dot[0] * wrap_angle(0.1 - np.pi) > 0  # theta* moves towards the heading
+    moving = Targets(np.array([[0.0, 0.0]]), np.array([[20.0, 0.0]]), np.zeros((1, 2)))
+    fo = formation_control(moving, np.array([[0.5, 0.0]]), np.array([[20.0, 0.0]]), np.zeros(1),
+                           np.zeros(1), 1.0, 3.0)
+    assert fo.v_ref[0] == pytest.approx(20.0 + np.tanh(-0.5))  # the seed's law, untouched

@@ -13,6 +13,11 @@ import numpy as np
 
 V_EPS = 0.5
 """Floor of the commanded speed in the denominators of (2.9) and of v dot [m/s] (ours)."""
+K_WAIT = 10.0
+"""While a member waits (its slot is behind it), theta* relaxes to its heading at this rate [1/s]."""
+COS_WAIT = 0.2
+"""The seed's law acts unchanged while (x~, y~) is within acos(0.2) = 78 deg of the heading;
+towards 90 deg and beyond it fades linearly into waiting."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,5 +128,15 @@ def formation_control(targets: Targets, pos: np.ndarray, vel: np.ndarray, headin
     heading_error = wrap_angle(theta_star - heading)  # (2.10)
     omega_ref = theta_star_dot + k_theta * heading_error  # (2.8)
     v_ref_dot = (tl[:, 0] * tl_dot[:, 0] + tl[:, 1] * tl_dot[:, 1]) / v_safe
+    # no turning around (ours, docs/model.md): when (x~, y~) points sideways or behind the
+    # member, e.g. it stopped just past a stopped slot, it waits instead of driving a U-turn
+    cos_dir = (tl[:, 0] * np.cos(heading) + tl[:, 1] * np.sin(heading)) / v_safe
+    w = np.clip(cos_dir / COS_WAIT, 0.0, 1.0)
+    if np.any(w < 1.0):
+        v_ref = w * v_ref
+        omega_ref = w * omega_ref
+        v_ref_dot = w * v_ref_dot
+        # smooth relaxation towards the heading (no jump where theta* - heading = +-pi)
+        theta_star_dot = w * theta_star_dot - (1.0 - w) * K_WAIT * np.sin(theta_star - heading)
     return FormationOutput(v_ref, omega_ref, theta_star_dot, v_ref_dot, e[:, 0], e[:, 1],
                            heading_error)

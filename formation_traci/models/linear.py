@@ -100,3 +100,19 @@ def closed_loop_lateral(v: float, veh: VehicleParams, tires: Tires, K: float, k_
     M[4, 0] = v
     M[4, 3] = v
     return M
+
+
+STEP_STABILITY_MARGIN = 2.0
+"""Largest h |lambda| allowed for the explicit RK4 step (its real-axis limit is 2.785)."""
+
+
+def stable_blend_speed(veh: VehicleParams, tires: Tires, h: float, floor: float = 1.0) -> float:
+    """Lowest speed [m/s] at which the dynamic lateral model may act with RK4 steps of h [s].
+
+    The lateral modes grow as 1/v at low speed (eq 3.30: entries ~ C/(m v), C a^2/(Izz v)), so
+    below some speed an explicit step of h diverges. With |lambda(v)| ~ |lambda(1 m/s)| / v,
+    the speed where h |lambda| = STEP_STABILITY_MARGIN is h |lambda(1)| / margin; never below
+    ``floor``. Car, 10 ms: 1.0 m/s (the floor); small truck with load tires: 4.6 m/s.
+    """
+    lam1 = float(np.abs(np.linalg.eigvals(lateral_ab(1.0, veh, tires)[0])).max())
+    return max(floor, h * lam1 / STEP_STABILITY_MARGIN)

@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from ..control.formation import V_EPS, FormationOutput, LeaderState, Targets
+from ..control.formation import COS_WAIT, K_WAIT, V_EPS, FormationOutput, LeaderState, Targets
 from ..models import bicycle_fast
 from ..models.bicycle_fast import _bicycle_rhs, integrate_bicycle, integrate_unicycle
 from ..models.params import G
@@ -207,7 +207,16 @@ def _formation(px, py, tvx, tvy, tax, tay, X, Y, velx, vely, heading, theta_star
     v_safe = _maximum(v_ref, v_eps)
     tsd = (-tldx * tly + tldy * tlx) / (v_safe * v_safe)
     he = _wrap(theta_star - heading)
-    return (v_ref, tsd + k_theta * he, tsd, (tlx * tldx + tly * tldy) / v_safe, ex, ey, he)
+    omega_ref = tsd + k_theta * he
+    v_ref_dot = (tlx * tldx + tly * tldy) / v_safe
+    # no turning around (formation.py): fade into waiting when (x~, y~) points away
+    w = _clip((tlx * np.cos(heading) + tly * np.sin(heading)) / v_safe / COS_WAIT, 0.0, 1.0)
+    if w < 1.0:
+        v_ref = w * v_ref
+        omega_ref = w * omega_ref
+        v_ref_dot = w * v_ref_dot
+        tsd = w * tsd - (1.0 - w) * K_WAIT * np.sin(theta_star - heading)
+    return (v_ref, omega_ref, tsd, v_ref_dot, ex, ey, he)
 
 
 @njit(cache=True, error_model="numpy")

@@ -7,8 +7,9 @@ import numpy as np
 
 from ..control.formation import LeaderState, rigid_targets
 from ..control.schedule import GAIN_PRESETS, GainSchedule
-from ..models.params import (SURFACES, VEHICLE_PRESETS, VehicleParams, bicycle_params,
-                             make_tires, stack)
+from ..models.linear import stable_blend_speed
+from ..models.params import (LOW_SPEED_DEFAULT, SURFACES, VEHICLE_PRESETS, VehicleParams,
+                             bicycle_params, make_tires, stack)
 from ..scenario.schema import GainSpec, ProfileSpec, Scenario
 from .fleet import FleetConfig, FleetState, initial_state
 from .leader import FreeLeader
@@ -52,7 +53,11 @@ def build_fleet(sc: Scenario) -> FleetConfig:
     params = None
     if sc.vehicle.model == "dynamic":
         tires = make_tires(veh, mu, sc.vehicle.tire, linear=sc.vehicle.tire_law == "linear")
-        params = stack([bicycle_params(veh, mu, tires)] * len(sc.members))
+        # the dynamic model takes over only where the RK4 step is stable (docs/model.md)
+        v_low = stable_blend_speed(veh, tires, sc.run.physics_step, LOW_SPEED_DEFAULT.v_low)
+        blend = replace(LOW_SPEED_DEFAULT, v_low=v_low,
+                        v_high=v_low + (LOW_SPEED_DEFAULT.v_high - LOW_SPEED_DEFAULT.v_low))
+        params = stack([bicycle_params(veh, mu, tires, blend)] * len(sc.members))
     ctl = sc.controller
     return FleetConfig(
         ids=tuple(m.id for m in sc.members),
