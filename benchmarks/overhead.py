@@ -14,6 +14,7 @@ Then the scaling with 1, 5, 20 and 50 members, and a 600 s versus 3600 s run for
 
     python benchmarks/overhead.py                 # full (about 15-25 minutes on 2 cores)
     python benchmarks/overhead.py --quick         # 60 s runs, 1 pair, small scaling table
+    python benchmarks/overhead.py --no-ssm        # SUMO's SSM device off in every run
 
 Timings are wall-clock seconds of the simulation loop (after SUMO has started, until the run
 ends); setup (network reading, reference line, SUMO start) is printed separately.
@@ -83,6 +84,7 @@ def scenario(n: int, duration: float, flow_end: float | None, seed: int) -> dict
         "leader": {"speed": SPEED},
         "members": formation_slots(n),
         "traffic": {"warmup": 0.0, "flows": [flow]},
+        "sumo": {"ssm": os.environ.get("BENCH_SSM", "1") == "1"},
     }
 
 
@@ -162,6 +164,8 @@ def main() -> None:
     ap.add_argument("--skip-long", action="store_true")
     ap.add_argument("--quick", action="store_true", help="60 s runs, 1 pair, members 1 5, no long run")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--no-ssm", action="store_true",
+                    help="SUMO's SSM device off in every run (it dominates SUMO's time and memory)")
     ap.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
@@ -172,10 +176,12 @@ def main() -> None:
         return
     if a.quick:
         a.pairs, a.duration, a.members, a.skip_long = 1, 60.0, [1, 5], True
+    os.environ["BENCH_SSM"] = "0" if a.no_ssm else "1"  # inherited by the children
 
     long_net()
     print(f"machine: {os.cpu_count()} cores, Python {sys.version.split()[0]}; "
-          f"reference: 5-member wedge, dynamic model, 1500 veh/h/lane, step 0.05 s, {a.duration:.0f} s")
+          f"reference: 5-member wedge, dynamic model, 1500 veh/h/lane, step 0.05 s, {a.duration:.0f} s, "
+          f"SSM device {'off' if a.no_ssm else 'on'}")
     form, twin, bare = [], [], []
     for i in range(a.pairs):
         order = [("formation", form), ("twin", twin)] if i % 2 == 0 else [("twin", twin), ("formation", form)]

@@ -49,7 +49,8 @@ from numba import njit
 
 from ..control.formation import COS_WAIT, K_WAIT, V_EPS, FormationOutput, LeaderState, Targets
 from ..models import bicycle_fast
-from ..models.bicycle_fast import _bicycle_rhs, integrate_bicycle, integrate_unicycle
+from ..models.bicycle_fast import (_bicycle_rhs, _clip, _maximum, _minimum, integrate_bicycle,
+                                   integrate_unicycle)
 from ..models.params import G
 from ..record.columns import TRAJECTORY_COLUMNS
 from ..road import fast_line
@@ -117,27 +118,6 @@ def pack_profiles(speed, yaw_rate) -> np.ndarray:
 # scalars (plus the one line buffer G), so numba's reference counting stays out of the loops.
 
 # ------------------------------------------------------------------ scalar helpers
-
-@njit(cache=True, error_model="numpy")
-def _maximum(a, b):
-    """np.maximum for scalars (NaN propagates)."""
-    if a >= b or a != a:
-        return a
-    return b
-
-
-@njit(cache=True, error_model="numpy")
-def _minimum(a, b):
-    """np.minimum for scalars (NaN propagates)."""
-    if a <= b or a != a:
-        return a
-    return b
-
-
-@njit(cache=True, error_model="numpy")
-def _clip(x, lo, hi):
-    return _minimum(_maximum(x, lo), hi)
-
 
 @njit(cache=True, error_model="numpy")
 def _gain(e, g_min, g_max, k_min):
