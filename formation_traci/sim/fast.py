@@ -338,6 +338,28 @@ def kinematics_nb(x, speed_in, model_kind):
 
 
 @njit(cache=True, error_model="numpy")
+def _member_control(i, x, theta_star, speed_in, model_kind, k, k_theta, C, T, v_cap, a_cap):
+    """Formation controller and model input of member i: (u0, u1, capped v_ref, omega_ref,
+    theta* dot, v_ref dot, ex, ey, heading error, measured v, measured yaw rate)."""
+    psi = x[i, 2]
+    if model_kind == MODEL_KINEMATIC:
+        v = speed_in[i]
+        r = 0.0
+        course = psi
+    else:
+        v = x[i, 3]
+        r = x[i, 5]
+        course = psi + x[i, 4]
+    vr, om, tsd, vrd, ex, ey, he = _formation(
+        T[i, 0], T[i, 1], T[i, 2], T[i, 3], T[i, 4], T[i, 5], x[i, 0], x[i, 1],
+        v * np.cos(course), v * np.sin(course), psi, theta_star[i], k[i], k_theta[i],
+        C[_C_V_EPS])
+    u0, u1, vr = _inputs(model_kind, vr, om, v, r, v_cap[i], a_cap[i],
+                         C[0], C[1], C[2], C[3], C[4], C[5])
+    return u0, u1, vr, om, tsd, vrd, ex, ey, he, v, r
+
+
+@njit(cache=True, error_model="numpy")
 def control_nb(x, theta_star, speed_in, model_kind, k, k_theta, C, T, v_cap, a_cap):
     """fleet.control(cfg, state, Targets(T[:, :2], T[:, 2:4], T[:, 4:]), v_cap, a_cap):
     returns u (n, 2) and the controller output (n, 7), columns FO_*. No cap: pass +inf."""
@@ -345,21 +367,8 @@ def control_nb(x, theta_star, speed_in, model_kind, k, k_theta, C, T, v_cap, a_c
     U = np.empty((n, 2))
     FO = np.empty((n, N_FO))
     for i in range(n):
-        psi = x[i, 2]
-        if model_kind == MODEL_KINEMATIC:
-            v = speed_in[i]
-            r = 0.0
-            course = psi
-        else:
-            v = x[i, 3]
-            r = x[i, 5]
-            course = psi + x[i, 4]
-        vr, om, tsd, vrd, ex, ey, he = _formation(
-            T[i, 0], T[i, 1], T[i, 2], T[i, 3], T[i, 4], T[i, 5], x[i, 0], x[i, 1],
-            v * np.cos(course), v * np.sin(course), psi, theta_star[i], k[i], k_theta[i],
-            C[_C_V_EPS])
-        U[i, 0], U[i, 1], vr = _inputs(model_kind, vr, om, v, r, v_cap[i], a_cap[i],
-                                       C[0], C[1], C[2], C[3], C[4], C[5])
+        U[i, 0], U[i, 1], vr, om, tsd, vrd, ex, ey, he, v, r = _member_control(
+            i, x, theta_star, speed_in, model_kind, k, k_theta, C, T, v_cap, a_cap)
         FO[i, 0] = vr
         FO[i, 1] = om
         FO[i, 2] = tsd
@@ -486,20 +495,8 @@ def _signal_rows(x, theta_star, speed_in, model_kind, P, k, k_theta, C, T, v_cap
     vals = np.empty(23)
     for i in range(n):
         psi = x[i, 2]
-        if model_kind == MODEL_KINEMATIC:
-            v = speed_in[i]
-            r = 0.0
-            course = psi
-        else:
-            v = x[i, 3]
-            r = x[i, 5]
-            course = psi + x[i, 4]
-        vr, om, tsd, vrd, ex, ey, he = _formation(
-            T[i, 0], T[i, 1], T[i, 2], T[i, 3], T[i, 4], T[i, 5], x[i, 0], x[i, 1],
-            v * np.cos(course), v * np.sin(course), psi, theta_star[i], k[i], k_theta[i],
-            C[_C_V_EPS])
-        u0, u1, vr = _inputs(model_kind, vr, om, v, r, v_cap[i], a_cap[i],
-                             C[0], C[1], C[2], C[3], C[4], C[5])
+        u0, u1, vr, om, tsd, vrd, ex, ey, he, v, r = _member_control(
+            i, x, theta_star, speed_in, model_kind, k, k_theta, C, T, v_cap, a_cap)
         vals[_Q_X] = x[i, 0]
         vals[_Q_Y] = x[i, 1]
         vals[_Q_HEADING] = psi
