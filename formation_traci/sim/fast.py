@@ -338,9 +338,10 @@ def kinematics_nb(x, speed_in, model_kind):
 
 
 @njit(cache=True, error_model="numpy")
-def _member_control(i, x, theta_star, speed_in, model_kind, k, k_theta, C, T, v_cap, a_cap):
-    """Formation controller and model input of member i: (u0, u1, capped v_ref, omega_ref,
-    theta* dot, v_ref dot, ex, ey, heading error, measured v, measured yaw rate)."""
+def _control_at(i, x, theta_star, speed_in, model_kind, k, k_theta, C, px, py, tvx, tvy, tax,
+                tay, v_cap_i, a_cap_i):
+    """Formation controller and model input of member i for its desired point (p, v, a):
+    (u0, u1, capped v_ref, omega_ref, theta* dot, v_ref dot, ex, ey, heading error, v, r)."""
     psi = x[i, 2]
     if model_kind == MODEL_KINEMATIC:
         v = speed_in[i]
@@ -351,12 +352,18 @@ def _member_control(i, x, theta_star, speed_in, model_kind, k, k_theta, C, T, v_
         r = x[i, 5]
         course = psi + x[i, 4]
     vr, om, tsd, vrd, ex, ey, he = _formation(
-        T[i, 0], T[i, 1], T[i, 2], T[i, 3], T[i, 4], T[i, 5], x[i, 0], x[i, 1],
-        v * np.cos(course), v * np.sin(course), psi, theta_star[i], k[i], k_theta[i],
-        C[_C_V_EPS])
-    u0, u1, vr = _inputs(model_kind, vr, om, v, r, v_cap[i], a_cap[i],
+        px, py, tvx, tvy, tax, tay, x[i, 0], x[i, 1], v * np.cos(course), v * np.sin(course),
+        psi, theta_star[i], k[i], k_theta[i], C[_C_V_EPS])
+    u0, u1, vr = _inputs(model_kind, vr, om, v, r, v_cap_i, a_cap_i,
                          C[0], C[1], C[2], C[3], C[4], C[5])
     return u0, u1, vr, om, tsd, vrd, ex, ey, he, v, r
+
+
+@njit(cache=True, error_model="numpy")
+def _member_control(i, x, theta_star, speed_in, model_kind, k, k_theta, C, T, v_cap, a_cap):
+    """_control_at with member i's targets from row i of T (columns p, v, a)."""
+    return _control_at(i, x, theta_star, speed_in, model_kind, k, k_theta, C, T[i, 0], T[i, 1],
+                        T[i, 2], T[i, 3], T[i, 4], T[i, 5], v_cap[i], a_cap[i])
 
 
 @njit(cache=True, error_model="numpy")
@@ -394,7 +401,6 @@ def step_periods_nb(x, theta_star, speed_in, model_kind, P, k, k_theta, C, G, sl
     for i in range(n):
         if not is_road[i]:
             any_rigid = True
-    c0, c1, c2, c3, c4, c5, v_eps = C[0], C[1], C[2], C[3], C[4], C[5], C[_C_V_EPS]
     X0 = Y0 = th0 = v0 = om0 = vd0 = omd0 = 0.0
     for _ in range(n_ctrl):
         if any_rigid:
@@ -406,20 +412,9 @@ def step_periods_nb(x, theta_star, speed_in, model_kind, P, k, k_theta, C, G, sl
             else:
                 px, py, tvx, tvy, tax, tay = _rigid_target(X0, Y0, th0, v0, om0, vd0, omd0,
                                                            rigid[i, 0], rigid[i, 1])
-            psi = x[i, 2]
-            if model_kind == MODEL_KINEMATIC:
-                v = speed_in[i]
-                r = 0.0
-                course = psi
-            else:
-                v = x[i, 3]
-                r = x[i, 5]
-                course = psi + x[i, 4]
-            vr, om, tsd[i], vrd, ex, ey, he = _formation(
-                px, py, tvx, tvy, tax, tay, x[i, 0], x[i, 1], v * np.cos(course),
-                v * np.sin(course), psi, theta_star[i], k[i], k_theta[i], v_eps)
-            U[i, 0], U[i, 1], vr = _inputs(model_kind, vr, om, v, r, v_cap[i], a_cap[i],
-                                           c0, c1, c2, c3, c4, c5)
+            U[i, 0], U[i, 1], _, _, tsd[i], _, _, _, _, _, _ = _control_at(
+                i, x, theta_star, speed_in, model_kind, k, k_theta, C, px, py, tvx, tvy, tax,
+                tay, v_cap[i], a_cap[i])
         # fleet.advance: theta* Euler, RK4 of the vehicles, the unicycle's applied speed
         for i in range(n):
             theta_star[i] = theta_star[i] + tsd[i] * dt_c
@@ -444,7 +439,6 @@ def step_free_nb(x, theta_star, speed_in, model_kind, P, k, k_theta, C, offsets,
     speed_in = speed_in.copy()
     U = np.empty((n, 2))
     tsd = np.empty(n)
-    c0, c1, c2, c3, c4, c5, v_eps = C[0], C[1], C[2], C[3], C[4], C[5], C[_C_V_EPS]
     X, Y, th = pose[0], pose[1], pose[2]
     inf = np.inf
     for j in range(n_ctrl):
@@ -454,20 +448,9 @@ def step_free_nb(x, theta_star, speed_in, model_kind, P, k, k_theta, C, offsets,
         for i in range(n):
             px, py, tvx, tvy, tax, tay = _rigid_target(X, Y, th, vl, w, vl_dot, w_dot,
                                                        offsets[i, 0], offsets[i, 1])
-            psi = x[i, 2]
-            if model_kind == MODEL_KINEMATIC:
-                v = speed_in[i]
-                r = 0.0
-                course = psi
-            else:
-                v = x[i, 3]
-                r = x[i, 5]
-                course = psi + x[i, 4]
-            vr, om, tsd[i], vrd, ex, ey, he = _formation(
-                px, py, tvx, tvy, tax, tay, x[i, 0], x[i, 1], v * np.cos(course),
-                v * np.sin(course), psi, theta_star[i], k[i], k_theta[i], v_eps)
-            U[i, 0], U[i, 1], vr = _inputs(model_kind, vr, om, v, r, inf, inf,
-                                           c0, c1, c2, c3, c4, c5)
+            U[i, 0], U[i, 1], _, _, tsd[i], _, _, _, _, _, _ = _control_at(
+                i, x, theta_star, speed_in, model_kind, k, k_theta, C, px, py, tvx, tvy, tax,
+                tay, inf, inf)
         for i in range(n):
             theta_star[i] = theta_star[i] + tsd[i] * dt_c
         if model_kind == MODEL_KINEMATIC:
