@@ -3,7 +3,7 @@
 Runs, alternating to cancel machine noise, the reference case and its twin, each in a fresh
 process (libsumo allows one simulation per process; peak memory is per process):
 
-- formation: a 120 km straight 3-lane motorway, 1500 veh/h/lane of background traffic, a
+- formation: a 120 km straight 3-lane motorway (edges of 1 km, ``--edge-m``), 1500 veh/h/lane of background traffic, a
   5-member wedge with the dynamic model, SUMO step 0.05 s, 600 s simulated, recording on;
 - twin: the same network, demand and seed through libsumo, the five members as ordinary SUMO
   vehicles of the same type, departure, lanes and speed, driven by SUMO;
@@ -40,23 +40,44 @@ SPEED = 30.0  # set speed of the formation [m/s]
 START = 600.0  # formation's start along the road [m]
 
 
+def edge_m() -> float:
+    """Length of one edge of the benchmark motorway [m] (``--edge-m``; children inherit it)."""
+    return float(os.environ.get("BENCH_EDGE_M", "1000"))
+
+
 def long_net() -> Path:
-    """Build (once) a straight 3-lane motorway of ROAD_M metres with the wheel's netconvert."""
-    net = CACHE / "long3.net.xml"
+    """Build (once) a straight 3-lane motorway of ROAD_M metres, split into edges of
+    :func:`edge_m` metres, with the wheel's netconvert.
+
+    The split matters: with the sublane model SUMO checks collisions pairwise among all
+    vehicles of a lane, and a ``moveToXY`` re-inserts the member, which costs its lane one
+    more such check in the step. On a single 120 km edge that makes SUMO's own step ~7 %
+    slower with five moved members than with five SUMO-driven ones; on 1 km edges (real
+    motorway networks are split at every junction and ramp) the extra is not measurable.
+    RESULTS.md gives both."""
+    n_edges = max(1, int(round(ROAD_M / edge_m())))
+    name = f"long3_{n_edges}"
+    net = CACHE / f"{name}.net.xml"
     if net.exists():
         return net
     CACHE.mkdir(exist_ok=True)
-    (CACHE / "long3.nod.xml").write_text(
-        f'<nodes><node id="a" x="0" y="0"/><node id="b" x="{ROAD_M}" y="0"/></nodes>\n')
-    (CACHE / "long3.edg.xml").write_text(
-        '<edges><edge id="e0" from="a" to="b" numLanes="3" speed="36.11" width="3.5" '
-        'disallow="pedestrian bicycle"/></edges>\n')
+    xs = [ROAD_M * i / n_edges for i in range(n_edges + 1)]
+    (CACHE / f"{name}.nod.xml").write_text("<nodes>" + "".join(
+        f'<node id="n{i}" x="{x:.1f}" y="0"/>' for i, x in enumerate(xs)) + "</nodes>\n")
+    (CACHE / f"{name}.edg.xml").write_text("<edges>" + "".join(
+        f'<edge id="{e}" from="n{i}" to="n{i + 1}" numLanes="3" speed="36.11" width="3.5" '
+        'disallow="pedestrian bicycle"/>' for i, e in enumerate(route_edges())) + "</edges>\n")
     import sumolib
-    subprocess.run([sumolib.checkBinary("netconvert"), "-n", "long3.nod.xml", "-e", "long3.edg.xml",
-                    "-o", "long3.net.xml", "--offset.disable-normalization", "true", "--no-turnarounds", "true",
+    subprocess.run([sumolib.checkBinary("netconvert"), "-n", f"{name}.nod.xml", "-e", f"{name}.edg.xml",
+                    "-o", f"{name}.net.xml", "--offset.disable-normalization", "true", "--no-turnarounds", "true",
                     "--precision", "4", "--default.lanewidth", "3.5"], cwd=CACHE, check=True,
                    stdout=subprocess.DEVNULL)
     return net
+
+
+def route_edges() -> list[str]:
+    """The motorway's edges in driving order."""
+    return [f"e{i}" for i in range(max(1, int(round(ROAD_M / edge_m()))))]
 
 
 def formation_slots(n: int) -> list[dict]:
@@ -80,7 +101,7 @@ def scenario(n: int, duration: float, flow_end: float | None, seed: int) -> dict
         "name": f"bench-{n}",
         "run": {"duration": duration, "step": 0.05, "seed": seed},
         "vehicle": {"model": "dynamic"},
-        "road": {"net": str(long_net()), "route": ["e0"], "lane": 1, "start": START},
+        "road": {"net": str(long_net()), "route": route_edges(), "lane": 1, "start": START},
         "leader": {"speed": SPEED},
         "members": formation_slots(n),
         "traffic": {"warmup": 0.0, "flows": [flow]},
@@ -120,12 +141,12 @@ def child_sumo(n, duration, flow_end, seed):
     out = Path(tempfile.mkdtemp(prefix="bench_"))
     t0 = time.perf_counter()
     f = sc.traffic.flows[0]
-    routes = write_routes(out / "traffic.rou.xml", [(f, ["e0"], 1500 * 3)], duration + 1)
+    routes = write_routes(out / "traffic.rou.xml", [(f, route_edges(), 1500 * 3)], duration + 1)
     if n:
         text = routes.read_text().replace("</routes>", "")
         car = PASSENGER_CAR
         text += (f'  <vType id="member" length="{car.length}" width="{car.width}" maxSpeed="{SPEED}" '
-                 f'speedFactor="1" sigma="0" minGap="2"/>\n  <route id="member_route" edges="e0"/>\n')
+                 f'speedFactor="1" sigma="0" minGap="2"/>\n  <route id="member_route" edges="{" ".join(route_edges())}"/>\n')
         for m in formation_slots(n):
             pos = START + m["slot"]["along"] + car.cog_to_front_bumper
             text += (f'  <vehicle id="{m["id"]}" type="member" route="member_route" depart="0" '
@@ -166,6 +187,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--no-ssm", action="store_true",
                     help="SUMO's SSM device off in every run (it dominates SUMO's time and memory)")
+    ap.add_argument("--edge-m", type=float, default=1000.0,
+                    help="length of one edge of the 120 km motorway [m] (120000: a single edge)")
     ap.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
@@ -177,11 +200,12 @@ def main() -> None:
     if a.quick:
         a.pairs, a.duration, a.members, a.skip_long = 1, 60.0, [1, 5], True
     os.environ["BENCH_SSM"] = "0" if a.no_ssm else "1"  # inherited by the children
+    os.environ["BENCH_EDGE_M"] = str(a.edge_m)
 
     long_net()
     print(f"machine: {os.cpu_count()} cores, Python {sys.version.split()[0]}; "
           f"reference: 5-member wedge, dynamic model, 1500 veh/h/lane, step 0.05 s, {a.duration:.0f} s, "
-          f"SSM device {'off' if a.no_ssm else 'on'}")
+          f"SSM device {'off' if a.no_ssm else 'on'}, edges of {a.edge_m:.0f} m")
     form, twin, bare = [], [], []
     for i in range(a.pairs):
         order = [("formation", form), ("twin", twin)] if i % 2 == 0 else [("twin", twin), ("formation", form)]

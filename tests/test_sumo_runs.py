@@ -198,3 +198,52 @@ def test_attach_to_a_running_sumo_over_traci(tmp_path):
         assert bg.vehicle_id.str.startswith("own").any()  # the running SUMO's own traffic
     finally:
         proc.wait(timeout=30)
+
+
+def test_members_carry_a_window_of_a_long_route_of_many_edges(tmp_path):
+    """A 3 km motorway split into 15 edges of 200 m: each member's route in SUMO reaches
+    ROUTE_AHEAD_M beyond its current edge and no farther (moveToXY searches the whole route),
+    and the members still cross every edge boundary exactly where the model puts them."""
+    import subprocess
+    import sumolib
+    from formation_traci.sim.sumo_adapter import ROUTE_AHEAD_M
+    n_edges, edge_m = 15, 200.0
+    (tmp_path / "seg.nod.xml").write_text("<nodes>" + "".join(
+        f'<node id="n{i}" x="{i * edge_m}" y="0"/>' for i in range(n_edges + 1)) + "</nodes>")
+    (tmp_path / "seg.edg.xml").write_text("<edges>" + "".join(
+        f'<edge id="e{i}" from="n{i}" to="n{i + 1}" numLanes="3" speed="36.11" width="3.5"/>'
+        for i in range(n_edges)) + "</edges>")
+    subprocess.run([sumolib.checkBinary("netconvert"), "-n", "seg.nod.xml", "-e", "seg.edg.xml",
+                    "-o", "seg.net.xml", "--offset.disable-normalization", "true", "--no-turnarounds",
+                    "true", "--default.lanewidth", "3.5"], cwd=tmp_path, check=True, capture_output=True)
+    edges = [f"e{i}" for i in range(n_edges)]
+    routes = {}
+
+    def hook(k, t, adapter):
+        for vid in ("right", "centre", "left"):
+            if vid in adapter.api.vehicle.getIDList():
+                routes.setdefault(vid, []).append((adapter.api.vehicle.getRoadID(vid),
+                                                   tuple(adapter.api.vehicle.getRoute(vid))))
+
+    sc = load_scenario(ROOT / "scenarios" / "highway" / "straight_3lane_light.toml",
+                       **{"road.net": str(tmp_path / "seg.net.xml"), "road.route": edges,
+                          "road.start": 100.0, "run.duration": 60.0, "traffic.warmup": 60.0})
+    res = run_scenario(sc, tmp_path / "run", progress=False, step_hook=hook)
+    assert res.status == "completed", res.reason
+    traj = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
+    members = traj[(traj.vehicle_id != "vc") & (traj.t > 0)]
+    assert members.x.max() - members.x.min() > 1500.0  # crossed at least 7 edge boundaries
+    assert members.sumo_gap.max() < 0.01  # m
+    events_dir = tmp_path / "run" / "events.parquet"
+    if any(events_dir.glob("*.parquet")):
+        kinds = set(pd.read_parquet(events_dir).kind)
+        assert not kinds & {"move_refused", "member_removed", "placement_mismatch", "collision"}, kinds
+    max_window = int(ROUTE_AHEAD_M // edge_m) + 1
+    for vid, seen in routes.items():
+        # the window follows SUMO's lane of the previous step (read at the start of a step)
+        on_edges = [(edge, route) for (edge, _), (_, route) in zip(seen[1:-1], seen[2:])
+                    if not edge.startswith(":")]
+        assert len({edge for edge, _ in on_edges}) >= 8, vid
+        for edge, route in on_edges:
+            last = min(edges.index(edge) + max_window, n_edges) - 1
+            assert list(route) == edges[:last + 1], (vid, edge, route)  # driven edges + window

@@ -22,6 +22,13 @@ never a different carriageway); sublane mode keeps the exact lateral position.""
 MATCH_THRESHOLD = 5.0
 """moveToXY raises instead of silently snapping a pose farther than this from the road [m]."""
 
+ROUTE_AHEAD_M = 1000.0
+"""A member's route in SUMO reaches at least this far past the end of its current edge [m].
+``moveToXY`` with keepRoute=1 searches every edge of the vehicle's route (ahead of it and
+behind it) for the nearest lane, so on a route of many edges a member carries only the part of
+the formation's route up to here, moved on whenever it enters the next edge (SUMO keeps the
+edges already driven in the route; docs/sumo.md)."""
+
 REMOVED_REASONS = ("arrived", "vanished")
 
 
@@ -113,6 +120,9 @@ class SumoAdapter:
         self._member_lane: dict[str, tuple[str, int, float]] = {}
         self._context: dict[str, float] = {}  # vehicle -> radius of its context subscription
         self._subscribed: set[str] = set()  # vehicles with a variable subscription
+        self._routes: dict[str, tuple[list[str], np.ndarray]] = {}  # id -> edges, edge lengths [m]
+        self._window: dict[str, tuple[str, int]] = {}  # member -> (route id, first edge index)
+        self._lane_geometry: dict[str, tuple[float, int]] = {}  # lane -> (width [m], lanes of its edge)
         self._started = False
 
     # -- lifecycle -------------------------------------------------------------------
@@ -164,6 +174,31 @@ class SumoAdapter:
 
     def add_route(self, route_id: str, edges: list[str]) -> None:
         self.api.route.add(route_id, edges)
+        lengths = np.array([self.api.lane.getLength(f"{e}_0") for e in edges])
+        self._routes[route_id] = (list(edges), lengths)
+
+    def _advance_route_window(self, vid: str, lane_id: str) -> None:
+        """Give member ``vid`` the route up to :data:`ROUTE_AHEAD_M` beyond the end of its
+        current edge, when it has entered a new edge (``setRoute`` from the current edge on;
+        SUMO puts the edges already driven in front)."""
+        if not lane_id or lane_id.startswith(":") or vid not in self._window:
+            return
+        route_id, start = self._window[vid]
+        edges, lengths = self._routes[route_id]
+        edge = lane_id.rsplit("_", 1)[0]
+        if start >= 0 and edges[start] == edge:
+            return
+        try:
+            i = edges.index(edge, max(start, 0))
+        except ValueError:
+            return  # not on the formation's route: SUMO's own checks report it
+        ahead = np.cumsum(lengths[i + 1:])
+        end = i + 2 + int(np.searchsorted(ahead, ROUTE_AHEAD_M))
+        try:
+            self.api.vehicle.setRoute(vid, edges[i:end])
+        except self.api.TraCIException:
+            return  # e.g. on a junction: the next edge tries again
+        self._window[vid] = (route_id, i)
 
     def add_member_type(self, mt: MemberType) -> None:
         vt = self.api.vehicletype
@@ -192,6 +227,7 @@ class SumoAdapter:
         self.api.vehicle.setLaneChangeMode(vid, 0)
         self.api.vehicle.subscribe(vid, self._member_vars())
         self._subscribed.add(vid)
+        self._window[vid] = (route_id, -1)
         self._move(vid, x, y, psi)
 
     def _member_vars(self):
@@ -237,12 +273,16 @@ class SumoAdapter:
     def _overlapped_lane(self, lane_id: str, lane_index: int, lat: float, width: float):
         if not lane_id or lane_id.startswith(":"):
             return None
-        lane_w = self.api.lane.getWidth(lane_id)
+        edge = lane_id.rsplit("_", 1)[0]
+        geo = self._lane_geometry.get(lane_id)
+        if geo is None:
+            geo = self._lane_geometry[lane_id] = (self.api.lane.getWidth(lane_id),
+                                                  self.api.edge.getLaneNumber(edge))
+        lane_w, n_lanes = geo
         if abs(lat) + width / 2 <= lane_w / 2:
             return None
-        edge = lane_id.rsplit("_", 1)[0]
         other = lane_index + (1 if lat > 0 else -1)
-        if other < 0 or other >= self.api.edge.getLaneNumber(edge):
+        if other < 0 or other >= n_lanes:
             return None
         return f"{edge}_{other}"
 
@@ -291,6 +331,7 @@ class SumoAdapter:
             lane_index[i] = r[tc.VAR_LANE_INDEX]
             lat[i] = r[tc.VAR_LANEPOSITION_LAT]
             self._member_lane[vid] = (lanes[i], int(lane_index[i]), float(lat[i]))
+            self._advance_route_window(vid, lanes[i])
         return x, y, psi, lanes, lane_index, lat, present
 
     # -- neighbours ------------------------------------------------------------------
@@ -371,6 +412,7 @@ class SumoAdapter:
         if vid in self._subscribed:
             self._subscribed.discard(vid)
             self.api.vehicle.unsubscribe(vid)
+        self._window.pop(vid, None)
         self.api.vehicle.remove(vid, self.tc.REMOVE_VAPORIZED)
 
     def vehicle_ids(self) -> list[str]:
