@@ -8,6 +8,7 @@ its slot is blocked (a cut-in) gets its speed reference capped so it keeps a saf
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 K_SPEED = 0.5
 """Free-road speed law gain [1/s]: a = K (v_set - v) + v_set dot."""
@@ -40,22 +41,26 @@ def vehicles_ahead(m_s_front, m_d, m_half_w, o_s_rear, o_d, o_half_w, o_v):
     index : ndarray, shape (n,)
         Index of that vehicle in the other arrays (-1 when nobody is ahead).
     """
-    n = len(m_s_front)
+    m_s_front, m_d, m_half_w = (np.ascontiguousarray(a, dtype=np.float64) for a in (m_s_front, m_d, m_half_w))
+    o = [np.ascontiguousarray(a, dtype=np.float64) for a in (o_s_rear, o_d, o_half_w, o_v)]
+    return _vehicles_ahead(m_s_front, m_d, m_half_w, *o)
+
+
+@njit(cache=True)
+def _vehicles_ahead(m_s_front, m_d, m_half_w, o_s_rear, o_d, o_half_w, o_v):
+    """Loop form of :func:`vehicles_ahead` (compiled: it runs every step over every pair)."""
+    n, k = m_s_front.shape[0], o_s_rear.shape[0]
     gap = np.full(n, np.inf)
     v_lead = np.full(n, np.nan)
-    index = np.full(n, -1)
-    if len(o_s_rear) == 0:
-        return gap, v_lead, index
-    g = o_s_rear[None, :] - m_s_front[:, None]
-    overlap = np.abs(o_d[None, :] - m_d[:, None]) < (o_half_w[None, :] + m_half_w[:, None] + LATERAL_MARGIN)
-    # a vehicle whose rear is at most 1 m behind our front is still 'ahead' (side by side
-    # with a small overlap is a collision course, not a vehicle behind)
-    cand = np.where(overlap & (g > -1.0), g, np.inf)
-    j = np.argmin(cand, axis=1)
-    found = np.isfinite(cand[np.arange(n), j])
-    gap[found] = cand[np.arange(n), j][found]
-    v_lead[found] = o_v[j[found]]
-    index[found] = j[found]
+    index = np.full(n, -1, dtype=np.int64)
+    for i in range(n):
+        for j in range(k):
+            g = o_s_rear[j] - m_s_front[i]
+            # a vehicle whose rear is at most 1 m behind our front is still 'ahead' (side by
+            # side with a small overlap is a collision course, not a vehicle behind)
+            if g > -1.0 and g < gap[i] and \
+                    abs(o_d[j] - m_d[i]) < o_half_w[j] + m_half_w[i] + LATERAL_MARGIN:
+                gap[i], v_lead[i], index[i] = g, o_v[j], j
     return gap, v_lead, index
 
 

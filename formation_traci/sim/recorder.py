@@ -41,6 +41,7 @@ class Recorder:
             self.background = ChunkedTable(out_dir / "background.parquet", BACKGROUND_COLUMNS,
                                            chunk_rows=50_000)
         self.event_counts: dict[str, int] = {}
+        self._vc_row = dict(_NAN_ROW)
 
     @property
     def part_written(self) -> bool:
@@ -80,7 +81,7 @@ class Recorder:
         self._out_of_range = bad
 
     def add_vc(self, t, vc, s=np.nan):
-        row = dict(_NAN_ROW)
+        row = self._vc_row  # reused: every column not set here stays nan
         row.update(t=t, vehicle_id=self.vc_code, x=vc.x, y=vc.y, heading=vc.theta, v=vc.v,
                    yaw_rate=vc.omega, a_lon=vc.v_dot, a_lat=vc.v * vc.omega, s=s,
                    d=0.0 if np.isfinite(s) else np.nan)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from operator import itemgetter
 
 import numpy as np
 
@@ -237,9 +238,12 @@ class SumoAdapter:
 
     def _move(self, vid, x, y, psi):
         xf, yf, ang = cog_to_sumo(x, y, psi, self.members[vid].d_front)
+        self._move_front(vid, float(xf), float(yf), float(ang), x, y)
+
+    def _move_front(self, vid, xf: float, yf: float, angle_deg: float, x, y):
+        """moveToXY with SUMO's front-bumper pose; (x, y) is the CoG, for the message."""
         try:
-            self.api.vehicle.moveToXY(vid, "", -1, float(xf), float(yf), float(ang), KEEP_ROUTE,
-                                      MATCH_THRESHOLD)
+            self.api.vehicle.moveToXY(vid, "", -1, xf, yf, angle_deg, KEEP_ROUTE, MATCH_THRESHOLD)
         except self.api.TraCIException as exc:
             raise SumoError(f"moveToXY refused for {vid} at ({x:.2f}, {y:.2f}): {exc}") from exc
 
@@ -251,6 +255,8 @@ class SumoAdapter:
         lanes (its "shadow lane") and followers in the other lane see it (docs/sumo.md).
         """
         refused = []
+        d_front = np.array([self.members[vid].d_front for vid in ids])
+        xf, yf, ang = (a.tolist() for a in cog_to_sumo(np.asarray(x), np.asarray(y), np.asarray(psi), d_front))
         for i, vid in enumerate(ids):
             mt = self.members[vid]
             info = self._member_lane.get(vid)
@@ -265,7 +271,7 @@ class SumoAdapter:
                     except self.api.TraCIException:
                         pass  # only a hint for SUMO's lane bookkeeping
             try:
-                self._move(vid, x[i], y[i], psi[i])
+                self._move_front(vid, xf[i], yf[i], ang[i], x[i], y[i])
             except SumoError as exc:
                 refused.append((vid, str(exc)))
         return refused
@@ -315,23 +321,25 @@ class SumoAdapter:
         tc = self.tc
         res = self.api.vehicle.getAllSubscriptionResults()
         n = len(ids)
-        x, y, psi, lat = (np.full(n, np.nan) for _ in range(4))
-        lane_index = np.full(n, -1, dtype=int)
+        xf, yf, ang, lat, d_front = ([math.nan] * n for _ in range(5))
+        lane_index = [-1] * n
         lanes = [""] * n
-        present = np.zeros(n, dtype=bool)
+        present = [False] * n
         for i, vid in enumerate(ids):
             r = res.get(vid)
             if not r:
                 self._member_lane.pop(vid, None)
                 continue
             present[i] = True
-            xf, yf = r[tc.VAR_POSITION]
-            x[i], y[i], psi[i] = sumo_to_cog(xf, yf, r[tc.VAR_ANGLE], self.members[vid].d_front)
-            lanes[i] = r[tc.VAR_LANE_ID]
-            lane_index[i] = r[tc.VAR_LANE_INDEX]
+            xf[i], yf[i] = r[tc.VAR_POSITION]
+            ang[i], d_front[i] = r[tc.VAR_ANGLE], self.members[vid].d_front
+            lanes[i] = lane = r[tc.VAR_LANE_ID]
+            lane_index[i] = li = r[tc.VAR_LANE_INDEX]
             lat[i] = r[tc.VAR_LANEPOSITION_LAT]
-            self._member_lane[vid] = (lanes[i], int(lane_index[i]), float(lat[i]))
-            self._advance_route_window(vid, lanes[i])
+            self._member_lane[vid] = (lane, li, lat[i])
+            self._advance_route_window(vid, lane)
+        x, y, psi = sumo_to_cog(np.array(xf), np.array(yf), np.array(ang), np.array(d_front))
+        lane_index, lat, present = np.array(lane_index, dtype=int), np.array(lat), np.array(present, dtype=bool)
         return x, y, psi, lanes, lane_index, lat, present
 
     # -- neighbours ------------------------------------------------------------------
@@ -374,19 +382,14 @@ class SumoAdapter:
                     if vid not in self.members:
                         rows[vid] = r
         ids = sorted(rows)
-        n = len(ids)
-        xf = np.empty(n); yf = np.empty(n); ang = np.empty(n); v = np.empty(n); a = np.empty(n)
-        length = np.empty(n); width = np.empty(n); li = np.empty(n, dtype=int); lat = np.empty(n)
-        lanes, types = [], []
-        for i, vid in enumerate(ids):
-            r = rows[vid]
-            xf[i], yf[i] = r[tc.VAR_POSITION]
-            ang[i], v[i], a[i] = r[tc.VAR_ANGLE], r[tc.VAR_SPEED], r[tc.VAR_ACCELERATION]
-            length[i], width[i] = r[tc.VAR_LENGTH], r[tc.VAR_WIDTH]
-            li[i], lat[i] = r[tc.VAR_LANE_INDEX], r[tc.VAR_LANEPOSITION_LAT]
-            lanes.append(r[tc.VAR_LANE_ID])
-            types.append(r[tc.VAR_TYPE])
-        x, y, psi = sumo_to_cog(xf, yf, ang, length / 2.0)  # centre of the body
+        get = itemgetter(tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VAR_LENGTH,
+                         tc.VAR_WIDTH, tc.VAR_LANE_INDEX, tc.VAR_LANEPOSITION_LAT, tc.VAR_LANE_ID, tc.VAR_TYPE)
+        cols = list(zip(*(get(rows[vid]) for vid in ids))) or [()] * 10
+        xy = np.array(cols[0], dtype=float).reshape(-1, 2)
+        ang, v, a, length, width = (np.array(c, dtype=float) for c in cols[1:6])
+        li, lat = np.array(cols[6], dtype=int), np.array(cols[7], dtype=float)
+        lanes, types = list(cols[8]), list(cols[9])
+        x, y, psi = sumo_to_cog(xy[:, 0], xy[:, 1], ang, length / 2.0)  # centre of the body
         return Neighbours(ids, types, x, y, psi, v, a, length, width, lanes, li, lat)
 
     def vehicle_bodies(self):

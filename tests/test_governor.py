@@ -1,0 +1,91 @@
+"""The traffic-aware governor (formation_traci/sim/governor.py) against hand-worked cases and
+a brute-force search."""
+import numpy as np
+import pytest
+
+from formation_traci.sim.governor import (B_COMFORT, K_GAP, K_REL, K_SPEED, LATERAL_MARGIN, leader_accel,
+                                          member_speed_cap, time_gap_accel, vehicles_ahead)
+
+HALF_W = 0.9  # m
+
+
+def test_vehicles_ahead_picks_the_nearest_vehicle_in_the_members_lane():
+    """Member front at s = 100 m in the lane d = 0. Others: 30 m ahead in the lane, 10 m ahead
+    one lane left (3.5 m: no overlap), 20 m ahead straddling (d = 1.9 m: bodies 0.1 m apart,
+    inside the 0.3 m margin), 5 m behind in the lane."""
+    rear = np.array([130.0, 110.0, 120.0, 95.0])
+    d = np.array([0.0, 3.5, 1.9, 0.0])
+    v = np.array([31.0, 32.0, 33.0, 34.0])
+    gap, v_lead, idx = vehicles_ahead(np.array([100.0]), np.array([0.0]), np.array([HALF_W]),
+                                      rear, d, np.full(4, HALF_W), v)
+    assert idx[0] == 2 and gap[0] == pytest.approx(20.0) and v_lead[0] == 33.0
+    # the same without the straddling car: the car in the lane, 30 m ahead
+    gap, v_lead, idx = vehicles_ahead(np.array([100.0]), np.array([0.0]), np.array([HALF_W]),
+                                      rear[[0, 1, 3]], d[[0, 1, 3]], np.full(3, HALF_W), v[[0, 1, 3]])
+    assert idx[0] == 0 and gap[0] == pytest.approx(30.0) and v_lead[0] == 31.0
+
+
+def test_vehicles_ahead_side_by_side_overlap_counts_as_ahead_and_nobody_gives_inf():
+    """A car whose rear is 0.5 m behind the member's front (side by side, overlapping) is on a
+    collision course: gap -0.5 m. With nobody ahead: gap inf, speed nan, index -1."""
+    gap, _, idx = vehicles_ahead(np.array([100.0]), np.array([0.0]), np.array([HALF_W]),
+                                 np.array([99.5]), np.array([0.5]), np.array([HALF_W]), np.array([30.0]))
+    assert gap[0] == pytest.approx(-0.5) and idx[0] == 0
+    gap, v_lead, idx = vehicles_ahead(np.array([100.0, 50.0]), np.zeros(2), np.full(2, HALF_W),
+                                      np.empty(0), np.empty(0), np.empty(0), np.empty(0))
+    assert np.isinf(gap).all() and np.isnan(v_lead).all() and (idx == -1).all()
+
+
+def test_vehicles_ahead_equals_a_brute_force_search():
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        n, k = rng.integers(1, 8), rng.integers(0, 60)
+        ms, md = rng.uniform(0, 300, n), rng.uniform(-4, 4, n)
+        mw = rng.uniform(0.8, 1.3, n)
+        orear, od, ow, ov = rng.uniform(0, 300, k), rng.uniform(-6, 6, k), rng.uniform(0.8, 1.3, k), rng.uniform(0, 40, k)
+        gap, v_lead, idx = vehicles_ahead(ms, md, mw, orear, od, ow, ov)
+        for i in range(n):
+            cands = [(orear[j] - ms[i], j) for j in range(k)
+                     if orear[j] - ms[i] > -1.0 and abs(od[j] - md[i]) < ow[j] + mw[i] + LATERAL_MARGIN]
+            if not cands:
+                assert idx[i] == -1 and np.isinf(gap[i])
+            else:
+                g, j = min(cands)
+                assert idx[i] == j and gap[i] == g and v_lead[i] == ov[j]
+
+
+def test_time_gap_law_is_zero_at_its_equilibrium_and_brakes_as_much_as_a_closing_car_needs():
+    T, g0 = 1.5, 5.0
+    v = np.array([30.0])
+    # at gap = g0 + T v with the leader at the same speed: no acceleration
+    assert time_gap_accel(np.array([g0 + T * 30.0]), v, v.copy(), T, g0)[0] == pytest.approx(0.0)
+    # nobody ahead: no limit
+    assert time_gap_accel(np.array([np.inf]), v, np.array([np.nan]), T, g0)[0] == np.inf
+    # closing on a stopped car 150 m ahead: the linear law asks only K_GAP (150 - 50) - K_REL 30
+    # = -1 m/s^2, stopping within the 145 m of free gap needs b = 900 / 290 = 3.1 m/s^2
+    a = time_gap_accel(np.array([150.0]), v, np.array([0.0]), T, g0)[0]
+    assert a == pytest.approx(-900.0 / 290.0)
+    # nearer, the linear law asks for more than b and wins
+    a = time_gap_accel(np.array([50.0]), v, np.array([10.0]), T, g0)[0]
+    assert a == pytest.approx(K_GAP * (50.0 - g0 - T * 30.0) + K_REL * (10.0 - 30.0))
+    # a slow car far ahead needs less than B_COMFORT: the linear law alone
+    a = time_gap_accel(np.array([400.0]), v, np.array([25.0]), T, g0)[0]
+    b_need = (900.0 - 625.0) / (2 * 395.0)
+    assert b_need < B_COMFORT
+    assert a > 0.0  # far beyond the desired gap: the law still pulls it closer
+
+
+def test_member_speed_cap_equals_the_leaders_speed_at_the_desired_gap():
+    T, g0 = 1.5, 5.0
+    v_lead = np.array([20.0, 20.0, 0.0])
+    gap = np.array([g0 + T * 20.0, g0 + T * 20.0 + 15.0, 1.0])
+    cap = member_speed_cap(gap, v_lead, T, g0)
+    np.testing.assert_allclose(cap, [20.0, 30.0, 0.0])  # +15 m of gap removed over 1.5 s; never < 0
+    assert member_speed_cap(np.array([np.inf]), np.array([np.nan]), T, g0)[0] == np.inf
+
+
+def test_leader_accel_free_road_law_limits_and_no_reversing():
+    assert leader_accel(25.0, 30.0, 0.0, np.array([np.inf]), 2.0, 8.0) == pytest.approx(min(K_SPEED * 5.0, 2.0))
+    assert leader_accel(25.0, 30.0, 0.0, np.array([-3.0, 1.0]), 2.0, 8.0) == pytest.approx(-3.0)
+    assert leader_accel(25.0, 30.0, 0.0, np.array([-20.0]), 2.0, 8.0) == pytest.approx(-8.0)
+    assert leader_accel(0.0, 0.0, 0.0, np.array([-3.0]), 2.0, 8.0) == 0.0
