@@ -228,6 +228,10 @@ def main() -> None:
     print()
     print(f"formation / twin  : median {med:.3f}  (min {spread[0]:.3f}, max {spread[1]:.3f}, {len(ratios)} pairs)")
     print(f"formation / bare  : median {statistics.median(ratios_bare):.3f}")
+    ratios_total = [f["total_s"] / t["total_s"] for f, t in zip(form, twin)]
+    print(f"with setup        : formation / twin median {statistics.median(ratios_total):.3f} "
+          f"(setup: formation {statistics.median(f['setup_s'] for f in form):.1f} s, "
+          f"twin {statistics.median(t['setup_s'] for t in twin):.1f} s)")
     print(f"real-time factor  : formation {sim_time / statistics.median(f['loop_s'] for f in form):.1f}x, "
           f"twin {sim_time / statistics.median(t['loop_s'] for t in twin):.1f}x, "
           f"bare {sim_time / statistics.median(b['loop_s'] for b in bare):.1f}x")
