@@ -12,9 +12,10 @@ process (libsumo allows one simulation per process; peak memory is per process):
 Then the scaling with 1, 5, 20 and 50 members, and a 600 s versus 3600 s run for memory
 (there the flows stop after 240 s so SUMO's own vehicle count is the same in both).
 
-    python benchmarks/overhead.py                 # full (about 15-25 minutes on 2 cores)
+    python benchmarks/overhead.py                 # full (40 minutes or more on 2 cores)
     python benchmarks/overhead.py --quick         # 60 s runs, 1 pair, small scaling table
     python benchmarks/overhead.py --no-ssm        # SUMO's SSM device off in every run
+    python benchmarks/overhead.py --edge-m 120000 # the motorway as one 120 km edge
 
 Timings are wall-clock seconds of the simulation loop (after SUMO has started, until the run
 ends); setup (network reading, reference line, SUMO start) is printed separately.
