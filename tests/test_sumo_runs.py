@@ -41,6 +41,14 @@ def test_bundled_highway_scenario_runs_to_the_end(tmp_path, path):
     assert placed.sumo_gap.max() < 0.01  # m: bumper/angle conversion exact
     assert np.isfinite(members[["x", "y", "v", "e_lon", "e_lat"]].to_numpy()).all()
     assert any(out.joinpath("background.parquet").glob("part-*.parquet"))
+    # length, width and type are read once per vehicle: they must be those of its vType
+    from formation_traci.sim.traffic import CAR, TRUCK
+    bg = pd.read_parquet(out / "background.parquet")
+    if len(bg):
+        for kind, spec in (("car", CAR), ("truck", TRUCK)):
+            rows = bg[bg["type"].str.endswith(f"_{kind}")]
+            assert (rows.length == float(spec["length"])).all() and (rows.width == float(spec["width"])).all()
+        assert bg["type"].str.endswith(("_car", "_truck")).all(), set(bg["type"])
 
 
 def test_members_hold_their_slots_on_straight_and_curved_roads(tmp_path):

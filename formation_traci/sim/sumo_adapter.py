@@ -84,7 +84,6 @@ class Neighbours:
     width: np.ndarray  # [m]
     lane_ids: list[str]
     lane_index: np.ndarray
-    lat: np.ndarray  # lateral position in the lane [m]
 
 
 class SumoError(RuntimeError):
@@ -124,6 +123,7 @@ class SumoAdapter:
         self._routes: dict[str, tuple[list[str], np.ndarray]] = {}  # id -> edges, edge lengths [m]
         self._window: dict[str, tuple[str, int]] = {}  # member -> (route id, first edge index)
         self._lane_geometry: dict[str, tuple[float, int]] = {}  # lane -> (width [m], lanes of its edge)
+        self._bodies: dict[str, tuple[float, float, str]] = {}  # vehicle -> (length, width [m], vType)
         self._started = False
 
     # -- lifecycle -------------------------------------------------------------------
@@ -304,6 +304,8 @@ class SumoAdapter:
             ev.collisions.append((c.collider, c.victim, c.lane))
         ev.teleports = list(sim.getStartingTeleportIDList())
         ev.arrived = list(sim.getArrivedIDList())
+        for vid in ev.arrived:
+            self._bodies.pop(vid, None)
         return ev
 
     def set_true_speeds(self, ids: list[str], v, a) -> None:
@@ -351,9 +353,18 @@ class SumoAdapter:
         self._context[vid] = radius
 
     def _neighbour_vars(self):
+        """Variables that change every step; length, width and type are read once per vehicle."""
         tc = self.tc
-        return [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VAR_LENGTH,
-                tc.VAR_WIDTH, tc.VAR_LANE_ID, tc.VAR_LANE_INDEX, tc.VAR_LANEPOSITION_LAT, tc.VAR_TYPE]
+        return [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VAR_LANE_ID,
+                tc.VAR_LANE_INDEX]
+
+    def _body(self, vid: str) -> tuple[float, float, str]:
+        """Length [m], width [m] and vType of a vehicle (read on first sight, then cached)."""
+        body = self._bodies.get(vid)
+        if body is None:
+            v = self.api.vehicle
+            body = self._bodies[vid] = (v.getLength(vid), v.getWidth(vid), v.getTypeID(vid))
+        return body
 
     def subscribe_departed(self) -> None:
         """Subscribe every vehicle that entered in the last step (recording 'all' vehicles);
@@ -382,15 +393,16 @@ class SumoAdapter:
                     if vid not in self.members:
                         rows[vid] = r
         ids = sorted(rows)
-        get = itemgetter(tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VAR_LENGTH,
-                         tc.VAR_WIDTH, tc.VAR_LANE_INDEX, tc.VAR_LANEPOSITION_LAT, tc.VAR_LANE_ID, tc.VAR_TYPE)
-        cols = list(zip(*(get(rows[vid]) for vid in ids))) or [()] * 10
+        get = itemgetter(tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION,
+                         tc.VAR_LANE_INDEX, tc.VAR_LANE_ID)
+        cols = list(zip(*(get(rows[vid]) for vid in ids))) or [()] * 6
+        body = list(zip(*(self._body(vid) for vid in ids))) or [()] * 3
         xy = np.array(cols[0], dtype=float).reshape(-1, 2)
-        ang, v, a, length, width = (np.array(c, dtype=float) for c in cols[1:6])
-        li, lat = np.array(cols[6], dtype=int), np.array(cols[7], dtype=float)
-        lanes, types = list(cols[8]), list(cols[9])
+        ang, v, a = (np.array(c, dtype=float) for c in cols[1:4])
+        li, lanes = np.array(cols[4], dtype=int), list(cols[5])
+        length, width, types = np.array(body[0], dtype=float), np.array(body[1], dtype=float), list(body[2])
         x, y, psi = sumo_to_cog(xy[:, 0], xy[:, 1], ang, length / 2.0)  # centre of the body
-        return Neighbours(ids, types, x, y, psi, v, a, length, width, lanes, li, lat)
+        return Neighbours(ids, types, x, y, psi, v, a, length, width, lanes, li)
 
     def vehicle_bodies(self):
         """Every vehicle in SUMO: ids, body centre x, y [m], heading [rad], length, width [m]
