@@ -69,10 +69,10 @@ def test_time_gap_law_is_zero_at_its_equilibrium_and_brakes_as_much_as_a_closing
     a = time_gap_accel(np.array([50.0]), v, np.array([10.0]), T, g0)[0]
     assert a == pytest.approx(K_GAP * (50.0 - g0 - T * 30.0) + K_REL * (10.0 - 30.0))
     # a slow car far ahead needs less than B_COMFORT: the linear law alone
+    # (b = (900 - 625) / (2 * 395) = 0.35 m/s^2 < B_COMFORT)
     a = time_gap_accel(np.array([400.0]), v, np.array([25.0]), T, g0)[0]
-    b_need = (900.0 - 625.0) / (2 * 395.0)
-    assert b_need < B_COMFORT
-    assert a > 0.0  # far beyond the desired gap: the law still pulls it closer
+    assert (900.0 - 625.0) / (2 * 395.0) < B_COMFORT
+    assert a == pytest.approx(K_GAP * (400.0 - g0 - T * 30.0) + K_REL * (25.0 - 30.0))
 
 
 def test_member_speed_cap_equals_the_leaders_speed_at_the_desired_gap():

@@ -387,6 +387,20 @@ def control_nb(x, theta_star, speed_in, model_kind, k, k_theta, C, T, v_cap, a_c
 
 
 @njit(cache=True, error_model="numpy")
+def _advance_members(x, theta_star, speed_in, U, tsd, model_kind, P, dt_c, n_sub):
+    """fleet.advance over one control period: theta* by Euler (in place), RK4 of the vehicles,
+    the unicycle's applied speed (in place). Returns the new states."""
+    for i in range(x.shape[0]):
+        theta_star[i] = theta_star[i] + tsd[i] * dt_c
+    if model_kind == MODEL_KINEMATIC:
+        x = integrate_unicycle(x, U, dt_c, n_sub)
+        for i in range(x.shape[0]):
+            speed_in[i] = _maximum(U[i, 0], 0.0)
+        return x
+    return integrate_bicycle(x, U, P, dt_c, n_sub)
+
+
+@njit(cache=True, error_model="numpy")
 def step_periods_nb(x, theta_star, speed_in, model_kind, P, k, k_theta, C, G, slots, rigid,
                     is_road, s_vc, v_vc, a_vc, v_cap, a_cap, dt_c, n_ctrl, n_sub):
     """The inner loop of one SUMO step (sumo_loop.sumo_steps): ``n_ctrl`` periods of
@@ -415,15 +429,7 @@ def step_periods_nb(x, theta_star, speed_in, model_kind, P, k, k_theta, C, G, sl
             U[i, 0], U[i, 1], _, _, tsd[i], _, _, _, _, _, _ = _control_at(
                 i, x, theta_star, speed_in, model_kind, k, k_theta, C, px, py, tvx, tvy, tax,
                 tay, v_cap[i], a_cap[i])
-        # fleet.advance: theta* Euler, RK4 of the vehicles, the unicycle's applied speed
-        for i in range(n):
-            theta_star[i] = theta_star[i] + tsd[i] * dt_c
-        if model_kind == MODEL_KINEMATIC:
-            x = integrate_unicycle(x, U, dt_c, n_sub)
-            for i in range(n):
-                speed_in[i] = _maximum(U[i, 0], 0.0)
-        else:
-            x = integrate_bicycle(x, U, P, dt_c, n_sub)
+        x = _advance_members(x, theta_star, speed_in, U, tsd, model_kind, P, dt_c, n_sub)
         s_vc, v_vc = _advance_vc(s_vc, v_vc, a_vc, dt_c)
     return x, theta_star, speed_in, s_vc, v_vc
 
@@ -451,14 +457,7 @@ def step_free_nb(x, theta_star, speed_in, model_kind, P, k, k_theta, C, offsets,
             U[i, 0], U[i, 1], _, _, tsd[i], _, _, _, _, _, _ = _control_at(
                 i, x, theta_star, speed_in, model_kind, k, k_theta, C, px, py, tvx, tvy, tax,
                 tay, inf, inf)
-        for i in range(n):
-            theta_star[i] = theta_star[i] + tsd[i] * dt_c
-        if model_kind == MODEL_KINEMATIC:
-            x = integrate_unicycle(x, U, dt_c, n_sub)
-            for i in range(n):
-                speed_in[i] = _maximum(U[i, 0], 0.0)
-        else:
-            x = integrate_bicycle(x, U, P, dt_c, n_sub)
+        x = _advance_members(x, theta_star, speed_in, U, tsd, model_kind, P, dt_c, n_sub)
         X, Y, th = _free_leader_advance(prof, tc, X, Y, th, dt_c, n_sub_leader)
     out_pose = np.empty(3)
     out_pose[0] = X
