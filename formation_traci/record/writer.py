@@ -2,14 +2,15 @@
 
 A table is a Parquet *dataset directory* (``trajectories.parquet/part-00000.parquet``, ...)
 readable as one table by ``pandas.read_parquet(dir)``, pyarrow.dataset, polars or duckdb.
-Rows are buffered in preallocated numpy arrays and each full buffer is written as one part
-file under a temporary name (leading '.', which dataset readers ignore) and then renamed,
-so a killed process leaves only complete part files.
+Rows are buffered in preallocated numpy arrays and each full buffer is written, by a
+background thread, as one part file under a temporary name (leading '.', which dataset
+readers ignore) and then renamed, so a killed process leaves only complete part files.
 """
 from __future__ import annotations
 
 import json
 import os
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Sequence
 
@@ -45,26 +46,45 @@ def _json_default(o):
 
 
 class ChunkedTable:
-    """Append rows column-wise into fixed buffers; flush full buffers as part files.
+    """Append rows into preallocated buffers; write each full buffer as a part file.
 
-    String columns are stored as integer codes into ``labels`` while buffered.
+    Columns of one storage dtype share a 2-D buffer (one contiguous row per column), so a
+    block of consecutive columns is filled with one assignment (:meth:`rows` and
+    :meth:`block`). String columns are stored as integer codes into ``labels`` while
+    buffered. Part files are written by one background thread (Parquet encoding and
+    compression release the GIL, so they overlap the simulation); :meth:`close` waits for
+    them and re-raises a failed write.
+
+    ``progress_column``: the last value of this column in each part file written is kept
+    (:meth:`written_up_to`), so a caller reports only progress that is on disk.
     """
 
     def __init__(self, directory: Path, columns: Sequence[Column], chunk_rows: int = 50_000,
-                 labels: Sequence[str] = ()):
+                 labels: Sequence[str] = (), progress_column: str | None = None):
         self.directory = Path(directory)
         self.directory.mkdir(parents=True, exist_ok=True)
         self.columns = tuple(columns)
         self.chunk_rows = int(chunk_rows)
         self.labels = list(labels)
         self._label_index = {s: i for i, s in enumerate(self.labels)}
-        self._buf = {
-            c.name: np.empty(self.chunk_rows, dtype=np.int32 if c.dtype == "string" else c.dtype)
-            for c in self.columns
-        }
+        groups: dict[str, list[str]] = {}
+        for c in self.columns:
+            groups.setdefault(_storage_dtype(c), []).append(c.name)
+        self._blocks: dict[str, np.ndarray] = {}
+        self._where: dict[str, tuple[str, int]] = {}  # column -> (storage dtype, row in its block)
+        self._buf: dict[str, np.ndarray] = {}  # column -> its row of the block (a view)
+        for dt, names in groups.items():
+            blk = self._blocks[dt] = np.empty((len(names), self.chunk_rows), dtype=dt)
+            for j, name in enumerate(names):
+                self._where[name] = (dt, j)
+                self._buf[name] = blk[j]
         self._n = 0
-        self.parts_written = 0
+        self.parts_written = 0  # parts handed to the writer (written or being written)
         self.rows_written = 0
+        self.progress_column = progress_column
+        self._done: list[float] = []  # progress value of each part on disk, in order
+        self._pool: ThreadPoolExecutor | None = None
+        self._pending: list[Future] = []
         self._schema = pa.schema([
             pa.field(c.name, pa.string() if c.dtype == "string" else pa.from_numpy_dtype(np.dtype(c.dtype)),
                      metadata={"unit": c.unit, "doc": c.doc})
@@ -85,42 +105,114 @@ class ChunkedTable:
         while start < n:
             take = min(n - start, self.chunk_rows - self._n)
             sl = slice(self._n, self._n + take)
+            whole = start == 0 and take == n
             for name, buf in self._buf.items():
                 val = block[name]
-                if np.ndim(val) == 0:
-                    buf[sl] = val
+                if isinstance(val, np.ndarray) and val.ndim:
+                    buf[sl] = val if whole else val[start:start + take]
                 else:
-                    buf[sl] = val[start:start + take]
+                    buf[sl] = val
             self._n += take
             start += take
             if self._n == self.chunk_rows:
                 self.flush()
 
+    def rows(self, n: int) -> slice:
+        """Room for ``n`` more rows in the buffer (writing the buffer first if it cannot take
+        them; a part may then hold fewer than ``chunk_rows`` rows). Fill every column of the
+        returned slice (:meth:`block`, :meth:`column`), then call :meth:`commit`."""
+        if n > self.chunk_rows:
+            raise ValueError(f"{n} rows do not fit a buffer of {self.chunk_rows}")
+        if self._n + n > self.chunk_rows:
+            self.flush()
+        return slice(self._n, self._n + n)
+
+    def commit(self, n: int) -> None:
+        """The ``n`` rows of the last :meth:`rows` slice are filled."""
+        self._n += n
+        if self._n == self.chunk_rows:
+            self.flush()
+
+    def column(self, name: str) -> np.ndarray:
+        """The buffer of one column (codes for a string column)."""
+        return self._buf[name]
+
+    def block(self, names: Sequence[str]) -> np.ndarray:
+        """The buffers of columns ``names`` as one (len(names), chunk_rows) view; they must
+        have one dtype and follow each other among the table's columns of that dtype."""
+        dt, j = self._where[names[0]]
+        if any(self._where.get(nm) != (dt, j + m) for m, nm in enumerate(names)):
+            raise ValueError(f"columns {list(names)} are not consecutive {dt} columns of the table")
+        return self._blocks[dt][j:j + len(names)]
+
     def close(self) -> None:
-        """Flush; a table that got no row at all gets one empty part file, so readers find
-        a table (with its schema) of zero rows rather than an empty directory."""
-        self.flush()
-        if self.parts_written == 0:
-            self.flush(allow_empty=True)
+        """Write the rest and wait for every part; a table that got no row at all gets one
+        empty part file, so readers find a table (with its schema) of zero rows rather than
+        an empty directory."""
+        try:
+            self.flush()
+            if self.parts_written == 0:
+                self.flush(allow_empty=True)
+        finally:
+            self.wait()
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)
+                self._pool = None
+
+    def wait(self) -> None:
+        """Block until every part handed to the writer is on disk; re-raise a failed write."""
+        pending, self._pending = self._pending, []
+        for fut in pending:
+            fut.result()
+
+    def written_up_to(self) -> float | None:
+        """The ``progress_column`` value of the last row on disk, if a part was completed since
+        the last call (else None)."""
+        if not self._done:
+            return None
+        last = self._done[-1]
+        del self._done[:]
+        return last
 
     def flush(self, allow_empty: bool = False) -> None:
-        """Write buffered rows (if any) as the next part file."""
+        """Hand the buffered rows (if any) to the writer thread as the next part file."""
         if self._n == 0 and not allow_empty:
             return
-        labels = np.array(self.labels, dtype=object)
+        n = self._n
+        blocks = {dt: blk[:, :n].copy() for dt, blk in self._blocks.items()}
+        tag = float(self._buf[self.progress_column][n - 1]) if self.progress_column and n else None
+        name = f"part-{self.parts_written:05d}.parquet"
+        labels = pa.array(self.labels, type=pa.string())
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="parquet-writer")
+        for fut in [f for f in self._pending if f.done()]:
+            self._pending.remove(fut)
+            fut.result()  # a failed earlier part stops the run here, not at the end
+        self._pending.append(self._pool.submit(self._write, blocks, labels, name, tag))
+        self.parts_written += 1
+        self.rows_written += n
+        self._n = 0
+
+    def _write(self, blocks, labels, name, tag) -> None:
         arrays = []
         for c in self.columns:
-            data = self._buf[c.name][: self._n]
-            arrays.append(pa.array(labels[data], type=pa.string()) if c.dtype == "string" else pa.array(data))
+            dt, j = self._where[c.name]
+            data = blocks[dt][j]
+            if c.dtype == "string":
+                arrays.append(pa.DictionaryArray.from_arrays(pa.array(data), labels).dictionary_decode())
+            else:
+                arrays.append(pa.array(data))
         table = pa.Table.from_arrays(arrays, schema=self._schema)
-        name = f"part-{self.parts_written:05d}.parquet"
         tmp = self.directory / f".{name}.tmp"
         pq.write_table(table, tmp, compression="zstd")
         os.replace(tmp, self.directory / name)
-        self.parts_written += 1
-        self.rows_written += self._n
-        self._n = 0
+        if tag is not None:
+            self._done.append(tag)
 
     @property
     def rows_buffered(self) -> int:
         return self._n
+
+
+def _storage_dtype(c: Column) -> str:
+    return "int32" if c.dtype == "string" else c.dtype

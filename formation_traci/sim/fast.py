@@ -760,12 +760,6 @@ class FastFleet:
         return u, FormationOutput(*(fo[:, j].copy() for j in range(N_FO)))
 
 
-def signals_dict(sig: np.ndarray,
-                 columns: tuple[str, ...] = SIGNAL_COLUMNS) -> dict[str, np.ndarray]:
-    """The signals array as fleet.member_signals' dict (column views)."""
-    return {name: sig[:, j] for j, name in enumerate(columns)}
-
-
 # -------------------------------------------------------------------- verification
 
 _VERIFY_RTOL = 1e-9

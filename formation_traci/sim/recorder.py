@@ -9,6 +9,7 @@ from ..record.columns import (BACKGROUND_COLUMNS, EVENT_COLUMNS, TRAJECTORY_COLU
                               VIRTUAL_CAR_ID)
 from ..record.writer import ChunkedTable
 from . import fleet as fl
+from .fast import FILLED_BY_CALLER, SIGNAL_COLUMNS
 
 STEPS_PER_CHUNK = 1200
 """Outer steps per trajectory part file (60 s of simulated time at the default 0.05 s step)."""
@@ -20,7 +21,7 @@ MAX_FRICTION_USAGE = 1.0
 MAX_SPEED = 60.0
 """Speeds above this are outside anything the parameters were meant for [m/s]."""
 
-_NAN_ROW = {c.name: np.nan for c in TRAJECTORY_COLUMNS if c.dtype == "float64"}
+_VC_COLUMNS = ("t", "x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "s", "d")
 
 
 class Recorder:
@@ -30,7 +31,14 @@ class Recorder:
         n = len(member_ids)
         self.traj = ChunkedTable(out_dir / "trajectories.parquet", TRAJECTORY_COLUMNS,
                                  chunk_rows=(n + 1) * STEPS_PER_CHUNK,
-                                 labels=list(member_ids) + [VIRTUAL_CAR_ID])
+                                 labels=list(member_ids) + [VIRTUAL_CAR_ID], progress_column="t")
+        # the members' signal columns (x .. friction_usage) are consecutive float64 columns
+        self._sig_block = self.traj.block(SIGNAL_COLUMNS)
+        self._sig_index = {name: j for j, name in enumerate(SIGNAL_COLUMNS)}
+        self._floats = [c.name for c in TRAJECTORY_COLUMNS if c.dtype == "float64"]
+        self._float_block = self.traj.block(self._floats)
+        self._vc_vec = np.full(len(self._floats), np.nan)
+        self._vc_at = np.array([self._floats.index(c) for c in _VC_COLUMNS])
         self.codes = np.arange(n, dtype=np.int32)
         self.vc_code = n
         self.events = ChunkedTable(out_dir / "events.parquet", EVENT_COLUMNS, chunk_rows=2000, labels=[""])
@@ -41,16 +49,37 @@ class Recorder:
             self.background = ChunkedTable(out_dir / "background.parquet", BACKGROUND_COLUMNS,
                                            chunk_rows=50_000)
         self.event_counts: dict[str, int] = {}
-        self._vc_row = dict(_NAN_ROW)
 
-    @property
-    def part_written(self) -> bool:
-        """True right after a trajectory part file was written."""
-        return self.traj.rows_buffered == 0
+    def written_up_to(self) -> float | None:
+        """Time [s] of the last trajectory row on disk, if a part file was completed since the
+        last call (else None): progress reported from it is never ahead of the data."""
+        return self.traj.written_up_to()
 
     def add_members(self, t, cfg, state, u, fo, targets, vc_theta, extra=None, mask=None):
         """Record the members from the numpy reference path (fleet.member_signals)."""
         self.add_member_signals(t, fl.member_signals(cfg, state, u, fo, targets, vc_theta), extra, mask)
+
+    def add_signal_rows(self, t, sig: np.ndarray, extra: dict, mask=None):
+        """Record the members from the compiled path: ``sig`` is the (n, len(SIGNAL_COLUMNS))
+        array of fast.FastFleet.signals (columns in trajectory order), ``extra`` the road and
+        SUMO columns (s, d, lane_index, sumo_gap; (n,) arrays), ``mask`` the members still in
+        the run. Same rows as :meth:`add_member_signals`."""
+        ix = self._sig_index
+        slip = np.fmax(np.abs(sig[:, ix["slip_front"]]), np.abs(sig[:, ix["slip_rear"]]))
+        self._flag_range(t, slip, sig[:, ix["friction_usage"]], sig[:, ix["v"]], mask)
+        codes = self.codes
+        if mask is not None and not mask.all():
+            sig, codes = sig[mask], codes[mask]
+            extra = {k: v[mask] for k, v in extra.items()}
+        n = len(codes)
+        tr = self.traj
+        sl = tr.rows(n)
+        self._sig_block[:, sl] = sig.T
+        tr.column("t")[sl] = t
+        tr.column("vehicle_id")[sl] = codes
+        for name in FILLED_BY_CALLER[2:]:
+            tr.column(name)[sl] = extra.get(name, np.nan)
+        tr.commit(n)
 
     def add_member_signals(self, t, sig, extra=None, mask=None):
         """Record the members' signals (dict column -> (n,) array); ``extra`` adds the road and
@@ -71,21 +100,29 @@ class Recorder:
         """A ``model_range`` event when a member enters the region where the single-track
         model is no longer trustworthy (docs/reliability.md); one per episode."""
         slip = np.fmax(np.abs(sig["slip_front"]), np.abs(sig["slip_rear"]))
-        bad = (slip > MAX_SLIP) | (sig["friction_usage"] > MAX_FRICTION_USAGE) | (sig["v"] > MAX_SPEED)
+        self._flag_range(t, slip, sig["friction_usage"], sig["v"], mask)
+
+    def _flag_range(self, t, slip, usage, v, mask):
+        bad = (slip > MAX_SLIP) | (usage > MAX_FRICTION_USAGE) | (v > MAX_SPEED)
         if mask is not None:
             bad &= mask
-        for i in np.flatnonzero(bad & ~self._out_of_range):
-            self.add_event(t, "model_range", self.member_ids[i], "",
-                           f"slip {np.degrees(slip[i]):.1f} deg, friction usage {sig['friction_usage'][i]:.2f}, "
-                           f"v {sig['v'][i]:.1f} m/s")
+        if bad.any():
+            for i in np.flatnonzero(bad & ~self._out_of_range):
+                self.add_event(t, "model_range", self.member_ids[i], "",
+                               f"slip {np.degrees(slip[i]):.1f} deg, friction usage {usage[i]:.2f}, "
+                               f"v {v[i]:.1f} m/s")
         self._out_of_range = bad
 
     def add_vc(self, t, vc, s=np.nan):
-        row = self._vc_row  # reused: every column not set here stays nan
-        row.update(t=t, vehicle_id=self.vc_code, x=vc.x, y=vc.y, heading=vc.theta, v=vc.v,
-                   yaw_rate=vc.omega, a_lon=vc.v_dot, a_lat=vc.v * vc.omega, s=s,
-                   d=0.0 if np.isfinite(s) else np.nan)
-        self.traj.append(row, 1)
+        """One row for the virtual car; the member-only columns stay NaN."""
+        vec = self._vc_vec
+        vec[self._vc_at] = (t, vc.x, vc.y, vc.theta, vc.v, vc.omega, vc.v_dot, vc.v * vc.omega, s,
+                            0.0 if s == s else np.nan)
+        tr = self.traj
+        sl = tr.rows(1)
+        self._float_block[:, sl.start] = vec
+        tr.column("vehicle_id")[sl.start] = self.vc_code
+        tr.commit(1)
 
     def add_event(self, t, kind, vehicle_id, other_id="", detail=""):
         ev = self.events

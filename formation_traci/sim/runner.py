@@ -124,7 +124,7 @@ def free_space_steps(sc: Scenario, rec: Recorder, meta: dict) -> Iterator[tuple[
 
     The per-step work runs in the compiled kernels of sim/fast.py, checked against the numpy
     reference path (fleet.control/advance) when the fleet is built."""
-    from .fast import FastFleet, SIGNAL_COLUMNS, signals_dict
+    from .fast import FastFleet, SIGNAL_COLUMNS
     run = sc.run
     n_steps = int(round(run.duration / run.step))
     n_ctrl = int(round(run.step / run.control_step))
@@ -138,7 +138,7 @@ def free_space_steps(sc: Scenario, rec: Recorder, meta: dict) -> Iterator[tuple[
     buf = np.full((cfg.n, len(SIGNAL_COLUMNS)), np.nan)
     for k in range(n_steps + 1):
         t = k * run.step
-        rec.add_member_signals(t, signals_dict(ff.signals_free(state, t, pose, out=buf)))
+        rec.add_signal_rows(t, ff.signals_free(state, t, pose, out=buf), {})
         rec.add_vc(t, leader.sample(t, pose))
         yield k, t
         if k == n_steps:
@@ -195,8 +195,9 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
             bar = tqdm(total=n_steps, unit="step", desc=sc.name or "run", mininterval=0.5)
         with stop_on_signals() as stop:
             for k, t in steps:
-                if rec.part_written:
-                    _progress_meta(meta_path, meta, t, k)
+                done = rec.written_up_to()  # a part file is on disk up to this time [s]
+                if done is not None:
+                    _progress_meta(meta_path, meta, done, int(round(done / sc.run.step)))
                 if bar is not None and k > 0:
                     bar.update(1)
                 if stop.is_set():

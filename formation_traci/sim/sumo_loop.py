@@ -29,7 +29,7 @@ from ..road.targets import road_targets
 from ..scenario.schema import Scenario
 from . import fleet as fl
 from .governor import leader_accel, member_speed_cap, time_gap_accel, vehicles_ahead
-from .fast import FastFleet, SIGNAL_COLUMNS, signals_dict
+from .fast import FastFleet, SIGNAL_COLUMNS
 from .recorder import Recorder
 from .road_setup import (Road, build_road, check_no_overlap, check_slots, rectangles_overlap,
                          slot_offsets)
@@ -294,8 +294,8 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
 
             vc = ff.leader_state(s_vc, v_vc, a_vc)
             if not baseline:
-                sig = signals_dict(ff.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap, out=sig_buf))
-                rec.add_member_signals(t, sig, extra, mask=active)
+                rec.add_signal_rows(t, ff.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap, out=sig_buf),
+                                    extra, mask=active)
             rec.add_vc(t, vc, s=s_vc)
             c3 = clock()
             tm["record"] += c3 - c2
