@@ -89,3 +89,35 @@ def test_leader_accel_free_road_law_limits_and_no_reversing():
     assert leader_accel(25.0, 30.0, 0.0, np.array([-3.0, 1.0]), 2.0, 8.0) == pytest.approx(-3.0)
     assert leader_accel(25.0, 30.0, 0.0, np.array([-20.0]), 2.0, 8.0) == pytest.approx(-8.0)
     assert leader_accel(0.0, 0.0, 0.0, np.array([-3.0]), 2.0, 8.0) == 0.0
+
+
+@pytest.mark.parametrize("k_others", [0, 1, 12])
+def test_governor_step_is_the_composition_of_the_laws(k_others):
+    """The compiled one-step kernel of the SUMO loop gives exactly what the public functions give
+    when composed as the loop composed them: gaps to the members' and the slots' leaders, the
+    virtual car's law over the active members' slot gaps, the speed cap and the acceleration cap."""
+    from formation_traci.sim.governor import governor_step
+    rng = np.random.default_rng(k_others)
+    n = 5
+    m_s = 1000.0 + rng.uniform(-40, 0, n)
+    m_d = rng.choice([-3.5, 0.0, 3.5], n) + rng.normal(0, 0.3, n)
+    slot_s, slot_d = m_s + rng.normal(0, 2, n), np.round(m_d / 3.5) * 3.5
+    half_w, v_m = np.full(n, HALF_W), rng.uniform(25, 32, n)
+    active = np.array([True, True, False, True, True])
+    o_rear = 1000.0 + rng.uniform(-60, 80, k_others)
+    o_d, o_hw, o_v = rng.choice([-3.5, 0.0, 3.5], k_others), np.full(k_others, HALF_W), rng.uniform(20, 35, k_others)
+    v_vc, v_set, v_set_dot, tg, mg, a_max, d_em = 29.0, 30.0, 0.1, 1.2, 2.0, 2.0, 6.0
+    a_vc, gap, idx, v_cap, a_cap = governor_step(m_s, m_d, slot_s, slot_d, half_w, v_m, active, v_vc, v_set,
+                                                 v_set_dot, o_rear, o_d, o_hw, o_v, tg, mg, a_max, d_em)
+    g_ref, vl_ref, idx_ref = vehicles_ahead(m_s, m_d, half_w, o_rear, o_d, o_hw, o_v)
+    gs, vls, _ = vehicles_ahead(slot_s, slot_d, half_w, o_rear, o_d, o_hw, o_v)
+    acc_slot = time_gap_accel(gs, np.full(n, v_vc), vls, tg, mg)
+    assert a_vc == leader_accel(v_vc, v_set, v_set_dot, acc_slot[active], a_max, d_em)
+    np.testing.assert_array_equal(gap, g_ref)
+    np.testing.assert_array_equal(idx, idx_ref)
+    np.testing.assert_array_equal(v_cap, member_speed_cap(g_ref, vl_ref, tg, mg))
+    np.testing.assert_array_equal(a_cap, np.maximum(time_gap_accel(g_ref, v_m, vl_ref, tg, mg), -d_em))
+    if k_others == 12:
+        assert np.isfinite(gap).sum() >= 2 and a_vc < K_SPEED * (v_set - v_vc) + v_set_dot  # traffic binds
+    if k_others == 0:
+        assert a_vc == pytest.approx(K_SPEED * (v_set - v_vc) + v_set_dot) and np.isinf(v_cap).all()

@@ -90,6 +90,7 @@ class ChunkedTable:
                      metadata={"unit": c.unit, "doc": c.doc})
             for c in self.columns
         ])
+        pa.array(np.zeros(0))  # pyarrow imports pandas on its first array: here, not mid-run
 
     def code(self, label: str) -> int:
         """Integer code of a string value (added on first use)."""

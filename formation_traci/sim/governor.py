@@ -72,26 +72,44 @@ def time_gap_accel(gap, v, v_lead, time_gap, min_gap):
     b = (v^2 - v_lead^2) / (2 (gap - min_gap)), the law is bounded above by -b (a far, slower
     vehicle needs no braking yet; a near one gets all it needs). +inf where there is no leader.
     """
-    a = np.full(np.shape(gap), np.inf)
-    has = np.isfinite(gap)
-    if not np.any(has):
-        return a
-    g, vv, vl = gap[has], v[has], v_lead[has]
-    law = K_GAP * (g - min_gap - time_gap * vv) + K_REL * (vl - vv)
-    free = np.maximum(g - min_gap, 0.1)
-    closing = np.maximum(vv * vv - vl * vl, 0.0)
-    b_need = closing / (2.0 * free)
-    law = np.where(b_need > B_COMFORT, np.minimum(law, -b_need), law)
-    a[has] = law
-    return a
+    gap, v, v_lead = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (gap, v, v_lead)))
+    out = np.empty(gap.shape)
+    _gap_laws(gap.ravel(), v.ravel(), v_lead.ravel(), float(time_gap), float(min_gap), out.reshape(-1))
+    return out
+
+
+@njit(cache=True)
+def _gap_law(gap, v, v_lead, time_gap, min_gap):
+    """:func:`time_gap_accel` for one member."""
+    if not np.isfinite(gap):
+        return np.inf
+    law = K_GAP * (gap - min_gap - time_gap * v) + K_REL * (v_lead - v)
+    b_need = max(v * v - v_lead * v_lead, 0.0) / (2.0 * max(gap - min_gap, 0.1))
+    if b_need > B_COMFORT:
+        law = min(law, -b_need)
+    return law
+
+
+@njit(cache=True)
+def _gap_laws(gap, v, v_lead, time_gap, min_gap, out):
+    for i in range(gap.shape[0]):
+        out[i] = _gap_law(gap[i], v[i], v_lead[i], time_gap, min_gap)
 
 
 def leader_accel(v_vc, v_set, v_set_dot, member_accels, accel_max, decel_emergency):
     """The virtual car's acceleration [m/s^2]: free-road law, limited by every member's gap law."""
+    acc = np.ascontiguousarray(member_accels, dtype=np.float64)
+    return _leader_law(float(v_vc), float(v_set), float(v_set_dot), acc, np.ones(acc.shape[0], np.bool_),
+                       float(accel_max), float(decel_emergency))
+
+
+@njit(cache=True)
+def _leader_law(v_vc, v_set, v_set_dot, member_accels, use, accel_max, decel_emergency):
     a = K_SPEED * (v_set - v_vc) + v_set_dot
-    if len(member_accels):
-        a = min(a, float(np.min(member_accels)))
-    a = float(np.clip(a, -decel_emergency, accel_max))
+    for i in range(member_accels.shape[0]):
+        if use[i]:
+            a = min(a, member_accels[i])
+    a = min(max(a, -decel_emergency), accel_max)
     if v_vc <= 0.0 and a < 0.0:
         a = 0.0
     return a
@@ -103,7 +121,47 @@ def member_speed_cap(gap, v_lead, time_gap, min_gap):
     The member may close in on the vehicle until the gap is min_gap + time_gap v_lead, with
     the gap error removed over ``time_gap``; inf where nobody is ahead.
     """
-    cap = np.full(np.shape(gap), np.inf)
-    has = np.isfinite(gap)
-    cap[has] = np.maximum(v_lead[has] + (gap[has] - min_gap - time_gap * v_lead[has]) / time_gap, 0.0)
-    return cap
+    gap, v_lead = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (gap, v_lead)))
+    out = np.empty(gap.shape)
+    _speed_caps(gap.ravel(), v_lead.ravel(), float(time_gap), float(min_gap), out.reshape(-1))
+    return out
+
+
+@njit(cache=True)
+def _speed_cap(gap, v_lead, time_gap, min_gap):
+    """:func:`member_speed_cap` for one member."""
+    if not np.isfinite(gap):
+        return np.inf
+    return max(v_lead + (gap - min_gap - time_gap * v_lead) / time_gap, 0.0)
+
+
+@njit(cache=True)
+def _speed_caps(gap, v_lead, time_gap, min_gap, out):
+    for i in range(gap.shape[0]):
+        out[i] = _speed_cap(gap[i], v_lead[i], time_gap, min_gap)
+
+
+@njit(cache=True)
+def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
+                  o_s_rear, o_d, o_half_w, o_v, time_gap, min_gap, accel_max, decel_emergency):
+    """One step of the governor over all members (compiled; the laws are the functions above).
+
+    Members at their front bumpers (``m_s_front`` [m], ``m_d`` [m]) and their slots
+    (``slot_s_front``, ``slot_d``), half widths [m], speeds ``v_m`` [m/s], ``active`` mask;
+    the other vehicles as in :func:`vehicles_ahead`. Returns the virtual car's acceleration
+    [m/s^2] (:func:`leader_accel` over the slots' :func:`time_gap_accel` at the virtual car's
+    speed ``v_vc``), each member's gap [m], leader index (-1: none), speed cap [m/s]
+    (:func:`member_speed_cap`) and acceleration cap [m/s^2] (its own gap law, not below
+    -decel_emergency)."""
+    n = m_s_front.shape[0]
+    gap, v_lead, index = _vehicles_ahead(m_s_front, m_d, half_w, o_s_rear, o_d, o_half_w, o_v)
+    gap_slot, v_lead_slot, _ = _vehicles_ahead(slot_s_front, slot_d, half_w, o_s_rear, o_d, o_half_w, o_v)
+    acc_slot = np.empty(n)
+    v_cap = np.empty(n)
+    a_cap = np.empty(n)
+    for i in range(n):
+        acc_slot[i] = _gap_law(gap_slot[i], v_vc, v_lead_slot[i], time_gap, min_gap)
+        v_cap[i] = _speed_cap(gap[i], v_lead[i], time_gap, min_gap)
+        a_cap[i] = max(_gap_law(gap[i], v_m[i], v_lead[i], time_gap, min_gap), -decel_emergency)
+    a_vc = _leader_law(v_vc, v_set, v_set_dot, acc_slot, active, accel_max, decel_emergency)
+    return a_vc, gap, index, v_cap, a_cap

@@ -28,7 +28,7 @@ from ..road.leader import road_leader_state
 from ..road.targets import road_targets
 from ..scenario.schema import Scenario
 from . import fleet as fl
-from .governor import leader_accel, member_speed_cap, time_gap_accel, vehicles_ahead
+from .governor import governor_step
 from .fast import FastFleet, SIGNAL_COLUMNS
 from .recorder import Recorder
 from .road_setup import (Road, build_road, check_no_overlap, check_slots, rectangles_overlap,
@@ -271,21 +271,16 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             slot_d = np.where(plan.is_road, plan.slots[:, 1], m_d)
             if nb is not None and len(nb.ids):
                 nb_s, nb_d = ff.to_frenet(np.column_stack([nb.x, nb.y]))
-                nb_rear, nb_hw = nb_s - nb.length / 2, nb.width / 2
-                gap, v_lead, lead_idx = vehicles_ahead(m_s + d_front, m_d, half_w, nb_rear, nb_d, nb_hw, nb.v)
-                gap_slot, v_lead_slot, _ = vehicles_ahead(slot_s + d_front, slot_d, half_w, nb_rear, nb_d, nb_hw, nb.v)
+                nb_rear, nb_hw, nb_v = nb_s - nb.length / 2, nb.width / 2, nb.v
             else:
-                nb_s = nb_d = np.empty(0)
-                gap, v_lead, lead_idx = np.full(n, np.inf), np.full(n, np.nan), np.full(n, -1)
-                gap_slot, v_lead_slot = gap, v_lead
-            acc_slot = time_gap_accel(gap_slot, np.full(n, v_vc), v_lead_slot, ld.time_gap, ld.min_gap)
+                nb_s = nb_d = nb_rear = nb_hw = nb_v = np.empty(0)
             v_set, v_set_dot = speed_profile(t)
-            a_vc = leader_accel(v_vc, v_set, v_set_dot, acc_slot[active], accel_max, decel_emergency)
+            a_vc, gap, lead_idx, v_cap, a_cap = governor_step(
+                m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
+                nb_rear, nb_d, nb_hw, nb_v, ld.time_gap, ld.min_gap, accel_max, decel_emergency)
             if a_vc < -decel_max - 1e-9 and not emergency:
                 rec.add_event(t, "emergency_brake", "vc", "", f"virtual car decelerates at {-a_vc:.2f} m/s^2")
             emergency = a_vc < -decel_max - 1e-9
-            v_cap = member_speed_cap(gap, v_lead, ld.time_gap, ld.min_gap)
-            a_cap = np.maximum(time_gap_accel(gap, v_m, v_lead, ld.time_gap, ld.min_gap), -decel_emergency)
             c2 = clock()
             tm["governor"] += c2 - c1
             if nb is not None:
