@@ -17,6 +17,11 @@ Then the scaling with 1, 5, 20 and 50 members, and a 600 s versus 3600 s run for
     python benchmarks/overhead.py --no-ssm        # SUMO's SSM device off in every run
     python benchmarks/overhead.py --edge-m 120000 # the motorway as one 120 km edge
 
+Pair i runs with seed ``--seed`` + i (formation, twin and bare of a pair share it). A formation
+run and its twin never see the same realisation of the random traffic (the queue behind the
+formation builds at different times), so one seed would carry one fixed bias in SUMO's own
+step; over several seeds it averages out.
+
 Timings are wall-clock seconds of the simulation loop (after SUMO has started, until the run
 ends); setup (network reading, reference line, SUMO start) is printed separately.
 """
@@ -209,16 +214,17 @@ def main() -> None:
           f"SSM device {'off' if a.no_ssm else 'on'}, edges of {a.edge_m:.0f} m")
     form, twin, bare = [], [], []
     for i in range(a.pairs):
+        seed = a.seed + i  # a pair shares its seed; pairs differ (see RESULTS.md: traffic realisations)
         order = [("formation", form), ("twin", twin)] if i % 2 == 0 else [("twin", twin), ("formation", form)]
         for kind, bucket in order:
             r = spawn("formation" if kind == "formation" else "sumo", 5 if kind != "bare" else 0,
-                      a.duration, None, a.seed)
+                      a.duration, None, seed)
             bucket.append(r)
-            print(f"  pair {i + 1} {kind:9s} loop {r['loop_s']:7.2f} s  setup {r['setup_s']:5.2f} s  "
+            print(f"  pair {i + 1} (seed {seed}) {kind:9s} loop {r['loop_s']:7.2f} s  setup {r['setup_s']:5.2f} s  "
                   f"peak {r['peak_rss_mb']:6.0f} MB")
-        r = spawn("sumo", 0, a.duration, None, a.seed)
+        r = spawn("sumo", 0, a.duration, None, seed)
         bare.append(r)
-        print(f"  pair {i + 1} bare      loop {r['loop_s']:7.2f} s  setup {r['setup_s']:5.2f} s  "
+        print(f"  pair {i + 1} (seed {seed}) bare      loop {r['loop_s']:7.2f} s  setup {r['setup_s']:5.2f} s  "
               f"peak {r['peak_rss_mb']:6.0f} MB")
     ratios = [f["loop_s"] / t["loop_s"] for f, t in zip(form, twin)]
     ratios_bare = [f["loop_s"] / b["loop_s"] for f, b in zip(form, bare)]
@@ -229,6 +235,9 @@ def main() -> None:
     print()
     print(f"formation / twin  : median {med:.3f}  (min {spread[0]:.3f}, max {spread[1]:.3f}, {len(ratios)} pairs)")
     print(f"formation / bare  : median {statistics.median(ratios_bare):.3f}")
+    sumo_only = [f["timing_s"]["sumo_step"] / t["loop_s"] for f, t in zip(form, twin)]
+    print(f"SUMO's step alone : formation run / twin median {statistics.median(sumo_only):.3f} "
+          f"(min {min(sumo_only):.3f}, max {max(sumo_only):.3f}); the rest of the ratio is our layer")
     ratios_total = [f["total_s"] / t["total_s"] for f, t in zip(form, twin)]
     print(f"with setup        : formation / twin median {statistics.median(ratios_total):.3f} "
           f"(setup: formation {statistics.median(f['setup_s'] for f in form):.1f} s, "
