@@ -28,24 +28,13 @@ def main() -> None:
     os.environ["BENCH_EDGE_M"] = str(a.edge_m)
     import overhead as ob  # noqa: E402  (reads BENCH_EDGE_M)
     import libsumo as api
-    from formation_traci.models.params import PASSENGER_CAR
     from formation_traci.scenario import parse_scenario
     from formation_traci.sim.sumo_loop import sumo_args
-    from formation_traci.sim.traffic import write_routes
 
-    edges = ob.route_edges()
     sc = parse_scenario(ob.scenario(5, a.duration, None, 1), "moved_members")
     out = Path(tempfile.mkdtemp(prefix="moved_"))
-    routes = write_routes(out / "traffic.rou.xml", [(sc.traffic.flows[0], edges, 1500 * 3)], a.duration + 1)
-    car, members = PASSENGER_CAR, ob.formation_slots(5)
-    text = routes.read_text().replace("</routes>", "")
-    text += (f'  <vType id="member" length="{car.length}" width="{car.width}" maxSpeed="{ob.SPEED}" '
-             f'speedFactor="1" sigma="0" minGap="2"/>\n  <route id="member_route" edges="{" ".join(edges)}"/>\n')
-    for m in members:
-        pos = ob.START + m["slot"]["along"] + car.cog_to_front_bumper
-        text += (f'  <vehicle id="{m["id"]}" type="member" route="member_route" depart="0" '
-                 f'departLane="{1 + m["slot"]["lanes"]}" departPos="{pos:.2f}" departSpeed="{ob.SPEED}"/>\n')
-    routes.write_text(text + "</routes>\n")
+    routes = ob.twin_routes(sc, out, a.duration, 5)
+    members = ob.formation_slots(5)
     api.start(["sumo"] + sumo_args(sc, ob.long_net(), routes, out, a.duration + 1))
     ids = [m["id"] for m in members]
     while not all(vid in api.vehicle.getIDList() for vid in ids):

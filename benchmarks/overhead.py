@@ -136,18 +136,13 @@ def child_formation(n, duration, flow_end, seed):
             "timing_s": timing, "steps": res.steps_done, "peak_rss_mb": peak_rss_mb()}
 
 
-def child_sumo(n, duration, flow_end, seed):
-    """The twin (n > 0: members as SUMO vehicles) or the bare traffic (n = 0)."""
-    from formation_traci.scenario import parse_scenario
+def twin_routes(sc, out: Path, duration: float, n: int) -> Path:
+    """SUMO routes of the benchmark traffic of ``sc`` plus, for n > 0, the n members as SUMO
+    vehicles of the members' size (maxSpeed SPEED, no dawdling) in their slots' lanes."""
     from formation_traci.models.params import PASSENGER_CAR
-    from formation_traci.sim.sumo_adapter import SumoAdapter
-    from formation_traci.sim.sumo_loop import sumo_args
     from formation_traci.sim.traffic import write_routes
-    sc = parse_scenario(scenario(max(n, 1), duration, flow_end, seed), "benchmark")
-    out = Path(tempfile.mkdtemp(prefix="bench_"))
-    t0 = time.perf_counter()
-    f = sc.traffic.flows[0]
-    routes = write_routes(out / "traffic.rou.xml", [(f, route_edges(), 1500 * 3)], duration + 1)
+    routes = write_routes(out / "traffic.rou.xml", [(sc.traffic.flows[0], route_edges(), 1500 * 3)],
+                          duration + 1)
     if n:
         text = routes.read_text().replace("</routes>", "")
         car = PASSENGER_CAR
@@ -158,6 +153,18 @@ def child_sumo(n, duration, flow_end, seed):
             text += (f'  <vehicle id="{m["id"]}" type="member" route="member_route" depart="0" '
                      f'departLane="{1 + m["slot"]["lanes"]}" departPos="{pos:.2f}" departSpeed="{SPEED}"/>\n')
         routes.write_text(text + "</routes>\n")
+    return routes
+
+
+def child_sumo(n, duration, flow_end, seed):
+    """The twin (n > 0: members as SUMO vehicles) or the bare traffic (n = 0)."""
+    from formation_traci.scenario import parse_scenario
+    from formation_traci.sim.sumo_adapter import SumoAdapter
+    from formation_traci.sim.sumo_loop import sumo_args
+    sc = parse_scenario(scenario(max(n, 1), duration, flow_end, seed), "benchmark")
+    out = Path(tempfile.mkdtemp(prefix="bench_"))
+    t0 = time.perf_counter()
+    routes = twin_routes(sc, out, duration, n)
     args = sumo_args(sc, long_net(), routes, out, duration + 1)
     adapter = SumoAdapter("libsumo")
     adapter.start(args)

@@ -169,11 +169,8 @@ class ChunkedTable:
     def written_up_to(self) -> float | None:
         """The ``progress_column`` value of the last row on disk, if a part was completed since
         the last call (else None)."""
-        if not self._done:
-            return None
-        last = self._done[-1]
-        del self._done[:]
-        return last
+        done, self._done = self._done, []  # one swap: the writer thread appends to the new list
+        return done[-1] if done else None
 
     def flush(self, allow_empty: bool = False) -> None:
         """Hand the buffered rows (if any) to the writer thread as the next part file."""

@@ -801,6 +801,13 @@ def _compare_period(ff: FastFleet, state, targets, u_ref, fo_ref, u, fo, what: s
         raise FastPathMismatch(f"compiled control differs from fleet.control ({what})")
 
 
+def _compare_signals(sig: np.ndarray, ref: dict):
+    """The compiled signals array against fleet.member_signals' dict (columns it has)."""
+    for j, name in enumerate(SIGNAL_COLUMNS):
+        if name in ref and not _close(sig[:, j], np.broadcast_to(ref[name], (sig.shape[0],))):
+            raise FastPathMismatch(f"compiled signal {name!r} differs from fleet.member_signals")
+
+
 def _verify_road(ff: FastFleet, line, slots, rigid):
     """One period and the signals, kernels against the numpy path (see from_config)."""
     from . import fleet as fl
@@ -852,12 +859,8 @@ def _verify_road(ff: FastFleet, line, slots, rigid):
                     and _close(st.speed_in, st_ref.speed_in) and _close([s1, v1], [s_ref, v_ref])):
                 raise FastPathMismatch("compiled step differs from fleet.advance")
             vc = road_leader_state(line, s_vc, v_vc, a_vc)
-            ref = fl.member_signals(cfg, state, u_ref, fo_ref, tg, vc.theta)
-            sig = ff.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap)
-            for j, name in enumerate(SIGNAL_COLUMNS):
-                if name in ref and not _close(sig[:, j], np.broadcast_to(ref[name], (n,))):
-                    raise FastPathMismatch(f"compiled signal {name!r} differs from "
-                                           "fleet.member_signals")
+            _compare_signals(ff.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap),
+                             fl.member_signals(cfg, state, u_ref, fo_ref, tg, vc.theta))
             return
         except FastPathMismatch:
             if attempt:
@@ -890,12 +893,8 @@ def _verify_free(ff: FastFleet, leader, offsets):
             if not (_close(st.x, st_ref.x) and _close(st.theta_star, st_ref.theta_star)
                     and _close(st.speed_in, st_ref.speed_in) and _close(pose1, pose_ref)):
                 raise FastPathMismatch("compiled free-space step differs from the numpy path")
-            ref = fl.member_signals(cfg, state, u_ref, fo_ref, tg, vc.theta)
-            sig = ff.signals_free(state, t, pose)
-            for j, name in enumerate(SIGNAL_COLUMNS):
-                if name in ref and not _close(sig[:, j], np.broadcast_to(ref[name], (cfg.n,))):
-                    raise FastPathMismatch(f"compiled signal {name!r} differs from "
-                                           "fleet.member_signals")
+            _compare_signals(ff.signals_free(state, t, pose),
+                             fl.member_signals(cfg, state, u_ref, fo_ref, tg, vc.theta))
             return
         except FastPathMismatch:
             if attempt:

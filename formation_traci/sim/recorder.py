@@ -8,7 +8,6 @@ import numpy as np
 from ..record.columns import (BACKGROUND_COLUMNS, EVENT_COLUMNS, TRAJECTORY_COLUMNS,
                               VIRTUAL_CAR_ID)
 from ..record.writer import ChunkedTable
-from . import fleet as fl
 from .fast import FILLED_BY_CALLER, SIGNAL_COLUMNS
 
 STEPS_PER_CHUNK = 1200
@@ -55,15 +54,11 @@ class Recorder:
         last call (else None): progress reported from it is never ahead of the data."""
         return self.traj.written_up_to()
 
-    def add_members(self, t, cfg, state, u, fo, targets, vc_theta, extra=None, mask=None):
-        """Record the members from the numpy reference path (fleet.member_signals)."""
-        self.add_member_signals(t, fl.member_signals(cfg, state, u, fo, targets, vc_theta), extra, mask)
-
     def add_signal_rows(self, t, sig: np.ndarray, extra: dict, mask=None):
         """Record the members from the compiled path: ``sig`` is the (n, len(SIGNAL_COLUMNS))
         array of fast.FastFleet.signals (columns in trajectory order), ``extra`` the road and
         SUMO columns (s, d, lane_index, sumo_gap; (n,) arrays), ``mask`` the members still in
-        the run. Same rows as :meth:`add_member_signals`."""
+        the run."""
         ix = self._sig_index
         slip = np.fmax(np.abs(sig[:, ix["slip_front"]]), np.abs(sig[:, ix["slip_rear"]]))
         self._flag_range(t, slip, sig[:, ix["friction_usage"]], sig[:, ix["v"]], mask)
@@ -80,27 +75,6 @@ class Recorder:
         for name in FILLED_BY_CALLER[2:]:
             tr.column(name)[sl] = extra.get(name, np.nan)
         tr.commit(n)
-
-    def add_member_signals(self, t, sig, extra=None, mask=None):
-        """Record the members' signals (dict column -> (n,) array); ``extra`` adds the road and
-        SUMO columns, ``mask`` keeps only the members still in the run."""
-        sig = dict(sig)
-        sig["t"] = t
-        sig["vehicle_id"] = self.codes
-        for name in ("s", "d", "lane_index", "sumo_gap"):
-            sig[name] = (extra or {}).get(name, np.nan)
-        self._check_range(t, sig, mask)
-        n = len(self.codes)
-        if mask is not None and not mask.all():
-            sig = {k: (v[mask] if np.ndim(v) else v) for k, v in sig.items()}
-            n = int(mask.sum())
-        self.traj.append(sig, n)
-
-    def _check_range(self, t, sig, mask):
-        """A ``model_range`` event when a member enters the region where the single-track
-        model is no longer trustworthy (docs/reliability.md); one per episode."""
-        slip = np.fmax(np.abs(sig["slip_front"]), np.abs(sig["slip_rear"]))
-        self._flag_range(t, slip, sig["friction_usage"], sig["v"], mask)
 
     def _flag_range(self, t, slip, usage, v, mask):
         bad = (slip > MAX_SLIP) | (usage > MAX_FRICTION_USAGE) | (v > MAX_SPEED)

@@ -428,6 +428,7 @@ class SumoAdapter:
             self._subscribed.discard(vid)
             self.api.vehicle.unsubscribe(vid)
         self._window.pop(vid, None)
+        self._bodies.pop(vid, None)
         self.api.vehicle.remove(vid, self.tc.REMOVE_VAPORIZED)
 
     def vehicle_ids(self) -> list[str]:
