@@ -16,7 +16,6 @@ comparisons fail for a gain changed by 1e-7 relative.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -53,11 +52,7 @@ N_CTRL = 5
 DT_C = STEP / N_CTRL
 
 
-class _Road:
-    """The field of sim.road_setup.Road that sumo_loop._targets reads."""
-
-    def __init__(self, line):
-        self.line = line
+_Road = fast._RoadShim  # the field of sim.road_setup.Road that sumo_loop._targets reads
 
 
 @pytest.fixture(scope="module", params=["straight3", "curved3"])
@@ -556,65 +551,3 @@ def test_signal_columns_follow_the_contract():
 
 
 # ------------------------------------------------------------------------- timings
-
-def _time(fn, reps):
-    fn()
-    t0 = time.perf_counter()
-    for _ in range(reps):
-        fn()
-    return (time.perf_counter() - t0) / reps
-
-
-def test_print_timings(curved, capsys):
-    """Per SUMO step: to_frenet of the members and 40 neighbours, the record-time signals,
-    n_ctrl = 5 periods. Printed, not asserted."""
-    rows = []
-    road = _Road(curved)
-    rng = np.random.default_rng(9)
-    nb_s = rng.uniform(700.0, 1100.0, 40)
-    nb_xy = curved.from_frenet(nb_s, rng.choice([-3.5, 0.0, 3.5], 40))
-    for model in ("dynamic", "kinematic"):
-        for n in (1, 5, 20, 50):
-            cfg = make_cfg(model, n)
-            slots, rigid, is_road = make_slots(n)
-            ff = FastFleet.from_config(cfg, curved, slots, rigid, is_road)
-            st = initial(cfg, curved, slots, rigid, is_road, 900.0, 25.0)
-            v_cap, a_cap = caps(50, n, True)
-            m_s = curved.to_frenet(fl.kinematics(cfg, st)[0])[0]
-
-            def ref():
-                pos = fl.kinematics(cfg, st)[0]
-                curved.to_frenet(pos)
-                curved.to_frenet(nb_xy)
-                ref_step(cfg, road, slots, rigid, is_road, st, 900.0, 25.0, 0.3, v_cap, a_cap)
-
-            out = np.full((n, len(SIGNAL_COLUMNS)), np.nan)
-
-            def fst():
-                pos = ff.kinematics(st)[0]
-                ff.to_frenet(pos, m_s)
-                ff.to_frenet(nb_xy, nb_s)
-                ff.signals(st, 900.0, 25.0, 0.3, v_cap, a_cap, out)
-                ff.step(st, 900.0, 25.0, 0.3, v_cap, a_cap, DT_C, N_CTRL)
-
-            def fst_noguess():
-                pos = ff.kinematics(st)[0]
-                ff.to_frenet(pos)
-                ff.to_frenet(nb_xy)
-                ff.signals(st, 900.0, 25.0, 0.3, v_cap, a_cap, out)
-                ff.step(st, 900.0, 25.0, 0.3, v_cap, a_cap, DT_C, N_CTRL)
-
-            t_ref = _time(ref, 20 if n <= 20 else 8)
-            t_f = _time(fst, 2000)
-            t_fn = _time(fst_noguess, 2000)
-            t_step = _time(lambda: ff.step(st, 900.0, 25.0, 0.3, v_cap, a_cap, DT_C, N_CTRL), 2000)
-            t_sig = _time(lambda: ff.signals(st, 900.0, 25.0, 0.3, v_cap, a_cap, out), 2000)
-            t_fr = _time(lambda: ff.to_frenet(nb_xy, nb_s), 2000)
-            rows.append(f"{model:9s} n={n:2d}: reference {t_ref * 1e3:7.3f} ms | kernels "
-                        f"{t_f * 1e6:7.1f} us (no s guess {t_fn * 1e6:6.1f} us) = step "
-                        f"{t_step * 1e6:6.1f} + signals {t_sig * 1e6:5.1f} + to_frenet(40) "
-                        f"{t_fr * 1e6:5.1f} + members | x{t_ref / t_f:5.0f}")
-    with capsys.disabled():
-        print("\nper SUMO step (to_frenet of members + 40 neighbours, signals, 5 control periods):")
-        for r in rows:
-            print("  " + r)
