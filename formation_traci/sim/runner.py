@@ -136,9 +136,10 @@ def free_space_steps(sc: Scenario, rec: Recorder, meta: dict) -> Iterator[tuple[
     state = build_initial_state(sc, cfg, leader.sample(0.0, pose))
     ff = FastFleet.free_space(cfg, d, leader)
     buf = np.full((cfg.n, len(SIGNAL_COLUMNS)), np.nan)
+    perfect = {"leader_age_s": np.zeros(cfg.n)}  # free space: perfect communication
     for k in range(n_steps + 1):
         t = k * run.step
-        rec.add_signal_rows(t, ff.signals_free(state, t, pose, out=buf), {})
+        rec.add_signal_rows(t, ff.signals_free(state, t, pose, out=buf), perfect)
         rec.add_vc(t, leader.sample(t, pose))
         yield k, t
         if k == n_steps:

@@ -29,6 +29,7 @@ from ..road.targets import road_targets
 from ..scenario.schema import Scenario
 from . import fleet as fl
 from .governor import governor_step
+from .comm_link import ChannelReference
 from .fast import FastFleet, SIGNAL_COLUMNS
 from .recorder import Recorder
 from .road_setup import (Road, build_road, check_no_overlap, check_slots, rectangles_overlap,
@@ -185,6 +186,9 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
     state = fl.initial_state(cfg, x0, plan.heading0, plan.speed0, yaw0, np.zeros(n), tg0)
     # compiled per-step path, checked against the numpy reference on a synthetic state here
     ff = FastFleet.from_config(cfg, line, plan.slots, plan.rigid, plan.is_road)
+    # [comm]: each member's view of the virtual car through the channel (None: perfect, shared)
+    chan = None if sc.comm is None or baseline else ChannelReference.build(sc, plan, ff, n_ctrl, dt_c)
+    no_age = np.zeros(n)
     sig_buf = np.full((n, len(SIGNAL_COLUMNS)), np.nan)
     m_s = None
 
@@ -287,8 +291,15 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 _lane_changes(rec, t, nb, prev_lane, lead_idx, gap, v_m, ids, active, ld)
                 rec.add_background(t, nb, nb_s, nb_d)
 
+            extra["leader_age_s"] = no_age
+            if chan is not None:
+                extra["leader_age_s"] = chan.update(k, t, s_vc, v_vc, a_vc, m_s, v_m, active, rec)
+                v_cap, a_cap = chan.caps(v_cap, a_cap, m_s, m_d, v_m, active, decel_emergency)
             vc = ff.leader_state(s_vc, v_vc, a_vc)
-            if not baseline:
+            if chan is not None:
+                rec.add_signal_rows(t, chan.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap, sig_buf),
+                                    extra, mask=active)
+            elif not baseline:
                 rec.add_signal_rows(t, ff.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap, out=sig_buf),
                                     extra, mask=active)
             rec.add_vc(t, vc, s=s_vc)
@@ -307,7 +318,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
 
             c3 = clock()
             v_before = state.x[:, 3].copy() if cfg.model == "dynamic" else state.speed_in.copy()
-            state, s_vc, v_vc = ff.step(state, s_vc, v_vc, a_vc, v_cap, a_cap, dt_c, n_ctrl)
+            state, s_vc, v_vc = (chan or ff).step(state, s_vc, v_vc, a_vc, v_cap, a_cap, dt_c, n_ctrl)
             if not np.all(np.isfinite(state.x)):
                 from .runner import check_finite
                 check_finite(state, ids, t + run.step)
