@@ -29,6 +29,7 @@ __all__ = [
     "METRICS_CSV",
     "REPORT_HTML",
     "BASELINE_CSV",
+    "COMM_AGE_CSV",
     "FIGURES_DIR",
     "AnalysisResult",
     "CompareResult",
@@ -44,6 +45,8 @@ METRICS_JSON = "metrics.json"
 METRICS_CSV = "metrics.csv"
 REPORT_HTML = "report.html"
 BASELINE_CSV = "baseline.csv"
+COMM_AGE_CSV = "comm_age.csv"
+"""Error and comfort per leader-age bin and member (analysis/comm.py)."""
 FIGURES_DIR = "figures"
 
 _COMPARE_RUN_ROWS = ("status", "model", "mu", "duration_s", "sample_rate_hz",
@@ -203,6 +206,7 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
         "settings": settings_dict(settings),
         "units": {"run": RUN_METRICS, "members": MEMBER_METRICS},
         "traffic": _traffic_json(a.traffic),
+        "comm_age": _records(a.comm_age) if a.comm_age is not None else [],
         "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()},
     }
     p_json = out / METRICS_JSON
@@ -211,6 +215,12 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
     p_csv = out / METRICS_CSV
     a.members.reset_index().to_csv(p_csv, index=False)
     files["metrics_csv"] = p_csv
+    if a.comm_age is not None and len(a.comm_age):
+        p_comm = out / COMM_AGE_CSV
+        a.comm_age.to_csv(p_comm, index=False)
+        files["comm_age_csv"] = p_comm
+    else:
+        (out / COMM_AGE_CSV).unlink(missing_ok=True)
     base_tab = a.traffic.baseline if a.traffic is not None else None
     p_base = out / BASELINE_CSV
     if base_tab is not None:

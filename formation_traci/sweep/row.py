@@ -35,10 +35,13 @@ METRICS: dict[str, tuple[str, str]] = {
     "collisions": ("-", "SUMO runs: collision events involving a member (NaN in free space)"),
     "min_ttc_s": ("s", "SUMO runs: smallest SSM time to collision of a conflict involving a member"),
     "emergency_brakes": ("-", "SUMO runs: emergency_brake events of the virtual car"),
+    "leader_age_mean_s": ("s", "max of each member's mean age of the virtual-car state it held ([comm])"),
+    "leader_age_p95_s": ("s", "max of each member's 95th percentile of that age"),
+    "comm_timeouts": ("-", "SUMO runs: comm_timeout events (a member fell back: no state for longer than comm.timeout_s)"),
 }
 """Metric columns of ``summary.parquet``: unit and meaning."""
 
-COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes"})
+COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes", "comm_timeouts"})
 
 
 def empty_row(case: dict, status: str, reason: str | None) -> dict[str, Any]:
@@ -93,8 +96,10 @@ def _sumo_metrics(run_dir: Path, member_ids: set[str], meta: dict) -> dict[str, 
     if ssm is not None and len(ssm):
         x = pd.to_numeric(ssm.loc[ssm["member_involved"].astype(bool), "min_ttc"], errors="coerce")
         ttc = float(x.min()) if x.notna().any() else None
+    counts = meta.get("event_counts") or {}
     return {"collisions": n_coll, "min_ttc_s": ttc,
-            "emergency_brakes": int((meta.get("event_counts") or {}).get("emergency_brake", 0))}
+            "emergency_brakes": int(counts.get("emergency_brake", 0)),
+            "comm_timeouts": int(counts.get("comm_timeout", 0))}
 
 
 def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str, Any]:
@@ -133,6 +138,9 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
         "traction_over_s": _max(_col(members, "traction_over_s")),
         "friction_over_s": _max(_col(members, "friction_over_s")),
         "collisions": None, "min_ttc_s": None, "emergency_brakes": None,
+        "leader_age_mean_s": _max(_col(members, "leader_age_mean_s")),
+        "leader_age_p95_s": _max(_col(members, "leader_age_p95_s")),
+        "comm_timeouts": None,
     }
     if (meta.get("scenario") or {}).get("road") is not None:
         out.update(_sumo_metrics(run_dir, set(map(str, members.index)), meta))
