@@ -10,6 +10,8 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from ..comm.channel import gilbert_rates
+
 PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -255,6 +257,18 @@ class CommSpec(CommLinkSpec):
         4.0, description="mean burst length of the bursty model [beacons]")
     timeout_s: PosFloat = Field(1.0, description="a member that has heard nothing for longer falls back [s]")
     links: dict[str, CommLinkSpec] = Field(default_factory=dict, description="per-member overrides, by member id")
+
+    @model_validator(mode="after")
+    def _bursts(self):
+        for where, spec in [("", self)] + [(f"links.{k}: ", v) for k, v in self.links.items()]:
+            p = spec.loss_p if spec.loss_p is not None else self.loss_p
+            burst = spec.loss_burst if spec.loss_burst is not None else self.loss_burst
+            if (spec.loss or self.loss) == "bursty":
+                try:
+                    gilbert_rates(p, burst)
+                except ValueError as exc:
+                    raise ValueError(f"{where}{exc}") from None
+        return self
 
 
 class Scenario(Strict):
