@@ -78,6 +78,10 @@ def comm_analysis(trajectories: pd.DataFrame, signals: pd.DataFrame,
     tr = trajectories.reindex(columns=cols)
     tr = tr[tr["vehicle_id"].isin(member_ids)]
     sig = signals.reindex(columns=["t", "vehicle_id", "e_norm", "jerk_lon", "jerk_lat"])
+    tr = tr.astype({"t": "float64"})
+    sig = sig.astype({"t": "float64"})
+    tr["vehicle_id"] = tr["vehicle_id"].astype(str)
+    sig["vehicle_id"] = sig["vehicle_id"].astype(str)
     df = tr.merge(sig, on=["t", "vehicle_id"], how="left")
     rows, bins = [], []
     edges = np.asarray(AGE_BIN_EDGES_S)

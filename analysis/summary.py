@@ -106,10 +106,11 @@ FORMATION_MEMBER_METRICS: dict[str, str] = {
 }
 """Per-member formation, comfort and limit metrics with their units."""
 
-MEMBER_METRICS: dict[str, str] = {**FORMATION_MEMBER_METRICS, **TRAFFIC_MEMBER_METRICS,
-                                  **COMM_MEMBER_METRICS}
+MEMBER_METRICS: dict[str, str] = {**FORMATION_MEMBER_METRICS, **COMM_MEMBER_METRICS,
+                                  **TRAFFIC_MEMBER_METRICS}
 """Per-member metrics, in output order, with their units (see docs/metrics.md): the
-formation metrics, then the traffic ones
+formation metrics, the communication ones (:data:`analysis.comm.COMM_MEMBER_METRICS`), then
+the traffic ones
 (:data:`analysis.traffic_run.TRAFFIC_MEMBER_METRICS`)."""
 
 RUN_METRICS: dict[str, str] = {
