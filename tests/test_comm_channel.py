@@ -14,7 +14,8 @@ from formation_traci.road.fast_line import FastLine, frame_at
 from formation_traci.road.geometry import ReferenceLine
 from formation_traci.scenario import ScenarioError, load_scenario
 from formation_traci.sim.fast import _advance_vc
-from formation_traci.sim.fast_comm import channel_instants_nb, views_nb
+from formation_traci.sim.fast_comm import channel_instants_nb, road_truth_nb, road_views_nb
+from formation_traci.comm.predict import predict_planar
 
 from pathlib import Path
 
@@ -125,12 +126,12 @@ def test_newest_beacon_held_and_compiled_lookup_agree_with_the_definition():
     assert np.any(np.diff(ch.arrival[0][ch.arrival[0] != LOST]) < 0)  # reordering happens
     n_ctrl, n = 5, 2
     B = len(ch.send)
-    bs, bv, ba = np.zeros(B), np.zeros(B), np.zeros(B)
+    beacons, truth = np.zeros((B, 3)), np.zeros((n_ctrl, 3))
     nxt, ptr = np.zeros(1, np.int64), np.zeros(n, np.int64)
     NB, AGE = np.zeros((n_ctrl, n), np.int64), np.zeros((n_ctrl, n))
     for k in range(120):
-        channel_instants_nb(0.0, 0.0, 0.0, DT, n_ctrl, k * n_ctrl, ch.send, bs, bv, ba, nxt,
-                            ch.arrival_sorted, ch.newest_sorted, ptr, NB, AGE)
+        channel_instants_nb(truth, DT, k * n_ctrl, ch.send, beacons, nxt, ch.arrival_sorted,
+                            ch.newest_sorted, ptr, NB, AGE)
         for j in range(n_ctrl):
             c = k * n_ctrl + j
             want = [max(b for b in range(B) if ch.arrival[i, b] <= c) for i in range(n)]
@@ -146,7 +147,7 @@ def _circle_line(radius=400.0):
 
 
 @pytest.mark.parametrize("a", [0.0, -1.2])
-def test_prediction_of_a_constant_turn_leader_is_exact(a):
+def test_prediction_of_a_constant_turn_leader_on_a_road_is_exact(a):
     """The virtual car on an arc of constant curvature at constant speed (a = 0: constant
     turn rate) or constant acceleration: every member's view, 0.37 s old and predicted to the
     present, equals the true state (arc length, pose, speed, yaw rate) to rounding."""
@@ -155,24 +156,25 @@ def test_prediction_of_a_constant_turn_leader_is_exact(a):
                        duration=4.0, control_step=DT, beacon_hz=10.0)
     n_ctrl, n = 5, 2
     B = len(ch.send)
-    bs, bv, ba = np.zeros(B), np.zeros(B), np.zeros(B)
+    beacons, truth = np.zeros((B, 3)), np.zeros((n_ctrl + 1, 3))
     nxt, ptr = np.zeros(1, np.int64), np.zeros(n, np.int64)
     NB, AGE = np.zeros((n_ctrl, n), np.int64), np.zeros((n_ctrl, n))
-    VS, VV, VA = (np.zeros((n_ctrl, n)) for _ in range(3))
+    V = np.zeros((n_ctrl, n, 3))
     fb = np.zeros(n, np.bool_)
     s, v = 50.0, 25.0
     worst, oldest = 0.0, 0.0
     for k in range(80):
-        channel_instants_nb(s, v, a, DT, n_ctrl, k * n_ctrl, ch.send, bs, bv, ba, nxt,
+        road_truth_nb(s, v, a, DT, truth)
+        channel_instants_nb(truth[:n_ctrl], DT, k * n_ctrl, ch.send, beacons, nxt,
                             ch.arrival_sorted, ch.newest_sorted, ptr, NB, AGE)
-        views_nb(NB, AGE, bs, bv, ba, fb, np.zeros(n), np.zeros(n), DT, VS, VV, VA)
+        road_views_nb(NB, AGE, beacons, fb, np.zeros((n, 3)), DT, V)
         for j in range(n_ctrl):
             true = frame_at(line.G, s)
             for i in range(n):
-                assert VS[j, i] == pytest.approx(s, abs=1e-9)
-                assert VV[j, i] == pytest.approx(v, abs=1e-10)
-                x, y, hd, vp, r = predicted_pose(line.G, bs[NB[j, i]], bv[NB[j, i]], ba[NB[j, i]],
-                                                 AGE[j, i])
+                assert V[j, i, 0] == pytest.approx(s, abs=1e-9)
+                assert V[j, i, 1] == pytest.approx(v, abs=1e-10)
+                bs, bv, ba = beacons[NB[j, i]]
+                x, y, hd, vp, r = predicted_pose(line.G, bs, bv, ba, AGE[j, i])
                 worst = max(worst, math.hypot(x - true[0], y - true[1]))
                 assert hd == pytest.approx(true[4], abs=1e-12)
                 assert r == pytest.approx(v * true[5], abs=1e-12)
@@ -215,14 +217,52 @@ def test_bad_comm_tables_are_refused_with_the_field(tmp_path, extra, field, expe
     assert any(f == field and expect in m for f, m in ei.value.problems), ei.value.problems
 
 
-def test_comm_in_free_space_is_refused():
-    with pytest.raises(ScenarioError, match=r"\[comm\] needs a \[road\]"):
-        load_scenario(ROOT / "scenarios" / "thesis" / "dynamic_case1.toml", **{"comm.delay_s": 0.1})
-
-
 def test_link_overrides_take_the_comm_values_for_what_they_leave_out(tmp_path):
     p = _write(tmp_path, ROAD + '\n[comm]\ndelay_s = 0.2\nloss = "independent"\nloss_p = 0.1\n'
                '[comm.links.left]\ndelay_s = 0.5\n')
     sc = load_scenario(p)
     assert link_params(sc.comm, "left") == LinkParams(0.5, 0.0, "exponential", "independent", 0.1, 4.0)
     assert link_params(sc.comm, "right").delay_s == 0.2
+
+
+@pytest.mark.parametrize("w", [0.25, -0.05, 1e-9, 0.0])
+def test_planar_prediction_of_a_constant_turn_leader_is_exact(w):
+    """Free space: a leader at constant speed 20 m/s and turn rate w [rad/s] is on a circle of
+    radius 20 / w: the prediction over 0.8 s lands on it (and on the straight line for w = 0)."""
+    x0, y0, th0, v, tau = 3.0, -2.0, 0.4, 20.0, 0.8
+    x, y, th, v1 = predict_planar(x0, y0, th0, v, w, 0.0, tau)
+    if w == 0.0:
+        ex, ey = x0 + v * tau * math.cos(th0), y0 + v * tau * math.sin(th0)
+    else:
+        # on the circle of radius v / w: ahead r sin(w tau), to the left r (1 - cos(w tau)),
+        # written without cancellation for small w
+        ahead = v * math.sin(w * tau) / w
+        left = v * 2 * math.sin(w * tau / 2) ** 2 / w
+        ex = x0 + ahead * math.cos(th0) - left * math.sin(th0)
+        ey = y0 + ahead * math.sin(th0) + left * math.cos(th0)
+    assert math.hypot(x - ex, y - ey) < 1e-9
+    assert th == pytest.approx(th0 + w * tau, abs=1e-15) and v1 == v
+
+
+def test_planar_prediction_with_acceleration_matches_the_integrated_spiral():
+    """Constant turn rate and acceleration: the closed form against a fine RK4 of eq 2.3; the
+    speed stops at 0 and the position with it."""
+    x0, y0, th0, v, w, a, tau = 0.0, 0.0, 0.0, 15.0, 0.3, -2.0, 1.5
+
+    def f(t, q):
+        vt = v + a * t
+        return np.array([vt * math.cos(q[2]), vt * math.sin(q[2]), w])
+
+    q, h = np.array([x0, y0, th0]), tau / 3000
+    for k in range(3000):
+        t = k * h
+        k1 = f(t, q)
+        k2 = f(t + h / 2, q + h / 2 * k1)
+        k3 = f(t + h / 2, q + h / 2 * k2)
+        k4 = f(t + h, q + h * k3)
+        q = q + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    x, y, th, v1 = predict_planar(x0, y0, th0, v, w, a, tau)
+    assert math.hypot(x - q[0], y - q[1]) < 1e-9 and v1 == pytest.approx(12.0)
+    xs, ys, _, vs = predict_planar(x0, y0, th0, 3.0, w, a, 4.0)  # stops after 1.5 s
+    xm, ym, _, _ = predict_planar(x0, y0, th0, 3.0, w, a, 1.5)
+    assert vs == 0.0 and math.hypot(xs - xm, ys - ym) < 1e-12

@@ -98,3 +98,37 @@ def test_bundled_study_error_grows_with_delay_and_with_loss(tmp_path):
     assert set(e) == want
     assert e[(0.0, "none")] < e[(0.1, "none")] < e[(0.3, "none")], e
     assert e[(0.0, "none")] < e[(0.0, "independent")] < e[(0.0, "bursty")], e
+
+
+CIRCLE = ROOT / "scenarios" / "thesis" / "case_2_3_2_circle.toml"
+
+
+def test_free_space_perfect_table_and_exact_prediction_of_a_constant_turn_leader(tmp_path):
+    """Free space, the virtual car on a circle at constant speed and turn rate (seed 2.3.2):
+    a perfect [comm] equals no table bit for bit; through a 10 Hz channel with 1 s of delay,
+    jitter and 30 % loss every member predicts the leader exactly (constant turn rate and
+    acceleration), so it drives the same trajectory to 1e-9 m."""
+    kw = {"run.duration": 10.0}
+    a, _ = run(tmp_path / "none", CIRCLE, **kw)
+    b, _ = run(tmp_path / "perfect", CIRCLE, **kw, **{"comm": {"timeout_s": 0.2}})
+    pd.testing.assert_frame_equal(a, b, check_exact=True)
+    late = {"comm": {"beacon_hz": 10.0, "delay_s": 1.0, "jitter_s": 0.05, "loss": "independent",
+                     "loss_p": 0.3, "timeout_s": 5.0}}
+    c, _ = run(tmp_path / "late", CIRCLE, **kw, **late)
+    ma, mc = a[a.vehicle_id != "vc"], c[c.vehicle_id != "vc"]
+    assert mc.leader_age_s.max() >= 1.1
+    for col in ("x", "y", "heading", "v", "ex", "ey"):
+        assert np.max(np.abs(ma[col].to_numpy() - mc[col].to_numpy())) < 1e-9, col
+
+
+def test_free_space_fallback_holds_heading_and_speed(tmp_path):
+    """v2 hears nothing after t = 0: it times out after 0.5 s and drives straight on at the
+    speed it had, while the others follow the virtual car round the circle."""
+    kw = {"run.duration": 6.0, "comm": {"timeout_s": 0.5, "links": {"v2": {"delay_s": 1000.0}}}}
+    traj, events = run(tmp_path, CIRCLE, **kw)
+    to = events[events.kind == "comm_timeout"]
+    assert list(to.vehicle_id) == ["v2"] and 0.5 < to.t.iloc[0] <= 0.6
+    v2 = traj[(traj.vehicle_id == "v2") & (traj.t >= 2.0)]
+    assert v2.yaw_rate.abs().max() < 1e-3 and v2.v.std() < 1e-6
+    v1 = traj[(traj.vehicle_id == "v1") & (traj.t >= 2.0)]
+    assert v1.yaw_rate.mean() == pytest.approx(0.1, abs=0.02)  # still on the circle

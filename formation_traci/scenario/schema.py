@@ -289,8 +289,6 @@ class Scenario(Strict):
         c = self.comm
         if c is None:
             return self
-        if self.road is None:
-            raise ValueError("[comm] needs a [road] table (free-space runs have perfect communication)")
         if c.beacon_hz is not None and c.beacon_hz * self.run.control_step > 1.0 + 1e-9:
             raise ValueError(f"comm.beacon_hz ({c.beacon_hz} Hz) must not exceed the control rate "
                              f"(1 / run.control_step = {1.0 / self.run.control_step:g} Hz)")

@@ -27,7 +27,9 @@ from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
 from . import fleet as fl
 from .recorder import Recorder
-from .setup import build_fleet, build_free_leader, build_initial_state, offsets, road_mu
+from .comm_link import FreeChannel
+from .setup import (build_fleet, build_free_leader, build_initial_state, offsets, road_mu,
+                    vehicle_params)
 
 
 class RunDirExists(FileExistsError):
@@ -136,15 +138,27 @@ def free_space_steps(sc: Scenario, rec: Recorder, meta: dict) -> Iterator[tuple[
     state = build_initial_state(sc, cfg, leader.sample(0.0, pose))
     ff = FastFleet.free_space(cfg, d, leader)
     buf = np.full((cfg.n, len(SIGNAL_COLUMNS)), np.nan)
-    perfect = {"leader_age_s": np.zeros(cfg.n)}  # free space: perfect communication
+    extra = {"leader_age_s": np.zeros(cfg.n)}  # perfect communication
+    # [comm]: each member's view of the virtual car through the channel (sim/comm_link.py)
+    chan = None if sc.comm is None else FreeChannel.build(sc, ff, n_ctrl, dt_c, vehicle_params(sc))
     for k in range(n_steps + 1):
         t = k * run.step
-        rec.add_signal_rows(t, ff.signals_free(state, t, pose, out=buf), perfect)
+        if chan is None:
+            rec.add_signal_rows(t, ff.signals_free(state, t, pose, out=buf), extra)
+        else:
+            pos, vel, heading = ff.kinematics(state)
+            v_m = np.hypot(vel[:, 0], vel[:, 1])
+            extra["leader_age_s"] = chan.update(k, t, pose, pos, heading, v_m, rec)
+            caps = chan.caps(pos, heading, v_m, sc.leader.decel_emergency)
+            rec.add_signal_rows(t, chan.signals(state, out=buf), extra)
         rec.add_vc(t, leader.sample(t, pose))
         yield k, t
         if k == n_steps:
             return
-        state, pose = ff.step_free(state, t, pose, dt_c, n_ctrl)
+        if chan is None:
+            state, pose = ff.step_free(state, t, pose, dt_c, n_ctrl)
+        else:
+            state, pose = chan.step(state, *caps, dt_c, n_ctrl)
         check_finite(state, ids, t + run.step)
 
 

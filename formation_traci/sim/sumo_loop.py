@@ -29,7 +29,7 @@ from ..road.targets import road_targets
 from ..scenario.schema import Scenario
 from . import fleet as fl
 from .governor import governor_step
-from .comm_link import ChannelReference
+from .comm_link import RoadChannel
 from .fast import FastFleet, SIGNAL_COLUMNS
 from .recorder import Recorder
 from .road_setup import (Road, build_road, check_no_overlap, check_slots, rectangles_overlap,
@@ -187,7 +187,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
     # compiled per-step path, checked against the numpy reference on a synthetic state here
     ff = FastFleet.from_config(cfg, line, plan.slots, plan.rigid, plan.is_road)
     # [comm]: each member's view of the virtual car through the channel (None: perfect, shared)
-    chan = None if sc.comm is None or baseline else ChannelReference.build(sc, plan, ff, n_ctrl, dt_c)
+    chan = None if sc.comm is None or baseline else RoadChannel.for_road(sc, plan, ff, n_ctrl, dt_c)
     no_age = np.zeros(n)
     sig_buf = np.full((n, len(SIGNAL_COLUMNS)), np.nan)
     m_s = None
@@ -297,7 +297,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 v_cap, a_cap = chan.caps(v_cap, a_cap, m_s, m_d, v_m, active, decel_emergency)
             vc = ff.leader_state(s_vc, v_vc, a_vc)
             if chan is not None:
-                rec.add_signal_rows(t, chan.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap, sig_buf),
+                rec.add_signal_rows(t, chan.signals(state, v_cap, a_cap, sig_buf),
                                     extra, mask=active)
             elif not baseline:
                 rec.add_signal_rows(t, ff.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap, out=sig_buf),
