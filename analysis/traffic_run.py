@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -19,8 +19,7 @@ from analysis import traffic as tr
 from analysis.load import Issue, RunData, read_meta, read_table
 from formation_traci.record.columns import VIRTUAL_CAR_ID
 
-if TYPE_CHECKING:  # the settings live in summary, which imports this module
-    from analysis.summary import AnalysisSettings
+from analysis.settings import AnalysisSettings
 
 __all__ = [
     "TRAFFIC_MEMBER_METRICS",
