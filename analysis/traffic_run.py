@@ -396,7 +396,7 @@ def compute_traffic(data: RunData, settings: AnalysisSettings,
     run: dict[str, Any] = {k: None for k in TRAFFIC_RUN_METRICS}
     mem = pd.DataFrame(index=pd.Index(ids, name="id"), columns=list(TRAFFIC_MEMBER_METRICS),
                        dtype=object)
-    fp, fp_source = tr.member_footprint(meta.get("scenario"))
+    fp, fp_source = tr.member_footprint(meta.get("scenario"), meta.get("members"))
     run["member_footprint"] = (f"{fp.length:g} x {fp.width:g} m, CoG to front bumper "
                                f"{fp.cog_to_front:g} m ({fp_source})")
     if "assumed" in fp_source:
