@@ -13,8 +13,9 @@ from formation_traci.comm.predict import predicted_pose
 from formation_traci.road.fast_line import FastLine, frame_at
 from formation_traci.road.geometry import ReferenceLine
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.sim.fast import _advance_vc
-from formation_traci.sim.fast_comm import channel_instants_nb, road_truth_nb, road_views_nb
+from formation_traci.control.virtual_car import along_line_advance as _advance_vc
+from formation_traci.road.leader import road_leader_at
+from formation_traci.comm.link import channel_instants, views
 from formation_traci.comm.predict import predict_planar
 
 from pathlib import Path
@@ -126,12 +127,12 @@ def test_newest_beacon_held_and_compiled_lookup_agree_with_the_definition():
     assert np.any(np.diff(ch.arrival[0][ch.arrival[0] != LOST]) < 0)  # reordering happens
     n_ctrl, n = 5, 2
     B = len(ch.send)
-    beacons, truth = np.zeros((B, 3)), np.zeros((n_ctrl, 3))
+    beacons, truth = np.zeros((B, 8)), np.zeros((n_ctrl, 8))
     nxt, ptr = np.zeros(1, np.int64), np.zeros(n, np.int64)
     NB, AGE = np.zeros((n_ctrl, n), np.int64), np.zeros((n_ctrl, n))
     for k in range(120):
-        channel_instants_nb(truth, DT, k * n_ctrl, ch.send, beacons, nxt, ch.arrival_sorted,
-                            ch.newest_sorted, ptr, NB, AGE)
+        channel_instants(truth, DT, k * n_ctrl, ch.send, beacons, nxt, ch.arrival_sorted,
+                         ch.newest_sorted, ptr, NB, AGE)
         for j in range(n_ctrl):
             c = k * n_ctrl + j
             want = [max(b for b in range(B) if ch.arrival[i, b] <= c) for i in range(n)]
@@ -156,30 +157,32 @@ def test_prediction_of_a_constant_turn_leader_on_a_road_is_exact(a):
                        duration=4.0, control_step=DT, beacon_hz=10.0)
     n_ctrl, n = 5, 2
     B = len(ch.send)
-    beacons, truth = np.zeros((B, 3)), np.zeros((n_ctrl + 1, 3))
+    beacons, truth = np.zeros((B, 8)), np.zeros((n_ctrl, 8))
     nxt, ptr = np.zeros(1, np.int64), np.zeros(n, np.int64)
     NB, AGE = np.zeros((n_ctrl, n), np.int64), np.zeros((n_ctrl, n))
-    V = np.zeros((n_ctrl, n, 3))
+    vc = np.zeros((n_ctrl, n, 8))
     fb = np.zeros(n, np.bool_)
     s, v = 50.0, 25.0
     worst, oldest = 0.0, 0.0
     for k in range(80):
-        road_truth_nb(s, v, a, DT, truth)
-        channel_instants_nb(truth[:n_ctrl], DT, k * n_ctrl, ch.send, beacons, nxt,
-                            ch.arrival_sorted, ch.newest_sorted, ptr, NB, AGE)
-        road_views_nb(NB, AGE, beacons, fb, np.zeros((n, 3)), DT, V)
-        for j in range(n_ctrl):
-            true = frame_at(line.G, s)
-            for i in range(n):
-                assert V[j, i, 0] == pytest.approx(s, abs=1e-9)
-                assert V[j, i, 1] == pytest.approx(v, abs=1e-10)
-                bs, bv, ba = beacons[NB[j, i]]
-                x, y, hd, vp, r = predicted_pose(line.G, bs, bv, ba, AGE[j, i])
-                worst = max(worst, math.hypot(x - true[0], y - true[1]))
-                assert hd == pytest.approx(true[4], abs=1e-12)
-                assert r == pytest.approx(v * true[5], abs=1e-12)
-                oldest = max(oldest, AGE[j, i])
+        s0, v0 = s, v
+        for j in range(n_ctrl):  # the generator's rows (control/reference_road.py road_vc_rows)
+            truth[j] = [*road_leader_at(line.G, s, v, a), s]
             s, v = _advance_vc(s, v, a, DT)
+        channel_instants(truth, DT, k * n_ctrl, ch.send, beacons, nxt, ch.arrival_sorted,
+                         ch.newest_sorted, ptr, NB, AGE)
+        views(line.G, True, NB, AGE, beacons, fb, np.zeros((n, 8)), DT, vc)
+        for j in range(n_ctrl):
+            for i in range(n):
+                assert vc[j, i, 7] == pytest.approx(truth[j, 7], abs=1e-9)
+                assert vc[j, i, 3] == pytest.approx(truth[j, 3], abs=1e-10)
+                worst = max(worst, math.hypot(vc[j, i, 0] - truth[j, 0], vc[j, i, 1] - truth[j, 1]))
+                assert vc[j, i, 2] == pytest.approx(truth[j, 2], abs=1e-12)
+                assert vc[j, i, 4] == pytest.approx(truth[j, 4], abs=1e-12)
+                bs, bv, ba = beacons[NB[j, i]][[7, 3, 5]]
+                x, y, hd, vp, r = predicted_pose(line.G, bs, bv, ba, AGE[j, i])
+                assert math.hypot(x - vc[j, i, 0], y - vc[j, i, 1]) < 1e-12
+                oldest = max(oldest, AGE[j, i])
     assert worst < 1e-9
     assert oldest >= 0.37  # the prediction did span the delay
 

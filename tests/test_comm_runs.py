@@ -123,12 +123,16 @@ def test_free_space_perfect_table_and_exact_prediction_of_a_constant_turn_leader
 
 def test_free_space_fallback_holds_heading_and_speed(tmp_path):
     """v2 hears nothing after t = 0: it times out after 0.5 s and drives straight on at the
-    speed it had, while the others follow the virtual car round the circle."""
+    speed it had, while the others follow the virtual car round the circle (from t = 4.2 s it
+    slows for v3, which the circle brings into its path ahead: its time gap)."""
     kw = {"run.duration": 6.0, "comm": {"timeout_s": 0.5, "links": {"v2": {"delay_s": 1000.0}}}}
     traj, events = run(tmp_path, CIRCLE, **kw)
     to = events[events.kind == "comm_timeout"]
     assert list(to.vehicle_id) == ["v2"] and 0.5 < to.t.iloc[0] <= 0.6
     v2 = traj[(traj.vehicle_id == "v2") & (traj.t >= 2.0)]
-    assert v2.yaw_rate.abs().max() < 1e-3 and v2.v.std() < 1e-6
+    held = float(to.detail.iloc[0].split(" at ")[1].split(" m/s")[0])
+    assert v2.yaw_rate.abs().max() < 1e-3
+    assert v2[v2.t <= 4.0].v.std() < 1e-6 and v2[v2.t <= 4.0].v.mean() == pytest.approx(held, abs=0.05)
+    assert v2.v.max() < held + 0.05
     v1 = traj[(traj.vehicle_id == "v1") & (traj.t >= 2.0)]
     assert v1.yaw_rate.mean() == pytest.approx(0.1, abs=0.02)  # still on the circle

@@ -1,7 +1,7 @@
 """How a member turns the newest virtual-car state it holds into the present one.
 
 **On a road** the virtual car moves along the reference line with the acceleration the
-governor set for the step (``sim/fast.py _advance_vc``: constant acceleration, stop at v = 0).
+governor set for the step (``control/virtual_car.py along_line_advance``: constant acceleration, stop at v = 0).
 A member holds (s, v, a) of the beacon and its age tau and predicts
 
     s(tau) = s + v tau + a tau^2 / 2,   v(tau) = v + a tau,   a(tau) = a   (until v = 0),
@@ -23,12 +23,11 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from ..control.virtual_car import along_line_advance
+from ..kernels import kernel
 from ..road.fast_line import frame_at
-from ..sim.fast import _advance_vc
 
-predict_along_line = _advance_vc
+predict_along_line = along_line_advance
 """predict_along_line(s [m], v [m/s], a [m/s^2], tau [s]) -> (s, v) at tau later (compiled)."""
 
 _STRAIGHT = 1e-6
@@ -43,7 +42,7 @@ def predicted_pose(G, s: float, v: float, a: float, tau: float) -> tuple[float, 
     return x, y, heading, v1, v1 * kappa
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def predict_planar(x, y, th, v, w, a, tau):
     """Pose and speed (x [m], y [m], theta [rad], v [m/s]) tau [s] after (x, y, theta, v) with
     the turn rate w [rad/s] and the acceleration a [m/s^2] held (the speed stops at 0)."""
