@@ -22,6 +22,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 DT = 0.01  # control step [s]
+pytestmark = pytest.mark.jit_off  # also run with NUMBA_DISABLE_JIT=1 (README)
 
 
 def link(**kw) -> LinkParams:
@@ -130,7 +131,7 @@ def test_newest_beacon_held_and_compiled_lookup_agree_with_the_definition():
     beacons, truth = np.zeros((B, 8)), np.zeros((n_ctrl, 8))
     nxt, ptr = np.zeros(1, np.int64), np.zeros(n, np.int64)
     NB, AGE = np.zeros((n_ctrl, n), np.int64), np.zeros((n_ctrl, n))
-    for k in range(120):
+    for k in range(60):
         channel_instants(truth, DT, k * n_ctrl, ch.send, beacons, nxt, ch.arrival_sorted,
                          ch.newest_sorted, ptr, NB, AGE)
         for j in range(n_ctrl):
@@ -164,7 +165,7 @@ def test_prediction_of_a_constant_turn_leader_on_a_road_is_exact(a):
     fb = np.zeros(n, np.bool_)
     s, v = 50.0, 25.0
     worst, oldest = 0.0, 0.0
-    for k in range(80):
+    for k in range(40):
         s0, v0 = s, v
         for j in range(n_ctrl):  # the generator's rows (control/reference_road.py road_vc_rows)
             truth[j] = [*road_leader_at(line.G, s, v, a), s]
