@@ -83,10 +83,10 @@ def test_timeout_fallback_keeps_the_member_safe_in_a_braking_column(tmp_path):
 def test_bundled_study_error_grows_with_delay_and_with_loss(tmp_path):
     """scenarios/studies/comm.toml shortened (seed 1, 20 s warm-up, 30 s of formation, which
     holds the speed drop): the r.m.s. formation error over the members grows with the delay
-    (0, 0.1, 0.3 s) and with the loss (none, independent, bursty)."""
+    (0, 0.1, 0.3 s) and with the loss (none, bursty)."""
     base = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
     short = {"run.duration": 30.0, "traffic.warmup": 20.0}
-    want = {(0.0, "none"), (0.1, "none"), (0.3, "none"), (0.0, "independent"), (0.0, "bursty")}
+    want = {(0.0, "none"), (0.1, "none"), (0.3, "none"), (0.0, "bursty")}
     e = {}
     for case in expand_sweep(ROOT / "scenarios" / "studies" / "comm.toml"):
         key = (case.values["comm.delay_s"], case.values["comm.loss"])
@@ -97,7 +97,7 @@ def test_bundled_study_error_grows_with_delay_and_with_loss(tmp_path):
         e[key] = float(np.sqrt(np.mean(m.e_lon ** 2 + m.e_lat ** 2)))
     assert set(e) == want
     assert e[(0.0, "none")] < e[(0.1, "none")] < e[(0.3, "none")], e
-    assert e[(0.0, "none")] < e[(0.0, "independent")] < e[(0.0, "bursty")], e
+    assert e[(0.0, "none")] < e[(0.0, "bursty")], e
 
 
 CIRCLE = ROOT / "scenarios" / "thesis" / "case_2_3_2_circle.toml"
