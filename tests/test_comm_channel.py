@@ -122,7 +122,7 @@ def test_beacon_instants_follow_the_rate():
 def test_newest_beacon_held_and_compiled_lookup_agree_with_the_definition():
     """With jitter, beacons overtake each other: a member holds the largest beacon index among
     those that have arrived (a late older one never replaces it). The compiled per-step lookup
-    (sim/fast_comm.py) gives the same beacon and its age as the definition."""
+    (comm/link.py) gives the same beacon and its age as the definition."""
     p = link(delay_s=0.02, jitter_s=0.08, loss="independent", loss_p=0.3)
     ch = build_channel([p, link(delay_s=0.3)], seed=4, duration=6.0, control_step=DT, beacon_hz=50.0)
     assert np.any(np.diff(ch.arrival[0][ch.arrival[0] != LOST]) < 0)  # reordering happens
