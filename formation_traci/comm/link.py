@@ -98,6 +98,8 @@ def views(G, road, NB, AGE, beacons, fb, fb_rows, dt_c, vc):
 class CommChannel:
     """The [comm] channel of a run as a Reference transform (see the module docstring)."""
 
+    error_against_truth = True  # the loop records ex .. y_des against the true virtual car
+
     def __init__(self, channel: Channel, member_ids, n_ctrl: int, timeout_s: float, veh, ld):
         n = len(member_ids)
         self.ch, self.ids = channel, list(member_ids)

@@ -25,8 +25,9 @@ from .world import FreeSpace
 
 
 ERROR_COLUMNS = ("ex", "ey", "e_lon", "e_lat", "x_des", "y_des")
-"""Recorded against the true virtual car when a transform changed the members' copies of it
-(a communication channel): the formation error the member really has."""
+"""Recorded against the true virtual car when a transform that says so
+(``error_against_truth = True``: comm/link.py) changed the members' copies of it: the
+formation error the member really has. Otherwise against the member's own copy."""
 
 
 class ModelRangeError(RuntimeError):
@@ -37,7 +38,8 @@ class ModelRangeError(RuntimeError):
 class RunParts:
     """Everything the loop needs; ``transforms`` modify each step's Reference in order (one
     with a ``sense(k, t, sensed, kinematics, rec)`` method is told what the world sensed, the
-    members' (pos, vel, heading) and the recorder first: comm/link.py)."""
+    members' (pos, vel, heading) and the recorder first; one with ``error_against_truth`` has
+    the formation error recorded against the true virtual car: comm/link.py)."""
 
     world: object  # a sim.world.World
     generator: object  # FreeReference or RoadReference
@@ -77,6 +79,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
     err_cols = [SIGNAL_COLUMNS.index(c) for c in ERROR_COLUMNS]
     perfect = np.zeros(fleet.cfg.n)  # leader_age_s without a channel
     sensing = [tr for tr in parts.transforms if hasattr(tr, "sense")]
+    true_error = any(getattr(tr, "error_against_truth", False) for tr in parts.transforms)
     clock = PhaseClock({} if parts.timing is None else parts.timing)
     world.start()
     try:
@@ -94,7 +97,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             world.observe(t, sensed, ref)
             if world.records_members:
                 fleet.signals(state, ref, out=sig)
-                if ref.vc is not ref0.vc:  # the error against the true virtual car
+                if true_error and ref.vc is not ref0.vc:  # the error against the true virtual car
                     fleet.signals(state, ref.with_(vc=ref0.vc), out=sig_true)
                     sig[:, err_cols] = sig_true[:, err_cols]
                 rec.add_signal_rows(t, sig, sensed.extra, mask=ref.active)
