@@ -10,7 +10,8 @@ import pytest
 from formation_traci.comm.channel import (LOST, LinkParams, build_channel, gilbert_rates,
                                           link_params)
 from formation_traci.comm.predict import predicted_pose
-from formation_traci.road.fast_line import FastLine, frame_at
+from formation_traci.road.fast_line import frame_at
+from formation_traci.road.line_pack import FastLine
 from formation_traci.road.geometry import ReferenceLine
 from formation_traci.scenario import ScenarioError, load_scenario
 from formation_traci.control.virtual_car import along_line_advance as _advance_vc

@@ -36,7 +36,7 @@ _STRAIGHT = 1e-6
 
 def predicted_pose(G, s: float, v: float, a: float, tau: float) -> tuple[float, ...]:
     """The virtual car's (x [m], y [m], heading [rad], v [m/s], yaw rate [rad/s]) predicted tau
-    [s] after the state (s, v, a) on the line ``G`` (FastLine.G)."""
+    [s] after the state (s, v, a) on the line ``G`` (road/line_pack.py FastLine.G)."""
     s1, v1 = predict_along_line(s, v, a, tau)
     x, y, tx, ty, heading, kappa, kappa_rate = frame_at(G, s1)
     return x, y, heading, v1, v1 * kappa
