@@ -10,6 +10,8 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from .maneuvers import ManeuverLimits, ManeuverSpec
+
 PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -232,6 +234,21 @@ class Scenario(Strict):
     road: RoadSpec | None = Field(None, description="SUMO road; without it the run is in free space")
     traffic: TrafficSpec = TrafficSpec()
     sumo: SumoSpec = SumoSpec()
+    maneuvers: list[ManeuverSpec] = Field(default_factory=list, description="scheduled maneuvers, run one at a time in this order")
+    maneuver_limits: ManeuverLimits = ManeuverLimits()
+
+    @model_validator(mode="after")
+    def _maneuver_rules(self):
+        if not self.maneuvers:
+            return self
+        if self.road is None:
+            raise ValueError("maneuvers need a [road] table")
+        if any(m.slot is None for m in self.members):
+            raise ValueError("maneuvers need road-frame slots ('slot') for every member")
+        for i, mv in enumerate(self.maneuvers):
+            if mv.slots is not None and len(mv.slots) < len(self.members):
+                raise ValueError(f"maneuvers.{i}.slots: {len(mv.slots)} slots for {len(self.members)} members")
+        return self
 
     @model_validator(mode="after")
     def _world_rules(self):

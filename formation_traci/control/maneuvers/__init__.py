@@ -1,0 +1,6 @@
+"""Formation maneuvers: slot transitions, slot assignment, gap checks, triggers, the planner.
+
+See docs/maneuvers.md. Everything here is pure (no SUMO, no clock): the planner turns the
+scenario's schedule and what is sensed each step into a slot plan that the step kernels
+evaluate (sim/fast_moving.py).
+"""
