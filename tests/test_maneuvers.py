@@ -95,27 +95,29 @@ def _others(rows):
     return Others(ids, a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4])
 
 
-def test_gap_check_front_rear_margins_and_closing_speed():
-    s_path = np.array([[100.0, 100.0]])
-    args = dict(d0=np.array([0.0]), d1=np.array([-3.5]), length=np.array([4.6]), width=np.array([1.8]),
-                v_m=np.array([25.0]), duration=5.0, time_gap=1.0, min_gap=5.0, member_ids=["m"])
-    # behind in the target lane at the same speed: needs 5 + 25 = 30 m bumper to bumper
-    near = _others([("car1", 100.0 - 4.6 / 2 - 4.5 / 2 - 20.0, -3.5, 4.5, 1.8, 25.0)])
-    v = check_gaps(s_path, others=near, **args)
+def test_gap_check_predicts_margins_front_and_rear():
+    one = lambda x: np.array([x], dtype=float)
+    args = dict(d0=one(0.0), d1=one(-3.5), length=one(4.6), width=one(1.8), v_m=one(25.0),
+                duration=5.0, time_gap=1.0, min_gap=5.0, member_ids=["m"])
+    behind = lambda gap, v=25.0: _others([("car1", 100.0 - 4.6 / 2 - 4.5 / 2 - gap, -3.5, 4.5, 1.8, v)])
+    # behind in the target lane at the same speed: needs 5 + 1.0 * 25 = 30 m bumper to bumper
+    v = check_gaps(one(100.0), one(0.0), others=behind(20.0), **args)
     assert not v.ok and "car1" in v.reason and v.shortfall == pytest.approx(10.0)
-    far = _others([("car1", 100.0 - 4.6 / 2 - 4.5 / 2 - 31.0, -3.5, 4.5, 1.8, 25.0)])
-    assert check_gaps(s_path, others=far, **args).ok
-    # 5 m/s faster: 25 m more over the 5 s transition
-    fast = _others([("car1", 100.0 - 4.6 / 2 - 4.5 / 2 - 31.0, -3.5, 4.5, 1.8, 30.0)])
-    v = check_gaps(s_path, others=fast, **args)
-    assert not v.ok and v.shortfall == pytest.approx(5 + 30 + 25 - 31.0)
-    # ahead: the member's time gap; beside: always refused; own lane and far lanes: ignored
+    assert check_gaps(one(100.0), one(0.0), others=behind(31.0), **args).ok
+    # 5 m/s faster: at the end of the 5 s it is 25 m closer and needs 5 + 30 m
+    v = check_gaps(one(100.0), one(0.0), others=behind(31.0, 30.0), **args)
+    assert not v.ok and v.shortfall == pytest.approx(5 + 30 - (31 - 25))
+    # a member that moves 44 m forward enters the lane ahead of a car 10 m behind it: it has
+    # moved h = 0.4 of the way (17.6 m) when the bodies first overlap sideways
+    assert not check_gaps(one(100.0), one(44.0), others=behind(10.0), **args).ok
+    assert check_gaps(one(100.0), one(60.0), others=behind(10.0), **args).ok
+    # ahead: the member's time gap; beside: refused; own lane and far lanes: ignored
     ahead = _others([("a", 100.0 + 4.6 / 2 + 4.5 / 2 + 29.0, -3.5, 4.5, 1.8, 25.0)])
-    assert not check_gaps(s_path, others=ahead, **args).ok
+    assert "ahead of member" in check_gaps(one(100.0), one(0.0), others=ahead, **args).reason
     beside = _others([("b", 101.0, -3.5, 4.5, 1.8, 25.0)])
-    assert "beside" in check_gaps(s_path, others=beside, **args).reason
+    assert not check_gaps(one(100.0), one(0.0), others=beside, **args).ok
     other_lanes = _others([("own", 110.0, 0.0, 4.5, 1.8, 25.0), ("far", 100.0, -7.0, 4.5, 1.8, 25.0)])
-    assert check_gaps(s_path, others=other_lanes, **args).ok
+    assert check_gaps(one(100.0), one(0.0), others=other_lanes, **args).ok
 
 
 def test_queue_behind_counts_vehicles_in_the_formations_lanes():

@@ -60,7 +60,7 @@ from .integrate import substeps
 
 # ------------------------------------------------------------------ recorded columns
 
-FILLED_BY_CALLER = ("t", "vehicle_id", "s", "d", "lane_index", "sumo_gap")
+FILLED_BY_CALLER = ("t", "vehicle_id", "s", "d", "lane_index", "sumo_gap", "slot")
 """Trajectory columns :func:`record_signals_nb` does not compute."""
 
 SIGNAL_COLUMNS: tuple[str, ...] = tuple(c.name for c in TRAJECTORY_COLUMNS

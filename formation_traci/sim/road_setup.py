@@ -115,8 +115,10 @@ def slot_offsets(sc: Scenario, road: Road) -> np.ndarray:
     return np.array(out, dtype=float)
 
 
-def check_slots(sc: Scenario, road: Road, slots: np.ndarray, veh: VehicleParams, source) -> None:
-    """A slot must keep the member's body on the road everywhere the formation will drive."""
+def check_slots(sc: Scenario, road: Road, slots: np.ndarray, veh: VehicleParams, source,
+                s_max: float | None = None) -> None:
+    """A slot must keep the member's body on the road everywhere the formation will drive
+    (up to the virtual car's arc length ``s_max`` [m] when maneuvers change the slots there)."""
     problems = []
     half = veh.width / 2
     for i, m in enumerate(sc.members):
@@ -125,7 +127,7 @@ def check_slots(sc: Scenario, road: Road, slots: np.ndarray, veh: VehicleParams,
         dx, dy = slots[i]
         s_first = sc.road.start + dx
         for seg in road.segments:
-            if seg.s1 < s_first:
+            if seg.s1 < s_first or (s_max is not None and seg.s0 > s_max + dx):
                 continue
             if dy - half < seg.d_min - 1e-6 or dy + half > seg.d_max + 1e-6:
                 problems.append((f"members.{i}.slot", (

@@ -29,6 +29,7 @@ from ..road.targets import road_targets
 from ..scenario.schema import Scenario
 from . import fleet as fl
 from .governor import governor_step
+from .maneuver_glue import ManeuverRun, initial_check_limit
 from .fast import FastFleet, SIGNAL_COLUMNS
 from .recorder import Recorder
 from .road_setup import (Road, build_road, check_no_overlap, check_slots, rectangles_overlap,
@@ -70,7 +71,7 @@ def prepare(sc: Scenario, source: Path | None) -> RoadPlan:
     road = build_road(sc, source)
     veh = vehicle_params(sc)
     slots = slot_offsets(sc, road)
-    check_slots(sc, road, slots, veh, source)
+    check_slots(sc, road, slots, veh, source, s_max=initial_check_limit(sc))
     is_road = np.array([m.slot is not None for m in sc.members])
     rigid = np.array([m.offset if m.offset is not None else [np.nan, np.nan] for m in sc.members], float)
     v0, v0_dot = profile(sc.leader.speed)(0.0)
@@ -186,6 +187,8 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
     # compiled per-step path, checked against the numpy reference on a synthetic state here
     ff = FastFleet.from_config(cfg, line, plan.slots, plan.rigid, plan.is_road)
     sig_buf = np.full((n, len(SIGNAL_COLUMNS)), np.nan)
+    mv = ManeuverRun(sc, plan.slots, road, veh) if sc.maneuvers else None  # moving slots
+    slot_index = np.arange(n, dtype=float)
     m_s = None
 
     adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
@@ -231,7 +234,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             pos, vel, heading = ff.kinematics(state)
             v_m = np.hypot(vel[:, 0], vel[:, 1])
             m_s, m_d = ff.to_frenet(pos, m_s)
-            extra = {"s": m_s, "d": m_d}
+            extra = {"s": m_s, "d": m_d, "slot": slot_index if mv is None else mv.slot_column()}
             nb = None
             if inserted and baseline:
                 _log_sumo_events(rec, t, ev, set(ids))
@@ -267,17 +270,25 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             tm["sumo_read"] += c1 - c0
             # governor: the virtual car keeps every slot a time gap behind the vehicle ahead of
             # it; each member keeps its own gap to whatever is between it and its slot
-            slot_s = s_vc + along
-            slot_d = np.where(plan.is_road, plan.slots[:, 1], m_d)
             if nb is not None and len(nb.ids):
                 nb_s, nb_d = ff.to_frenet(np.column_stack([nb.x, nb.y]))
                 nb_rear, nb_hw, nb_v = nb_s - nb.length / 2, nb.width / 2, nb.v
             else:
                 nb_s = nb_d = nb_rear = nb_hw = nb_v = np.empty(0)
+            if mv is None:
+                slot_s = s_vc + along
+                slot_d = np.where(plan.is_road, plan.slots[:, 1], m_d)
+            else:  # the planner's slots at t (maneuver_glue.py)
+                along_now, slot_d = mv.update(rec, t, s_vc, m_s, m_d, v_m, active, nb, nb_s, nb_d)
+                slot_s = s_vc + along_now
+                along_max = mv.along_max()
             v_set, v_set_dot = speed_profile(t)
             a_vc, gap, lead_idx, v_cap, a_cap = governor_step(
                 m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
                 nb_rear, nb_d, nb_hw, nb_v, ld.time_gap, ld.min_gap, accel_max, decel_emergency)
+            if mv is not None:  # room ahead of a due or running maneuver's goal slots, opened gently
+                a_vc = mv.make_room(a_vc, s_vc + d_front, v_vc, half_w, active, nb_rear, nb_d, nb_hw, nb_v,
+                                    ld.time_gap, ld.min_gap)
             if a_vc < -decel_max - 1e-9 and not emergency:
                 rec.add_event(t, "emergency_brake", "vc", "", f"virtual car decelerates at {-a_vc:.2f} m/s^2")
             emergency = a_vc < -decel_max - 1e-9
@@ -289,8 +300,9 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
 
             vc = ff.leader_state(s_vc, v_vc, a_vc)
             if not baseline:
-                rec.add_signal_rows(t, ff.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap, out=sig_buf),
-                                    extra, mask=active)
+                sig = ff.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap, out=sig_buf) if mv is None \
+                    else mv.signals(ff, state, t, s_vc, v_vc, a_vc, v_cap, a_cap, sig_buf)
+                rec.add_signal_rows(t, sig, extra, mask=active)
             rec.add_vc(t, vc, s=s_vc)
             c3 = clock()
             tm["record"] += c3 - c2
@@ -307,7 +319,10 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
 
             c3 = clock()
             v_before = state.x[:, 3].copy() if cfg.model == "dynamic" else state.speed_in.copy()
-            state, s_vc, v_vc = ff.step(state, s_vc, v_vc, a_vc, v_cap, a_cap, dt_c, n_ctrl)
+            if mv is None:
+                state, s_vc, v_vc = ff.step(state, s_vc, v_vc, a_vc, v_cap, a_cap, dt_c, n_ctrl)
+            else:
+                state, s_vc, v_vc = mv.step(ff, state, t, s_vc, v_vc, a_vc, v_cap, a_cap, dt_c, n_ctrl)
             if not np.all(np.isfinite(state.x)):
                 from .runner import check_finite
                 check_finite(state, ids, t + run.step)

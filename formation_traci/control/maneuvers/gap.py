@@ -1,17 +1,18 @@
-"""Room for a member to move sideways: time-gap margins to the vehicles in its target lane.
+"""Room for members to move: predicted time-gap margins to the vehicles around them.
 
-A member that moves from lateral offset d0 to d1 (road frame, left positive [m]) during a
-transition of duration T [s] needs, towards every vehicle whose body overlaps its target
-band [d1 - w/2 - LATERAL_MARGIN, d1 + w/2 + LATERAL_MARGIN] and that is not on its present
-band (the vehicle ahead in its own lane is the governor's business):
+A member at arc length s0 and lateral offset d0 [m] moves during a transition of duration T
+[s] by (D_along, d1 - d0) along the minimum-jerk profile h(tau) of transition.py while the
+formation drives on at its speed v. The other vehicles are predicted at constant speed:
 
-* ahead (vehicle's centre ahead of the member's): rear bumper minus the member's front bumper
-  at the foremost point of its path >= g_min + t_gap v_member + max(0, v_member - v_other) T;
-* behind: the member's rear bumper at the rearmost point of its path minus the other's front
-  bumper >= g_min + t_gap v_other + max(0, v_other - v_member) T.
+    s_m(tau) = s0 + v tau T + h(tau) D_along,      d_m(tau) = d0 + h(tau) (d1 - d0),
+    s_o(tau) = s_o + v_o tau T.
 
-The closing terms keep the margin for the whole transition at constant speeds; the time gap
-is the follower's (the member ahead, the other car behind), as in a constant-time-gap law.
+Whenever the member's body and another vehicle's body overlap sideways (closer than
+LATERAL_MARGIN) at some tau in [0, 1], the bumper-to-bumper gap between them must be at least
+g_min + t_gap v_follower: the member's speed when the other is ahead, the other's when it is
+behind. Vehicles the member already shares its lane with at tau = 0 are left out (the
+governor keeps the member's gap to the one ahead; the one behind follows it already).
+Checked on SAMPLES values of tau.
 """
 from __future__ import annotations
 
@@ -19,8 +20,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .transition import quintic
+
 LATERAL_MARGIN = 0.3
-"""Bodies closer sideways than this count as sharing the target band [m]."""
+"""Bodies closer sideways than this count as sharing a lane [m]."""
+SAMPLES = 41
+"""Instants of the transition at which the predicted gaps are checked [-]."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,50 +47,51 @@ class GapVerdict:
     shortfall: float  # largest missing gap [m] (0 when ok)
 
 
-def check_gaps(s_path, d0, d1, length, width, v_m, others: Others, duration: float,
+def check_gaps(s0, along_shift, d0, d1, length, width, v_m, others: Others, duration: float,
                time_gap: float, min_gap: float, member_ids=None) -> GapVerdict:
-    """Check every member's target band against ``others``.
+    """Check every member's predicted path against ``others``.
 
     Parameters
     ----------
-    s_path : ndarray, shape (n, 2)
-        Rearmost and foremost centre arc length of each member over its transition [m].
+    s0, along_shift : ndarray, shape (n,)
+        Centre arc length now [m] and slot displacement along the road D_along [m].
     d0, d1 : ndarray, shape (n,)
         Lateral offset now and at the end of the transition [m].
     length, width, v_m : ndarray, shape (n,)
-        Body length [m], width [m] and speed [m/s] of each member.
+        Body length [m], width [m] and speed [m/s] of each member (v_m: also the speed the
+        formation drives on at).
     duration : float
         Transition duration T [s].
     time_gap, min_gap : float
         Margins t_gap [s] and g_min [m].
     """
-    s_path = np.asarray(s_path, dtype=float).reshape(-1, 2)
-    n = len(s_path)
+    n = len(s0)
     ids = member_ids or [str(i) for i in range(n)]
+    if len(others.ids) == 0:
+        return GapVerdict(True, "", 0.0)
+    tau = np.linspace(0.0, 1.0, SAMPLES)
+    h = np.array([quintic(x, 0.0, 1.0)[0] for x in tau])[:, None]  # (S, 1)
+    o_half = others.width / 2
     worst, why = 0.0, ""
     for i in range(n):
-        if abs(d1[i] - d0[i]) < 1e-9 or len(others.ids) == 0:
+        if abs(d1[i] - d0[i]) < 1e-9 and abs(along_shift[i]) < 1e-9:
             continue
-        half = width[i] / 2 + LATERAL_MARGIN
-        o_half = others.width / 2
-        in_target = np.abs(others.d - d1[i]) < half + o_half
-        in_own = np.abs(others.d - d0[i]) < width[i] / 2 + o_half
-        for j in np.flatnonzero(in_target & ~in_own):
-            ahead = (others.s[j] - others.length[j] / 2) - (s_path[i, 1] + length[i] / 2)
-            behind = (s_path[i, 0] - length[i] / 2) - (others.s[j] + others.length[j] / 2)
-            if ahead >= 0.0:
-                gap, where = ahead, "ahead of"
-                need = min_gap + time_gap * v_m[i] + max(0.0, v_m[i] - others.v[j]) * duration
-            elif behind >= 0.0:
-                gap, where = behind, "behind"
-                need = min_gap + time_gap * others.v[j] + max(0.0, others.v[j] - v_m[i]) * duration
-            else:  # the bodies overlap along the road: side by side with the path
-                gap, need, where = -np.inf, 0.0, "beside"
-            if need - gap > worst:
-                worst = need - gap
-                if where == "beside":
-                    why = f"{others.ids[j]} is beside member {ids[i]!r} in its target lane"
-                else:
-                    why = (f"{others.ids[j]} {gap:.1f} m {where} member {ids[i]!r} in its target lane "
-                           f"(needs {need:.1f} m)")
-    return GapVerdict(bool(worst <= 0.0), why, float(worst) if np.isfinite(worst) else np.inf)
+        fresh = np.abs(others.d - d0[i]) >= width[i] / 2 + o_half  # not in its lane now
+        s_m = s0[i] + v_m[i] * tau[:, None] * duration + h * along_shift[i]
+        d_m = d0[i] + h * (d1[i] - d0[i])
+        s_o = others.s[None, :] + others.v[None, :] * tau[:, None] * duration
+        side = (np.abs(d_m - others.d[None, :]) < width[i] / 2 + o_half[None, :] + LATERAL_MARGIN) & fresh
+        if not side.any():
+            continue
+        ahead = s_o >= s_m
+        gap = np.where(ahead, (s_o - others.length / 2) - (s_m + length[i] / 2),
+                       (s_m - length[i] / 2) - (s_o + others.length / 2))
+        need = min_gap + time_gap * np.where(ahead, v_m[i], others.v[None, :])
+        short = np.where(side, need - gap, -np.inf)
+        k, j = np.unravel_index(np.argmax(short), short.shape)
+        if short[k, j] > worst:
+            worst = float(short[k, j])
+            where = "ahead of" if ahead[k, j] else "behind"
+            why = (f"{others.ids[j]} would be {gap[k, j]:.1f} m {where} member {ids[i]!r} "
+                   f"(needs {need[k, j]:.1f} m) {tau[k] * duration:.1f} s into the maneuver")
+    return GapVerdict(bool(worst <= 0.0), why, worst)

@@ -72,6 +72,16 @@ class ManeuverPlanner:
         self.due_since: float | None = None
         self.postponed = False
         self.intervals: list[tuple[str, float, float]] = []
+        self.pending_goal: np.ndarray | None = None  # goal of the due maneuver while postponed
+
+    def goal(self) -> np.ndarray | None:
+        """Slots (n, 2) the formation is moving to or waiting to move to (None: holding):
+        the governor keeps room ahead of them as well as of the present slots."""
+        if self.running is not None:
+            return self.plan[:, 2:4]
+        if self.due_since is not None:
+            return self.pending_goal
+        return None
 
     @property
     def idle(self) -> bool:
@@ -120,6 +130,7 @@ class ManeuverPlanner:
         self.next += 1
         self.due_since = None
         self.postponed = False
+        self.pending_goal = None
 
     def _target(self, spec, active):
         """New shape (m, 2), and each active member's slot index in it."""
@@ -141,6 +152,7 @@ class ManeuverPlanner:
         goal = start.copy()
         goal[a] = shape[slot_of[a]]
         T = transition_duration(goal[a, 0] - start[a, 0], goal[a, 1] - start[a, 1], self.limits)
+        self.pending_goal = goal
         v = float(np.max(sn.v_m[a], initial=0.0))
         if self.room is not None:
             s_lo = sn.s_vc + float(np.min(goal[a, 0]))
@@ -150,11 +162,9 @@ class ManeuverPlanner:
                 return False, "target slots off the road ahead"
         if spec.check_gaps:
             ai = np.flatnonzero(a)
-            s_goal = sn.s_vc + goal[ai, 0]
-            s_path = np.column_stack([np.minimum(sn.m_s[ai], s_goal), np.maximum(sn.m_s[ai], s_goal)])
-            verdict = check_gaps(s_path, sn.m_d[ai], goal[ai, 1], self.lengths[ai], self.widths[ai],
-                                 sn.v_m[ai], sn.others, T, self.gap_time, self.gap_min,
-                                 [self.ids[i] for i in ai])
+            verdict = check_gaps(sn.m_s[ai], goal[ai, 0] - start[ai, 0], sn.m_d[ai], goal[ai, 1],
+                                 self.lengths[ai], self.widths[ai], sn.v_m[ai], sn.others, T,
+                                 self.gap_time, self.gap_min, [self.ids[i] for i in ai])
             if not verdict.ok:
                 return False, f"no room: {verdict.reason}"
         clear = min_clearance(start[a], goal[a], self.lengths[a], self.widths[a])
