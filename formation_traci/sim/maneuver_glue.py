@@ -14,7 +14,7 @@ from ..control.maneuvers.gap import Others
 from ..control.maneuvers.planner import ManeuverPlanner, Sensed
 from ..scenario.schema import Scenario
 from . import fast_moving
-from .governor import time_gap_accel, vehicles_ahead
+from .governor import LATERAL_MARGIN, time_gap_accel
 
 ROOM_DECEL = 1.0
 """Largest deceleration of the virtual car to open room ahead of goal slots [m/s^2]."""
@@ -69,21 +69,25 @@ class ManeuverRun:
         sl = self.planner.slots(t)
         return sl[:, 0], sl[:, 1]
 
-    def make_room(self, a_vc, s_vc_front, v_vc, half_w, active, o_rear, o_d, o_half_w, o_v,
-                  time_gap, min_gap) -> float:
+    def make_room(self, a_vc, s_vc_front, v_vc, half_w, length, active, o_rear, o_d, o_half_w,
+                  o_length, o_v, time_gap, min_gap) -> float:
         """The virtual car's acceleration [m/s^2] limited, while a maneuver is due or running,
-        by the constant-time-gap law (governor.py) of every goal slot to the vehicle ahead of
-        it, bounded below by -ROOM_DECEL: the formation drops back gently until its goal
-        slots have room. Vehicles beside a goal slot (gap < 0) are the gap check's business."""
+        by the constant-time-gap law (governor.py) of every goal slot behind the nearest
+        vehicle in its lane that is ahead of it or beside it (front bumper ahead of the slot's
+        rear; gap = its rear minus the slot's front, negative when beside), bounded below by
+        -ROOM_DECEL: the formation drops back gently until its goal slots have room."""
         goal = self.planner.goal()
         if goal is None or not len(o_rear):
             return a_vc
-        gap, v_lead, _ = vehicles_ahead(s_vc_front + goal[:, 0], goal[:, 1], half_w, o_rear, o_d,
-                                        o_half_w, o_v)
-        use = active & (gap >= 0.0) & np.isfinite(gap)
-        if not use.any():
+        front = s_vc_front + goal[:, 0]
+        rear = front - length
+        lane = np.abs(o_d[None, :] - goal[:, 1][:, None]) < o_half_w[None, :] + half_w[:, None] + LATERAL_MARGIN
+        cand = lane & ((o_rear + o_length)[None, :] > rear[:, None]) & active[:, None]
+        if not cand.any():
             return a_vc
-        a_goal = time_gap_accel(gap[use], v_vc, v_lead[use], time_gap, min_gap)
+        gaps = np.where(cand, o_rear[None, :] - front[:, None], np.inf)
+        i, j = np.nonzero(cand)
+        a_goal = time_gap_accel(np.maximum(gaps[i, j], 0.0), v_vc, o_v[j], time_gap, min_gap)
         return min(a_vc, max(float(np.min(a_goal)), -ROOM_DECEL))
 
     def slot_column(self) -> np.ndarray:

@@ -287,8 +287,8 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
                 nb_rear, nb_d, nb_hw, nb_v, ld.time_gap, ld.min_gap, accel_max, decel_emergency)
             if mv is not None:  # room ahead of a due or running maneuver's goal slots, opened gently
-                a_vc = mv.make_room(a_vc, s_vc + d_front, v_vc, half_w, active, nb_rear, nb_d, nb_hw, nb_v,
-                                    ld.time_gap, ld.min_gap)
+                a_vc = mv.make_room(a_vc, s_vc + d_front, v_vc, half_w, veh.length, active, nb_rear, nb_d,
+                                    nb_hw, nb_rear if nb is None else nb.length, nb_v, ld.time_gap, ld.min_gap)
             if a_vc < -decel_max - 1e-9 and not emergency:
                 rec.add_event(t, "emergency_brake", "vc", "", f"virtual car decelerates at {-a_vc:.2f} m/s^2")
             emergency = a_vc < -decel_max - 1e-9
