@@ -114,6 +114,11 @@ def test_gap_check_predicts_margins_front_and_rear():
     # ahead: the member's time gap; beside: refused; own lane and far lanes: ignored
     ahead = _others([("a", 100.0 + 4.6 / 2 + 4.5 / 2 + 29.0, -3.5, 4.5, 1.8, 25.0)])
     assert "ahead of member" in check_gaps(one(100.0), one(0.0), others=ahead, **args).reason
+    ahead = _others([("a", 100.0 + 4.6 / 2 + 4.5 / 2 + 31.0, -3.5, 4.5, 1.8, 25.0)])
+    assert check_gaps(one(100.0), one(0.0), others=ahead, **args).ok
+    # ahead, the governor's margins when larger: 2 m + 1.5 s * 25 m/s = 39.5 m
+    v = check_gaps(one(100.0), one(0.0), others=ahead, ahead_time_gap=1.5, ahead_min_gap=2.0, **args)
+    assert not v.ok and v.shortfall == pytest.approx(39.5 - 31.0)
     beside = _others([("b", 101.0, -3.5, 4.5, 1.8, 25.0)])
     assert not check_gaps(one(100.0), one(0.0), others=beside, **args).ok
     other_lanes = _others([("own", 110.0, 0.0, 4.5, 1.8, 25.0), ("far", 100.0, -7.0, 4.5, 1.8, 25.0)])

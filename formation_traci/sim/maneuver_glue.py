@@ -52,7 +52,8 @@ class ManeuverRun:
     def __init__(self, sc: Scenario, slots: np.ndarray, road, veh):
         self.ids = [m.id for m in sc.members]
         self.planner = ManeuverPlanner(sc.maneuvers, slots, road.lane_width, sc.maneuver_limits,
-                                       veh.length, veh.width, self.ids, road_room(road))
+                                       veh.length, veh.width, self.ids, road_room(road),
+                                       (sc.leader.time_gap, sc.leader.min_gap))
 
     @property
     def plan(self) -> np.ndarray:

@@ -10,7 +10,8 @@ formation drives on at its speed v. The other vehicles are predicted at constant
 Whenever the member's body and another vehicle's body overlap sideways (closer than
 LATERAL_MARGIN) at some tau in [0, 1], the bumper-to-bumper gap between them must be at least
 g_min + t_gap v_follower: the member's speed when the other is ahead, the other's when it is
-behind. Vehicles the member already shares its lane with at tau = 0 are left out (the
+behind (ahead, the larger of these margins and the governor's time gap and standstill gap,
+so that the member does not land inside the gap its own speed cap keeps). Vehicles the member already shares its lane with at tau = 0 are left out (the
 governor keeps the member's gap to the one ahead; the one behind follows it already).
 Checked on SAMPLES values of tau.
 """
@@ -48,7 +49,8 @@ class GapVerdict:
 
 
 def check_gaps(s0, along_shift, d0, d1, length, width, v_m, others: Others, duration: float,
-               time_gap: float, min_gap: float, member_ids=None) -> GapVerdict:
+               time_gap: float, min_gap: float, member_ids=None,
+               ahead_time_gap: float | None = None, ahead_min_gap: float | None = None) -> GapVerdict:
     """Check every member's predicted path against ``others``.
 
     Parameters
@@ -64,11 +66,16 @@ def check_gaps(s0, along_shift, d0, d1, length, width, v_m, others: Others, dura
         Transition duration T [s].
     time_gap, min_gap : float
         Margins t_gap [s] and g_min [m].
+    ahead_time_gap, ahead_min_gap : float, optional
+        Margins towards vehicles ahead of a member (default: the same); pass the governor's
+        time gap so that a member never lands inside the gap its own speed cap keeps.
     """
     n = len(s0)
     ids = member_ids or [str(i) for i in range(n)]
     if len(others.ids) == 0:
         return GapVerdict(True, "", 0.0)
+    a_time = time_gap if ahead_time_gap is None else ahead_time_gap
+    a_min = min_gap if ahead_min_gap is None else ahead_min_gap
     tau = np.linspace(0.0, 1.0, SAMPLES)
     h = np.array([quintic(x, 0.0, 1.0)[0] for x in tau])[:, None]  # (S, 1)
     o_half = others.width / 2
@@ -86,7 +93,7 @@ def check_gaps(s0, along_shift, d0, d1, length, width, v_m, others: Others, dura
         ahead = s_o >= s_m
         gap = np.where(ahead, (s_o - others.length / 2) - (s_m + length[i] / 2),
                        (s_m - length[i] / 2) - (s_o + others.length / 2))
-        need = min_gap + time_gap * np.where(ahead, v_m[i], others.v[None, :])
+        need = np.where(ahead, a_min + a_time * v_m[i], min_gap + time_gap * others.v[None, :])
         short = np.where(side, need - gap, -np.inf)
         k, j = np.unravel_index(np.argmax(short), short.shape)
         if short[k, j] > worst:

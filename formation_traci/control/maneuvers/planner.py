@@ -55,7 +55,8 @@ class ManeuverPlanner:
     """Holds the slot plan (n, 6), the formation's shape (m, 2) and who holds which slot."""
 
     def __init__(self, specs, slots0: np.ndarray, lane_width: float, limits_spec,
-                 lengths, widths, ids, room: RoomFn | None = None):
+                 lengths, widths, ids, room: RoomFn | None = None,
+                 follow: tuple[float, float] = (0.0, 0.0)):
         self.specs = list(specs)
         self.plan = hold_plan(slots0)
         self.shape = np.array(slots0, dtype=float)
@@ -63,6 +64,8 @@ class ManeuverPlanner:
         self.lane_width = float(lane_width)
         self.limits = limits_from_spec(limits_spec)
         self.gap_time, self.gap_min = limits_spec.gap_time, limits_spec.gap_min
+        # towards vehicles ahead: at least the governor's (time gap [s], standstill gap [m])
+        self.ahead = (max(self.gap_time, follow[0]), max(self.gap_min, follow[1]))
         self.lengths = np.broadcast_to(np.asarray(lengths, float), (len(slots0),))
         self.widths = np.broadcast_to(np.asarray(widths, float), (len(slots0),))
         self.ids = list(ids)
@@ -164,7 +167,7 @@ class ManeuverPlanner:
             ai = np.flatnonzero(a)
             verdict = check_gaps(sn.m_s[ai], goal[ai, 0] - start[ai, 0], sn.m_d[ai], goal[ai, 1],
                                  self.lengths[ai], self.widths[ai], sn.v_m[ai], sn.others, T,
-                                 self.gap_time, self.gap_min, [self.ids[i] for i in ai])
+                                 self.gap_time, self.gap_min, [self.ids[i] for i in ai], *self.ahead)
             if not verdict.ok:
                 return False, f"no room: {verdict.reason}"
         clear = min_clearance(start[a], goal[a], self.lengths[a], self.widths[a])
