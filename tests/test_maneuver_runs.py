@@ -51,10 +51,11 @@ def _common_checks(meta, ev, traj, kind, n_maneuvers):
 
 def test_lanedrop_reshape_abreast_column_abreast(tmp_path):
     """Three abreast close into a column before the lane drop (no member in the ending lane
-    when it ends), then open to two abreast after it; slot indices follow the assignment."""
+    when it ends), then open to two abreast and one behind after it (two reshapes); slot
+    indices follow the assignment."""
     meta, ev, traj, _ = _run(tmp_path, "lanedrop_reshape", **{
         "road.start": 1750.0, "traffic.warmup": 60.0, "run.duration": 60.0})
-    (a0, a1), (b0, b1) = _common_checks(meta, ev, traj, "reshape", 2)[0]
+    (a0, a1), (b0, b1), (c0, c1) = _common_checks(meta, ev, traj, "reshape", 3)[0]
     m = traj[traj.vehicle_id.isin(["left", "centre", "right"])]
     column = m[(m.t > a1 + 2.0) & (m.t < b0)]
     np.testing.assert_allclose(column.d, 0.0, atol=0.3)  # all in the reference lane
@@ -62,7 +63,7 @@ def test_lanedrop_reshape_abreast_column_abreast(tmp_path):
     assert column[column.vehicle_id == "centre"].slot.iloc[0] == 0  # kept its place in front
     drop = m[(m.s > 2400) & (m.s < 2490)]  # the ending lane (d = -3.5 m) ends at 2496 m
     assert len(drop) and (drop.lane_index == 1).all() and (drop.d.abs() < 0.3).all()
-    after = m[m.t > b1 + 2.0]
+    after = m[m.t > c1 + 2.0]
     d_end = after.groupby("vehicle_id").d.last().sort_values()
     np.testing.assert_allclose(d_end.to_numpy(), [0.0, 0.0, 3.5], atol=0.3)
 

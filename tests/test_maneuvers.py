@@ -7,7 +7,7 @@ import pytest
 
 from formation_traci.control.maneuvers.assign import assign_slots, min_clearance
 from formation_traci.control.maneuvers.gap import Others, check_gaps
-from formation_traci.control.maneuvers.planner import ManeuverPlanner, Sensed
+from formation_traci.control.maneuvers.planner import ManeuverPlanner, Situation
 from formation_traci.control.maneuvers.transition import (ComfortLimits, hold_plan, quintic,
                                                           slots_at, transition_duration)
 from formation_traci.control.maneuvers.triggers import queue_behind
@@ -141,7 +141,7 @@ def _planner(specs, slots0):
 def _sensed(t, planner, others, s_vc=500.0):
     sl = planner.slots(t)
     n = len(sl)
-    return Sensed(t, s_vc, s_vc + sl[:, 0], sl[:, 1], np.full(n, 25.0), np.ones(n, bool), others)
+    return Situation(t, s_vc, s_vc + sl[:, 0], sl[:, 1], np.full(n, 25.0), np.ones(n, bool), others)
 
 
 def _doc(maneuvers, members=None):
@@ -220,13 +220,14 @@ def test_comfort_limit_above_the_medium_band_is_refused():
     assert "maneuver_limits.lat_accel" in str(exc.value)
 
 
-def test_moving_targets_are_the_exact_derivatives_on_a_curved_line():
-    """p', p'' of c(s + dx) + dy n(s + dx) with s, dx, dy all moving, against central
-    differences on the R = 800 m arc of a line; zero rates give road_targets exactly."""
+def test_plan_slots_give_exact_target_derivatives_on_a_curved_line():
+    """The plan's slots and rates (plan_slots_into, what the PlanSlots transform writes into
+    the Reference) through road_target_at: p', p'' of c(s + dx) + dy n(s + dx) with s, dx,
+    dy all moving equal central differences on an R = 800 m arc."""
+    from formation_traci.control.maneuvers.transition import plan_slots_into
     from formation_traci.road.fast_line import FastLine
     from formation_traci.road.geometry import ReferenceLine
-    from formation_traci.road.targets import road_targets
-    from formation_traci.sim.fast_moving import moving_targets_nb
+    from formation_traci.road.targets import road_target_at
 
     R = 800.0
     th = np.linspace(0.0, 0.8, 400)
@@ -238,14 +239,13 @@ def test_moving_targets_are_the_exact_derivatives_on_a_curved_line():
     s0, v0, a0 = 100.0, 25.0, 0.8
 
     def at(t):
-        return moving_targets_nb(G, plan, t, s0 + v0 * t + 0.5 * a0 * t * t, v0 + a0 * t, a0)
+        sl = plan_slots_into(plan, t, 0.01, np.empty((2, 2, 6)))
+        assert np.allclose(sl[1], plan_slots_into(plan, t + 0.01, 0.01, np.empty((1, 2, 6)))[0])
+        s, v = s0 + v0 * t + 0.5 * a0 * t * t, v0 + a0 * t
+        return np.array([road_target_at(G, s, v, a0, *sl[0, i]) for i in range(2)])
 
     t, h = 4.0, 1e-3
     T0, Tm, Tp = at(t), at(t - h), at(t + h)
     np.testing.assert_allclose((Tp[:, 0:2] - Tm[:, 0:2]) / (2 * h), T0[:, 2:4], atol=1e-5)
     np.testing.assert_allclose((Tp[:, 2:4] - Tm[:, 2:4]) / (2 * h), T0[:, 4:6], atol=1e-4)
-    held = moving_targets_nb(G, hold_plan(np.array([[5.0, 3.5]])), 0.0, 200.0, 25.0, 0.5)
-    ref = road_targets(line, 200.0, 25.0, 0.5, np.array([[5.0, 3.5]]))
-    np.testing.assert_allclose(held[:, 0:2], ref.p, atol=1e-9)
-    np.testing.assert_allclose(held[:, 2:4], ref.v, atol=1e-9)
-    np.testing.assert_allclose(held[:, 4:6], ref.a, atol=1e-9)
+    assert np.abs(T0[:, 2:4] - at(0.0)[:, 2:4]).max() > 1.0  # the slots really move

@@ -168,3 +168,28 @@ def rectangles_overlap(p1, h1, p2, h2, length, width, length2=None, width2=None)
         if pa.max() <= pb.min() or pb.max() <= pa.min():
             return False
     return True
+
+
+def road_room(road: Road):
+    """room(s0, s1) -> (d_min, d_max): the narrowest lateral extent of the road over
+    [s0, s1] [m] (relative to the reference line, left positive), from its segments."""
+    segments = road.segments
+
+    def room(s0: float, s1: float) -> tuple[float, float]:
+        lo, hi = -np.inf, np.inf
+        for seg in segments:
+            if seg.s1 >= s0 and seg.s0 <= s1:
+                lo, hi = max(lo, seg.d_min), min(hi, seg.d_max)
+        return lo, hi
+
+    return room
+
+
+def initial_check_limit(sc: Scenario) -> float | None:
+    """How far along the route [m] the initial slots must stay on the road: up to the first
+    position-triggered maneuver; only the start when the first maneuver is triggered by time
+    or traffic (the planner checks the road ahead before every maneuver). None: no maneuvers."""
+    if not sc.maneuvers:
+        return None
+    first = sc.maneuvers[0].at
+    return first.s if first.s is not None else sc.road.start

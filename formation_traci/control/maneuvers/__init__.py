@@ -2,5 +2,6 @@
 
 See docs/maneuvers.md. Everything here is pure (no SUMO, no clock): the planner turns the
 scenario's schedule and what is sensed each step into a slot plan that the step kernels
-evaluate (sim/fast_moving.py).
+evaluates into each step's Reference (control/maneuvers/generator.py, the seam of
+docs/architecture.md).
 """

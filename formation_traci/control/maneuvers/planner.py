@@ -23,7 +23,7 @@ from .triggers import is_due, queue_behind
 
 
 @dataclass(frozen=True, slots=True)
-class Sensed:
+class Situation:
     """What the planner sees at the start of a step (road coordinates)."""
 
     t: float  # formation time [s]
@@ -94,7 +94,7 @@ class ManeuverPlanner:
         """Members' slots (n, 2) at time t [s]."""
         return slots_at(self.plan, t)[0]
 
-    def step(self, sn: Sensed) -> list[PlannerEvent]:
+    def step(self, sn: Situation) -> list[PlannerEvent]:
         events: list[PlannerEvent] = []
         if self.running is not None:
             name, t_end = self.running
@@ -148,7 +148,7 @@ class ManeuverPlanner:
         slot_of[idx] = assign_slots(held[idx], shape)
         return shape, slot_of
 
-    def _try_start(self, spec, sn: Sensed) -> tuple[bool, str]:
+    def _try_start(self, spec, sn: Situation) -> tuple[bool, str]:
         a = sn.active
         shape, slot_of = self._target(spec, a)
         start = self.plan[:, 2:4].copy()

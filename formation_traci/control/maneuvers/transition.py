@@ -23,7 +23,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from ...kernels import kernel
 
 H1_PEAK = 15.0 / 8.0
 """Peak of h' [-]."""
@@ -60,7 +61,7 @@ def transition_duration(d_along, d_across, lim: ComfortLimits) -> float:
                math.sqrt(H2_PEAK * dl / lim.lon_accel), (H3_PEAK * dl / lim.lon_jerk) ** (1 / 3))
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def quintic(t, t0, T):
     """h, h_dot [1/s], h_ddot [1/s^2] of the minimum-jerk profile at time t [s] of a
     transition starting at t0 [s] lasting T [s] (0 before, 1 after)."""
@@ -75,7 +76,7 @@ def quintic(t, t0, T):
     return h, h1, h2
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def slot_at(plan_row, t):
     """Slot of one member at time t [s] from its plan row (PLAN_* columns):
     (dx, dy, dx_dot, dy_dot, dx_ddot, dy_ddot) [m, m/s, m/s^2]."""
@@ -99,6 +100,18 @@ def hold_plan(slots: np.ndarray) -> np.ndarray:
     plan[:, 0:2] = slots
     plan[:, 2:4] = slots
     return plan
+
+
+@kernel
+def plan_slots_into(plan, t, dt, out):
+    """Fill out (n_ctrl, n, 6) (control/reference.py SLOT_FIELDS) with every member's slot
+    and its rates at the start of each control period t + j dt [s] of a step."""
+    for j in range(out.shape[0]):
+        tj = t + j * dt
+        for i in range(plan.shape[0]):
+            (out[j, i, 0], out[j, i, 1], out[j, i, 2], out[j, i, 3], out[j, i, 4],
+             out[j, i, 5]) = slot_at(plan[i], tj)
+    return out
 
 
 def slots_at(plan: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
