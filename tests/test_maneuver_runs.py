@@ -32,7 +32,7 @@ def _intervals(ev, kind):
     starts = m[m.kind == "maneuver_start"].t.to_numpy()
     ends = m[m.kind == "maneuver_end"].t.to_numpy()
     assert len(starts) == len(ends) and len(starts) > 0, m
-    assert np.all(ends > starts)
+    assert np.all(ends >= starts)
     return list(zip(starts, ends))
 
 
@@ -98,3 +98,28 @@ def test_lane_change_triggered_by_the_queue_behind(tmp_path):
     assert queued.sum() > 3
     after = members[members.t > t1 + 2.0]
     np.testing.assert_allclose(after.d, -3.5, atol=0.2)
+
+
+def test_leave_hands_the_member_over_to_sumo_without_a_jump(tmp_path):
+    """The leaving member is driven on by SUMO from its lane, position and speed: no speed
+    jump above 0.5 m/s, no lane jump, and it keeps driving (background rows) to the end."""
+    meta, ev, traj, bg = _run(tmp_path, "leave")
+    ids = {m["id"] for m in meta["members"]}
+    coll = ev[ev.kind == "collision"]
+    assert not (coll.vehicle_id.isin(ids) | coll.other_id.isin(ids)).any(), coll
+    (t0, t1), = _intervals(ev, "leave")
+    ho = ev[ev.kind == "handover"]
+    assert list(ho.vehicle_id) == ["right"] and ho.t.iloc[0] == pytest.approx(t0)
+    ours = traj[traj.vehicle_id == "right"]
+    assert ours.t.max() < t0 + 1e-9  # no longer controlled (recorded) after the hand-over
+    last = ours.iloc[-1]
+    theirs = bg[bg.vehicle_id == "right"].sort_values("t")
+    first = theirs.iloc[0]
+    assert first.t == pytest.approx(last.t + 0.1)  # the next recorded step
+    assert abs(first.v - last.v) <= 0.5
+    assert first.lane_index == last.lane_index and abs(first.d - last.d) < 0.05
+    assert abs(first.s - (last.s + 0.1 * last.v)) < 0.5  # where it was going
+    assert np.abs(np.diff(theirs.v)).max() <= 0.5
+    assert theirs.t.max() == pytest.approx(meta["t_end"]) and theirs.s.iloc[-1] - first.s > 300.0
+    rest = traj[traj.vehicle_id.isin(["front", "rear"])]
+    assert rest.t.max() == pytest.approx(meta["t_end"])  # the others drive on in formation

@@ -199,7 +199,18 @@ def test_reshape_assigns_slots_and_respects_road_room():
     assert ev[0].kind == "maneuver_postponed" and "off the road" in ev[0].detail
 
 
+def test_leave_releases_the_member_at_once():
+    sc = parse_scenario(_doc([{"kind": "leave", "member": "b", "at": {"time": 3.0}}]))
+    p = _planner(sc.maneuvers, [[0.0, 0.0], [-20.0, 0.0]])
+    assert p.step(_sensed(2.0, p, _others([]))) == []
+    ev = p.step(_sensed(3.0, p, _others([])))
+    assert [(e.kind, e.member) for e in ev] == [("maneuver_start", -1), ("release", 1), ("maneuver_end", -1)]
+    assert p.idle
+
+
 @pytest.mark.parametrize("maneuver,expect", [
+    ({"kind": "leave", "at": {"time": 1.0}}, "'member' is given with"),
+    ({"kind": "leave", "member": "zz", "at": {"time": 1.0}}, "no member 'zz'"),
     ({"kind": "reshape", "at": {"time": 1.0}}, "needs 'slots'"),
     ({"kind": "lane_change", "at": {"time": 1.0}}, "needs 'lanes'"),
     ({"kind": "lane_change", "lanes": 1, "at": {"time": 1.0, "s": 3.0}}, "exactly one of"),

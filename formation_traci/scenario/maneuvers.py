@@ -52,10 +52,11 @@ class NewSlotSpec(_Strict):
 
 
 class ManeuverSpec(_Strict):
-    kind: Literal["reshape", "lane_change"]
+    kind: Literal["reshape", "lane_change", "leave"]
     at: TriggerSpec
     slots: list[NewSlotSpec] | None = Field(None, description="reshape: the new formation's slots (>= members)")
     lanes: int | None = Field(None, description="lane_change: shift of the whole formation in lanes (+1 = left)")
+    member: str | None = Field(None, description="leave: id of the member handed over to SUMO's driver model")
     timeout: PosFloat = Field(30.0, description="give up when the gap check keeps refusing this long after the trigger [s]")
     check_gaps: bool = Field(True, description="start only when the target lanes have room (docs/maneuvers.md)")
 
@@ -69,6 +70,10 @@ class ManeuverSpec(_Strict):
             raise ValueError("a lane_change takes 'lanes', not 'slots'")
         if self.kind == "reshape" and self.lanes is not None:
             raise ValueError("a reshape takes 'slots', not 'lanes'")
+        if (self.kind == "leave") != (self.member is not None):
+            raise ValueError("'member' is given with (and only with) kind = \"leave\"")
+        if self.kind == "leave" and (self.slots is not None or self.lanes is not None):
+            raise ValueError("a leave takes 'member' only")
         return self
 
 

@@ -248,6 +248,8 @@ class Scenario(Strict):
         for i, mv in enumerate(self.maneuvers):
             if mv.slots is not None and len(mv.slots) < len(self.members):
                 raise ValueError(f"maneuvers.{i}.slots: {len(mv.slots)} slots for {len(self.members)} members")
+            if mv.member is not None and mv.member not in [m.id for m in self.members]:
+                raise ValueError(f"maneuvers.{i}.member: no member {mv.member!r}")
         return self
 
     @model_validator(mode="after")

@@ -21,7 +21,7 @@ from .road_setup import rectangles_overlap
 from .ssm import convert_ssm
 from .sumo_adapter import SumoAdapter
 from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, RoadPlan, member_type, sumo_args
-from .traffic import flow_vehicles_per_hour, write_routes
+from .traffic import CAR, flow_vehicles_per_hour, write_routes
 from .world import Sensed
 
 
@@ -133,6 +133,18 @@ class SumoWorld:
         extra.update(sumo_gap=gap_sumo, lane_index=lane_index)
         self.members.placement(t, gap_sumo)
         self.members.lane_changes(t, idx_act, present, lanes, lane_idx)
+
+    def release(self, t: float, i: int) -> None:
+        """Leave: hand member i over to SUMO's own driver model where it is (its lane,
+        position and speed); it drives on as an ordinary vehicle with a SUMO car's
+        acceleration and deceleration (sim/traffic.py CAR) and is no longer controlled."""
+        vid = self.ids[i]
+        if not self.active[i] or not self.inserted or self.baseline:
+            return
+        v = float(self.v_after[i])
+        lane = self.adapter.release(vid, float(CAR["accel"]), float(CAR["decel"]))
+        self.active[i] = False
+        self.rec.add_event(t, "handover", vid, "", f"leave: released to SUMO at {v:.2f} m/s on lane {lane}")
 
     def observe(self, t: float, sensed: Sensed, ref) -> None:
         info = ref.info
@@ -268,6 +280,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     planner = ManeuverPlanner(sc.maneuvers, plan.slots, plan.road.lane_width, sc.maneuver_limits,
                               veh.length, veh.width, list(world.ids), road_room(plan.road),
                               (ld.time_gap, ld.min_gap))
-    gen = ManeuverRoadReference(*args, planner=planner, on_event=rec.add_event, length=veh.length)
+    gen = ManeuverRoadReference(*args, planner=planner, on_event=rec.add_event, length=veh.length,
+                                on_release=world.release)
     return RunParts(world, gen, fleet, state, transforms=[PlanSlots(planner)],
                     timing=meta["timing_s"])

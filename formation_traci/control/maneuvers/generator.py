@@ -66,9 +66,11 @@ def room_accel(goal, s_vc_front, v_vc, half_w, length, active, o_rear, o_d, o_ha
 class ManeuverRoadReference(RoadReference):
     """RoadReference whose slots follow the maneuver planner (see the module docstring)."""
 
-    def __init__(self, *args, planner: ManeuverPlanner, on_event, length: float, **kw):
+    def __init__(self, *args, planner: ManeuverPlanner, on_event, length: float,
+                 on_release=None, **kw):
         super().__init__(*args, **kw)
         self.planner, self.on_event, self.body_length = planner, on_event, float(length)
+        self.on_release = on_release  # on_release(t, i): hand member i over to the world
 
     def governor(self, t: float, sensed):
         others = NO_OTHERS
@@ -77,7 +79,10 @@ class ManeuverRoadReference(RoadReference):
             others = Others(tuple(nb.ids), sensed.nb_s, sensed.nb_d, nb.length, nb.width, nb.v)
         for ev in self.planner.step(Situation(float(t), self.s, sensed.m_s, sensed.m_d,
                                               sensed.v_m, sensed.active, others)):
-            self.on_event(t, ev.kind, "vc", "", ev.detail)
+            if ev.kind == "release":
+                self.on_release(t, ev.member)
+            else:
+                self.on_event(t, ev.kind, "vc", "", ev.detail)
         now = self.planner.slots(t)
         self.along, self.slot_d = now[:, 0], now[:, 1]
         sensed.extra["slot"] = self.planner.slot_of.astype(float)

@@ -37,8 +37,9 @@ class Situation:
 
 @dataclass(frozen=True, slots=True)
 class PlannerEvent:
-    kind: str  # maneuver_start | maneuver_end | maneuver_postponed | maneuver_cancelled
+    kind: str  # maneuver_start | maneuver_end | maneuver_postponed | maneuver_cancelled | release
     detail: str  # "<maneuver>: ..." (the maneuver's name first)
+    member: int = -1  # release: the member to hand over to the world's own driver
 
 
 RoomFn = Callable[[float, float], tuple[float, float]]
@@ -113,6 +114,10 @@ class ManeuverPlanner:
                 if not is_due(spec.at, sn.t, sn.s_vc, q):
                     break
                 self.due_since = sn.t
+            if spec.kind == "leave":
+                events += self._leave(spec, sn)
+                self._advance()
+                continue
             ok, detail = self._try_start(spec, sn)
             if ok:
                 events.append(PlannerEvent("maneuver_start", f"{spec.kind}: {detail}"))
@@ -128,6 +133,16 @@ class ManeuverPlanner:
                 self.postponed = True
             break
         return events
+
+    def _leave(self, spec, sn: Situation) -> list[PlannerEvent]:
+        """A leave: the member is released at once (a following reshape may close its slot)."""
+        i = self.ids.index(spec.member)
+        if not sn.active[i]:
+            return [PlannerEvent("maneuver_cancelled", f"leave: member {spec.member!r} is no longer in the run")]
+        self.intervals.append(("leave", sn.t, sn.t))
+        return [PlannerEvent("maneuver_start", f"leave: member {spec.member!r}"),
+                PlannerEvent("release", f"leave: member {spec.member!r}", i),
+                PlannerEvent("maneuver_end", "leave")]
 
     def _advance(self):
         self.next += 1
