@@ -32,6 +32,11 @@ def maneuver_intervals(events: pd.DataFrame | None, t_end: float) -> pd.DataFram
         events.parquet (t [s], kind, detail).
     t_end : float
         Last recorded time [s]: the end of a maneuver still running then.
+
+    Returns
+    -------
+    DataFrame
+        name, start_s [s], end_s [s], completed (False: still running at t_end).
     """
     rows = []
     if events is not None and len(events):
@@ -50,7 +55,19 @@ def maneuver_intervals(events: pd.DataFrame | None, t_end: float) -> pd.DataFram
 
 
 def in_intervals(t, intervals: pd.DataFrame) -> np.ndarray:
-    """Boolean mask of the times t [s] that fall inside any interval (ends included)."""
+    """Which times fall inside any interval (ends included).
+
+    Parameters
+    ----------
+    t : array_like
+        Times [s].
+    intervals : DataFrame
+        :func:`maneuver_intervals` (start_s, end_s [s]).
+
+    Returns
+    -------
+    ndarray of bool, shape of t
+    """
     t = np.asarray(t, dtype=float)
     mask = np.zeros(t.shape, dtype=bool)
     for a, b in zip(intervals["start_s"], intervals["end_s"]):
@@ -81,8 +98,17 @@ def phase_metrics(traj: pd.DataFrame, member_ids, intervals: pd.DataFrame, dt: f
     ----------
     traj : DataFrame
         trajectories.parquet (t, vehicle_id, e_lon, e_lat, a_lat, a_lon).
+    member_ids : sequence of str
+        Members to evaluate.
+    intervals : DataFrame
+        :func:`maneuver_intervals`.
     dt : float
         Sample spacing [s] (duration = samples * dt).
+
+    Returns
+    -------
+    DataFrame
+        PHASE_METRICS [units there], index (id, phase).
     """
     rows = []
     for mid in member_ids:
