@@ -21,6 +21,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..kernels import kernel
 from .formation import LeaderState
 
 VC_FIELDS = ("x", "y", "theta", "v", "omega", "v_dot", "omega_dot", "s")
@@ -82,3 +83,17 @@ def apply(ref: Reference, transforms) -> Reference:
     for tr in transforms:
         ref = tr(ref)
     return ref
+
+
+@kernel
+def set_vc_period(vc, j, X, Y, th, v, om, v_dot, om_dot, s):
+    """Every member's copy of the virtual car in control period j (Reference.vc rows)."""
+    for i in range(vc.shape[1]):
+        vc[j, i, 0] = X
+        vc[j, i, 1] = Y
+        vc[j, i, 2] = th
+        vc[j, i, 3] = v
+        vc[j, i, 4] = om
+        vc[j, i, 5] = v_dot
+        vc[j, i, 6] = om_dot
+        vc[j, i, 7] = s

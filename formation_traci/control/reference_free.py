@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels import kernel, substeps
-from .reference import FRAME_VEHICLE, Reference, constant_slots
+from .reference import FRAME_VEHICLE, Reference, constant_slots, set_vc_period
 from .virtual_car import FreeLeader, free_pose_advance, knot_profile_at, pack_profiles, yaw_offset
 
 
@@ -18,15 +18,7 @@ def free_vc_rows(prof, t, X, Y, th, dt_c, n_sub, vc):
         tc = t + j * dt_c
         v, v_dot = knot_profile_at(prof, 0, tc)
         w, w_dot = knot_profile_at(prof, ow, tc)
-        for i in range(vc.shape[1]):
-            vc[j, i, 0] = X
-            vc[j, i, 1] = Y
-            vc[j, i, 2] = th
-            vc[j, i, 3] = v
-            vc[j, i, 4] = w
-            vc[j, i, 5] = v_dot
-            vc[j, i, 6] = w_dot
-            vc[j, i, 7] = np.nan
+        set_vc_period(vc, j, X, Y, th, v, w, v_dot, w_dot, np.nan)
         X, Y, th = free_pose_advance(prof, tc, X, Y, th, dt_c, n_sub)
     return X, Y, th
 

@@ -10,7 +10,7 @@ import numpy as np
 from ..kernels import kernel
 from ..road.leader import road_leader_at
 from .governor import governor_step
-from .reference import FRAME_ROAD, FRAME_VEHICLE, Reference, constant_slots
+from .reference import FRAME_ROAD, FRAME_VEHICLE, Reference, constant_slots, set_vc_period
 from .virtual_car import along_line_advance, knot_profile_at
 
 
@@ -20,15 +20,7 @@ def road_vc_rows(G, s, v, a, dt_c, vc):
     period (constant acceleration a over the step); returns (s, v) at the end of the step."""
     for j in range(vc.shape[0]):
         X, Y, th, vv, om, vd, omd = road_leader_at(G, s, v, a)
-        for i in range(vc.shape[1]):
-            vc[j, i, 0] = X
-            vc[j, i, 1] = Y
-            vc[j, i, 2] = th
-            vc[j, i, 3] = vv
-            vc[j, i, 4] = om
-            vc[j, i, 5] = vd
-            vc[j, i, 6] = omd
-            vc[j, i, 7] = s
+        set_vc_period(vc, j, X, Y, th, vv, om, vd, omd, s)
         s, v = along_line_advance(s, v, a, dt_c)
     return s, v
 

@@ -49,8 +49,8 @@ class FleetConfig:
     params: BicycleParams | None  # dynamic model only; fields scalar or (n,)
     k: np.ndarray  # (n,) position gain of (2.7) [m/s]
     k_theta: np.ndarray  # (n,) heading gain of (2.8) [1/s]
-    speed_gains: GainSchedule
-    yaw_gains: GainSchedule
+    speed_gains: GainSchedule | tuple[GainSchedule, ...]  # one, or one per member
+    yaw_gains: GainSchedule | tuple[GainSchedule, ...]  # one, or one per member
     physics_step: float  # [s]
 
     @property
@@ -251,9 +251,10 @@ class Fleet:
             raise ValueError(f"unknown model {cfg.model!r}")
         self.k = _f64(np.broadcast_to(np.asarray(cfg.k, dtype=float), (n,)))
         self.k_theta = _f64(np.broadcast_to(np.asarray(cfg.k_theta, dtype=float), (n,)))
-        sg, yg = cfg.speed_gains, cfg.yaw_gains
-        self.gains = _f64(np.tile([sg.g_min, sg.g_max, sg.k_min, yg.g_min, yg.g_max, yg.k_min],
-                                  (n, 1)))
+        sg, yg = (g if isinstance(g, (tuple, list)) else (g,) * n
+                  for g in (cfg.speed_gains, cfg.yaw_gains))
+        self.gains = _f64([[a.g_min, a.g_max, a.k_min, b.g_min, b.g_max, b.k_min]
+                           for a, b in zip(sg, yg, strict=True)])
         self.cols = signal_column_map()
 
     def n_sub(self, dt_c: float) -> int:

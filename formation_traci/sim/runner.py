@@ -120,7 +120,7 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
 
 def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | None = None,
                  force: bool = False, progress: bool = True, baseline: bool = False,
-                 step_hook=None) -> RunResult:
+                 step_hook=None, transforms=()) -> RunResult:
     """Run ``sc`` (free space, or on a SUMO road when it has a [road]) and record it.
 
     Writes ``run.json`` (status ``running`` at once, updated at every trajectory part file
@@ -130,6 +130,8 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
     ``baseline`` (road scenarios): the twin run with the same traffic and seed but without
     the formation, for ``formation-traci analyze RUN --baseline TWIN``. ``step_hook(k, t,
     adapter)`` is called after every SUMO step (fault injection, extensions).
+    ``transforms``: callables Reference -> Reference applied to every step's reference in
+    order (maneuvers, communication channels; docs/architecture.md).
     """
     if baseline and sc.road is None:
         raise ScenarioError(scenario_path or "<scenario>", [("road", "--baseline needs a road scenario")])
@@ -155,7 +157,7 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
         else:
             from .sumo_world import road_run
             build = lambda: road_run(sc, plan, rec, out_dir, meta, baseline, step_hook)  # noqa: E731
-        steps = step_loop(sc, build, rec, meta)
+        steps = step_loop(sc, _with_transforms(build, transforms), rec, meta)
         if progress:
             from tqdm import tqdm
             bar = tqdm(total=n_steps, unit="step", desc=sc.name or "run", mininterval=0.5)
@@ -189,6 +191,14 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
             meta["event_counts"] = rec.event_counts
             atomic_write_json(meta_path, meta)
     return RunResult(out_dir, status, reason, float(t), int(k))
+
+
+def _with_transforms(build, transforms):
+    def built():
+        parts = build()
+        parts.transforms.extend(transforms)
+        return parts
+    return built
 
 
 def _progress_meta(path, meta, t, k):
