@@ -5,3 +5,7 @@ scenario's schedule and what is sensed each step into a slot plan that the step 
 evaluates into each step's Reference (control/maneuvers/generator.py, the seam of
 docs/architecture.md).
 """
+
+from .lane_shift import LaneShift  # noqa: E402  (issue 14's example transform)
+
+__all__ = ["LaneShift"]
