@@ -37,12 +37,13 @@ class TriggerSpec(_Strict):
         return self
 
 
-class NewSlotSpec(_Strict):
-    """A slot of the new formation in road coordinates."""
+class SlotSpec(_Strict):
+    """A slot in road coordinates: along the reference lane and across it (left positive);
+    a member's ``slot`` and each slot of a reshape's new formation."""
 
     along: Finite = Field(0.0, description="arc length ahead of the virtual car [m]")
     across: Finite | None = Field(None, description="lateral offset from the reference lane centre [m]")
-    lanes: int | None = Field(None, description="lateral offset in lanes (+1 = one lane left)")
+    lanes: int | None = Field(None, description="lateral offset in lanes from the reference lane (+1 = one lane left)")
 
     @model_validator(mode="after")
     def _one_lateral(self):
@@ -54,7 +55,7 @@ class NewSlotSpec(_Strict):
 class ManeuverSpec(_Strict):
     kind: Literal["reshape", "lane_change", "leave"]
     at: TriggerSpec
-    slots: list[NewSlotSpec] | None = Field(None, description="reshape: the new formation's slots (>= members)")
+    slots: list[SlotSpec] | None = Field(None, description="reshape: the new formation's slots (>= members)")
     lanes: int | None = Field(None, description="lane_change: shift of the whole formation in lanes (+1 = left)")
     member: str | None = Field(None, description="leave: id of the member handed over to SUMO's driver model")
     timeout: PosFloat = Field(30.0, description="give up when the gap check keeps refusing this long after the trigger [s]")

@@ -10,7 +10,7 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from .maneuvers import ManeuverLimits, ManeuverSpec
+from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec
 
 PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
@@ -132,20 +132,6 @@ class LeaderSpec(Strict):
         if any(x < 0 for x in vals):
             raise ValueError("speed must be >= 0 m/s")
         return v
-
-
-class SlotSpec(Strict):
-    """A slot in road coordinates: along the reference lane and across it (left positive)."""
-
-    along: Finite = Field(0.0, description="arc length ahead of the virtual car [m]")
-    across: Finite | None = Field(None, description="lateral offset from the reference lane centre [m]")
-    lanes: int | None = Field(None, description="lateral offset in lanes from the reference lane (+1 = one lane left)")
-
-    @model_validator(mode="after")
-    def _one_lateral(self):
-        if (self.across is None) == (self.lanes is None):
-            raise ValueError("give exactly one of 'across' [m] or 'lanes'")
-        return self
 
 
 class MemberSpec(Strict):
