@@ -143,6 +143,10 @@ class MemberSpec(Strict):
     speed: NonNegFloat | None = Field(None, description="initial speed [m/s]; default the leader's")
     yaw_rate_deg_s: Finite = Field(0.0, description="initial yaw rate [deg/s] (dynamic model)")
     steer_deg: Finite = Field(0.0, description="initial steering angle [deg] (dynamic model)")
+    preset: Literal["passenger_car", "small_truck"] | None = Field(
+        None, description="per-member vehicle preset (mixed formations); default vehicle.preset")
+    speed_gains: GAIN_TABLES | GainSpec | None = Field(None, description="per-member override of controller.speed_gains")
+    yaw_gains: GAIN_TABLES | GainSpec | None = Field(None, description="per-member override of controller.yaw_gains")
     k: PosFloat | None = Field(None, description="per-member override of controller.k")
     k_theta: PosFloat | None = Field(None, description="per-member override of controller.k_theta")
 

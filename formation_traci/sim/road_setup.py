@@ -115,13 +115,14 @@ def slot_offsets(sc: Scenario, road: Road) -> np.ndarray:
     return np.array(out, dtype=float)
 
 
-def check_slots(sc: Scenario, road: Road, slots: np.ndarray, veh: VehicleParams, source,
+def check_slots(sc: Scenario, road: Road, slots: np.ndarray, vehicles: list[VehicleParams], source,
                 s_max: float | None = None) -> None:
-    """A slot must keep the member's body on the road everywhere the formation will drive
-    (up to the virtual car's arc length ``s_max`` [m] when maneuvers change the slots there)."""
+    """A slot must keep the member's body (``vehicles``, one per member) on the road
+    everywhere the formation will drive (up to the virtual car's arc length ``s_max`` [m]
+    when maneuvers change the slots there)."""
     problems = []
-    half = veh.width / 2
     for i, m in enumerate(sc.members):
+        half = vehicles[i].width / 2
         if m.slot is None:
             continue
         dx, dy = slots[i]
@@ -139,11 +140,14 @@ def check_slots(sc: Scenario, road: Road, slots: np.ndarray, veh: VehicleParams,
         raise ScenarioError(source or "<scenario>", problems)
 
 
-def check_no_overlap(sc: Scenario, pos: np.ndarray, heading: np.ndarray, veh: VehicleParams, source) -> None:
-    """Members' initial footprints must not overlap each other."""
+def check_no_overlap(sc: Scenario, pos: np.ndarray, heading: np.ndarray,
+                     vehicles: list[VehicleParams], source) -> None:
+    """Members' initial footprints (``vehicles``, one per member) must not overlap each other."""
     problems = []
     for i, j in itertools.combinations(range(len(sc.members)), 2):
-        if rectangles_overlap(pos[i], heading[i], pos[j], heading[j], veh.length, veh.width):
+        vi, vj = vehicles[i], vehicles[j]
+        if rectangles_overlap(pos[i], heading[i], pos[j], heading[j], vi.length, vi.width,
+                              vj.length, vj.width):
             problems.append((f"members.{j}", f"member {sc.members[j].id!r} would be inserted on top of "
                                              f"{sc.members[i].id!r} (their bodies overlap at t = 0)"))
     if problems:

@@ -69,7 +69,8 @@ class ManeuverRoadReference(RoadReference):
     def __init__(self, *args, planner: ManeuverPlanner, on_event, length: float,
                  on_release=None, **kw):
         super().__init__(*args, **kw)
-        self.planner, self.on_event, self.body_length = planner, on_event, float(length)
+        self.planner, self.on_event = planner, on_event
+        self.body_length = np.asarray(length, float)  # [m], one or one per member
         self.on_release = on_release  # on_release(t, i): hand member i over to the world
 
     def governor(self, t: float, sensed):
