@@ -1,6 +1,6 @@
 """Start-up time: from process start to the end of the first recorded step, cold and warm.
 
-    python benchmarks/startup.py [--repeat 2]
+    python benchmarks/startup.py [--repeat 2] [--root CHECKOUT]
 
 Each measurement is a fresh ``python`` process that runs a scenario for one step (free space:
 scenarios/thesis/dynamic_case4_straight.toml; SUMO: scenarios/highway/straight_3lane_light.toml
@@ -37,11 +37,11 @@ with tempfile.TemporaryDirectory() as d:
 """
 
 
-def once(path: str, extra: dict, cache_dir: str) -> tuple[float, str]:
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir, PYTHONPATH=str(ROOT))
+def once(path: str, extra: dict, cache_dir: str, root: Path = ROOT) -> tuple[float, str]:
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir, PYTHONPATH=str(root))
     t0 = time.perf_counter()
-    p = subprocess.run([sys.executable, "-c", CHILD, str(ROOT / path), repr(extra)], env=env,
-                       capture_output=True, text=True, cwd=ROOT)
+    p = subprocess.run([sys.executable, "-c", CHILD, str(root / path), repr(extra)], env=env,
+                       capture_output=True, text=True, cwd=root)
     wall = time.perf_counter() - t0
     if p.returncode:
         raise RuntimeError(p.stderr[-2000:])
@@ -51,12 +51,15 @@ def once(path: str, extra: dict, cache_dir: str) -> tuple[float, str]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=2, help="warm runs per case (median)")
+    ap.add_argument("--root", type=Path, default=ROOT,
+                    help="checkout to measure (default: this one), e.g. another worktree")
     args = ap.parse_args()
     for name, (path, extra) in CASES.items():
         with tempfile.TemporaryDirectory() as cache:
-            cold, err = once(path, extra, cache)
+            cold, err = once(path, extra, cache, args.root)
             notice = "compiling" in err.lower()
-            warm = statistics.median(once(path, extra, cache)[0] for _ in range(args.repeat))
+            warm = statistics.median(once(path, extra, cache, args.root)[0]
+                                     for _ in range(args.repeat))
         print(f"{name:10s} cold {cold:6.2f} s  warm {warm:6.2f} s  compile notice: {notice}")
 
 
