@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..road.fast_line import FastLine
+from ..road.line_pack import FastLine
 from ..scenario.schema import Scenario
 from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
                      log_sumo_events)
