@@ -23,13 +23,15 @@ Pure functions over arrays and DataFrames; no file is read here.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pandas as pd
 
 __all__ = [
     "SSM_RANGE_M", "TTC_THRESHOLD_S", "DRAC_THRESHOLD_MPS2", "PET_THRESHOLD_S", "FOLLOW_DEPTH",
     "CONFLICT_COLUMNS", "following_pairs", "following_measures", "encounters",
-    "lane_change_pet", "recorded_conflicts", "compare_with_ssm",
+    "lane_change_pet", "recorded_conflicts", "compare_with_ssm", "time_keys",
 ]
 
 SSM_RANGE_M = 50.0
@@ -46,6 +48,31 @@ FOLLOW_DEPTH = 3
 CONFLICT_COLUMNS = ("follower", "leader", "begin", "end", "min_ttc", "min_ttc_time", "max_drac",
                     "max_drac_time", "pet", "pet_time", "min_gap", "member_involved")
 """Columns of :func:`recorded_conflicts`' table (times [s], TTC/PET [s], DRAC [m/s^2], gap [m])."""
+
+
+def time_keys(t, dt: float) -> np.ndarray:
+    """Integer step index of each time, to match rows of different tables.
+
+    Parameters
+    ----------
+    t : array_like
+        Times on the formation clock [s].
+    dt : float
+        Sample spacing [s]; when not finite, microseconds are used.
+
+    Returns
+    -------
+    ndarray of int64
+        ``round(t / dt)``.
+
+    Examples
+    --------
+    >>> time_keys([0.0, 0.15000000000000002, 0.3], 0.05).tolist()
+    [0, 3, 6]
+    """
+    t = np.asarray(t, float)
+    step = dt if (dt is not None and math.isfinite(dt) and dt > 0) else 1e-6
+    return np.round(t / step).astype(np.int64)
 
 
 def following_pairs(key, lane, s, d, length, width, *, depth: int = FOLLOW_DEPTH,
@@ -121,47 +148,61 @@ def following_measures(s_f, l_f, v_f, s_l, l_l, v_l) -> tuple[np.ndarray, np.nda
     return gap, ttc, drac
 
 
-def encounters(f_id, l_id, key, t, gap, ttc, drac) -> pd.DataFrame:
+def encounters(f_code, l_code, key, t, gap, ttc, drac) -> dict[str, np.ndarray]:
     """Runs of consecutive steps of each (follower, leader) pair, with their extremes.
+
+    Parameters
+    ----------
+    f_code, l_code : array_like of int
+        Follower and leader of each pair sample (integer vehicle codes).
+    key, t : array_like
+        Step and time [s] of each sample.
+    gap, ttc, drac : array_like
+        Measures of each sample (:func:`following_measures`).
 
     Returns
     -------
-    DataFrame
-        One row per encounter: ``follower``, ``leader``, ``begin``, ``end`` [s], ``k_begin``
-        (step of the first sample), ``min_ttc`` [s] and ``min_ttc_time``, ``max_drac`` [m/s^2]
-        and ``max_drac_time``, ``min_gap`` [m] (NaN where a measure never exists).
+    dict of ndarray
+        One entry per encounter: ``follower``, ``leader`` (codes), ``begin``, ``end`` [s],
+        ``k_begin`` (step of the first sample), ``min_ttc`` [s] and ``min_ttc_time``,
+        ``max_drac`` [m/s^2] and ``max_drac_time``, ``min_gap`` [m] (NaN where a measure
+        never exists).
     """
-    df = pd.DataFrame({"follower": np.asarray(f_id, dtype=object), "leader": np.asarray(l_id, dtype=object),
-                       "key": np.asarray(key, np.int64), "t": np.asarray(t, float),
-                       "gap": gap, "ttc": ttc, "drac": drac})
-    if df.empty:
-        return pd.DataFrame(columns=["follower", "leader", "begin", "end", "k_begin", "min_ttc",
-                                     "min_ttc_time", "max_drac", "max_drac_time", "min_gap"])
-    df = df.sort_values(["follower", "leader", "key"], kind="stable").reset_index(drop=True)
-    same = (df["follower"].to_numpy() == np.roll(df["follower"].to_numpy(), 1)) & \
-           (df["leader"].to_numpy() == np.roll(df["leader"].to_numpy(), 1)) & \
-           (np.diff(df["key"].to_numpy(), prepend=-10) == 1)
-    same[0] = False
-    df["enc"] = np.cumsum(~same)
-    g = df.groupby("enc", sort=True)
-    out = g.agg(follower=("follower", "first"), leader=("leader", "first"), begin=("t", "min"),
-                end=("t", "max"), k_begin=("key", "min"), min_ttc=("ttc", "min"),
-                max_drac=("drac", "max"), min_gap=("gap", "min"))
-    enc, t = df["enc"].to_numpy(), df["t"].to_numpy()
-    out["min_ttc_time"] = _time_of_extreme(enc, df["ttc"].to_numpy(float), t, out.index, False)
-    out["max_drac_time"] = _time_of_extreme(enc, df["drac"].to_numpy(float), t, out.index, True)
-    return out.reset_index(drop=True)
+    f_code, l_code = np.asarray(f_code, np.int64), np.asarray(l_code, np.int64)
+    key, t = np.asarray(key, np.int64), np.asarray(t, float)
+    gap, ttc, drac = (np.asarray(x, float) for x in (gap, ttc, drac))
+    names = ("follower", "leader", "begin", "end", "k_begin", "min_ttc", "min_ttc_time",
+             "max_drac", "max_drac_time", "min_gap")
+    if key.size == 0:
+        return {k: np.empty(0) for k in names}
+    o = np.lexsort((key, l_code, f_code))
+    f_code, l_code, key, t, gap, ttc, drac = (x[o] for x in (f_code, l_code, key, t, gap, ttc, drac))
+    new = np.ones(key.size, bool)
+    new[1:] = (f_code[1:] != f_code[:-1]) | (l_code[1:] != l_code[:-1]) | (key[1:] != key[:-1] + 1)
+    start = np.flatnonzero(new)
+    last = np.append(start[1:], key.size) - 1
+    enc = np.cumsum(new) - 1
+    with np.errstate(invalid="ignore"):
+        out = {"follower": f_code[start], "leader": l_code[start], "begin": t[start], "end": t[last],
+               "k_begin": key[start], "min_ttc": np.fmin.reduceat(ttc, start),
+               "max_drac": np.fmax.reduceat(drac, start), "min_gap": np.fmin.reduceat(gap, start)}
+    out["min_ttc_time"] = _time_of_extreme(enc, ttc, t, start.size, False)
+    out["max_drac_time"] = _time_of_extreme(enc, drac, t, start.size, True)
+    return out
 
 
-def _time_of_extreme(group: np.ndarray, x: np.ndarray, t: np.ndarray, labels, largest: bool) -> np.ndarray:
-    """Per group label, the time of the first smallest (largest) finite value of ``x`` (NaN)."""
+def _time_of_extreme(group: np.ndarray, x: np.ndarray, t: np.ndarray, n: int, largest: bool) -> np.ndarray:
+    """Per group 0..n-1, the time of the first smallest (largest) finite value of ``x`` (NaN)."""
+    out = np.full(n, np.nan)
     ok = np.flatnonzero(np.isfinite(x))
     order = ok[np.lexsort((t[ok], -x[ok] if largest else x[ok], group[ok]))]
     first_lab, first = np.unique(group[order], return_index=True)
-    return pd.Series(t[order[first]], index=first_lab).reindex(labels).to_numpy(float)
+    out[first_lab] = t[order[first]]
+    return out
 
 
-def lane_change_pet(rows: pd.DataFrame, f_idx: np.ndarray, l_idx: np.ndarray) -> pd.DataFrame:
+def lane_change_pet(code, key, t, lane, s, length, f_idx: np.ndarray, l_idx: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """PET of the lane changes in the recording.
 
     At the first step ``k`` a vehicle is seen on a new lane (the step before it was on another
@@ -172,50 +213,46 @@ def lane_change_pet(rows: pd.DataFrame, f_idx: np.ndarray, l_idx: np.ndarray) ->
 
     Parameters
     ----------
-    rows : DataFrame
-        ``vehicle_id``, ``key``, ``t``, ``lane_index``, ``s``, ``length``, one row per vehicle
-        per step.
+    code, key, t, lane, s, length : array_like
+        Per row (one vehicle at one step): integer vehicle code, step, time [s], SUMO lane
+        index, body centre along the road [m], body length [m].
     f_idx, l_idx : ndarray
-        Following pairs (row indices into ``rows``), as from :func:`following_pairs`.
+        Following pairs (row indices), as from :func:`following_pairs`.
 
     Returns
     -------
-    DataFrame
-        ``follower``, ``leader``, ``k`` (step of the change), ``pet`` [s].
+    (ndarray, ndarray, ndarray, ndarray)
+        Follower code, leader code, step of the change, PET [s].
     """
-    vid = rows["vehicle_id"].to_numpy(dtype=object)
-    key = rows["key"].to_numpy(np.int64)
-    lane = rows["lane_index"].to_numpy(float)
-    s_front = rows["s"].to_numpy(float) + 0.5 * rows["length"].to_numpy(float)
-    s_rear = rows["s"].to_numpy(float) - 0.5 * rows["length"].to_numpy(float)
-    t = rows["t"].to_numpy(float)
-    order = np.lexsort((key, vid.astype(str)))
+    code, key = np.asarray(code, np.int64), np.asarray(key, np.int64)
+    t, lane = np.asarray(t, float), np.asarray(lane, float)
+    s_front = np.asarray(s, float) + 0.5 * np.asarray(length, float)
+    s_rear = np.asarray(s, float) - 0.5 * np.asarray(length, float)
+    order = np.lexsort((key, code))
     a, b = order[:-1], order[1:]
-    changed = np.zeros(len(rows), bool)
-    changed[b] = (vid[a] == vid[b]) & (key[b] == key[a] + 1) & np.isfinite(lane[a]) & \
+    changed = np.zeros(code.size, bool)
+    changed[b] = (code[a] == code[b]) & (key[b] == key[a] + 1) & np.isfinite(lane[a]) & \
         np.isfinite(lane[b]) & (lane[a] != lane[b])
     pick = changed[f_idx] | changed[l_idx]
     f_idx, l_idx = f_idx[pick], l_idx[pick]
     # only the immediate neighbour: the closest leader of each follower row and vice versa
     gap = s_rear[l_idx] - s_front[f_idx]
-    df = pd.DataFrame({"f": f_idx, "l": l_idx, "gap": gap})
-    df = df.loc[df.groupby("f")["gap"].idxmin()]
-    df = df.loc[df.groupby("l")["gap"].idxmin()]
-    if df.empty:
-        return pd.DataFrame(columns=["follower", "leader", "k", "pet"])
-    sorted_ids = vid[order].astype(str)
-    by_vehicle = {v: order[np.searchsorted(sorted_ids, v, "left"):np.searchsorted(sorted_ids, v, "right")]
-                  for v in set(vid[df["f"].to_numpy()])}
-    pet = np.full(len(df), np.nan)
-    for j, (fi, li) in enumerate(zip(df["f"].to_numpy(), df["l"].to_numpy())):
-        own = by_vehicle[vid[fi]]
+    o = np.lexsort((gap, f_idx))
+    f_idx, l_idx, gap = f_idx[o], l_idx[o], gap[o]
+    first = np.unique(f_idx, return_index=True)[1]
+    f_idx, l_idx, gap = f_idx[first], l_idx[first], gap[first]
+    o = np.lexsort((gap, l_idx))
+    first = np.unique(l_idx[o], return_index=True)[1]
+    f_idx, l_idx = f_idx[o][first], l_idx[o][first]
+    sorted_codes = code[order]
+    pet = np.full(f_idx.size, np.nan)
+    for j, (fi, li) in enumerate(zip(f_idx, l_idx)):
+        own = order[np.searchsorted(sorted_codes, code[fi], "left"):np.searchsorted(sorted_codes, code[fi], "right")]
         own = own[t[own] >= t[fi]]
-        target = s_rear[li]
         sf = np.maximum.accumulate(s_front[own])
-        if sf.size and sf[-1] >= target:
-            pet[j] = float(np.interp(target, sf, t[own])) - t[fi]
-    return pd.DataFrame({"follower": vid[df["f"].to_numpy()], "leader": vid[df["l"].to_numpy()],
-                         "k": key[df["f"].to_numpy()], "pet": pet})
+        if sf.size and sf[-1] >= s_rear[li]:
+            pet[j] = float(np.interp(s_rear[li], sf, t[own])) - t[fi]
+    return code[f_idx], code[l_idx], key[f_idx], pet
 
 
 def recorded_conflicts(rows: pd.DataFrame, members, *, ttc_threshold: float = TTC_THRESHOLD_S,
@@ -239,26 +276,28 @@ def recorded_conflicts(rows: pd.DataFrame, members, *, ttc_threshold: float = TT
     DataFrame
         One row per conflict, columns :data:`CONFLICT_COLUMNS`, by ``begin``.
     """
-    rows = rows.reset_index(drop=True)
-    col = {c: rows[c].to_numpy(float) for c in ("s", "d", "v", "length", "width", "lane_index")}
+    col = {c: rows[c].to_numpy(float) for c in ("t", "s", "d", "v", "length", "width", "lane_index")}
     key = rows["key"].to_numpy(np.int64)
+    code, names = pd.factorize(rows["vehicle_id"].astype(str).to_numpy(dtype=object))
     fi, li = following_pairs(key, col["lane_index"], col["s"], col["d"], col["length"], col["width"])
     gap, ttc, drac = following_measures(col["s"][fi], col["length"][fi], col["v"][fi],
                                         col["s"][li], col["length"][li], col["v"][li])
-    vid = rows["vehicle_id"].to_numpy(dtype=object)
-    enc = encounters(vid[fi], vid[li], key[fi], rows["t"].to_numpy(float)[fi], gap, ttc, drac)
-    pet = lane_change_pet(rows, fi, li)
-    dt = float(np.median(np.diff(np.unique(rows["t"].to_numpy(float))))) if len(rows) > 1 else 0.0
-    enc["pet"], enc["pet_time"] = np.nan, np.nan
-    if len(pet) and len(enc):
-        m = enc.reset_index().merge(pet, left_on=["follower", "leader", "k_begin"],
-                                    right_on=["follower", "leader", "k"], how="inner")
-        enc.loc[m["index"].to_numpy(), "pet"] = m["pet_y"].to_numpy() if "pet_y" in m else m["pet"].to_numpy()
-        enc.loc[m["index"].to_numpy(), "pet_time"] = enc.loc[m["index"].to_numpy(), "begin"].to_numpy()
-    del dt
-    hit = (enc["min_ttc"] < ttc_threshold) | (enc["max_drac"] > drac_threshold) | \
-        (enc["pet"] < pet_threshold)
-    out = enc.loc[hit.fillna(False)].copy()
+    enc = encounters(code[fi], code[li], key[fi], col["t"][fi], gap, ttc, drac)
+    pf, pl, pk, pv = lane_change_pet(code, key, col["t"], col["lane_index"], col["s"], col["length"], fi, li)
+    n_codes = max(len(names), 1)
+    enc_id = (enc["follower"].astype(np.int64) * n_codes + enc["leader"].astype(np.int64)) * (2**31) + \
+        enc["k_begin"].astype(np.int64)
+    pet_id = (pf * n_codes + pl) * (2**31) + pk
+    pos = {v: i for i, v in enumerate(pet_id.tolist())}
+    enc["pet"] = np.array([pv[pos[v]] if v in pos else np.nan for v in enc_id.tolist()], float)
+    enc["pet_time"] = np.where(np.isfinite(enc["pet"]), enc["begin"], np.nan)
+    with np.errstate(invalid="ignore"):
+        hit = (enc["min_ttc"] < ttc_threshold) | (enc["max_drac"] > drac_threshold) | \
+            (enc["pet"] < pet_threshold)
+    out = pd.DataFrame({k: v[hit] for k, v in enc.items() if k != "k_begin"})
+    names = np.asarray(names, dtype=object)
+    out["follower"] = names[out["follower"].to_numpy(np.int64)] if len(out) else []
+    out["leader"] = names[out["leader"].to_numpy(np.int64)] if len(out) else []
     mem = set(members)
     out["member_involved"] = out["follower"].isin(mem) | out["leader"].isin(mem)
     return out.sort_values(["begin", "follower", "leader"]).reset_index(drop=True)[list(CONFLICT_COLUMNS)]
