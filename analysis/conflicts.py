@@ -111,7 +111,9 @@ def following_pairs(key, lane, s, d, length, width, *, depth: int = FOLLOW_DEPTH
     s, d = np.asarray(s, float), np.asarray(d, float)
     length, width = np.asarray(length, float), np.asarray(width, float)
     ok = np.flatnonzero(np.isfinite(lane) & np.isfinite(s) & np.isfinite(d))
-    order = ok[np.lexsort((s[ok], lane[ok], key[ok]))]
+    lanes = np.unique(lane[ok])
+    slot = (key[ok] - (key[ok].min() if ok.size else 0)) * max(lanes.size, 1) + np.searchsorted(lanes, lane[ok])
+    order = ok[np.lexsort((s[ok], slot))]
     fs, ls = [], []
     for k in range(1, depth + 1):
         a, b = order[:-k], order[k:]
@@ -175,10 +177,13 @@ def encounters(f_code, l_code, key, t, gap, ttc, drac) -> dict[str, np.ndarray]:
              "max_drac", "max_drac_time", "min_gap")
     if key.size == 0:
         return {k: np.empty(0) for k in names}
-    o = np.lexsort((key, l_code, f_code))
-    f_code, l_code, key, t, gap, ttc, drac = (x[o] for x in (f_code, l_code, key, t, gap, ttc, drac))
+    n = int(max(f_code.max(), l_code.max())) + 1
+    k0, span = int(key.min()), int(key.max() - key.min()) + 2
+    pair = f_code * n + l_code
+    o = np.argsort(pair * span + (key - k0), kind="stable")  # one int64 sort: by pair, then step
+    pair, f_code, l_code, key, t, gap, ttc, drac = (x[o] for x in (pair, f_code, l_code, key, t, gap, ttc, drac))
     new = np.ones(key.size, bool)
-    new[1:] = (f_code[1:] != f_code[:-1]) | (l_code[1:] != l_code[:-1]) | (key[1:] != key[:-1] + 1)
+    new[1:] = (pair[1:] != pair[:-1]) | (key[1:] != key[:-1] + 1)
     start = np.flatnonzero(new)
     last = np.append(start[1:], key.size) - 1
     enc = np.cumsum(new) - 1
