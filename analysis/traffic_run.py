@@ -148,14 +148,6 @@ def load_baseline(run_dir: str | Path) -> BaselineData:
     return BaselineData(d, meta, bg, tuple(issues))
 
 
-def _f(x: Any) -> float | None:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
-
-
 def member_rows(data: RunData, fp: tr.Footprint, dt: float) -> pd.DataFrame:
     """Members' rows as rectangles: body centre, velocity, road coordinates.
 
