@@ -134,18 +134,20 @@ def main() -> None:
     if a.child:
         print(json.dumps(child(a.child[0], float(a.child[1]))))
         return
-    runs = {m: spawn(m, a.duration) for m in (["members", "off"] + (["all"] if a.oracle else []))}
-    d, off = runs["members"], runs["off"]
-    for m, r in runs.items():
+    runs = {}
+    for m in ["members", "off"] + (["all"] if a.oracle else []):
+        r = runs[m] = spawn(m, a.duration)
         extra = (f", read {r['read_s']:.2f} s, conflict analysis {r['conflicts_s']:.2f} s "
                  f"({r['n_rows']} rows), peak with analysis {r['peak_rss_with_analysis_mb']:.0f} MB"
                  if "conflicts_s" in r else "")
         print(f"sumo.ssm = {m:8s}: loop {r['loop_s']:.2f} s, setup {r['setup_s']:.2f} s, "
-              f"peak {r['peak_rss_mb']:.0f} MB{extra}")
+              f"peak {r['peak_rss_mb']:.0f} MB{extra}", flush=True)
+        if m == "off":
+            d, off = runs["members"], runs["off"]
+            print(f"with setup: {(d['loop_s'] + d['setup_s'] + d['conflicts_s']) / (off['loop_s'] + off['setup_s']):.2f}")
+            print(f"conflict measurement cost: {(d['loop_s'] + d['conflicts_s']) / off['loop_s']:.2f}", flush=True)
     print("recorded conflicts (default run): " + ", ".join(
         f"{k} {v}" for k, v in d["recorded"].items() if k.startswith("conflict_n")))
-    print(f"with setup: {(d['loop_s'] + d['setup_s'] + d['conflicts_s']) / (off['loop_s'] + off['setup_s']):.2f}")
-    print(f"conflict measurement cost: {(d['loop_s'] + d['conflicts_s']) / off['loop_s']:.2f}")
     if "all" in runs:
         print(f"device on every vehicle / none: {runs['all']['loop_s'] / off['loop_s']:.2f}")
         _oracle_check(runs["all"], d)
