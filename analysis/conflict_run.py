@@ -121,9 +121,10 @@ def classify_extremes(merged: pd.DataFrame, members: set[str], events: pd.DataFr
     2. ``real``: SUMO reported a ``collision`` of the pair between ``begin`` and ``end``;
     3. ``insertion``: the extreme came within :data:`APPEAR_WINDOW_S` of the encounter's
        begin: the pair met already in conflict, so one of them had just appeared;
-    4. ``lane_change``: SUMO's encounter type at the minimum TTC is 111 (gap along the lane
-       <= 0) without any collision: the two share a lane side by side (sublane model, a lane
-       change under way), and SUMO's lane-based gap is not a distance between the bodies;
+    4. ``lane_change``: TTC 0 with SUMO's encounter type 111 (gap along the lane <= 0; or no
+       type recorded, runs before it was) without any collision: the two share a lane side by
+       side (sublane model, a lane change under way), and SUMO's lane-based gap is not a
+       distance between the bodies;
     5. ``real`` otherwise.
 
     Parameters
@@ -173,7 +174,7 @@ def classify_extremes(merged: pd.DataFrame, members: set[str], events: pd.DataFr
             out[i] = "real"
         elif when[i] - begin[i] <= APPEAR_WINDOW_S:
             out[i] = "insertion"
-        elif kind[i] == COLLISION_TYPE:
+        elif ttc[i] <= EXTREME_TTC_S and (kind[i] == COLLISION_TYPE or not np.isfinite(kind[i])):
             out[i] = "lane_change"
         else:
             out[i] = "real"

@@ -10,7 +10,8 @@ on the members, then the analysis' conflicts from the recording) and with none
 with the loop the wall-clock seconds from SUMO started to the end of the run (``timing_s``), and
 the conflict analysis the time of ``analysis.conflict_run`` on the loaded recording (building the
 rows, ``recorded_conflicts``, the SSM table); reading the recording is printed apart, since the
-analysis reads it anyway. ``--oracle`` adds a run with the device on every vehicle (``"all"``,
+analysis reads it anyway. On a shared machine the wall clock drifts with the others' load; the
+CPU seconds of each process (with setup) are printed too. ``--oracle`` adds a run with the device on every vehicle (``"all"``,
 the former default) and checks the default against it on that run: member conflicts of SUMO's
 device with TTC < 3 s found from the recording (min TTC within 0.2 s), and background pairs both
 recorded at the time of the minimum TTC.
@@ -71,16 +72,18 @@ def child(mode: str, duration: float) -> dict:
     from formation_traci.sim.runner import run_scenario
     sc = load_scenario(SCENARIO, **{"run.duration": duration, "sumo.ssm": mode})
     out = Path(tempfile.mkdtemp(prefix="conflict_cost_")) / "run"
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     res = run_scenario(sc, out, scenario_path=SCENARIO, progress=False)
-    total = time.perf_counter() - t0
+    total, cpu = time.perf_counter() - t0, time.process_time() - c0
     meta = json.loads((out / "run.json").read_text())
     loop = sum(meta.get("timing_s", {}).values())
     rss_run = peak_rss_mb()
     r = {"mode": mode, "status": res.status, "loop_s": loop, "setup_s": total - loop,
-         "peak_rss_mb": rss_run}
+         "cpu_s": cpu, "peak_rss_mb": rss_run}
     if mode != "off":
+        c1 = time.process_time()
         r.update(_conflict_analysis(out))
+        r["conflicts_cpu_s"] = time.process_time() - c1
         r["peak_rss_with_analysis_mb"] = peak_rss_mb()
     r["run_dir"] = str(out)
     return r
@@ -140,11 +143,13 @@ def main() -> None:
         extra = (f", read {r['read_s']:.2f} s, conflict analysis {r['conflicts_s']:.2f} s "
                  f"({r['n_rows']} rows), peak with analysis {r['peak_rss_with_analysis_mb']:.0f} MB"
                  if "conflicts_s" in r else "")
-        print(f"sumo.ssm = {m:8s}: loop {r['loop_s']:.2f} s, setup {r['setup_s']:.2f} s, "
+        print(f"sumo.ssm = {m:8s}: loop {r['loop_s']:.2f} s, setup {r['setup_s']:.2f} s, CPU {r['cpu_s']:.2f} s, "
               f"peak {r['peak_rss_mb']:.0f} MB{extra}", flush=True)
         if m == "off":
             d, off = runs["members"], runs["off"]
             print(f"with setup: {(d['loop_s'] + d['setup_s'] + d['conflicts_s']) / (off['loop_s'] + off['setup_s']):.2f}")
+            print(f"CPU seconds of the whole process (run with setup, + analysis; robust to a busy machine): "
+                  f"{(d['cpu_s'] + d['conflicts_cpu_s']) / off['cpu_s']:.2f}")
             print(f"conflict measurement cost: {(d['loop_s'] + d['conflicts_s']) / off['loop_s']:.2f}", flush=True)
     print("recorded conflicts (default run): " + ", ".join(
         f"{k} {v}" for k, v in d["recorded"].items() if k.startswith("conflict_n")))
