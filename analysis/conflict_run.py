@@ -140,6 +140,11 @@ def classify_extremes(merged: pd.DataFrame, members: set[str], events: pd.DataFr
         Members' ``t``, ``vehicle_id``, ``s`` (where they were).
     t_insert : float
         When the members entered SUMO [s].
+
+    Returns
+    -------
+    ndarray of str
+        One of :data:`SSM_CLASSES` per extreme record, ``""`` for the others.
     """
     n = len(merged)
     out = np.full(n, "", dtype=object)
@@ -192,16 +197,27 @@ def ssm_section(ssm: pd.DataFrame | None, ids: list[str], t_first: float, t_last
         ``ssm.parquet``.
     ids : list of str
         Member ids.
-    t_first, t_last : float
-        First and last recorded time [s]; conflicts ended before ``t_first`` are the warm-up's.
+    t_first : float
+        First recorded time [s]; conflicts ended before it are the warm-up's.
+    t_last : float
+        Last recorded time [s].
     settings : AnalysisSettings
         ``ssm_ttc_warning_s``, ``ssm_ttc_critical_s``, ``ssm_drac_high_mps2``.
     bg_keys : set of (vehicle id, step) or None
         Recorded background rows (``ssm_n_other_near``); None without a background table.
     dt : float
         Sample spacing [s].
-    events, member_s : DataFrame or None
-        For :func:`classify_extremes`.
+    events : DataFrame or None
+        ``events.parquet`` (for :func:`classify_extremes`).
+    member_s : DataFrame or None
+        Members' ``t``, ``vehicle_id``, ``s`` (for :func:`classify_extremes`).
+
+    Returns
+    -------
+    SsmResult
+        Run and per-member metrics, the summary per group (``member``, ``other``,
+        ``artefact``), the member conflicts without artefacts, the extreme records with their
+        ``class``, and why nothing was computed (or None).
     """
     res = SsmResult()
     if ssm is None or not {"begin", "end", "ego", "foe"} <= set(ssm.columns):
@@ -271,9 +287,26 @@ def _extremes(x: pd.DataFrame, prefix: str, suffix: str, settings) -> dict[str, 
 
 def recorded_section(rows: pd.DataFrame, ids: list[str], settings
                      ) -> tuple[dict[str, Any], dict[str, dict[str, Any]], pd.DataFrame]:
-    """Conflicts from the recording: run metrics (:data:`CONFLICT_RUN_METRICS`), per-member
-    metrics (:data:`CONFLICT_MEMBER_METRICS`) and the conflict table (members and recorded
-    background, :data:`analysis.conflicts.CONFLICT_COLUMNS`)."""
+    """Conflicts from the recording of one run.
+
+    Parameters
+    ----------
+    rows : DataFrame
+        Members' and recorded background vehicles' rows (body centre ``s``, ``d``, ``v``,
+        ``length``, ``width``, ``lane_index``, ``vehicle_id``, ``key``, ``t``).
+    ids : list of str
+        Member ids.
+    settings : AnalysisSettings
+        ``ssm_ttc_warning_s``, ``ssm_drac_high_mps2`` (conflict thresholds),
+        ``ssm_ttc_critical_s``.
+
+    Returns
+    -------
+    (dict, dict, DataFrame)
+        Run metrics (:data:`CONFLICT_RUN_METRICS`), per-member metrics
+        (:data:`CONFLICT_MEMBER_METRICS`) and the conflict table
+        (:data:`analysis.conflicts.CONFLICT_COLUMNS`).
+    """
     st = settings
     tab = cf.recorded_conflicts(rows, ids, ttc_threshold=st.ssm_ttc_warning_s,
                                 drac_threshold=st.ssm_drac_high_mps2)

@@ -85,10 +85,14 @@ def following_pairs(key, lane, s, d, length, width, *, depth: int = FOLLOW_DEPTH
         Time step of each row.
     lane : array_like
         SUMO lane index of each row (NaN rows are never paired).
-    s, d : array_like
-        Body centre along and across the road [m].
-    length, width : array_like
-        Body size [m].
+    s : array_like
+        Body centre along the road [m].
+    d : array_like
+        Body centre across the road [m].
+    length : array_like
+        Body length [m].
+    width : array_like
+        Body width [m].
     depth : int
         Vehicles ahead in the lane each follower is paired with.
     max_gap : float
@@ -127,12 +131,29 @@ def following_pairs(key, lane, s, d, length, width, *, depth: int = FOLLOW_DEPTH
 
 
 def following_measures(s_f, l_f, v_f, s_l, l_l, v_l) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Gap [m], TTC [s] and DRAC [m/s^2] of follower/leader pairs (body centres ``s``, lengths
-    ``l`` [m], speeds ``v`` [m/s]).
+    """Gap, TTC and DRAC of follower/leader pairs.
 
-    TTC is ``gap / (v_f - v_l)`` where the follower is faster (0 where the gap is <= 0) and
-    NaN otherwise; DRAC is ``(v_f - v_l)^2 / (2 gap)`` where the follower is faster and the gap
-    positive, NaN otherwise.
+    Parameters
+    ----------
+    s_f : array_like
+        Follower's body centre along the road [m].
+    l_f : array_like
+        Follower's length [m].
+    v_f : array_like
+        Follower's speed [m/s].
+    s_l : array_like
+        Leader's body centre along the road [m].
+    l_l : array_like
+        Leader's length [m].
+    v_l : array_like
+        Leader's speed [m/s].
+
+    Returns
+    -------
+    (ndarray, ndarray, ndarray)
+        Bumper-to-bumper gap [m]; TTC [s], ``gap / (v_f - v_l)`` where the follower is faster
+        (0 where the gap is <= 0), NaN otherwise; DRAC [m/s^2], ``(v_f - v_l)^2 / (2 gap)``
+        where the follower is faster and the gap positive, NaN otherwise.
 
     Examples
     --------
@@ -155,12 +176,20 @@ def encounters(f_code, l_code, key, t, gap, ttc, drac) -> dict[str, np.ndarray]:
 
     Parameters
     ----------
-    f_code, l_code : array_like of int
-        Follower and leader of each pair sample (integer vehicle codes).
-    key, t : array_like
-        Step and time [s] of each sample.
-    gap, ttc, drac : array_like
-        Measures of each sample (:func:`following_measures`).
+    f_code : array_like of int
+        Follower of each pair sample (integer vehicle code).
+    l_code : array_like of int
+        Leader of each pair sample.
+    key : array_like of int
+        Step of each sample.
+    t : array_like
+        Time of each sample [s].
+    gap : array_like
+        Bumper-to-bumper gap [m] (:func:`following_measures`).
+    ttc : array_like
+        TTC [s].
+    drac : array_like
+        DRAC [m/s^2].
 
     Returns
     -------
@@ -218,11 +247,22 @@ def lane_change_pet(code, key, t, lane, s, length, f_idx: np.ndarray, l_idx: np.
 
     Parameters
     ----------
-    code, key, t, lane, s, length : array_like
-        Per row (one vehicle at one step): integer vehicle code, step, time [s], SUMO lane
-        index, body centre along the road [m], body length [m].
-    f_idx, l_idx : ndarray
-        Following pairs (row indices), as from :func:`following_pairs`.
+    code : array_like of int
+        Vehicle of each row (one vehicle at one step), as an integer code.
+    key : array_like of int
+        Step of each row.
+    t : array_like
+        Time of each row [s].
+    lane : array_like
+        SUMO lane index of each row.
+    s : array_like
+        Body centre along the road [m].
+    length : array_like
+        Body length [m].
+    f_idx : ndarray
+        Followers of the following pairs (row indices), as from :func:`following_pairs`.
+    l_idx : ndarray
+        Their leaders.
 
     Returns
     -------
@@ -272,9 +312,12 @@ def recorded_conflicts(rows: pd.DataFrame, members, *, ttc_threshold: float = TT
         ``s``, ``d`` (body centre [m]), ``v`` [m/s], ``length``, ``width`` [m].
     members : collection of str
         Member ids (``member_involved``).
-    ttc_threshold, drac_threshold, pet_threshold : float
-        An encounter is a conflict when its minimum TTC [s] is below, its maximum DRAC [m/s^2]
-        above, or its PET [s] below these.
+    ttc_threshold : float
+        An encounter whose minimum TTC is below this is a conflict [s].
+    drac_threshold : float
+        An encounter whose maximum DRAC is above this is a conflict [m/s^2].
+    pet_threshold : float
+        A lane change whose PET is below this is a conflict [s].
 
     Returns
     -------
