@@ -107,3 +107,10 @@ SSM_COLUMNS: tuple[Column, ...] = (
     Column("min_ttc_d", "float64", "m", "where SUMO put min_ttc: lateral offset, left positive"),
 )
 """Columns of ``ssm.parquet``: SUMO's SSM device conflicts, converted from its XML output."""
+
+FILLED_BY_CALLER = ("t", "vehicle_id", "s", "d", "lane_index", "sumo_gap")
+"""Trajectory columns the member-signal kernel (sim/fleet.py) does not compute."""
+
+SIGNAL_COLUMNS: tuple[str, ...] = tuple(c.name for c in TRAJECTORY_COLUMNS
+                                        if c.name not in FILLED_BY_CALLER)
+"""Columns of the member-signal array, in the order of TRAJECTORY_COLUMNS."""
