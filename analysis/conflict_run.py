@@ -261,16 +261,17 @@ def ssm_section(ssm: pd.DataFrame | None, ids: list[str], t_first: float, t_last
                                           for e_, f_, k_ in zip(other["ego"], other["foe"], kk)))
     res.member_conflicts = merged.loc[is_m & ~artefact].reset_index(drop=True)
     res.extremes = merged.assign(**{"class": cls}).loc[cls != ""].reset_index(drop=True)
-    c = res.member_conflicts
-    for m_id in ids:
-        mine = c.loc[(c["ego"] == m_id) | (c["foe"] == m_id)]
-        res.members[m_id] = {
-            "ssm_n_conflicts": int(len(mine)),
-            "ssm_ttc_min_s": _f(np.nanmin(_num(mine, "min_ttc"))) if len(mine) and
-            np.isfinite(_num(mine, "min_ttc")).any() else None,
-            "ssm_drac_max_mps2": _f(np.nanmax(_num(mine, "max_drac"))) if len(mine) and
-            np.isfinite(_num(mine, "max_drac")).any() else None}
+    res.members = {m_id: _member_ssm(res.member_conflicts, m_id) for m_id in ids}
     return res
+
+
+def _member_ssm(c: pd.DataFrame, m_id: str) -> dict[str, Any]:
+    """Per-member SSM metrics from the member conflicts ``c``."""
+    mine = c.loc[(c["ego"] == m_id) | (c["foe"] == m_id)]
+    ttc, drac = _num(mine, "min_ttc"), _num(mine, "max_drac")
+    return {"ssm_n_conflicts": int(len(mine)),
+            "ssm_ttc_min_s": _f(np.nanmin(ttc)) if np.isfinite(ttc).any() else None,
+            "ssm_drac_max_mps2": _f(np.nanmax(drac)) if np.isfinite(drac).any() else None}
 
 
 def _extremes(x: pd.DataFrame, prefix: str, suffix: str, settings) -> dict[str, Any]:
