@@ -128,6 +128,8 @@ def _traffic_json(t: TrafficAnalysis | None) -> dict[str, Any] | None:
         "units": TRAFFIC_RUN_METRICS,
         "ssm": {g: _jsonable(r.to_dict()) for g, r in t.ssm.iterrows()},
         "member_conflicts": _records(t.member_conflicts),
+        "ssm_extremes": _records(t.ssm_extremes),
+        "conflicts": _records(t.conflicts),
         "baseline_vehicles": base,
         "unavailable": dict(t.unavailable),
     }

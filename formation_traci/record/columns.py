@@ -105,6 +105,10 @@ SSM_COLUMNS: tuple[Column, ...] = (
     Column("max_drac", "float64", "m/s^2", "maximum deceleration rate to avoid a crash"),
     Column("max_drac_time", "float64", "s", "when max_drac occurred"),
     Column("pet", "float64", "s", "post-encroachment time (crossing/merging conflicts)"),
+    Column("min_ttc_type", "float64", "-", "SUMO's encounter type at min_ttc (2/3 following as "
+                                           "follower/leader, 111 collision: gap <= 0, ...)"),
+    Column("min_ttc_s", "float64", "m", "where SUMO put min_ttc: arc length along the reference line"),
+    Column("min_ttc_d", "float64", "m", "where SUMO put min_ttc: lateral offset, left positive"),
 )
 """Columns of ``ssm.parquet``: SUMO's SSM device conflicts, converted from its XML output."""
 

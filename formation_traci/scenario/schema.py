@@ -200,12 +200,22 @@ class SumoSpec(Strict):
     backend: Literal["libsumo", "traci"] = "libsumo"
     gui: bool = Field(False, description="run sumo-gui (traci backend only)")
     lateral_resolution: PosFloat = Field(0.8, description="sublane width [m] (--lateral-resolution)")
-    ssm: bool = Field(True, description="SSM device on every vehicle (TTC, DRAC, PET)")
+    ssm: Literal["members", "all", "off"] = Field(
+        "members", description="SUMO's SSM device (TTC, DRAC, PET): on the formation members only "
+        "(default; background pairs are measured from the recording by the analysis), on every "
+        "vehicle (about 10x the cost of the run), or off; true/false mean \"all\"/\"off\"")
     fcd: bool = Field(False, description="also write SUMO's FCD output (Parquet)")
     friction_device: bool = Field(True, description="SUMO's cars slow down on low-friction lanes (device.friction)")
     options: list[str] = Field(default_factory=list, description="extra SUMO command-line options")
     attach_port: int | None = Field(None, ge=1, le=65535, description="attach (traci) to a SUMO already "
                                     "running with --remote-port PORT instead of starting one")
+
+    @field_validator("ssm", mode="before")
+    @classmethod
+    def _ssm_bool(cls, v):
+        if isinstance(v, bool):  # the earlier boolean form: true was every vehicle
+            return "all" if v else "off"
+        return v
 
     @model_validator(mode="after")
     def _attach(self):

@@ -16,6 +16,7 @@ from ..scenario.schema import Scenario
 from .road_setup import (Road, build_road, check_no_overlap, check_slots, initial_check_limit,
                          slot_offsets)
 from .setup import member_vehicles, profile, vehicle_params
+from .ssm import ssm_args
 from .sumo_adapter import MemberType
 
 MEMBER_ROUTE = "formation_route"
@@ -91,10 +92,7 @@ def sumo_args(sc: Scenario, net: Path, routes: Path, sumo_dir: Path, t_end: floa
             "--collision.check-junctions", "true",
             "--no-step-log", "true", "--log", str(sumo_dir / "sumo.log"),
             "--duration-log.disable", "true"]
-    if sc.sumo.ssm:
-        args += ["--device.ssm.probability", "1", "--device.ssm.file", str(sumo_dir / "ssm.xml"),
-                 "--device.ssm.measures", "TTC DRAC PET", "--device.ssm.thresholds", "3.0 3.0 2.0",
-                 "--device.ssm.range", "50"]
+    args += ssm_args(sc.sumo.ssm, [m.id for m in sc.members], sumo_dir / "ssm.xml")
     if sc.sumo.friction_device:
         args += ["--device.friction.probability", "1", "--device.friction.stdDev", "0"]
     if sc.sumo.fcd:

@@ -94,7 +94,7 @@ class SumoWorld:
             self.adapter.close()
         finally:
             convert_ssm(self.sumo_dir / "ssm.xml", self.out_dir / "ssm.parquet",
-                        getattr(self, "t0", 0.0), set(self.ids))
+                        getattr(self, "t0", 0.0), set(self.ids), self.plan.road.line)
 
     # ------------------------------------------------------------------------- sense
     def sense(self, k: int, t: float, state) -> Sensed:
