@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.load import Issue, NoTrajectoryData, load_run
+from analysis.maneuvers import PHASE_METRICS, maneuver_intervals, phase_metrics
 from analysis.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN_METRICS,
                               AnalysisSettings, RunAnalysis, compute_run, settings_dict)
 from analysis.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
@@ -203,6 +204,7 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
         "settings": settings_dict(settings),
         "units": {"run": RUN_METRICS, "members": MEMBER_METRICS},
         "traffic": _traffic_json(a.traffic),
+        "maneuvers": _maneuvers_json(a),
         "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()},
     }
     p_json = out / METRICS_JSON
@@ -230,6 +232,16 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
                           files=files,
                           traffic=_jsonable(a.traffic.run) if a.traffic is not None else None,
                           baseline=base_tab)
+
+
+def _maneuvers_json(a) -> dict[str, Any]:
+    """Maneuver intervals and the steady / maneuver split of error and comfort per member."""
+    traj = a.data.trajectories
+    iv = maneuver_intervals(a.data.tables.get("events"), float(traj["t"].max()) if len(traj) else 0.0)
+    if iv.empty:
+        return {"intervals": [], "phases": [], "units": PHASE_METRICS}
+    ph = phase_metrics(traj, [m.id for m in a.data.members], iv, a.data.dt)
+    return {"intervals": _records(iv), "phases": _records(ph.reset_index()), "units": PHASE_METRICS}
 
 
 def _labels(run_dirs: Sequence[Path]) -> list[str]:
