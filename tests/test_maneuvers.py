@@ -236,7 +236,7 @@ def test_plan_slots_give_exact_target_derivatives_on_a_curved_line():
     the Reference) through road_target_at: p', p'' of c(s + dx) + dy n(s + dx) with s, dx,
     dy all moving equal central differences on an R = 800 m arc."""
     from formation_traci.control.maneuvers.transition import plan_slots_into
-    from formation_traci.road.fast_line import FastLine
+    from formation_traci.road.line_pack import FastLine
     from formation_traci.road.geometry import ReferenceLine
     from formation_traci.road.targets import road_target_at
 
