@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import math
 import time
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Iterator
@@ -22,8 +21,6 @@ import numpy as np
 
 from ..control.formation import rigid_targets, Targets
 from ..models.params import VehicleParams
-from ..record.columns import SSM_COLUMNS
-from ..record.writer import ChunkedTable
 from ..road.leader import road_leader_state
 from ..road.targets import road_targets
 from ..scenario.schema import Scenario
@@ -359,8 +356,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 adapter.subscribe_departed()
             tm["sumo_place"] += clock() - c6
     finally:
-        adapter.close()
-        _convert_ssm(sumo_dir / "ssm.xml", out_dir / "ssm.parquet", t0, set(ids))
+        adapter.close()  # SUMO completes its outputs; the runner converts ssm.xml (record/ssm.py)
 
 
 def _sumo_gap(road, pos, d, xs, ys, lanes, lane_idx, lat):
@@ -430,31 +426,3 @@ def _clear_insertion_zone(adapter, rec, t, pos, heading, v, veh, front):
                 adapter.remove_vehicle(vid)
                 rec.add_event(t, "cleared_at_insertion", vid, "", "removed: it stood where a member is inserted")
                 break
-
-
-def _convert_ssm(xml_path: Path, out: Path, t0: float, members: set[str]) -> None:
-    """SUMO's SSM XML (one <conflict> per encounter) -> ssm.parquet; a truncated file keeps
-    the conflicts read before the damage."""
-    if not xml_path.exists():
-        return
-    table = ChunkedTable(out, SSM_COLUMNS, chunk_rows=100_000, labels=[""])
-    f = lambda v: float(v) if v not in (None, "", "NA") else np.nan
-    try:
-        for _, el in ET.iterparse(xml_path):
-            if el.tag != "conflict":
-                continue
-            ego, foe = el.get("ego", ""), el.get("foe", "")
-            ttc, drac, pet = el.find("minTTC"), el.find("maxDRAC"), el.find("PET")
-            table.append({
-                "begin": f(el.get("begin")) - t0, "end": f(el.get("end")) - t0,
-                "ego": table.code(ego), "foe": table.code(foe),
-                "member_involved": ego in members or foe in members,
-                "min_ttc": f(ttc.get("value")) if ttc is not None else np.nan,
-                "min_ttc_time": (f(ttc.get("time")) - t0) if ttc is not None else np.nan,
-                "max_drac": f(drac.get("value")) if drac is not None else np.nan,
-                "max_drac_time": (f(drac.get("time")) - t0) if drac is not None else np.nan,
-                "pet": f(pet.get("value")) if pet is not None else np.nan}, 1)
-            el.clear()
-    except ET.ParseError:
-        pass  # keep what was parsed
-    table.close()

@@ -1,0 +1,70 @@
+"""SIGINT and SIGTERM: every run ends as ``interrupted`` (exit 130), whatever it is doing.
+
+While a run is being set up (imports, checks, compiling, SUMO start, warm-up) a signal raises
+:class:`Interrupted` at once, so nothing waits for the warm-up to end. Once the run steps, a
+signal only sets a flag that the loop checks after every step, so the step in progress is
+recorded whole; the finishing code (flushing, run.json) is never interrupted.
+"""
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class Interrupted(KeyboardInterrupt):
+    """A SIGINT or SIGTERM arrived; ``signame`` says which."""
+
+    def __init__(self, signame: str = "SIGINT"):
+        super().__init__(f"{signame} received")
+        self.signame = signame
+
+
+def raise_interrupted(signum, frame) -> None:
+    """Signal handler: raise :class:`Interrupted` (both SIGINT and SIGTERM)."""
+    raise Interrupted(signal.Signals(signum).name)
+
+
+def install_raising() -> None:
+    """Make SIGTERM behave like SIGINT (raise) in this process (command-line entry points)."""
+    if threading.current_thread() is threading.main_thread():
+        for sig in SIGNALS:
+            signal.signal(sig, raise_interrupted)
+
+
+class StopFlag:
+    """Set by SIGINT/SIGTERM; while ``raising`` is true the handler also raises Interrupted."""
+
+    def __init__(self) -> None:
+        self.event = threading.Event()
+        self.signame: str | None = None
+        self.raising = True
+
+    def is_set(self) -> bool:
+        return self.event.is_set()
+
+    def handler(self, signum, frame) -> None:
+        self.signame = signal.Signals(signum).name
+        self.event.set()
+        if self.raising:
+            self.raising = False  # once: the clean-up that follows is never interrupted again
+            raise Interrupted(self.signame)
+
+
+@contextlib.contextmanager
+def stop_on_signals():
+    """Install :class:`StopFlag` as the SIGINT/SIGTERM handler (main thread only; elsewhere
+    the flag is returned but never set by a signal)."""
+    flag = StopFlag()
+    if threading.current_thread() is not threading.main_thread():
+        flag.raising = False
+        yield flag
+        return
+    previous = {sig: signal.signal(sig, flag.handler) for sig in SIGNALS}
+    try:
+        yield flag
+    finally:
+        for sig, h in previous.items():
+            signal.signal(sig, h)
