@@ -205,3 +205,36 @@ def open_out_dir(out: Path, force: bool, protect: Iterable[Path] = (), what: str
         lock.release()
         raise
     return lock
+
+
+def open_report_dir(out: Path, marker: str, own_run: Path | None = None) -> DirLock:
+    """Check, create and lock a directory that ``analyze`` (``marker`` = metrics.json) or
+    ``compare`` (compare.json) writes into: missing, empty, the analysed run itself
+    (``own_run``), or an earlier output of the same command holding only this tool's files.
+    Another run's directory is refused: its report would be overwritten."""
+    absolute = check_path(out)
+    same_run = own_run is not None and absolute.resolve() == Path(os.path.abspath(own_run)).resolve()
+    if absolute.is_dir() and not same_run:
+        entries = [p.name for p in absolute.iterdir() if p.name != LOCK_NAME]
+        if "run.json" in entries:
+            raise RunDirError(f"{out}: is a run directory; writing here would overwrite that run's "
+                              "report: choose another --out")
+        foreign = sorted(e for e in entries if e not in TOOL_FILES)
+        if foreign or (entries and marker not in entries):
+            raise RunDirError(f"{out}: is not empty and not an earlier output of this command "
+                              f"({', '.join(foreign[:5]) or ', '.join(entries[:5])}); choose another --out")
+    try:
+        absolute.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RunDirError(f"{out}: cannot create the directory: {exc.strerror}") from None
+    return DirLock(absolute).acquire()
+
+
+def require_run_dir(run_dir: Path) -> Path:
+    """``run_dir`` if it is an existing directory (never created), else RunDirError."""
+    run_dir = Path(run_dir)
+    if not run_dir.exists():
+        raise RunDirError(f"{run_dir}: no such run directory")
+    if not run_dir.is_dir():
+        raise RunDirError(f"{run_dir}: is a file, not a run directory")
+    return run_dir

@@ -28,10 +28,11 @@ from . import fleet as fl
 from .governor import governor_step
 from .fast import FastFleet, SIGNAL_COLUMNS
 from .recorder import Recorder
-from .road_setup import (Road, build_road, check_no_overlap, check_slots, rectangles_overlap,
-                         slot_offsets)
+from .road_setup import (Road, build_road, check_no_overlap, check_route_ends, check_slots,
+                         rectangles_overlap, slot_offsets)
 from .setup import build_fleet, gain_schedule, profile, road_mu, vehicle_params
 from .sumo_adapter import MemberType, SumoAdapter
+from .sumo_options import check_options, place_outputs
 from .traffic import flow_vehicles_per_hour, write_routes
 
 MEMBER_ROUTE = "formation_route"
@@ -67,9 +68,11 @@ def prepare(sc: Scenario, source: Path | None) -> RoadPlan:
     road = build_road(sc, source)
     veh = vehicle_params(sc)
     slots = slot_offsets(sc, road)
-    check_slots(sc, road, slots, veh, source)
     is_road = np.array([m.slot is not None for m in sc.members])
     rigid = np.array([m.offset if m.offset is not None else [np.nan, np.nan] for m in sc.members], float)
+    check_route_ends(sc, road, np.where(is_road, slots[:, 0], rigid[:, 0]), veh, source)
+    check_slots(sc, road, slots, veh, source)
+    check_options(list(sc.sumo.options), source)
     v0, v0_dot = profile(sc.leader.speed)(0.0)
     tg = _targets(road, slots, rigid, is_road, sc.road.start, v0, 0.0)
     pos0 = tg.p.copy()
@@ -116,7 +119,7 @@ def sumo_args(sc: Scenario, net: Path, routes: Path, sumo_dir: Path, t_end: floa
         args += ["--device.friction.probability", "1", "--device.friction.stdDev", "0"]
     if sc.sumo.fcd:
         args += ["--fcd-output", str(sumo_dir / "fcd.parquet")]
-    return args + list(sc.sumo.options)
+    return args + place_outputs(list(sc.sumo.options), sumo_dir)
 
 
 def member_type(sc: Scenario, veh: VehicleParams) -> MemberType:

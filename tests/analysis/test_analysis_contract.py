@@ -34,8 +34,10 @@ def test_import_rules(path):
     mods = imported_modules(path)
     tops = {m.split(".")[0] for m in mods}
     assert not tops & FORBIDDEN, f"{path.name} imports the simulator"
+    # the record's contract: its columns, and its directory rules (one writer, what --out may be)
     assert {m for m in mods if m.startswith("formation_traci")} <= {
-        "formation_traci.record.columns"}, f"{path.name} imports formation_traci beyond columns"
+        "formation_traci.record.columns", "formation_traci.record.rundir"}, \
+        f"{path.name} imports formation_traci beyond the record contract"
     if path.name != "figures.py":
         assert "matplotlib" not in tops, f"{path.name} imports matplotlib"
     if path.name != "report.py":
