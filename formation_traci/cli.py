@@ -6,13 +6,23 @@ the user unless ``--debug`` is given (docs/reliability.md).
 """
 from __future__ import annotations
 
-from .interrupt import Interrupted, install_raising
+import os
+import signal
+import sys
 
-if __name__ == "__main__":  # python -m formation_traci.cli: before the slow imports
-    install_raising()  # SIGTERM like Ctrl-C from the first moment: exit 130, never -15
+from .interrupt import Interrupted, raising_signals
+
+
+def _exit_130(signum, frame):  # start-up: nothing exists yet, leave at once and say so
+    os.write(2, f"interrupted: {signal.Signals(signum).name} received\n".encode())
+    raise SystemExit(130)
+
+
+if __name__ == "__main__" or os.path.basename(sys.argv[0]) == "formation-traci":
+    for _sig in (signal.SIGINT, signal.SIGTERM):  # from the first moment: exit 130, never -15
+        signal.signal(_sig, _exit_130)
 
 import contextlib  # noqa: E402
-import sys  # noqa: E402
 import traceback  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Optional  # noqa: E402
@@ -41,9 +51,11 @@ def _bad_input_types() -> tuple[type, ...]:
 
 @contextlib.contextmanager
 def _outcome():
-    """Map what a command raises to its exit code and a one-paragraph message."""
+    """Map what a command raises to its exit code and a one-paragraph message; inside,
+    SIGINT and SIGTERM raise Interrupted (a run turns them into its own stop flag)."""
     try:
-        yield
+        with raising_signals():
+            yield
     except typer.Exit:
         raise
     except KeyboardInterrupt as exc:  # Interrupted too
@@ -163,7 +175,6 @@ def analyze_sweep_cmd(
 
 def main() -> None:  # pragma: no cover
     """Console entry point: SIGTERM handled like Ctrl-C (exit 130) from the start."""
-    install_raising()
     try:
         app()
     except KeyboardInterrupt:  # a signal between two commands' handlers (e.g. at start-up)

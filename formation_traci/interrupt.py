@@ -27,13 +27,6 @@ def raise_interrupted(signum, frame) -> None:
     raise Interrupted(signal.Signals(signum).name)
 
 
-def install_raising() -> None:
-    """Make SIGTERM behave like SIGINT (raise) in this process (command-line entry points)."""
-    if threading.current_thread() is threading.main_thread():
-        for sig in SIGNALS:
-            signal.signal(sig, raise_interrupted)
-
-
 class StopFlag:
     """Set by SIGINT/SIGTERM; while ``raising`` is true the handler also raises Interrupted."""
 
@@ -65,6 +58,21 @@ def stop_on_signals():
     previous = {sig: signal.signal(sig, flag.handler) for sig in SIGNALS}
     try:
         yield flag
+    finally:
+        for sig, h in previous.items():
+            signal.signal(sig, h)
+
+
+@contextlib.contextmanager
+def raising_signals():
+    """SIGINT and SIGTERM both raise :class:`Interrupted` (a KeyboardInterrupt) inside the
+    block, so code that cleans up on Ctrl-C does the same on SIGTERM (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, raise_interrupted) for sig in SIGNALS}
+    try:
+        yield
     finally:
         for sig, h in previous.items():
             signal.signal(sig, h)

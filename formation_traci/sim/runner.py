@@ -60,7 +60,7 @@ def versions() -> dict[str, str]:
     return out
 
 
-RESERVE_BYTES = 1 << 20
+RESERVE_BYTES = 1 << 18
 """Space held back in the run directory (``.reserve``) from the start of a run, released to
 write the final run.json when the disk is full [B]."""
 
