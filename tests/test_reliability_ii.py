@@ -379,3 +379,61 @@ def test_sigkill_leaves_all_four_tables_readable_to_the_same_time(tmp_path):
     assert (traj.t <= traj.t.max()).all() and set(traj.vehicle_id) >= {"m1", "m2"}
     assert list(tables["ssm"].columns)[:2] == ["begin", "end"]  # SSM: readable, conflicts so far
     assert list(tables["events"].columns)[0] == "t"
+
+
+# -- 7. sweeps: signals reach the case processes; a running case is never started twice ----------
+def _sweep(tmp_path, duration) -> Path:
+    path = tmp_path / "sweep.toml"
+    path.write_text(f'base = "{free(tmp_path, 1.0)}"\nseeds = [1]\n[overrides]\n"run.duration" = {duration}\n')
+    return path
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def test_sigterm_to_a_sweep_stops_its_case_processes(tmp_path):
+    from formation_traci.sweep import expand_sweep
+
+    path = _sweep(tmp_path, 200000.0)
+    case_dir = tmp_path / "out" / "cases" / expand_sweep(path)[0].id
+    proc = spawn("sweep", path, "--out", tmp_path / "out", "--workers", "1", "--no-progress")
+    pid = None
+    try:
+        assert wait_for(lambda: meta_of(case_dir).get("status") == "running")
+        pid = int((case_dir / ".formation-traci.lock").read_text().split()[1])
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=90)
+        assert proc.returncode == 130, err
+        assert wait_for(lambda: not _alive(pid), timeout=10), "the case process outlived its sweep"
+        assert json.loads((tmp_path / "out" / "sweep.json").read_text())["status"] == "interrupted"
+        assert meta_of(case_dir)["status"] == "interrupted"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        if pid is not None and _alive(pid):
+            os.kill(pid, signal.SIGKILL)
+
+
+def test_a_rerun_never_starts_a_case_that_is_still_running(tmp_path):
+    from formation_traci.sweep import expand_sweep, run_sweep
+
+    path = _sweep(tmp_path, 1.0)
+    case_dir = tmp_path / "out" / "cases" / expand_sweep(path)[0].id
+    orphan = spawn("run", free(tmp_path, 3000.0, "orphan.toml"), "--out", case_dir, "--no-progress")
+    try:
+        assert wait_for(lambda: meta_of(case_dir).get("status") == "running")
+        started = meta_of(case_dir)["started"]
+        res = run_sweep(path, tmp_path / "out", workers=1, progress=False)
+        row = res.summary.iloc[0]
+        assert row["status"] == "failed" and "still running" in row["reason"]
+        assert meta_of(case_dir)["started"] == started and orphan.poll() is None  # untouched, still running
+        assert (case_dir / "trajectories.parquet").is_dir()
+    finally:
+        orphan.send_signal(signal.SIGINT)
+        orphan.communicate(timeout=60)
+    assert orphan.returncode == 130
