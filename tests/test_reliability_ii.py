@@ -396,6 +396,18 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def _case_pid(case_dir: Path) -> int:
+    """Pid of the case process running into ``case_dir`` (from /proc)."""
+    for entry in Path("/proc").iterdir():
+        try:
+            cmd = (entry / "cmdline").read_bytes().decode(errors="replace")
+        except OSError:
+            continue
+        if "formation_traci.sweep.case" in cmd and str(case_dir) in cmd:
+            return int(entry.name)
+    raise AssertionError("no case process found")
+
+
 def test_sigterm_to_a_sweep_stops_its_case_processes(tmp_path):
     from formation_traci.sweep import expand_sweep
 
@@ -405,7 +417,7 @@ def test_sigterm_to_a_sweep_stops_its_case_processes(tmp_path):
     pid = None
     try:
         assert wait_for(lambda: meta_of(case_dir).get("status") == "running")
-        pid = int((case_dir / ".formation-traci.lock").read_text().split()[1])
+        pid = _case_pid(case_dir)
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=90)
         assert proc.returncode == 130, err
