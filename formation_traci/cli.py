@@ -7,20 +7,12 @@ the user unless ``--debug`` is given (docs/reliability.md).
 from __future__ import annotations
 
 import os
-import signal
 import sys
 
-from .interrupt import Interrupted, raising_signals
-
-
-def _exit_130(signum, frame):  # start-up: nothing exists yet, leave at once and say so
-    os.write(2, f"interrupted: {signal.Signals(signum).name} received\n".encode())
-    raise SystemExit(130)
-
+from .interrupt import Interrupted, exit_130_on_signals, raising_signals
 
 if __name__ == "__main__" or os.path.basename(sys.argv[0]) == "formation-traci":
-    for _sig in (signal.SIGINT, signal.SIGTERM):  # from the first moment: exit 130, never -15
-        signal.signal(_sig, _exit_130)
+    exit_130_on_signals()  # (formation_traci/__init__.py did so already, before any import)
 
 import contextlib  # noqa: E402
 import traceback  # noqa: E402

@@ -8,6 +8,7 @@ recorded whole; the finishing code (flushing, run.json) is never interrupted.
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import threading
 
@@ -25,6 +26,18 @@ class Interrupted(KeyboardInterrupt):
 def raise_interrupted(signum, frame) -> None:
     """Signal handler: raise :class:`Interrupted` (both SIGINT and SIGTERM)."""
     raise Interrupted(signal.Signals(signum).name)
+
+
+def _exit_130(signum, frame) -> None:
+    os.write(2, f"interrupted: {signal.Signals(signum).name} received\n".encode())
+    raise SystemExit(130)
+
+
+def exit_130_on_signals() -> None:
+    """Start-up of a command (nothing exists yet): SIGINT/SIGTERM leave at once with 130."""
+    if threading.current_thread() is threading.main_thread():
+        for sig in SIGNALS:
+            signal.signal(sig, _exit_130)
 
 
 class StopFlag:

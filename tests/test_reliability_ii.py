@@ -305,7 +305,7 @@ def test_sigterm_at_any_moment_gives_130_and_never_leaves_running(tmp_path, when
     out = tmp_path / "run"
     proc = spawn("run", free(tmp_path, 3000.0), "--out", out, "--no-progress")
     if when == "start-up":
-        time.sleep(0.3)  # interpreter and imports
+        time.sleep(0.5)  # interpreter and imports
     else:
         assert wait_for(lambda: (out / "run.json").exists(), every=0.01)  # compiling or loading kernels
     proc.send_signal(signal.SIGTERM)
@@ -327,7 +327,9 @@ def test_a_signal_during_the_warm_up_ends_the_run_within_2_s(tmp_path):
     _, err = proc.communicate(timeout=120)
     elapsed = time.monotonic() - t0
     assert proc.returncode == 130, err
-    assert elapsed < 2.0 + 1.0, f"took {elapsed:.1f} s to stop"  # 1 s slack for a loaded CI machine
+    # 2 s of a quiet machine: scaled by the machine's load (runnable processes per core)
+    budget = 2.0 * max(1.0, os.getloadavg()[0] / (os.cpu_count() or 1))
+    assert elapsed < budget, f"took {elapsed:.1f} s to stop (budget {budget:.1f} s)"
     meta = meta_of(out)
     assert meta["status"] == "interrupted" and meta["t_end"] == 0.0
 
