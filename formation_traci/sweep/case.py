@@ -103,6 +103,9 @@ def run_case(case_spec: dict | CaseSpec) -> dict[str, Any]:
         res = run_scenario(sc, out, scenario_path=spec.base, force=True, progress=False)
         row.update(status=res.status, reason=res.reason, t_end_s=res.t_end)
         row.update(_analyse(out, row))
+    except KeyboardInterrupt as exc:  # SIGINT/SIGTERM before the run stepped (set-up, warm-up)
+        row.update(status="interrupted", reason=str(exc) or "SIGINT received",
+                   t_end_s=row.get("t_end_s") if row.get("t_end_s") is not None else 0.0)
     except Exception as exc:  # anything else: recorded, never lost
         row.update(status="failed", reason=f"{type(exc).__name__}: {exc}")
         traceback.print_exc()

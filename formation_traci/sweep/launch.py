@@ -67,7 +67,19 @@ def _supervise(proc: subprocess.Popen, should_stop: Callable[[], bool] | None,
 
 def signal_group(proc: subprocess.Popen, sig: int) -> None:
     """Send ``sig`` to the case process and everything it started (its own session and
-    process group), so no SUMO or helper outlives the case."""
+    process group), so no SUMO or helper outlives the case.
+
+    Parameters
+    ----------
+    proc : subprocess.Popen
+        The case process, started with ``start_new_session=True``.
+    sig : int
+        The signal.
+
+    Returns
+    -------
+    None
+    """
     try:
         os.killpg(proc.pid, sig)
     except (ProcessLookupError, PermissionError):
