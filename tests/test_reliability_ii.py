@@ -248,12 +248,13 @@ def test_a_comma_in_the_output_path_of_a_road_run_is_bad_input(tmp_path):
 
 
 # -- 5. every fault a clean exit -------------------------------------------------------------------
-def _ro_dir(tmp_path):
-    d = tmp_path / "ro"
+def tmpfs(d: Path, options: str) -> Path:
+    """A small tmpfs mounted on ``d`` (unmount it after); skips where mounting is impossible."""
     d.mkdir()
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m,ro", "tmpfs", str(d)], capture_output=True)
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(d)], capture_output=True)
     if r.returncode:
-        pytest.skip(f"cannot mount a read-only tmpfs here ({r.stderr.decode().strip()})")
+        pytest.skip(f"cannot mount a tmpfs ({options}) here: needs root or CAP_SYS_ADMIN "
+                    f"({r.stderr.decode().strip()})")
     return d
 
 
@@ -262,7 +263,7 @@ def test_output_paths_that_cannot_be_used_exit_2_without_traceback(tmp_path):
     (tmp_path / "afile").write_text("x")
     prev = previous_run(tmp_path)
     (tmp_path / "link").symlink_to(prev)
-    ro = _ro_dir(tmp_path)
+    ro = tmpfs(tmp_path / "ro", "size=1m,ro")
     try:
         for out, force, words in [(tmp_path / "afile", False, "is a file"),
                                   (tmp_path / "afile" / "run", False, "which is a file"),
@@ -336,11 +337,7 @@ def test_a_signal_during_the_warm_up_ends_the_run_within_2_s(tmp_path):
 
 # -- 5. disk full ------------------------------------------------------------------------------------
 def test_disk_full_ends_the_run_as_failed_with_the_data_described(tmp_path):
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(disk)], capture_output=True)
-    if r.returncode:
-        pytest.skip(f"cannot mount a small tmpfs (needs root or CAP_SYS_ADMIN): {r.stderr.decode().strip()}")
+    disk = tmpfs(tmp_path / "disk", "size=1m")
     try:
         out = disk / "run"
         code, text = cli("run", free(tmp_path, 400000.0), "--out", out, "--no-progress")
