@@ -158,7 +158,7 @@ def analyze_sweep_cmd(
 ) -> None:
     """Plot metrics against the swept values (spread over seeds) and write sweep_report.html."""
     with _outcome():
-        from .sweep import analyze_sweep
+        from analysis.sweep_report import analyze_sweep
 
         rep = analyze_sweep(sweep_dir, metrics=metric or None, out=out, spread=spread)
     for name, path in rep.files.items():

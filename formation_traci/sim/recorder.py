@@ -5,10 +5,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..record.columns import (BACKGROUND_COLUMNS, EVENT_COLUMNS, TRAJECTORY_COLUMNS,
-                              VIRTUAL_CAR_ID)
+from ..record.columns import (BACKGROUND_COLUMNS, EVENT_COLUMNS, FILLED_BY_CALLER,
+                              SIGNAL_COLUMNS, TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID)
 from ..record.writer import ChunkedTable
-from .fast import FILLED_BY_CALLER, SIGNAL_COLUMNS
+
 
 STEPS_PER_CHUNK = 1200
 """Outer steps per trajectory part file (60 s of simulated time at the default 0.05 s step)."""
@@ -26,7 +26,7 @@ _VC_COLUMNS = ("t", "x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "s",
 class Recorder:
     """Owns the run's tables; every ``add_*`` appends rows, :meth:`flush` writes the rest."""
 
-    def __init__(self, out_dir: Path, member_ids: list[str], with_sumo: bool, ssm=None):
+    def __init__(self, out_dir: Path, member_ids: list[str], with_sumo: bool):
         n = len(member_ids)
         self.traj = ChunkedTable(out_dir / "trajectories.parquet", TRAJECTORY_COLUMNS,
                                  chunk_rows=(n + 1) * STEPS_PER_CHUNK,
@@ -48,7 +48,7 @@ class Recorder:
             self.background = ChunkedTable(out_dir / "background.parquet", BACKGROUND_COLUMNS,
                                            chunk_rows=50_000)
         self.event_counts: dict[str, int] = {}
-        self.ssm = ssm  # record.ssm.SsmConverter (SUMO runs with the SSM device) or None
+        self.ssm = None  # record.ssm.SsmConverter: set by sim/sumo_world.py when SUMO's SSM device is on
         self._latest: dict[str, float] = {}
         self._reported = -np.inf
 
@@ -93,7 +93,7 @@ class Recorder:
 
     def add_signal_rows(self, t, sig: np.ndarray, extra: dict, mask=None):
         """Record the members from the compiled path: ``sig`` is the (n, len(SIGNAL_COLUMNS))
-        array of fast.FastFleet.signals (columns in trajectory order), ``extra`` the road and
+        array of fleet.Fleet.signals (columns in trajectory order), ``extra`` the road and
         SUMO columns (s, d, lane_index, sumo_gap; (n,) arrays), ``mask`` the members still in
         the run."""
         ix = self._sig_index

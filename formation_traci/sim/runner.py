@@ -1,9 +1,10 @@
 """Run one scenario headless and record it: the library call behind ``formation-traci run``.
 
-Loop structure (rates from the scenario, see docs/scenarios.md): every outer ``step`` is
-``step / control_step`` controller periods; each period evaluates the controllers once,
-holds the input and integrates with RK4 sub-steps of at most ``physics_step``. One row per
-vehicle is recorded at every outer step, from the first controller evaluation of the step.
+The step loop itself is sim/loop.py (one loop over a World, docs/architecture.md). Rates
+from the scenario (docs/scenarios.md): every outer ``step`` is ``step / control_step``
+controller periods; each period evaluates the controllers once, holds the input and
+integrates with RK4 sub-steps of at most ``physics_step``. One row per vehicle is recorded
+at every outer step, from the first controller evaluation of the step.
 """
 from __future__ import annotations
 
@@ -16,23 +17,14 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
-from typing import Iterator
-
 from ..interrupt import Interrupted, stop_on_signals
-from ..record.rundir import RunDirError, RunDirExists, RUN_SCHEMA, open_out_dir
-from ..record.ssm import SsmConverter
+from ..record.rundir import RunDirError, RunDirExists, RUN_SCHEMA, open_out_dir  # noqa: F401
 from ..record.writer import atomic_write_json
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
-from . import fleet as fl
+from .loop import ModelRangeError, check_finite, free_space_run, step_loop  # noqa: F401
 from .recorder import Recorder
-from .setup import build_fleet, build_free_leader, build_initial_state, offsets, road_mu
-
-
-class ModelRangeError(RuntimeError):
-    """A vehicle state became non-finite: the model left its valid range."""
+from .setup import road_mu, vehicle_params
 
 
 @dataclass(frozen=True)
@@ -66,6 +58,9 @@ write the final run.json when the disk is full [B]."""
 
 
 def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
+    veh = vehicle_params(sc)
+    body = {"length": veh.length, "width": veh.width, "a": veh.a,
+            "front_overhang": veh.front_overhang}  # [m], analysis footprints read it
     return {
         "schema": RUN_SCHEMA,
         "status": "running",
@@ -80,7 +75,8 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
         "members": [{"id": m.id,
                      "offset": list(m.offset) if m.offset is not None else [m.slot.along, m.slot.across],
                      "lanes": None if m.slot is None else m.slot.lanes,
-                     "frame": "vehicle" if m.offset is not None else "road"} for m in sc.members],
+                     "frame": "vehicle" if m.offset is not None else "road", "body": body}
+                    for m in sc.members],
         "versions": versions(),
         "started": _now(),
         "finished": None,
@@ -89,43 +85,9 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
     }
 
 
-def free_space_steps(sc: Scenario, rec: Recorder, meta: dict) -> Iterator[tuple[int, float]]:
-    """Simulate ``sc`` in free space; yields (step index, time [s]) after recording each step.
-
-    The per-step work runs in the compiled kernels of sim/fast.py, checked against the numpy
-    reference path (fleet.control/advance) when the fleet is built."""
-    from .fast import FastFleet, SIGNAL_COLUMNS
-    run = sc.run
-    n_steps = int(round(run.duration / run.step))
-    n_ctrl = int(round(run.step / run.control_step))
-    dt_c = run.step / n_ctrl
-    ids = [m.id for m in sc.members]
-    cfg = build_fleet(sc)
-    leader, pose = build_free_leader(sc)
-    d = offsets(sc)
-    state = build_initial_state(sc, cfg, leader.sample(0.0, pose))
-    ff = FastFleet.free_space(cfg, d, leader)
-    buf = np.full((cfg.n, len(SIGNAL_COLUMNS)), np.nan)
-    for k in range(n_steps + 1):
-        t = k * run.step
-        rec.add_signal_rows(t, ff.signals_free(state, t, pose, out=buf), {})
-        rec.add_vc(t, leader.sample(t, pose))
-        yield k, t
-        if k == n_steps:
-            return
-        state, pose = ff.step_free(state, t, pose, dt_c, n_ctrl)
-        check_finite(state, ids, t + run.step)
-
-
-def check_finite(state, ids, t):
-    if not np.all(np.isfinite(state.x)):
-        bad = [ids[i] for i in np.flatnonzero(~np.all(np.isfinite(state.x), axis=1))]
-        raise ModelRangeError(f"vehicle state became non-finite for {bad} at t = {t:.3f} s")
-
-
 def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | None = None,
                  force: bool = False, progress: bool = True, baseline: bool = False,
-                 step_hook=None) -> RunResult:
+                 step_hook=None, transforms=()) -> RunResult:
     """Run ``sc`` (free space, or on a SUMO road when it has a [road]) and record it.
 
     Writes ``run.json`` (status ``running`` at once, updated whenever every table is on disk
@@ -135,7 +97,9 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
     moment give ``interrupted``. ``scenario_path`` resolves relative paths in the scenario
     (the network file). ``baseline`` (road scenarios): the twin run with the same traffic and
     seed but without the formation. ``step_hook(k, t, adapter)`` is called after every SUMO
-    step (fault injection, extensions).
+    step (fault injection, extensions). ``transforms``: callables Reference -> Reference
+    applied to every step's reference in order (maneuvers, communication channels;
+    docs/architecture.md).
 
     Raises ScenarioError or RunDirError (bad input; nothing created or changed), or
     Interrupted if a signal arrives before the run directory exists. ``out_dir`` is locked
@@ -148,7 +112,7 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
         plan = None
         protect = [src] if src is not None else []
         if sc.road is not None:  # road, route, lanes and slots are checked before anything runs
-            from .sumo_loop import prepare
+            from .sumo_plan import prepare
             plan = prepare(sc, src)
             protect.append(plan.road.net_file)
             if "," in os.path.abspath(out_dir):
@@ -156,12 +120,13 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
                                   "directory without ',' for a road scenario")
         lock = open_out_dir(Path(out_dir), force, protect)
         try:
-            return _run_in(sc, Path(out_dir), src, plan, baseline, step_hook, progress, stop)
+            return _run_in(sc, Path(out_dir), src, plan, baseline, step_hook, transforms, progress,
+                           stop)
         finally:
             lock.release()
 
 
-def _run_in(sc, out_dir, src, plan, baseline, step_hook, progress, stop) -> RunResult:
+def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, stop) -> RunResult:
     """The run in its locked directory (see :func:`run_scenario`)."""
     stop.raising = False  # the record is set up whole: a signal now only sets the flag
     meta = run_meta(sc, None if src is None else str(src))
@@ -169,12 +134,7 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, progress, stop) -> RunR
     meta_path = out_dir / "run.json"
     _reserve(out_dir)
     atomic_write_json(meta_path, meta)
-    ssm = None
-    if sc.road is not None and sc.sumo.ssm:
-        t0 = int(round(sc.traffic.warmup / sc.run.step)) * sc.run.step
-        ssm = SsmConverter(out_dir / "sumo" / "ssm.xml", out_dir / "ssm.parquet", t0,
-                           {m.id for m in sc.members})
-    rec = Recorder(out_dir, [m.id for m in sc.members], with_sumo=sc.road is not None, ssm=ssm)
+    rec = Recorder(out_dir, [m.id for m in sc.members], with_sumo=sc.road is not None)
     status, reason, t, k = "completed", None, 0.0, 0
     bar = steps = None
     try:
@@ -182,10 +142,11 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, progress, stop) -> RunR
         if stop.is_set():
             raise Interrupted(stop.signame)
         if sc.road is None:
-            steps = free_space_steps(sc, rec, meta)
+            build = lambda: free_space_run(sc)  # noqa: E731
         else:
-            from .sumo_loop import sumo_steps
-            steps = sumo_steps(sc, rec, out_dir, src, meta, plan, baseline, step_hook)
+            from .sumo_world import road_run
+            build = lambda: road_run(sc, plan, rec, out_dir, meta, baseline, step_hook)  # noqa: E731
+        steps = step_loop(sc, _with_transforms(build, transforms), rec, meta)
         if progress:
             from tqdm import tqdm
             bar = tqdm(total=int(round(sc.run.duration / sc.run.step)), unit="step",
@@ -274,6 +235,14 @@ def _write_final(meta_path: Path, meta: dict) -> None:
         atomic_write_json(meta_path, meta)
     finally:
         reserve.unlink(missing_ok=True)
+
+
+def _with_transforms(build, transforms):
+    def built():
+        parts = build()
+        parts.transforms.extend(transforms)
+        return parts
+    return built
 
 
 def _progress_meta(path, meta, t, k):
