@@ -23,6 +23,7 @@ from analysis.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN
                               AnalysisSettings, RunAnalysis, compute_run, settings_dict)
 from analysis.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
                                   TrafficAnalysis, load_baseline)
+from formation_traci.record.rundir import open_report_dir, require_run_dir
 
 __all__ = [
     "SCHEMA",
@@ -171,9 +172,14 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
     NoTrajectoryData
         If the run has no readable trajectory row at all.
     """
-    run_dir = Path(run_dir)
+    run_dir = require_run_dir(Path(run_dir))
     out = Path(out_dir) if out_dir is not None else run_dir
-    out.mkdir(parents=True, exist_ok=True)
+    with open_report_dir(out, METRICS_JSON, own_run=run_dir):  # one writer at a time
+        return _analyze_into(run_dir, out, settings, figures, baseline)
+
+
+def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures: bool,
+                  baseline: str | Path | None) -> AnalysisResult:
     base = load_baseline(baseline) if baseline is not None else None
     a = compute_run(load_run(run_dir), settings, baseline=base)
     files: dict[str, Path] = {}
@@ -311,8 +317,13 @@ def compare_runs(run_dirs: Sequence[str | Path], out_dir: str | Path, *,
     if len(bases) != len(dirs):
         raise ValueError(f"baselines has {len(bases)} entries, run_dirs {len(dirs)}: give "
                          "one per run (None where there is none)")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    for d in dirs:
+        require_run_dir(d)
+    with open_report_dir(Path(out_dir), "compare.json"):  # never into a run: its report stays
+        return _compare_into(dirs, bases, Path(out_dir), settings)
+
+
+def _compare_into(dirs: list[Path], bases: list, out: Path, settings: AnalysisSettings) -> CompareResult:
     analyses: dict[str, RunAnalysis] = {}
     issues: dict[str, list[Issue]] = {}
     runs: dict[str, Path] = {}

@@ -81,8 +81,8 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
     sensing = [tr for tr in parts.transforms if hasattr(tr, "sense")]
     true_error = any(getattr(tr, "error_against_truth", False) for tr in parts.transforms)
     clock = PhaseClock({} if parts.timing is None else parts.timing)
-    world.start()
     try:
+        world.start()  # inside: a signal or a failure during SUMO's start or warm-up closes SUMO
         for k in range(n_steps + 1):
             t = k * step
             clock.start()
