@@ -10,8 +10,16 @@ app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Formation control experiments: run scenarios, analyse recordings.")
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from . import __version__
+        typer.echo(f"formation-traci {__version__}")
+        raise typer.Exit(0)
+
+
 @app.callback()
-def _group() -> None:
+def _group(version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                        help="print the version and exit")) -> None:
     """Formation control experiments: run scenarios, analyse recordings."""
 
 
@@ -33,6 +41,9 @@ def run(
     try:
         sc = load_scenario(scenario, **{"run.duration": duration, "run.seed": seed,
                                         "vehicle.model": model})
+        _compile_first(progress)
+        if progress and sc.road is not None and sc.traffic.warmup > 0:
+            typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)
         res = run_scenario(sc, out, scenario_path=scenario, force=force, progress=progress, baseline=baseline)
     except (ScenarioError, RunDirExists) as exc:
         typer.echo(f"error: {exc}", err=True)
@@ -41,6 +52,17 @@ def run(
                + (f"\nreason: {res.reason}" if res.reason else ""))
     if res.status != "completed":
         raise typer.Exit(1 if res.status == "failed" else 130)
+
+
+def _compile_first(progress: bool) -> None:
+    """Say so, and compile, when the per-step kernels are not in numba's cache yet."""
+    from .sim import fast
+
+    if fast.needs_compile():
+        if progress:
+            typer.echo("compiling the per-step kernels (first run after install or upgrade; "
+                       "about 30-60 s, cached afterwards) ...", err=True)
+        fast.warmup()
 
 
 @app.command()

@@ -966,6 +966,8 @@ def warmup() -> None:
     from ..models.params import PASSENGER_CAR, bicycle_params, make_tires, stack
     from ..control.schedule import SPEED_GAINS_CAR, YAW_GAINS_RETUNED
     from ..road.geometry import ReferenceLine
+    from .leader import FreeLeader
+    from .profile import Profile
 
     line = ReferenceLine.from_points(np.c_[np.linspace(0.0, 200.0, 51), np.zeros(51)])
     for model in ("dynamic", "kinematic"):
@@ -981,3 +983,17 @@ def warmup() -> None:
         ff.signals(st, 50.0, 10.0, 0.0)
         ff.to_frenet(np.zeros((1, 2)), np.zeros(1))
         ff.kinematics(st)
+        free = FastFleet.free_space(cfg, np.array([[-5.0, 0.0], [0.0, 3.0]]),
+                                    FreeLeader(Profile((0.0, 1.0), (10.0, 12.0), "smooth"),
+                                               Profile.constant(0.0), 0.01), verify=False)
+        free.step_free(st, 0.0, (0.0, 0.0, 0.0), 0.01, 1)
+        free.signals_free(st, 0.0, (0.0, 0.0, 0.0))
+
+
+def needs_compile() -> bool:
+    """True when numba's on-disk cache has no compiled step kernel yet (the first run after an
+    install or an edit of the kernels' modules compiles them: tens of seconds)."""
+    try:  # numba's index is empty when missing or stamped for another version of the source
+        return not step_periods_nb._cache._cache_file._load_index()
+    except Exception:  # pragma: no cover - numba internals
+        return False

@@ -198,7 +198,9 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
                 done = rec.written_up_to()  # a part file is on disk up to this time [s]
                 if done is not None:
                     _progress_meta(meta_path, meta, done, int(round(done / sc.run.step)))
-                if bar is not None and k > 0:
+                if bar is not None and k == 0:
+                    bar.reset()  # the ETA counts steps only, not compilation or SUMO's warm-up
+                elif bar is not None:
                     bar.update(1)
                 if stop.is_set():
                     status = "interrupted"
