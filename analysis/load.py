@@ -42,8 +42,9 @@ __all__ = [
 
 RUN_JSON = "run.json"
 TRAJECTORIES = "trajectories.parquet"
-OPTIONAL_TABLES = ("background", "events", "ssm")
-"""Tables written by SUMO runs only; their absence is reported as information."""
+OPTIONAL_TABLES = ("background", "events", "ssm", "comfort")
+"""Tables written by SUMO runs only (``comfort``: every run since it was introduced, the
+members' accelerations at the control rate); their absence is reported as information."""
 
 REQUIRED_META_KEYS = ("status", "reason", "t_end", "record_step", "model", "mu", "members",
                       "scenario")
@@ -55,7 +56,7 @@ ANALYSED_COLUMNS = frozenset({
 recording (e.g. the road/SUMO-only ``s``, ``d``, ``lane_index``) is reported as info only."""
 
 TABLE_CONTRACTS = {"background": "BACKGROUND_COLUMNS", "events": "EVENT_COLUMNS",
-                   "ssm": "SSM_COLUMNS"}
+                   "ssm": "SSM_COLUMNS", "comfort": "COMFORT_COLUMNS"}
 """Names of the column contracts of the optional tables in ``formation_traci.record.columns``
 (checked when the contract exists)."""
 

@@ -57,6 +57,17 @@ Signals a vehicle model does not have (the kinematic unicycle has no tires, the 
 car has no controller) are NaN.
 """
 
+COMFORT_COLUMNS: tuple[Column, ...] = (
+    Column("t", "float64", "s", "simulated time, every control period"),
+    Column("vehicle_id", "string", "-", "member id"),
+    Column("v", "float64", "m/s", "speed of the centre of gravity"),
+    Column("a_lon", "float64", "m/s^2", "acceleration along the body x axis"),
+    Column("a_lat", "float64", "m/s^2", "acceleration along the body y axis (left positive)"),
+)
+"""Columns of ``comfort.parquet``: the members' accelerations at the control rate (every
+``run.control_step``, 100 Hz by default), for ISO 2631 weighting and jerk; the rows at the
+recorded steps equal those of ``trajectories.parquet``."""
+
 TRAJECTORY_FLOAT_COLUMNS: tuple[str, ...] = tuple(
     c.name for c in TRAJECTORY_COLUMNS if c.dtype == "float64"
 )
@@ -65,7 +76,7 @@ TRAJECTORY_FLOAT_COLUMNS: tuple[str, ...] = tuple(
 EVENT_COLUMNS: tuple[Column, ...] = (
     Column("t", "float64", "s", "simulated time (formation clock)"),
     Column("kind", "string", "-", "collision | teleport | member_removed | move_refused | lane_change | "
-                                  "cut_in | cleared_at_insertion | emergency_brake | end_of_road | placement_mismatch | model_range"),
+                                  "cut_in | cleared_at_insertion | emergency_brake | emergency_end | end_of_road | placement_mismatch | model_range"),
     Column("vehicle_id", "string", "-", "the vehicle the event is about"),
     Column("other_id", "string", "-", "the other vehicle involved, or empty"),
     Column("detail", "string", "-", "free text"),

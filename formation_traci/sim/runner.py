@@ -26,6 +26,7 @@ from ..record.writer import atomic_write_json
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
 from . import fleet as fl
+from . import highrate
 from .recorder import Recorder
 from .setup import build_fleet, build_free_leader, build_initial_state, offsets, road_mu
 
@@ -139,11 +140,12 @@ def free_space_steps(sc: Scenario, rec: Recorder, meta: dict) -> Iterator[tuple[
     for k in range(n_steps + 1):
         t = k * run.step
         rec.add_signal_rows(t, ff.signals_free(state, t, pose, out=buf), {})
+        rec.add_comfort_rows(t, buf)
         rec.add_vc(t, leader.sample(t, pose))
         yield k, t
         if k == n_steps:
             return
-        state, pose = ff.step_free(state, t, pose, dt_c, n_ctrl)
+        state, pose = highrate.free_step(ff, rec, state, t, pose, dt_c, n_ctrl, buf)
         check_finite(state, ids, t + run.step)
 
 
@@ -178,7 +180,8 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
     meta["baseline"] = baseline
     meta_path = out_dir / "run.json"
     atomic_write_json(meta_path, meta)
-    rec = Recorder(out_dir, [m.id for m in sc.members], with_sumo=sc.road is not None)
+    rec = Recorder(out_dir, [m.id for m in sc.members], with_sumo=sc.road is not None,
+                   periods_per_step=int(round(sc.run.step / sc.run.control_step)))
     n_steps = int(round(sc.run.duration / sc.run.step))
 
     status, reason, t, k = "completed", None, 0.0, 0

@@ -21,6 +21,7 @@ from typing import Iterator
 import numpy as np
 
 from ..control.formation import rigid_targets, Targets
+from ..control.longitudinal import LongitudinalPlanner, PlannerParams
 from ..models.params import VehicleParams
 from ..record.columns import SSM_COLUMNS
 from ..record.writer import ChunkedTable
@@ -28,6 +29,7 @@ from ..road.leader import road_leader_state
 from ..road.targets import road_targets
 from ..scenario.schema import Scenario
 from . import fleet as fl
+from . import highrate
 from .governor import governor_step
 from .fast import FastFleet, SIGNAL_COLUMNS
 from .recorder import Recorder
@@ -220,7 +222,9 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
         mismatch = np.zeros(n, dtype=bool)
         ctx_owner = None
         slot_d_0 = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
-        emergency = False
+        planner = LongitudinalPlanner(n, PlannerParams(decel_comfort=decel_max))
+        was_emergency = np.zeros(n + 1, dtype=bool)  # members, then the virtual car
+        a_member = np.zeros(n)
         ev = None
         tm = meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
                                  "governor": 0.0, "control_model": 0.0, "record": 0.0}
@@ -278,9 +282,9 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             a_vc, gap, lead_idx, v_cap, a_cap = governor_step(
                 m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
                 nb_rear, nb_d, nb_hw, nb_v, ld.time_gap, ld.min_gap, accel_max, decel_emergency)
-            if a_vc < -decel_max - 1e-9 and not emergency:
-                rec.add_event(t, "emergency_brake", "vc", "", f"virtual car decelerates at {-a_vc:.2f} m/s^2")
-            emergency = a_vc < -decel_max - 1e-9
+            a_request = a_vc
+            a_vc, v_cap, a_cap = planner.step(a_request, v_cap, a_cap, v_m, a_member, run.step)
+            was_emergency = _emergency_events(rec, t, was_emergency, planner, ids, a_request, a_cap)
             c2 = clock()
             tm["governor"] += c2 - c1
             if nb is not None:
@@ -291,6 +295,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             if not baseline:
                 rec.add_signal_rows(t, ff.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap, out=sig_buf),
                                     extra, mask=active)
+                rec.add_comfort_rows(t, sig_buf, mask=active)
             rec.add_vc(t, vc, s=s_vc)
             c3 = clock()
             tm["record"] += c3 - c2
@@ -307,13 +312,18 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
 
             c3 = clock()
             v_before = state.x[:, 3].copy() if cfg.model == "dynamic" else state.speed_in.copy()
-            state, s_vc, v_vc = ff.step(state, s_vc, v_vc, a_vc, v_cap, a_cap, dt_c, n_ctrl)
+            if baseline:
+                state, s_vc, v_vc = ff.step(state, s_vc, v_vc, a_vc, v_cap, a_cap, dt_c, n_ctrl)
+            else:  # one call per control period, recording comfort.parquet
+                state, s_vc, v_vc = highrate.road_step(ff, rec, state, s_vc, v_vc, a_vc, v_cap, a_cap,
+                                                       dt_c, n_ctrl, t, sig_buf, active)
             if not np.all(np.isfinite(state.x)):
                 from .runner import check_finite
                 check_finite(state, ids, t + run.step)
             pos, vel, heading = ff.kinematics(state)
             v_after = state.x[:, 3] if cfg.model == "dynamic" else state.speed_in
             a_mean = (v_after - v_before) / run.step
+            a_member = a_mean
             c4 = clock()
             tm["control_model"] += c4 - c3
             act_idx = np.flatnonzero(active)
@@ -361,6 +371,20 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
     finally:
         adapter.close()
         _convert_ssm(sumo_dir / "ssm.xml", out_dir / "ssm.parquet", t0, set(ids))
+
+
+def _emergency_events(rec, t, was, planner, ids, a_request, a_cap):
+    """``emergency_brake`` when the virtual car or a member starts braking harder than
+    comfortable (control/longitudinal.py), ``emergency_end`` when that ends; returns the flags."""
+    now = np.append(planner.emergency, planner.emergency_vc)
+    for i in np.flatnonzero(now != was):
+        who = "vc" if i == len(ids) else ids[i]
+        a = a_request if i == len(ids) else a_cap[i]
+        if now[i]:
+            rec.add_event(t, "emergency_brake", who, "", f"braking request {-a:.2f} m/s^2")
+        else:
+            rec.add_event(t, "emergency_end", who, "", "back within comfortable braking")
+    return now
 
 
 def _sumo_gap(road, pos, d, xs, ys, lanes, lane_idx, lat):
