@@ -38,6 +38,7 @@ __all__ = [
     "read_table",
     "read_meta",
     "load_run",
+    "describe_issues",
 ]
 
 RUN_JSON = "run.json"
@@ -93,6 +94,15 @@ class Issue:
         """
         return {"severity": self.severity, "kind": self.kind, "what": self.what,
                 "detail": self.detail}
+
+
+def describe_issues(issues) -> str:
+    """One line counting the run's data issues by severity, the same in the CLI and the report,
+    e.g. ``"3 data issue(s): 0 error(s), 1 warning(s), 2 note(s)"``. ``issues``: Issue objects
+    or dicts with a ``severity``."""
+    sev = [i["severity"] if isinstance(i, dict) else getattr(i, "severity", None) for i in issues]
+    return (f"{len(sev)} data issue(s): {sev.count('error')} error(s), {sev.count('warning')} "
+            f"warning(s), {sev.count('info')} note(s)")
 
 
 @dataclass(frozen=True, slots=True)

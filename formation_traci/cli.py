@@ -84,7 +84,9 @@ def analyze(
     for name, path in res.files.items():
         typer.echo(f"{name}: {path}")
     if len(res.issues):
-        typer.echo(f"{len(res.issues)} issue(s) noted in metrics.json (missing or damaged data)")
+        from analysis.load import describe_issues
+
+        typer.echo(f"{describe_issues(res.issues.to_dict('records'))}; listed in metrics.json and report.html")
 
 
 @app.command()
