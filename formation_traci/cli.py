@@ -33,6 +33,7 @@ def run(
     force: bool = typer.Option(False, "--force", help="replace an existing run directory"),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="show a progress bar"),
     baseline: bool = typer.Option(False, "--baseline", help="road scenarios: the twin run with the same traffic and seed but no formation"),
+    gui: bool = typer.Option(False, "--gui", help="road scenarios: watch in sumo-gui (traci backend; the view follows the formation)"),
 ) -> None:
     """Run SCENARIO headless and record it under OUT (run.json, trajectories.parquet, ...)."""
     from .scenario import ScenarioError, load_scenario
@@ -40,7 +41,8 @@ def run(
 
     try:
         sc = load_scenario(scenario, **{"run.duration": duration, "run.seed": seed,
-                                        "vehicle.model": model})
+                                        "vehicle.model": model,
+                                        **({"sumo.backend": "traci", "sumo.gui": True} if gui else {})})
         _compile_first(progress)
         if progress and sc.road is not None and sc.traffic.warmup > 0:
             typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)

@@ -121,6 +121,8 @@ def sumo_args(sc: Scenario, net: Path, routes: Path, sumo_dir: Path, t_end: floa
         args += ["--device.friction.probability", "1", "--device.friction.stdDev", "0"]
     if sc.sumo.fcd:
         args += ["--fcd-output", str(sumo_dir / "fcd.parquet")]
+    if sc.sumo.gui and sc.sumo.backend == "traci":  # run at once, close at the end
+        args += [o for o in ("--start", "--quit-on-end") if o not in sc.sumo.options]
     return args + list(sc.sumo.options)
 
 
@@ -221,6 +223,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
         refused_run = np.zeros(n, dtype=int)
         mismatch = np.zeros(n, dtype=bool)
         ctx_owner = None
+        followed = None  # the member sumo-gui's view follows
         slot_d_0 = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
         planner = LongitudinalPlanner(n, PlannerParams(decel_comfort=decel_max))
         was_emergency = np.zeros(n + 1, dtype=bool)  # members, then the virtual car
@@ -352,6 +355,9 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 act = [ids[i] for i in act_idx]
             c5 = clock()
             ev = adapter.step()
+            if adapter.gui and not baseline and active.any() and (followed is None or not active[followed]):
+                followed = _middle_member(active, along, slot_d_0)
+                adapter.follow(ids[followed])
             c6 = clock()
             tm["sumo_place"] += c5 - c4
             tm["sumo_step"] += c6 - c5
@@ -397,6 +403,13 @@ def _sumo_gap(road, pos, d, xs, ys, lanes, lane_idx, lat):
         if offs is not None and 0 <= lane_idx[j] < len(offs) and np.isfinite(lat[j]):
             gap[j] = max(gap[j], abs(offs[lane_idx[j]] + lat[j] - d[j]))
     return gap
+
+
+def _middle_member(active, along, across) -> int:
+    """Index of the active member nearest the middle of the formation."""
+    idx = np.flatnonzero(active)
+    centre = np.array([along[idx].mean(), across[idx].mean()])
+    return int(idx[np.argmin(np.hypot(along[idx] - centre[0], across[idx] - centre[1]))])
 
 
 def _subscribe_context(adapter, ids, active, along, across, radius):
