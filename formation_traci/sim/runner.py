@@ -188,7 +188,10 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
     bar = None
     steps = None
     try:
-        if sc.road is None:
+        if sc.open_loop is not None:
+            from .open_loop import open_loop_steps
+            steps = open_loop_steps(sc, rec, out_dir)
+        elif sc.road is None:
             steps = free_space_steps(sc, rec, meta)
         else:
             from .sumo_loop import sumo_steps
