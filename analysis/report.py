@@ -197,6 +197,14 @@ def run_report(analysis: RunAnalysis, figures: Mapping[str, Path],
             parts.append(f"<h3>{_e(name)}</h3>{_img(p, name, base=report_dir)}")
         for name, err in (figure_errors or {}).items():
             parts.append(f'<p class="bad">figure {_e(name)} not drawn: {_e(err)}</p>')
+    parts.append(_tables_html(a, issues, n_err))
+    return _page(f"Run {a.data.run_dir.name}", "".join(parts))
+
+
+def _tables_html(a: RunAnalysis, issues, n_err: int) -> str:
+    """The report's tables, each collapsed (<details>), after the figures."""
+    run, meta = a.run, a.data.meta
+    parts = []
     parts.append("<h2>Tables</h2>")
     parts.append(_details("Missing or damaged data", _issues_html(issues), open_=n_err > 0))
     ids = list(a.members.index)
@@ -234,7 +242,7 @@ def run_report(analysis: RunAnalysis, figures: Mapping[str, Path],
     if isinstance(versions, dict):
         parts.append(_details("Versions", _table(["package", "version"],
                                                  [[k, v] for k, v in versions.items()], left=2)))
-    return _page(f"Run {a.data.run_dir.name}", "".join(parts))
+    return "".join(parts)
 
 
 def _details(title: str, body: str, open_: bool = False) -> str:

@@ -11,15 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fast import FastFleet
-from .fleet import FleetState
-from .recorder import Recorder
 
-
-def road_step(ff: FastFleet, rec: Recorder, state: FleetState, s_vc: float, v_vc: float,
+def road_step(ff, rec, state, s_vc: float, v_vc: float,
               a_vc: float, v_cap, a_cap, dt_c: float, n_ctrl: int, t: float, buf: np.ndarray,
               mask=None):
-    """``ff.step`` over one SUMO step from time ``t`` [s]; returns (state, s_vc, v_vc)."""
+    """``ff.step`` (a fast.FastFleet) over one SUMO step from time ``t`` [s], recording into
+    ``rec`` (a recorder.Recorder); returns (FleetState, s_vc, v_vc)."""
     for j in range(n_ctrl):
         if j:
             rec.add_comfort_rows(t + j * dt_c, ff.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap,
@@ -28,7 +25,7 @@ def road_step(ff: FastFleet, rec: Recorder, state: FleetState, s_vc: float, v_vc
     return state, s_vc, v_vc
 
 
-def free_step(ff: FastFleet, rec: Recorder, state: FleetState, t: float, pose, dt_c: float,
+def free_step(ff, rec, state, t: float, pose, dt_c: float,
               n_ctrl: int, buf: np.ndarray):
     """``ff.step_free`` over one outer step from time ``t`` [s]; returns (state, pose)."""
     for j in range(n_ctrl):
