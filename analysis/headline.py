@@ -7,24 +7,15 @@ the worst member is named.
 from __future__ import annotations
 
 import math
-from typing import Any
-
 import pandas as pd
 
 from analysis import comfort
 from analysis.load import describe_issues
+from analysis.summary import _f as _num
 
 FALLING_BACK_FACTOR = 3.0
 """A member whose peak error is this many times the formation's median peak is named as
 falling back (or out of place) in the headline [-]."""
-
-
-def _num(x: Any) -> float:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return math.nan
-    return v
 
 
 def _worst(members: pd.DataFrame, col: str, largest: bool = True) -> tuple[str, float] | None:

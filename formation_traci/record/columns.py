@@ -57,13 +57,8 @@ Signals a vehicle model does not have (the kinematic unicycle has no tires, the 
 car has no controller) are NaN.
 """
 
-COMFORT_COLUMNS: tuple[Column, ...] = (
-    Column("t", "float64", "s", "simulated time, every control period"),
-    Column("vehicle_id", "string", "-", "member id"),
-    Column("v", "float64", "m/s", "speed of the centre of gravity"),
-    Column("a_lon", "float64", "m/s^2", "acceleration along the body x axis"),
-    Column("a_lat", "float64", "m/s^2", "acceleration along the body y axis (left positive)"),
-)
+COMFORT_COLUMNS: tuple[Column, ...] = tuple(
+    c for c in TRAJECTORY_COLUMNS if c.name in ("t", "vehicle_id", "v", "a_lon", "a_lat"))
 """Columns of ``comfort.parquet``: the members' accelerations at the control rate (every
 ``run.control_step``, 100 Hz by default), for ISO 2631 weighting and jerk; the rows at the
 recorded steps equal those of ``trajectories.parquet``."""
