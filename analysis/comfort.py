@@ -184,9 +184,23 @@ def band_times(a, dt: float, edges=LAT_BAND_EDGES, axis: int = -1) -> np.ndarray
 def jerk_window_mean(a, dt: float, window_s: float = JERK_MEAN_WINDOW_S) -> np.ndarray:
     """Jerk averaged over ``window_s`` [m/s^3]: (a(t + window) - a(t)) / window, ISO 15622.
 
-    Entry i belongs to the window starting at sample i; the last ``window_s / dt`` entries
-    are NaN. NaN where either end is NaN.
+    Parameters
+    ----------
+    a : array_like
+        Acceleration samples [m/s^2], evenly spaced.
+    dt : float
+        Sample spacing [s].
+    window_s : float
+        Averaging window [s]; default 1 s.
 
+    Returns
+    -------
+    ndarray
+        Entry i belongs to the window starting at sample i; the last ``window_s / dt``
+        entries are NaN, and so is every window with a NaN at either end.
+
+    Examples
+    --------
     >>> float(jerk_window_mean(np.arange(0.0, 3.0, 0.1) * 2.0, 0.1)[0])
     2.0
     """
@@ -202,9 +216,25 @@ def emergency_mask(t, starts, ends, settle_s: float = EMERGENCY_SETTLE_S,
                    window_s: float = JERK_MEAN_WINDOW_S) -> np.ndarray:
     """True at times ``t`` [s] whose jerk window touches an emergency brake.
 
-    An emergency runs from a start to the next end after it (or the end of the record),
-    plus ``settle_s``; a window of ``window_s`` starting at t touches it when
-    ``start - window_s < t < end + settle_s``."""
+    Parameters
+    ----------
+    t : array_like
+        Window start times [s].
+    starts : array_like
+        Times of the ``emergency_brake`` events [s].
+    ends : array_like
+        Times of the ``emergency_end`` events [s]; an emergency runs from a start to the
+        next end after it (or the end of the record).
+    settle_s : float
+        Time after an end still counted as part of the emergency [s].
+    window_s : float
+        Length of the jerk window [s].
+
+    Returns
+    -------
+    ndarray of bool
+        True where ``start - window_s < t < end + settle_s`` for some emergency.
+    """
     t = np.asarray(t, dtype=float)
     mask = np.zeros(t.size, dtype=bool)
     ends = np.sort(np.asarray(ends, dtype=float))

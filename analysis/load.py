@@ -97,9 +97,18 @@ class Issue:
 
 
 def describe_issues(issues) -> str:
-    """One line counting the run's data issues by severity, the same in the CLI and the report,
-    e.g. ``"3 data issue(s): 0 error(s), 1 warning(s), 2 note(s)"``. ``issues``: Issue objects
-    or dicts with a ``severity``."""
+    """One line counting the run's data issues by severity, the same in the CLI and the report.
+
+    Parameters
+    ----------
+    issues : iterable
+        :class:`Issue` objects or dicts with a ``severity``.
+
+    Returns
+    -------
+    str
+        e.g. ``"3 data issue(s): 0 error(s), 1 warning(s), 2 note(s)"``.
+    """
     sev = [i["severity"] if isinstance(i, dict) else getattr(i, "severity", None) for i in issues]
     return (f"{len(sev)} data issue(s): {sev.count('error')} error(s), {sev.count('warning')} "
             f"warning(s), {sev.count('info')} note(s)")

@@ -79,7 +79,18 @@ def _table(df: pd.DataFrame) -> str:
 
 
 def swept_labels(meta: dict) -> dict[str, str]:
-    """Name of every swept field in figures: the sweep file's [labels], else its last name."""
+    """Name of every swept field in figures: the sweep file's [labels], else its last name.
+
+    Parameters
+    ----------
+    meta : dict
+        Content of ``sweep.json`` (``swept``, ``sweep.labels``).
+
+    Returns
+    -------
+    dict
+        Swept dotted path -> name.
+    """
     given = (meta.get("sweep") or {}).get("labels") or {}
     return {k: given.get(k) or k.split(".")[-1] for k in meta.get("swept", [])}
 
