@@ -43,7 +43,6 @@ def run(
         sc = load_scenario(scenario, **{"run.duration": duration, "run.seed": seed,
                                         "vehicle.model": model,
                                         **({"sumo.backend": "traci", "sumo.gui": True} if gui else {})})
-        _compile_first(progress)
         if progress and sc.road is not None and sc.traffic.warmup > 0:
             typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)
         res = run_scenario(sc, out, scenario_path=scenario, force=force, progress=progress, baseline=baseline)
@@ -54,17 +53,6 @@ def run(
                + (f"\nreason: {res.reason}" if res.reason else ""))
     if res.status != "completed":
         raise typer.Exit(1 if res.status == "failed" else 130)
-
-
-def _compile_first(progress: bool) -> None:
-    """Say so, and compile, when the per-step kernels are not in numba's cache yet."""
-    from .sim import fast
-
-    if fast.needs_compile():
-        if progress:
-            typer.echo("compiling the per-step kernels (first run after install or upgrade; "
-                       "about 30-60 s, cached afterwards) ...", err=True)
-        fast.warmup()
 
 
 @app.command()
@@ -144,7 +132,9 @@ def analyze_sweep_cmd(
     spread: str = typer.Option("minmax", help="spread over seeds: minmax | std"),
 ) -> None:
     """Plot metrics against the swept values (spread over seeds) and write sweep_report.html."""
-    from .sweep import SweepError, analyze_sweep
+    from analysis.sweep_report import analyze_sweep
+
+    from .sweep import SweepError
 
     try:
         rep = analyze_sweep(sweep_dir, metrics=metric or None, out=out, spread=spread)

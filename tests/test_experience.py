@@ -2,13 +2,16 @@
 from __future__ import annotations
 
 import importlib.metadata
+import os
+import subprocess
+import sys
 
 import pandas as pd
 from typer.testing import CliRunner
 
 from formation_traci.cli import app
-from formation_traci.sweep.figures import metric_figure
-from formation_traci.sweep.report import swept_labels
+from analysis.sweep_figures import metric_figure
+from analysis.sweep_report import swept_labels
 
 
 def test_version_flag_prints_the_installed_version():
@@ -17,11 +20,22 @@ def test_version_flag_prints_the_installed_version():
     assert res.output.strip() == f"formation-traci {importlib.metadata.version('formation-traci')}"
 
 
-def test_needs_compile_is_false_once_the_kernels_are_compiled():
-    from formation_traci.sim import fast
+def test_compiling_is_announced_once_on_a_cold_cache_and_not_on_a_warm_one(tmp_path):
+    """kernels.py's one-line notice: printed once when kernels compile (empty numba cache),
+    silent when they come from the cache."""
+    from formation_traci.kernels import _NOTICE
 
-    fast.warmup()
-    assert fast.needs_compile() is False
+    code = ("from formation_traci.control.schedule import p_law, scheduled_gain\n"
+            "p_law(1.0, 0.0, 0.2, 8.0, 1.0); scheduled_gain(0.5, 0.2, 8.0, 1.0)\n")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    env.pop("NUMBA_DISABLE_JIT", None)
+    cold = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                          timeout=300)
+    warm = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert cold.returncode == 0 and warm.returncode == 0, cold.stderr + warm.stderr
+    assert cold.stderr.count(_NOTICE) == 1
+    assert _NOTICE not in warm.stderr
 
 
 def test_sweep_figures_name_the_swept_fields_by_their_labels():

@@ -1,6 +1,6 @@
 """Jerk-limited longitudinal references in traffic (the governor's output made smooth).
 
-The governor (sim/governor.py) turns what SUMO reports every step into an *requested*
+The governor (control/governor.py) turns what SUMO reports every step into an *requested*
 acceleration of the virtual car and, per member with a vehicle ahead, a speed cap and an
 acceleration cap. SUMO's vehicles dawdle (Krauss), so these requests carry step-to-step
 noise; fed straight to the virtual car and to the members' speed loop (gain up to 8 1/s,
@@ -21,7 +21,8 @@ Here every longitudinal request passes a planner with bounded jerk:
   itself is then left uncapped.
 
 Pure functions of (state, input, params); :class:`LongitudinalPlanner` holds the state of
-one run (the virtual car and every member) for the SUMO loop.
+one run (the virtual car and every member) for the road reference generator
+(control/reference_road.py).
 """
 from __future__ import annotations
 
@@ -29,7 +30,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from ..kernels import kernel
 
 
 @dataclass(frozen=True)
@@ -48,7 +50,7 @@ class PlannerParams:
     """A request below minus this is an emergency [m/s^2]."""
 
 
-@njit(cache=True)
+@kernel
 def plan_accel(a_prev, a_request, dt, tau, jerk_max, jerk_emergency, decel_comfort):
     """Next acceleration [m/s^2] from ``a_prev`` towards ``a_request`` over ``dt`` [s].
 
@@ -67,7 +69,7 @@ def plan_accel(a_prev, a_request, dt, tau, jerk_max, jerk_emergency, decel_comfo
     return a_prev + min(max(da, -lim), lim), emergency
 
 
-@njit(cache=True)
+@kernel
 def plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, tau, jerk_max, jerk_emergency,
               decel_comfort, tau_speed_cap, a_out, emergency):
     """Smoothed acceleration caps [m/s^2] of every member, in place.

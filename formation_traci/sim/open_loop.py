@@ -6,8 +6,9 @@ Every control period (``run.control_step``) each member gets
 * a steering input: the wheel angle set to the ``steer_deg`` profile (clipped to the
   steering limit), the ``steer_rate_deg_s`` profile (3.38), or the yaw-rate loop on
   omega_ref - psi dot with the schedule, as a rate (3.37) or an angle (3.35),
-and the dynamic bicycle model (models/bicycle.py, the numpy reference) is integrated with
-RK4. With ``linear_speed`` the linear model (3.30, models/linear.py) linearised there runs
+and the dynamic bicycle model is integrated with the one compiled RK4 of the closed loop
+(sim/integrate.py ``integrate``, the laws of models/bicycle.py; the speed and yaw loops are
+control/schedule.py's law). With ``linear_speed`` the linear model (3.30, models/linear.py) linearised there runs
 beside each member on the same steering angle and a_r (v dot = a_r, 3.26).
 
 Recorded: the members in ``trajectories.parquet`` (every ``run.step``) and, per step, the
@@ -20,16 +21,16 @@ from typing import Iterator
 
 import numpy as np
 
-from ..control.schedule import gain
+from ..control.schedule import apply as p_law
+from ..kernels import substeps
 from ..models import bicycle
-from ..models.bicycle import S, U
+from ..models.bicycle import S, traction_from_acceleration_at
 from ..models.linear import lateral_ab
-from ..models.params import make_tires
-from ..record.columns import Column
+from ..models.params import make_tires, pack_params
+from ..record.columns import SIGNAL_COLUMNS, Column
 from ..record.writer import ChunkedTable
 from ..scenario.schema import Scenario
-from .fast import SIGNAL_COLUMNS
-from .integrate import integrate
+from .integrate import DYNAMIC, integrate
 from .recorder import Recorder
 from .setup import build_fleet, gain_schedule, profile, road_mu, vehicle_params
 
@@ -58,8 +59,8 @@ def _commands(sc: Scenario, x, t, p_gain, angle_loop, sg, yg, prof):
     if ol.accel is not None:
         a_r = np.full(len(v), prof["accel"](t)[0])
     else:
-        e = prof["speed_ref"](t)[0] - v
-        a_r = np.where(np.isfinite(p_gain), p_gain, gain(e, sg)) * e
+        v_ref = prof["speed_ref"](t)[0]
+        a_r = np.where(np.isfinite(p_gain), p_gain * (v_ref - v), p_law(v_ref, v, sg))
     n = len(v)
     angle, rate = np.full(n, np.nan), np.full(n, np.nan)
     if ol.steer_deg is not None:
@@ -67,8 +68,7 @@ def _commands(sc: Scenario, x, t, p_gain, angle_loop, sg, yg, prof):
     elif ol.steer_rate_deg_s is not None:
         rate[:] = prof["steer_rate_deg_s"](t)[0]
     else:
-        e = prof["yaw_rate_ref_deg_s"](t)[0] - r
-        out = gain(e, yg) * e  # 3.35 (angle) or 3.37 (rate)
+        out = p_law(prof["yaw_rate_ref_deg_s"](t)[0], r, yg)  # 3.35 (angle) or 3.37 (rate)
         angle = np.where(angle_loop, out, np.nan)
         rate = np.where(angle_loop, np.nan, out)
     return a_r, angle, rate
@@ -88,6 +88,20 @@ def _linear_rhs(z, u, ab):
     return dz
 
 
+def _linear_step(z, u, ab, dt: float, max_step: float):
+    """The linear model advanced by dt [s] with RK4 sub-steps of at most max_step [s] (the
+    same scheme as sim/integrate.py, whose kernel holds the nonlinear models only)."""
+    n = substeps(dt, max_step)
+    h = dt / n
+    for _ in range(n):
+        k1 = _linear_rhs(z, u, ab)
+        k2 = _linear_rhs(z + 0.5 * h * k1, u, ab)
+        k3 = _linear_rhs(z + 0.5 * h * k2, u, ab)
+        k4 = _linear_rhs(z + h * k3, u, ab)
+        z = z + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    return z
+
+
 def open_loop_steps(sc: Scenario, rec: Recorder, out_dir: Path) -> Iterator[tuple[int, float]]:
     """Simulate ``sc`` open loop; yields (step index, time [s]) after recording each step."""
     run, ol = sc.run, sc.open_loop
@@ -96,6 +110,7 @@ def open_loop_steps(sc: Scenario, rec: Recorder, out_dir: Path) -> Iterator[tupl
     dt_c = run.step / n_ctrl
     cfg = build_fleet(sc)
     p = cfg.params
+    P = pack_params(p, len(sc.members))
     ids = [m.id for m in sc.members]
     n = len(ids)
     ld = sc.leader
@@ -135,10 +150,10 @@ def open_loop_steps(sc: Scenario, rec: Recorder, out_dir: Path) -> Iterator[tupl
                     _record(rec, table, t, x, u, p, a_r, angle, rate, z, sig, col)
                     if k == n_steps:
                         break
-                x = integrate(bicycle.rhs, x, u, p, dt_c, run.physics_step, bicycle.project)
+                x = integrate(DYNAMIC, x, u, P, dt_c, run.physics_step)
                 if z is not None:
-                    z = integrate(_linear_rhs, z, np.column_stack([x[:, S.DELTA], a_r]), ab, dt_c,
-                                  run.physics_step)
+                    z = _linear_step(z, np.column_stack([x[:, S.DELTA], a_r]), ab, dt_c,
+                                     run.physics_step)
             yield k, t
     finally:
         table.close()
@@ -155,9 +170,10 @@ def _record(rec, table, t, x, u, p, a_r, angle, rate, z, sig, col):
         sig[:, col[name]] = out[name]
     rec.add_signal_rows(t, sig, {})
     rec.add_comfort_rows(t, sig)
-    alpha_f, alpha_r = bicycle.slip_angles(x[:, S.V], x[:, S.BETA], x[:, S.R], x[:, S.DELTA], p)
-    fcf, fcr = bicycle.tire_forces(alpha_f, alpha_r, p)
-    request = bicycle.traction_from_acceleration(a_r, x[:, S.BETA], x[:, S.DELTA], fcf, fcr, p)
+    _, _, fcf, fcr, _, _ = bicycle.forces(x, u, p)
+    m = np.broadcast_to(np.asarray(p.m, dtype=float), a_r.shape)
+    request = np.array([traction_from_acceleration_at(a_r[i], x[i, S.BETA], x[i, S.DELTA], fcf[i],
+                                                      fcr[i], m[i]) for i in range(len(a_r))])
     zz = z if z is not None else np.full((len(a_r), 6), np.nan)
     table.append({"t": t, "vehicle_id": np.arange(len(a_r), dtype=np.int32), "a_ref": a_r,
                   "traction_force_request": request, "steer_cmd": angle, "steer_rate_cmd": rate,
