@@ -105,29 +105,10 @@ def sweep_figures(done: pd.DataFrame, swept: list[str], grid_keys: list[str], me
 
 def metric_figure(done: pd.DataFrame, swept: list[str], grid_keys: list[str], metric: str,
                   unit: str, spread: str = "minmax", labels: dict[str, str] | None = None):
-    """The matplotlib Figure of one metric (one panel per swept field).
+    """The matplotlib Figure of one metric (one panel per swept field), not saved.
 
-    Parameters
-    ----------
-    done : DataFrame
-        Completed rows of ``summary.parquet``.
-    swept : list of str
-        Swept dotted paths (panels); none: the metric against the seed.
-    grid_keys : list of str
-        Swept paths from [grid] (points joined by lines).
-    metric : str
-        Column to plot.
-    unit : str
-        Its unit, for the axis label.
-    spread : {"minmax", "std"}
-        Error bars over the seeds.
-    labels : dict, optional
-        Swept path -> name on axes and legends (the sweep file's [labels]).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        The figure (not saved).
+    ``done``, ``swept``, ``grid_keys``, ``spread`` and ``labels`` as in :func:`sweep_figures`;
+    ``metric`` is the column to plot and ``unit`` its unit (axis label).
     """
     from matplotlib.figure import Figure  # lazy: heavy, and only the figures need it
 

@@ -29,7 +29,8 @@ def test_bundled_highway_scenario_runs_to_the_end(tmp_path, path):
     """Each bundled scenario, shortened (30 s warm-up, 20 s of formation), runs headless to its
     end with SUMO: no collision, every member present, SUMO's positions equal ours within 1 cm,
     and the trajectories (members and virtual car) equal the golden ones (tests/golden/highway.npz,
-    recorded before issue 14's restructuring) within 1e-6 m."""
+    recorded before issue 14's restructuring, regenerated once for issue 19's jerk-limited
+    planner) within 1e-6 m."""
     from test_golden import SUMO_TOL_M, compare, golden
     res, meta, traj, events, out = run(tmp_path, path, **golden.HIGHWAY_OVERRIDES)
     assert res.status == "completed", res.reason
