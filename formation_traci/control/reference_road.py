@@ -43,7 +43,7 @@ class RoadReference:
     acceleration per step; ``slots`` / ``rigid`` (n, 2) with NaN rows for the other kind."""
 
     def __init__(self, G, length: float, slots, rigid, is_road, s0: float, v0: float,
-                 speed_profile, limits: GovernorLimits, half_w, d_front: float,
+                 speed_profile, limits: GovernorLimits, half_w, d_front,
                  end_margin: float, dt_c: float, n_ctrl: int):
         self.G, self.length = G, float(length)
         self.is_road = np.asarray(is_road, dtype=bool)
@@ -54,11 +54,12 @@ class RoadReference:
         self.slots = constant_slots(offsets, n_ctrl)
         self.s, self.v = float(s0), float(v0)
         self.prof = speed_profile.packed()
-        self.limits, self.half_w, self.d_front = limits, half_w, float(d_front)
+        # d_front: CoG to front bumper [m], one or one per member (a mixed formation)
+        self.limits, self.half_w, self.d_front = limits, half_w, np.asarray(d_front, float)
         self.end_margin = float(end_margin)
         self.dt_c, self.n_ctrl = float(dt_c), int(n_ctrl)
         self._next = None
-        self.planner = LongitudinalPlanner(len(self.frame), PlannerParams(decel_comfort=limits.decel_max))
+        self.longitudinal = LongitudinalPlanner(len(self.frame), PlannerParams(decel_comfort=limits.decel_max))
         self._v_prev = None  # members' speed at the previous step [m/s]
 
     def governor(self, t: float, sensed):
@@ -85,8 +86,8 @@ class RoadReference:
                          a_cap, line=self.G, truth=truth,
                          info={"a_vc": a_vc, "gap": gap, "lead_idx": lead_idx,
                                "a_request": a_request, "a_cap_request": a_cap_req,
-                               "emergency": self.planner.emergency_vc,
-                               "emergency_members": self.planner.emergency.copy()})
+                               "emergency": self.longitudinal.emergency_vc,
+                               "emergency_members": self.longitudinal.emergency.copy()})
 
     def smooth(self, sensed, a_request, v_cap, a_cap):
         """The governor's requests through the jerk-limited planner (control/longitudinal.py):
@@ -96,14 +97,14 @@ class RoadReference:
         v_m = np.asarray(sensed.v_m, dtype=float)
         a_m = np.zeros(len(v_m)) if self._v_prev is None else (v_m - self._v_prev) / dt
         self._v_prev = v_m.copy()
-        return self.planner.step(a_request, v_cap, a_cap, v_m, a_m, dt)
+        return self.longitudinal.step(a_request, v_cap, a_cap, v_m, a_m, dt)
 
     def commit(self) -> None:
         self.s, self.v = (float(q) for q in self._next)
 
     def stop_reason(self, t: float):
         """('end_of_road', message) when the formation's front nears the route's end."""
-        if self.s + float(np.max(self.along)) + self.d_front + self.end_margin > self.length:
+        if self.s + float(np.max(self.along + self.d_front)) + self.end_margin > self.length:
             return ("end_of_road",
                     f"formation front within {self.end_margin} m of the route end",
                     f"end of the route reached at t = {t:.2f} s")
