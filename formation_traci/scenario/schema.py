@@ -272,6 +272,38 @@ class CommSpec(CommLinkSpec):
         return self
 
 
+class OpenLoopSpec(Strict):
+    """Every member driven by input profiles or by one of its loops alone (seed 3.1.6-3.2.2).
+
+    Longitudinal: ``accel`` (desired acceleration a_r) or ``speed_ref`` (the speed loop,
+    3.32-3.34, with controller.speed_gains or a plain P gain per member). Lateral: ``steer_deg``
+    (the wheel angle set directly), ``steer_rate_deg_s`` (3.38), or ``yaw_rate_ref_deg_s`` (the
+    yaw-rate loop with controller.yaw_gains: steering rate 3.37, or angle 3.35 per member).
+    The formation controller and the virtual car are not used (members' offsets are ignored).
+    """
+
+    accel: Signal | None = Field(None, description="desired acceleration a_r [m/s^2]")
+    speed_ref: Signal | None = Field(None, description="speed reference of the speed loop [m/s]")
+    speed_p_gain: dict[str, PosFloat] = Field(default_factory=dict, description=(
+        "member id -> plain P gain K_p^lin of (3.32) [1/s]; other members use the schedule"))
+    steer_deg: Signal | None = Field(None, description="front wheel steering angle [deg]")
+    steer_rate_deg_s: Signal | None = Field(None, description="steering rate [deg/s]")
+    yaw_rate_ref_deg_s: Signal | None = Field(None, description="yaw-rate reference of the yaw loop [deg/s]")
+    yaw_input: dict[str, Literal["steer_rate", "steer_angle"]] = Field(default_factory=dict, description=(
+        "member id -> the yaw loop's output: 'steer_rate' (3.37, default) or 'steer_angle' (3.35)"))
+    linear_speed: PosFloat | None = Field(None, description=(
+        "also run the linear model (3.30) linearised at this speed [m/s] beside each member"))
+
+    @model_validator(mode="after")
+    def _one_each(self):
+        if (self.accel is None) == (self.speed_ref is None):
+            raise ValueError("give exactly one of 'accel' or 'speed_ref'")
+        lat = [self.steer_deg, self.steer_rate_deg_s, self.yaw_rate_ref_deg_s]
+        if sum(x is not None for x in lat) != 1:
+            raise ValueError("give exactly one of 'steer_deg', 'steer_rate_deg_s' or 'yaw_rate_ref_deg_s'")
+        return self
+
+
 class Scenario(Strict):
     name: str = ""
     description: str = ""
@@ -284,6 +316,7 @@ class Scenario(Strict):
     traffic: TrafficSpec = TrafficSpec()
     sumo: SumoSpec = SumoSpec()
     comm: CommSpec | None = Field(None, description="leader-to-member radio; default: perfect")
+    open_loop: OpenLoopSpec | None = Field(None, description="drive the members open loop (free space only)")
     maneuvers: list[ManeuverSpec] = Field(default_factory=list, description="scheduled maneuvers, run one at a time in this order")
     maneuver_limits: ManeuverLimits = ManeuverLimits()
 
@@ -318,6 +351,13 @@ class Scenario(Strict):
 
     @model_validator(mode="after")
     def _world_rules(self):
+        if self.open_loop is not None:
+            if self.road is not None or self.vehicle.model != "dynamic":
+                raise ValueError("open_loop needs free space (no [road]) and vehicle.model = \"dynamic\"")
+            ids = {m.id for m in self.members}
+            bad = sorted((set(self.open_loop.speed_p_gain) | set(self.open_loop.yaw_input)) - ids)
+            if bad:
+                raise ValueError(f"open_loop names members that do not exist: {bad}")
         if self.road is None:
             bad = [f"members.{i}" for i, m in enumerate(self.members) if m.slot is not None or m.position is None]
             if bad:

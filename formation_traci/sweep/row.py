@@ -34,7 +34,7 @@ METRICS: dict[str, tuple[str, str]] = {
     "friction_over_s": ("s", "max time outside the friction circle"),
     "collisions": ("-", "SUMO runs: collision events involving a member (NaN in free space)"),
     "min_ttc_s": ("s", "SUMO runs: smallest SSM time to collision of a conflict involving a member"),
-    "emergency_brakes": ("-", "SUMO runs: emergency_brake events of the virtual car"),
+    "emergency_brakes": ("-", "SUMO runs: emergency_brake events (the virtual car or a member braking harder than comfortable)"),
     "leader_age_mean_s": ("s", "max of each member's mean age of the virtual-car state it held ([comm])"),
     "leader_age_p95_s": ("s", "max of each member's 95th percentile of that age"),
     "comm_timeouts": ("-", "SUMO runs: comm_timeout events (a member fell back: no state for longer than comm.timeout_s)"),
