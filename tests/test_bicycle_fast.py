@@ -1,6 +1,8 @@
 """Compiled RK4 kernels (models/bicycle_fast.py) against the numpy reference integrate()."""
 import zlib
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -267,6 +269,9 @@ def test_one_call_extreme_states(case):
     np.testing.assert_allclose(got, ref, rtol=RTOL, atol=ATOL)
 
 
+_RESISTANCE_PARAMS = ("resistances", "c_d", "frontal_area", "rho_air", "drag_ratio", "grade")
+
+
 @pytest.mark.parametrize("name", bicycle_fast.PARAM_NAMES)
 def test_every_parameter_reaches_the_kernel(name):
     """The comparison can fail: nudging any one packed parameter (or flipping the tire law)
@@ -274,6 +279,8 @@ def test_every_parameter_reaches_the_kernel(name):
     missing term would be caught."""
     rng = np.random.default_rng(3)
     p = _custom_tires_params()
+    if name in _RESISTANCE_PARAMS:  # with resistances on (docs/energy.md), off they do nothing
+        p = replace(p, resistances=True, drag_ratio=0.7, grade=0.03)
     x = random_states(rng, p)
     u = random_inputs(rng, p)
     dt, n_sub = 0.01, 1
@@ -282,7 +289,7 @@ def test_every_parameter_reaches_the_kernel(name):
     np.testing.assert_allclose(bicycle_fast.integrate_bicycle(x, u, P, dt, n_sub), ref,
                                rtol=RTOL, atol=ATOL)
     j = bicycle_fast.PARAM_NAMES.index(name)
-    if name == "linear_tire":
+    if name in ("linear_tire", "resistances"):
         P[:, j] = 1.0 - P[:, j]
     else:
         P[:, j] *= 1.0 + 1e-6

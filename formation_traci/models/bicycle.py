@@ -22,6 +22,7 @@ from enum import IntEnum
 import numpy as np
 
 from .params import G, BicycleParams
+from .resistance import aero_force, road_load, rolling_coefficient
 from .tire import cornering_force
 
 
@@ -49,7 +50,18 @@ N_STATES = len(S)
 
 def rolling_resistance(v):
     """Coefficient of rolling resistance f_rl = 0.01 (1 + v / 40.8) [-], eq (3.15); v in m/s."""
-    return 0.01 * (1.0 + v / 40.8)
+    return rolling_coefficient(v)
+
+
+def resistance_force(v, p: BicycleParams):
+    """Driving resistance along the velocity [N] (models/resistance.py road_load), or None
+    when ``p.resistances`` is off (the seed's model)."""
+    if not p.resistances:
+        return None
+    shape = np.shape(v)
+    return road_load(np.asarray(v, dtype=float), *(np.broadcast_to(np.asarray(q, dtype=float), shape)
+                                                  for q in (p.m, p.c_d, p.frontal_area, p.rho_air,
+                                                            p.drag_ratio, p.grade)))
 
 
 def traction_force_max(v, p: BicycleParams):
@@ -91,10 +103,13 @@ def tire_forces(alpha_f, alpha_r, p: BicycleParams):
     return fcf, fcr
 
 
-def traction_from_acceleration(a_ref, beta, delta, fcf, fcr, p: BicycleParams):
-    """Traction force F_lf [N] that gives v dot = a_ref, eq (3.13) (unclipped)."""
+def traction_from_acceleration(a_ref, beta, delta, fcf, fcr, p: BicycleParams, f_res=None):
+    """Traction force F_lf [N] that gives v dot = a_ref, eq (3.13) (unclipped); with the
+    driving resistance ``f_res`` [N] (None: the seed's model without it) added to m a_ref."""
     num = p.m * a_ref - fcf * (np.cos(delta) * np.sin(beta) - np.sin(delta) * np.cos(beta)) \
         - fcr * np.sin(beta)
+    if f_res is not None:
+        num = num + f_res
     den = np.cos(delta) * np.cos(beta) + np.sin(delta) * np.sin(beta)
     return num / den
 
@@ -107,13 +122,19 @@ def _blend_weight(v, p: BicycleParams):
 
 def _forces(x, u, p: BicycleParams):
     """Slip angles, cornering forces and the clipped traction force for state x, input u."""
+    return _loads(x, u, p)[:6]
+
+
+def _loads(x, u, p: BicycleParams):
+    """:func:`_forces` plus the driving resistance (None without resistances)."""
     v, beta, r, delta = x[:, S.V], x[:, S.BETA], x[:, S.R], x[:, S.DELTA]
     alpha_f, alpha_r = slip_angles(v, beta, r, delta, p)
     fcf, fcr = tire_forces(alpha_f, alpha_r, p)
     f_max = traction_force_max(v, p)
-    f_lf = traction_from_acceleration(u[:, U.A_REF], beta, delta, fcf, fcr, p)
+    f_res = resistance_force(v, p)
+    f_lf = traction_from_acceleration(u[:, U.A_REF], beta, delta, fcf, fcr, p, f_res)
     f_lf = np.clip(f_lf, -braking_force_max(p), f_max)
-    return alpha_f, alpha_r, fcf, fcr, f_lf, f_max
+    return alpha_f, alpha_r, fcf, fcr, f_lf, f_max, f_res
 
 
 def steering_rate(x, u, p: BicycleParams):
@@ -133,20 +154,24 @@ def rhs(x, u, p: BicycleParams):
         beta dot = [F_y cos(beta) - F_x sin(beta)] / (m v) - psi dot       (exact form of 3.2)
         psi ddot = [(F_lf sin(delta) + F_cf cos(delta)) a - F_cr b] / Izz  (3.3)
     with F_x = F_lf cos(delta) - F_cf sin(delta), F_y = F_lf sin(delta) + F_cf cos(delta) + F_cr
-    and F_lf from (3.13) clipped to [-mu m g, F_max(v)] (3.14-3.15).
+    and F_lf from (3.13) clipped to [-mu m g, F_max(v)] (3.14-3.15). With ``p.resistances``
+    the driving resistance F_res (models/resistance.py) acts along the velocity: v dot gets
+    -F_res / m and (3.13) asks for m a_r + F_res (docs/energy.md).
     Kinematic part (w = 0 below ``p.v_low``): beta and psi dot relax with time constant
     ``p.tau`` to the kinematic bicycle values beta_k = atan(b tan(delta) / L),
     r_k = v cos(beta_k) tan(delta) / L, plus their feed-forward rates.
     Position (3.22)-(3.23): X dot = v cos(psi + beta), Y dot = v sin(psi + beta).
     """
     psi, v, beta, r, delta = (x[:, S.PSI], x[:, S.V], x[:, S.BETA], x[:, S.R], x[:, S.DELTA])
-    _, _, fcf, fcr, f_lf, f_max = _forces(x, u, p)
+    _, _, fcf, fcr, f_lf, f_max, f_res = _loads(x, u, p)
     sd, cd, sb, cb = np.sin(delta), np.cos(delta), np.sin(beta), np.cos(beta)
     fx = f_lf * cd - fcf * sd
     fy = f_lf * sd + fcf * cd + fcr
     vs = np.maximum(v, p.v_low)
 
     v_dot_dyn = (fx * cb + fy * sb) / p.m
+    if f_res is not None:
+        v_dot_dyn = v_dot_dyn - f_res / p.m
     beta_dot_dyn = (fy * cb - fx * sb) / (p.m * vs) - r
     r_dot_dyn = ((f_lf * sd + fcf * cd) * p.a - fcr * p.b) / p.Izz
 
@@ -157,7 +182,11 @@ def rhs(x, u, p: BicycleParams):
     k = p.b * td / L
     beta_k = np.arctan(k)
     dbeta_k = (p.b / L) * sec2 / (1.0 + k * k)
-    v_dot_kin = np.clip(u[:, U.A_REF], -braking_force_max(p) / p.m, f_max / p.m)
+    if f_res is None:
+        v_dot_kin = np.clip(u[:, U.A_REF], -braking_force_max(p) / p.m, f_max / p.m)
+    else:  # the traction m a_r + F_res is clipped, the resistance always acts
+        v_dot_kin = np.clip(u[:, U.A_REF] + f_res / p.m, -braking_force_max(p) / p.m,
+                            f_max / p.m) - f_res / p.m
     r_k = v * np.cos(beta_k) * td / L
     dr_k_dv = np.cos(beta_k) * td / L
     dr_k_dd = v / L * (np.cos(beta_k) * sec2 - np.sin(beta_k) * dbeta_k * td)
@@ -198,6 +227,7 @@ def outputs(x, u, p: BicycleParams) -> dict[str, np.ndarray]:
     alpha_f, alpha_r, _, _, f_lf, f_max = _forces(x, u, p)
     dx = rhs(x, u, p)
     v, beta = x[:, S.V], x[:, S.BETA]
+    delta = x[:, S.DELTA]
     course_rate = dx[:, S.BETA] + x[:, S.R]
     a_lon = dx[:, S.V] * np.cos(beta) - v * np.sin(beta) * course_rate
     a_lat = dx[:, S.V] * np.sin(beta) + v * np.cos(beta) * course_rate
@@ -210,4 +240,19 @@ def outputs(x, u, p: BicycleParams) -> dict[str, np.ndarray]:
         "traction_force_max": np.broadcast_to(f_max, v.shape).astype(float),
         "friction_usage": np.hypot(a_lon, a_lat) / (p.mu * G),
         "steer_rate": dx[:, S.DELTA],
+        **energy_outputs(v, beta, x[:, S.R], delta, f_lf, p),
     }
+
+
+def energy_outputs(v, beta, r, delta, f_lf, p: BicycleParams) -> dict[str, np.ndarray]:
+    """``power`` [W]: traction power at the front wheels, F_lf times the front axle's speed
+    along the wheel, v cos(beta) cos(delta) + (v sin(beta) + a r) sin(delta) (= F_lf v when
+    driving straight); ``drag_force`` [N] and ``drag_ratio`` [-] (NaN without resistances)."""
+    power = f_lf * (v * np.cos(beta) * np.cos(delta) + (v * np.sin(beta) + p.a * r) * np.sin(delta))
+    if not p.resistances:
+        nan = np.full(np.shape(v), np.nan)
+        return {"power": power, "drag_force": nan, "drag_ratio": nan.copy()}
+    ratio = np.broadcast_to(np.asarray(p.drag_ratio, dtype=float), np.shape(v))
+    drag = aero_force(np.asarray(v, dtype=float), *(np.broadcast_to(np.asarray(q, dtype=float), np.shape(v))
+                                                   for q in (p.c_d, p.frontal_area, p.rho_air)), ratio)
+    return {"power": power, "drag_force": drag, "drag_ratio": ratio.astype(float)}

@@ -25,18 +25,22 @@ for the argument types used by the fleet (C-contiguous float64 arrays, float dt,
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import fields
+from pathlib import Path
 
 import numpy as np
 from numba import njit
 
 from .params import G, BicycleParams
+from .resistance import road_load
 
 PARAM_NAMES: tuple[str, ...] = (
     "m", "Izz", "a", "b", "h", "mu",
     "Bf", "Cf", "Df", "Ef", "Br", "Cr", "Dr", "Er",
     "linear_tire", "steer_max", "steer_rate_max",
     "v_low", "v_high", "tau", "tau_stop",
+    "resistances", "c_d", "frontal_area", "rho_air", "drag_ratio", "grade",
 )
 """Column order of the packed parameter array ``P`` (one column per BicycleParams field)."""
 
@@ -64,6 +68,12 @@ _VLOW = PARAM_NAMES.index("v_low")
 _VHIGH = PARAM_NAMES.index("v_high")
 _TAU = PARAM_NAMES.index("tau")
 _TAUSTOP = PARAM_NAMES.index("tau_stop")
+_RES = PARAM_NAMES.index("resistances")
+_CD = PARAM_NAMES.index("c_d")
+_AREA = PARAM_NAMES.index("frontal_area")
+_RHO = PARAM_NAMES.index("rho_air")
+_DRAG = PARAM_NAMES.index("drag_ratio")
+_GRADE = PARAM_NAMES.index("grade")
 
 _G = float(G)
 
@@ -77,8 +87,9 @@ def pack_params(p: BicycleParams, n: int) -> np.ndarray:
     """Pack ``p`` into a C-contiguous float64 array of shape (n, N_PARAMS), columns PARAM_NAMES.
 
     Scalar fields are broadcast to all n rows; (n,) array fields (a mixed fleet from
-    ``params.stack``) are copied per row; ``linear_tire`` becomes 0.0 / 1.0. Pack once per
-    fleet and reuse: the array does not change while the parameters do not.
+    ``params.stack``) are copied per row; ``linear_tire`` and ``resistances`` become 0.0 / 1.0.
+    Pack once per fleet and reuse: the array does not change while the parameters do not
+    (``drag_ratio`` and ``grade`` are the exception: the loops write those two columns).
     """
     names = tuple(f.name for f in fields(BicycleParams))
     if set(names) != set(PARAM_NAMES):
@@ -89,10 +100,10 @@ def pack_params(p: BicycleParams, n: int) -> np.ndarray:
     P = np.empty((n, N_PARAMS), dtype=np.float64)
     for j, name in enumerate(PARAM_NAMES):
         value = getattr(p, name)
-        if name == "linear_tire":
+        if name in ("linear_tire", "resistances"):
             col = np.asarray(value)
             if col.ndim != 0:
-                raise ValueError("linear_tire must be one bool shared by the whole fleet")
+                raise ValueError(f"{name} must be one bool shared by the whole fleet")
             P[:, j] = 1.0 if bool(col) else 0.0
             continue
         col = np.asarray(value, dtype=np.float64)
@@ -172,8 +183,16 @@ def _bicycle_rhs(psi, v, beta, r, delta, a_ref, rate_in, P, i):
     f_max = mu * w_weight * (b + f_rl * h) / L / (1.0 + mu * h / L)
     f_brake = mu * m * _G  # braking_force_max
 
+    # driving resistance (models/resistance.py); off: the seed's model, unchanged
+    res_on = P[i, _RES] != 0.0
+    f_res = 0.0
+    if res_on:
+        f_res = road_load(v, m, P[i, _CD], P[i, _AREA], P[i, _RHO], P[i, _DRAG], P[i, _GRADE])
+
     # traction_from_acceleration (3.13), clipped
     num = m * a_ref - fcf * (cd * sb - sd * cb) - fcr * sb
+    if res_on:
+        num = num + f_res
     den = cd * cb + sd * sb
     f_lf = _clip(num / den, -f_brake, f_max)
 
@@ -181,6 +200,8 @@ def _bicycle_rhs(psi, v, beta, r, delta, a_ref, rate_in, P, i):
     fy = f_lf * sd + fcf * cd + fcr
 
     v_dot_dyn = (fx * cb + fy * sb) / m
+    if res_on:
+        v_dot_dyn = v_dot_dyn - f_res / m
     beta_dot_dyn = (fy * cb - fx * sb) / (m * vs) - r
     r_dot_dyn = ((f_lf * sd + fcf * cd) * a - fcr * b) / Izz
 
@@ -197,7 +218,10 @@ def _bicycle_rhs(psi, v, beta, r, delta, a_ref, rate_in, P, i):
     k = b * td / L
     beta_k = np.arctan(k)
     dbeta_k = (b / L) * sec2 / (1.0 + k * k)
-    v_dot_kin = _clip(a_ref, -f_brake / m, f_max / m)
+    if res_on:
+        v_dot_kin = _clip(a_ref + f_res / m, -f_brake / m, f_max / m) - f_res / m
+    else:
+        v_dot_kin = _clip(a_ref, -f_brake / m, f_max / m)
     cbk = np.cos(beta_k)
     sbk = np.sin(beta_k)
     r_k = v * cbk * td / L
@@ -324,6 +348,26 @@ def integrate_unicycle(x, u, dt, n_sub):
         out[i, 1] = Y
         out[i, 2] = psi
     return out
+
+
+def _drop_stale_cache() -> None:
+    """Numba keys its on-disk cache on this file only: drop it when the law module it calls
+    (models/resistance.py) changed since the cache was written."""
+    from . import resistance
+    try:
+        digest = hashlib.sha256(Path(resistance.__file__).read_bytes()
+                                + Path(__file__).read_bytes()).hexdigest()
+        stamp = Path(integrate_bicycle._cache.cache_path) / "bicycle_fast_deps.digest"
+        if (stamp.read_text().strip() if stamp.exists() else None) != digest:
+            for d in (_bicycle_rhs, integrate_bicycle):
+                d._cache.flush()
+            stamp.parent.mkdir(parents=True, exist_ok=True)
+            stamp.write_text(digest)
+    except Exception:  # pragma: no cover - read-only tree: the tests compare with bicycle.rhs
+        pass
+
+
+_drop_stale_cache()
 
 
 def warmup() -> None:

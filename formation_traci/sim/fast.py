@@ -52,6 +52,8 @@ from ..models import bicycle_fast
 from ..models.bicycle_fast import (_bicycle_rhs, _clip, _maximum, _minimum, integrate_bicycle,
                                    integrate_unicycle)
 from ..models.params import G
+from ..models import resistance
+from ..models.resistance import aero_force, road_load
 from ..record.columns import TRAJECTORY_COLUMNS
 from ..road import fast_line
 from ..road.fast_line import FastLine, _wrap, frame_at, to_frenet_many
@@ -70,11 +72,13 @@ SIGNAL_COLUMNS: tuple[str, ...] = tuple(c.name for c in TRAJECTORY_COLUMNS
 _KERNEL_SIGNALS = ("x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "ex", "ey",
                    "e_lon", "e_lat", "x_des", "y_des", "v_ref", "omega_ref", "steer",
                    "steer_rate", "beta", "slip_front", "slip_rear", "traction_force",
-                   "traction_force_max", "friction_usage")
+                   "traction_force_max", "friction_usage", "power", "drag_force", "drag_ratio")
 """The signals the kernel computes, in its internal slot order (slot k -> _Q_* below)."""
 (_Q_X, _Q_Y, _Q_HEADING, _Q_V, _Q_YAW_RATE, _Q_A_LON, _Q_A_LAT, _Q_EX, _Q_EY, _Q_E_LON,
  _Q_E_LAT, _Q_X_DES, _Q_Y_DES, _Q_V_REF, _Q_OMEGA_REF, _Q_STEER, _Q_STEER_RATE, _Q_BETA,
- _Q_SLIP_F, _Q_SLIP_R, _Q_TRACTION, _Q_TRACTION_MAX, _Q_FRICTION) = range(23)
+ _Q_SLIP_F, _Q_SLIP_R, _Q_TRACTION, _Q_TRACTION_MAX, _Q_FRICTION, _Q_POWER, _Q_DRAG,
+ _Q_DRAG_RATIO) = range(26)
+_N_Q = 26
 
 
 def signal_column_map(columns: tuple[str, ...] = SIGNAL_COLUMNS) -> np.ndarray:
@@ -474,7 +478,7 @@ def _signal_rows(x, theta_star, speed_in, model_kind, P, k, k_theta, C, T, v_cap
     c = np.cos(vc_theta)
     s = np.sin(vc_theta)
     g = C[_C_G]
-    vals = np.empty(23)
+    vals = np.empty(_N_Q)
     for i in range(n):
         psi = x[i, 2]
         u0, u1, vr, om, tsd, vrd, ex, ey, he, v, r = _member_control(
@@ -497,7 +501,7 @@ def _signal_rows(x, theta_star, speed_in, model_kind, P, k, k_theta, C, T, v_cap
             vals[_Q_A_LON] = vrd
             vals[_Q_A_LAT] = vk * u1
             for q in (_Q_STEER, _Q_STEER_RATE, _Q_BETA, _Q_SLIP_F, _Q_SLIP_R, _Q_TRACTION,
-                      _Q_TRACTION_MAX, _Q_FRICTION):
+                      _Q_TRACTION_MAX, _Q_FRICTION, _Q_POWER, _Q_DRAG, _Q_DRAG_RATIO):
                 vals[q] = np.nan
         else:
             beta = x[i, 4]
@@ -534,6 +538,9 @@ def _signal_rows(x, theta_star, speed_in, model_kind, P, k, k_theta, C, T, v_cap
             f_max = mu * (m * g) * (b + f_rl * h) / L_ / (1.0 + mu * h / L_)
             num = m * u0 - fcf * (np.cos(delta) * np.sin(beta) - np.sin(delta) * np.cos(beta)) \
                 - fcr * np.sin(beta)
+            res_on = P[i, bicycle_fast._RES] != 0.0
+            if res_on:  # models/bicycle.py resistance_force (docs/energy.md)
+                num = num + _road_load_row(v, P, i)
             den = np.cos(delta) * np.cos(beta) + np.sin(delta) * np.sin(beta)
             f_lf = _clip(num / den, -(mu * m * g), f_max)
             # models/bicycle.py outputs: accelerations from the state derivative
@@ -553,9 +560,28 @@ def _signal_rows(x, theta_star, speed_in, model_kind, P, k, k_theta, C, T, v_cap
             vals[_Q_TRACTION] = f_lf
             vals[_Q_TRACTION_MAX] = f_max
             vals[_Q_FRICTION] = np.hypot(a_lon, a_lat) / (mu * g)
-        for q in range(23):
+            # models/bicycle.py energy_outputs
+            vals[_Q_POWER] = f_lf * (v * np.cos(beta) * np.cos(delta)
+                                     + (v * np.sin(beta) + a * r) * np.sin(delta))
+            vals[_Q_DRAG] = _drag_row(v, P, i) if res_on else np.nan
+            vals[_Q_DRAG_RATIO] = P[i, bicycle_fast._DRAG] if res_on else np.nan
+        for q in range(_N_Q):
             if cols[q] >= 0:
                 out[i, cols[q]] = vals[q]
+
+
+@njit(cache=True, error_model="numpy")
+def _road_load_row(v, P, i):
+    """models/resistance.py road_load for packed row i."""
+    return road_load(v, P[i, bicycle_fast._M], P[i, bicycle_fast._CD], P[i, bicycle_fast._AREA],
+                     P[i, bicycle_fast._RHO], P[i, bicycle_fast._DRAG], P[i, bicycle_fast._GRADE])
+
+
+@njit(cache=True, error_model="numpy")
+def _drag_row(v, P, i):
+    """models/resistance.py aero_force for packed row i."""
+    return aero_force(v, P[i, bicycle_fast._CD], P[i, bicycle_fast._AREA], P[i, bicycle_fast._RHO],
+                      P[i, bicycle_fast._DRAG])
 
 
 @njit(cache=True, error_model="numpy")
@@ -635,8 +661,8 @@ class FastFleet:
     @classmethod
     def _base(cls, cfg: FleetConfig, **kw) -> "FastFleet":
         n = cfg.n
-        if cfg.model == "dynamic":
-            kind, P = MODEL_DYNAMIC, _f64(cfg.packed)
+        if cfg.model == "dynamic":  # a copy: set_road_load writes two of its columns
+            kind, P = MODEL_DYNAMIC, np.array(cfg.packed, dtype=np.float64, order="C")
         elif cfg.model == "kinematic":
             kind, P = MODEL_KINEMATIC, np.zeros((n, bicycle_fast.N_PARAMS))
         else:
@@ -677,6 +703,20 @@ class FastFleet:
         return ff
 
     # ----------------------------------------------------------------- per step
+    @property
+    def resistances(self) -> bool:
+        """True when the members drive against rolling, aerodynamic and grade resistance."""
+        return self.model_kind == MODEL_DYNAMIC and bool(self.cfg.params.resistances)
+
+    def set_road_load(self, drag_ratio, grade=None) -> None:
+        """Hold the members' drag ratio [-] (models/drag_interaction.py) and road grade [rad]
+        for the next step and signals (arrays (n,) or scalars). No-op without resistances."""
+        if not self.resistances:
+            return
+        self.P[:, bicycle_fast._DRAG] = drag_ratio
+        if grade is not None:
+            self.P[:, bicycle_fast._GRADE] = grade
+
     def _caps(self, v_cap, a_cap):
         n = self.cfg.n
         inf = None
@@ -904,7 +944,8 @@ def _verify_free(ff: FastFleet, leader, offsets):
 
 # ------------------------------------------------------------ numba cache maintenance
 
-_DEPENDENCIES = (Path(fast_line.__file__), Path(bicycle_fast.__file__), Path(__file__))
+_DEPENDENCIES = (Path(fast_line.__file__), Path(bicycle_fast.__file__), Path(resistance.__file__),
+                 Path(__file__))
 
 
 def _dispatchers():
