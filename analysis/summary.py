@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from analysis import comfort, formation, iso2631, limits, traffic
+from analysis.energy import ENERGY_MEMBER_METRICS, ENERGY_RUN_METRICS, EnergyAnalysis, compute_energy
 from analysis.load import GAP_FACTOR, Issue, Member, RunData
 from analysis.traffic_run import (TRAFFIC_MEMBER_METRICS, BaselineData, TrafficAnalysis,
                                   compute_traffic)
@@ -105,10 +106,12 @@ FORMATION_MEMBER_METRICS: dict[str, str] = {
 }
 """Per-member formation, comfort and limit metrics with their units."""
 
-MEMBER_METRICS: dict[str, str] = {**FORMATION_MEMBER_METRICS, **TRAFFIC_MEMBER_METRICS}
+MEMBER_METRICS: dict[str, str] = {**FORMATION_MEMBER_METRICS, **TRAFFIC_MEMBER_METRICS,
+                                   **ENERGY_MEMBER_METRICS}
 """Per-member metrics, in output order, with their units (see docs/metrics.md): the
 formation metrics, then the traffic ones
-(:data:`analysis.traffic_run.TRAFFIC_MEMBER_METRICS`)."""
+(:data:`analysis.traffic_run.TRAFFIC_MEMBER_METRICS`), then energy
+(:data:`analysis.energy.ENERGY_MEMBER_METRICS`)."""
 
 RUN_METRICS: dict[str, str] = {
     "status": "-", "reason": "-", "model": "-", "mu": "-", "t_end_s": "s",
@@ -119,6 +122,7 @@ RUN_METRICS: dict[str, str] = {
     "shape_source": "-", "shape_members": "-",
     "string_stable": "-", "string_peak_ratio_max": "-", "string_rms_ratio_max": "-",
     "iso2631_band_hz": "Hz", "iso2631_full_band": "-", "iso2631_note": "-",
+    **ENERGY_RUN_METRICS,
 }
 """Run-level metrics with their units."""
 
@@ -150,6 +154,7 @@ class RunAnalysis:
     shape: pd.DataFrame  # t, shape_error [m]
     issues: tuple[Issue, ...]
     traffic: TrafficAnalysis | None = None  # traffic interaction (None if not computed)
+    energy: EnergyAnalysis | None = None  # traction energy per member (analysis/energy.py)
 
 
 class _Member:
@@ -502,7 +507,8 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
     mdf = pd.DataFrame(rows, columns=["id", *FORMATION_MEMBER_METRICS]).set_index("id")
     tra = compute_traffic(data, settings, baseline)
     issues += list(tra.issues)
-    mdf = mdf.join(tra.members, how="left")[list(MEMBER_METRICS)]
+    energy = compute_energy(data)
+    mdf = mdf.join(tra.members, how="left").join(energy.members, how="left")[list(MEMBER_METRICS)]
     signals = pd.concat([s for s in sigs if len(s)], ignore_index=True) if any(
         len(s) for s in sigs) else pd.DataFrame(columns=["t", "vehicle_id", "e_norm",
                                                          "jerk_lon", "jerk_lat"])
@@ -521,7 +527,7 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
         duration_s=_covered(np.unique(t_all), contiguous_segments(np.unique(t_all), dt, GAP_FACTOR)
                             if math.isfinite(dt) else [slice(0, np.unique(t_all).size)]),
         n_members=len(members), n_members_with_data=int(mdf["n_samples"].notna().sum()),
-        **shape_res,
+        **shape_res, **energy.run,
     )
     if len(ss):
         run.update(string_stable=bool(not ss["amplifies"].any()),
@@ -543,7 +549,7 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
     run["worst"] = worst
     return RunAnalysis(data=data, settings=settings, run=run, members=mdf,
                        string_stability=ss, unavailable=unavailable, signals=signals,
-                       shape=shape_df, issues=tuple(issues), traffic=tra)
+                       shape=shape_df, issues=tuple(issues), traffic=tra, energy=energy)
 
 
 def settings_dict(settings: AnalysisSettings) -> dict[str, Any]:

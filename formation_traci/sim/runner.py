@@ -27,7 +27,9 @@ from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
 from . import fleet as fl
 from .recorder import Recorder
-from .setup import build_fleet, build_free_leader, build_initial_state, offsets, road_mu
+from .road_load import free_space_ratios, interaction_on
+from .setup import (build_fleet, build_free_leader, build_initial_state, offsets, road_mu,
+                    vehicle_params)
 
 
 class RunDirExists(FileExistsError):
@@ -136,8 +138,12 @@ def free_space_steps(sc: Scenario, rec: Recorder, meta: dict) -> Iterator[tuple[
     state = build_initial_state(sc, cfg, leader.sample(0.0, pose))
     ff = FastFleet.free_space(cfg, d, leader)
     buf = np.full((cfg.n, len(SIGNAL_COLUMNS)), np.nan)
+    drag = interaction_on(sc)
+    veh = vehicle_params(sc) if drag else None
     for k in range(n_steps + 1):
         t = k * run.step
+        if drag:  # formation-aware drag ratio, held over the step (docs/energy.md)
+            ff.set_road_load(free_space_ratios(veh, ff.kinematics(state)[0], pose[2]))
         rec.add_signal_rows(t, ff.signals_free(state, t, pose, out=buf), {})
         rec.add_vc(t, leader.sample(t, pose))
         yield k, t

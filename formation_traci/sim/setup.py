@@ -57,7 +57,8 @@ def build_fleet(sc: Scenario) -> FleetConfig:
         v_low = stable_blend_speed(veh, tires, sc.run.physics_step, LOW_SPEED_DEFAULT.v_low)
         blend = replace(LOW_SPEED_DEFAULT, v_low=v_low,
                         v_high=v_low + (LOW_SPEED_DEFAULT.v_high - LOW_SPEED_DEFAULT.v_low))
-        params = stack([bicycle_params(veh, mu, tires, blend)] * len(sc.members))
+        params = stack([bicycle_params(veh, mu, tires, blend, resistances=sc.energy.resistances,
+                                       rho_air=sc.energy.air_density)] * len(sc.members))
     ctl = sc.controller
     return FleetConfig(
         ids=tuple(m.id for m in sc.members),
