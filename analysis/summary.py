@@ -106,12 +106,11 @@ FORMATION_MEMBER_METRICS: dict[str, str] = {
 }
 """Per-member formation, comfort and limit metrics with their units."""
 
-MEMBER_METRICS: dict[str, str] = {**FORMATION_MEMBER_METRICS, **TRAFFIC_MEMBER_METRICS,
-                                   **ENERGY_MEMBER_METRICS}
+MEMBER_METRICS: dict[str, str] = {**FORMATION_MEMBER_METRICS, **ENERGY_MEMBER_METRICS,
+                                   **TRAFFIC_MEMBER_METRICS}
 """Per-member metrics, in output order, with their units (see docs/metrics.md): the
-formation metrics, then the traffic ones
-(:data:`analysis.traffic_run.TRAFFIC_MEMBER_METRICS`), then energy
-(:data:`analysis.energy.ENERGY_MEMBER_METRICS`)."""
+formation metrics, then energy (:data:`analysis.energy.ENERGY_MEMBER_METRICS`), then the
+traffic ones (:data:`analysis.traffic_run.TRAFFIC_MEMBER_METRICS`)."""
 
 RUN_METRICS: dict[str, str] = {
     "status": "-", "reason": "-", "model": "-", "mu": "-", "t_end_s": "s",
@@ -508,7 +507,7 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
     tra = compute_traffic(data, settings, baseline)
     issues += list(tra.issues)
     energy = compute_energy(data)
-    mdf = mdf.join(tra.members, how="left").join(energy.members, how="left")[list(MEMBER_METRICS)]
+    mdf = mdf.join(energy.members, how="left").join(tra.members, how="left")[list(MEMBER_METRICS)]
     signals = pd.concat([s for s in sigs if len(s)], ignore_index=True) if any(
         len(s) for s in sigs) else pd.DataFrame(columns=["t", "vehicle_id", "e_norm",
                                                          "jerk_lon", "jerk_lat"])

@@ -216,6 +216,15 @@ def test_column_energy_followers_save_as_the_measurements_say(tmp_path):
         expect = (1 - k[mid]) * f_aero / (f_roll + f_aero)
         assert m.loc[mid, "energy_saving_vs_alone"] == pytest.approx(expect, rel=0.01), mid
     assert en.run["energy_saving_vs_alone"] > 0.1
+    # the report shows energy per member and the formation's saving
+    from analysis.report import run_report
+    from analysis.summary import compute_run
+    a = compute_run(data)
+    assert a.run["energy_saving_vs_alone"] == pytest.approx(en.run["energy_saving_vs_alone"])
+    html = run_report(a, {})
+    energy = html[html.index("<h2>Energy</h2>"):]
+    assert "energy_saving_vs_alone" in energy and all(mid in energy for mid in ("c1", "c4"))
+    assert f"{en.run['energy_saving_vs_alone']:.4g}" in energy
 
 
 # --- the seed's experiments stay as they were -------------------------------------------------

@@ -146,7 +146,8 @@ def member_signals(cfg: FleetConfig, state: FleetState, u: np.ndarray, fo: Forma
         out.update(v=v, yaw_rate=u[:, KU.OMEGA].copy(), a_lon=fo.v_ref_dot,
                    a_lat=v * u[:, KU.OMEGA], steer=nan, steer_rate=nan, beta=nan,
                    slip_front=nan, slip_rear=nan, traction_force=nan,
-                   traction_force_max=nan, friction_usage=nan)
+                   traction_force_max=nan, friction_usage=nan, power=nan, drag_force=nan,
+                   drag_ratio=nan)
         return out
     sig = bicycle.outputs(x, u, cfg.params)
     out.update(v=x[:, S.V].copy(), yaw_rate=x[:, S.R].copy(), steer=x[:, S.DELTA].copy(),
