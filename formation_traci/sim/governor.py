@@ -165,3 +165,38 @@ def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_v
         a_cap[i] = max(_gap_law(gap[i], v_m[i], v_lead[i], time_gap, min_gap), -decel_emergency)
     a_vc = _leader_law(v_vc, v_set, v_set_dot, acc_slot, active, accel_max, decel_emergency)
     return a_vc, gap, index, v_cap, a_cap
+
+
+def column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap):
+    """Members in one column brake as one: each takes the tightest speed and acceleration
+    caps of the active members ahead of it whose slots overlap it sideways.
+
+    The caps of :func:`governor_step` come from each member's own gap to the vehicle ahead of
+    it, and other members are not among those vehicles. Without this, a cut-in in front of a
+    column caps its first member only: it falls behind its slot while the member behind keeps
+    its own, and at small gaps the two collide.
+
+    Parameters
+    ----------
+    slot_s, slot_d : ndarray, shape (n,)
+        Slots along and across the road [m].
+    half_w : ndarray, shape (n,)
+        Members' half widths [m].
+    active : ndarray of bool, shape (n,)
+        Members still on the road.
+    v_cap, a_cap : ndarray, shape (n,)
+        Speed caps [m/s] and acceleration caps [m/s^2] (inf: none).
+
+    Returns
+    -------
+    v_cap, a_cap : ndarray, shape (n,)
+        New arrays, never above the given ones.
+    """
+    slot_s, slot_d, half_w = (np.asarray(a, dtype=np.float64) for a in (slot_s, slot_d, half_w))
+    active = np.asarray(active, dtype=bool)
+    ahead = ((slot_s[None, :] > slot_s[:, None])
+             & (np.abs(slot_d[None, :] - slot_d[:, None]) < half_w[None, :] + half_w[:, None])
+             & active[None, :])
+    vc = np.where(ahead, np.asarray(v_cap, dtype=np.float64)[None, :], np.inf).min(axis=1, initial=np.inf)
+    ac = np.where(ahead, np.asarray(a_cap, dtype=np.float64)[None, :], np.inf).min(axis=1, initial=np.inf)
+    return np.minimum(v_cap, vc), np.minimum(a_cap, ac)

@@ -28,7 +28,7 @@ from ..road.leader import road_leader_state
 from ..road.targets import road_targets
 from ..scenario.schema import Scenario
 from . import fleet as fl
-from .governor import governor_step
+from .governor import column_caps, governor_step
 from .fast import FastFleet, SIGNAL_COLUMNS
 from .recorder import Recorder
 from .road_load import interaction_on, road_ratios
@@ -280,6 +280,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
             a_vc, gap, lead_idx, v_cap, a_cap = governor_step(
                 m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
                 nb_rear, nb_d, nb_hw, nb_v, ld.time_gap, ld.min_gap, accel_max, decel_emergency)
+            v_cap, a_cap = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap)
             if a_vc < -decel_max - 1e-9 and not emergency:
                 rec.add_event(t, "emergency_brake", "vc", "", f"virtual car decelerates at {-a_vc:.2f} m/s^2")
             emergency = a_vc < -decel_max - 1e-9
