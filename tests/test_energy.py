@@ -227,6 +227,61 @@ def test_column_energy_followers_save_as_the_measurements_say(tmp_path):
     assert f"{en.run['energy_saving_vs_alone']:.4g}" in energy
 
 
+HILL_NODES = """<nodes>
+  <node id="a" x="0" y="0" z="0"/>
+  <node id="b" x="200" y="0" z="0"/>
+  <node id="c" x="1200" y="0" z="50"/>
+</nodes>"""
+HILL_EDGES = """<edges>
+  <edge id="flat" from="a" to="b" numLanes="2" speed="36.11"/>
+  <edge id="up" from="b" to="c" numLanes="2" speed="36.11"/>
+</edges>"""
+HILL = """
+name = "hill"
+[run]
+duration = 16.0
+[energy]
+resistances = true
+[road]
+net = "hill.net.xml"
+route = ["flat", "up"]
+lane = 0
+start = 150.0
+[leader]
+speed = 25.0
+[[members]]
+id = "car"
+slot = { along = 0.0, lanes = 0 }
+"""
+
+
+def test_grade_from_network_elevation(tmp_path):
+    """A SUMO network whose second edge climbs 50 m over 1 km (z in the nodes): on the flat
+    the traction is the flat road load, on the 5 % climb it adds m g sin(atan 0.05) and rolls
+    on m g cos (within 0.1 %)."""
+    import subprocess
+
+    from sumo_nets.build import find_sumo_binary
+
+    (tmp_path / "hill.nod.xml").write_text(HILL_NODES)
+    (tmp_path / "hill.edg.xml").write_text(HILL_EDGES)
+    subprocess.run([str(find_sumo_binary("netconvert")), "--node-files", "hill.nod.xml",
+                    "--edge-files", "hill.edg.xml", "-o", "hill.net.xml"], cwd=tmp_path,
+                   check=True, capture_output=True)
+    (tmp_path / "hill.toml").write_text(HILL)
+    data, en = _run(tmp_path, tmp_path / "hill.toml")
+    g = data.trajectories[data.trajectories.vehicle_id == "car"]
+    car = PASSENGER_CAR
+    f_rl, aero, th = 0.01 * (1 + 25.0 / 40.8), 0.5 * 1.225 * car.c_d * car.frontal_area * 625.0, math.atan(0.05)
+    flat = f_rl * car.m * G + aero
+    climb = f_rl * car.m * G * math.cos(th) + aero + car.m * G * math.sin(th)
+    on_flat = g[g.s < 195.0]
+    on_hill = g[g.s > 210.0]
+    assert len(on_flat) and len(on_hill)
+    np.testing.assert_allclose(on_flat.traction_force, flat, rtol=1e-3)
+    np.testing.assert_allclose(on_hill.traction_force, climb, rtol=1e-3)
+
+
 # --- the seed's experiments stay as they were -------------------------------------------------
 
 SEED_COLS = ["t", "x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "ex", "ey", "e_lon",

@@ -31,7 +31,7 @@ from . import fleet as fl
 from .governor import column_caps, governor_step
 from .fast import FastFleet, SIGNAL_COLUMNS
 from .recorder import Recorder
-from .road_load import interaction_on, road_ratios
+from .road_load import elevation_profile, grade_at, interaction_on, road_ratios
 from .road_setup import (Road, build_road, check_no_overlap, check_slots, rectangles_overlap,
                          slot_offsets)
 from .setup import build_fleet, gain_schedule, profile, road_mu, vehicle_params
@@ -188,7 +188,8 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
     ff = FastFleet.from_config(cfg, line, plan.slots, plan.rigid, plan.is_road)
     sig_buf = np.full((n, len(SIGNAL_COLUMNS)), np.nan)
     m_s = None
-    drag = interaction_on(sc)
+    drag, load = interaction_on(sc), sc.energy.resistances
+    elevation = elevation_profile(road.net_file, road.route, sc.road.lane, line) if load else None
 
     adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
     args = sumo_args(sc, road.net_file, routes, sumo_dir, t_sumo_end)
@@ -290,10 +291,11 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 _lane_changes(rec, t, nb, prev_lane, lead_idx, gap, v_m, ids, active, ld)
                 rec.add_background(t, nb, nb_s, nb_d)
 
-            if drag and not baseline:  # formation-aware drag ratio, held over the step
+            if load and not baseline:  # drag ratio and grade, held over the step (docs/energy.md)
                 ff.set_road_load(road_ratios(veh, m_s, m_d, active, nb_s, nb_d,
                                              nb.length if len(nb_s) else nb_s,
-                                             nb.width if len(nb_s) else nb_s))
+                                             nb.width if len(nb_s) else nb_s) if drag else 1.0,
+                                 None if elevation is None else grade_at(elevation, m_s))
             vc = ff.leader_state(s_vc, v_vc, a_vc)
             if not baseline:
                 rec.add_signal_rows(t, ff.signals(state, s_vc, v_vc, a_vc, v_cap, a_cap, out=sig_buf),
