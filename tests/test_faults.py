@@ -11,7 +11,7 @@ import pytest
 
 from formation_traci.scenario import load_scenario
 from formation_traci.sim.runner import run_scenario
-from formation_traci.sim.sumo_loop import MAX_REFUSED
+from formation_traci.sim.events import MAX_REFUSED
 
 ROOT = Path(__file__).resolve().parents[1]
 LIGHT = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"

@@ -1,9 +1,10 @@
 """Longitudinal driving resistances of a member: rolling (eq 3.15), aerodynamic drag, grade.
 
-Each law is written once, compiled by numba: the same functions serve the numpy reference
-path (arrays of shape (n,) or floats) and the compiled kernels (models/bicycle_fast.py,
-sim/fast.py), which call them per scalar. The force opposes the motion and acts along the velocity
-of the centre of gravity (see docs/energy.md for what that leaves out).
+Each law is written once as a ``@kernel`` (formation_traci/kernels.py): the bicycle model's
+kernels (models/bicycle.py ``resistance_at``, ``rhs_at``, ``outputs_at``) call them per
+scalar, and the same functions take floats or arrays of shape (n,). The force opposes the
+motion and acts along the velocity of the centre of gravity (see docs/energy.md for what
+that leaves out).
 
     F_roll  = f_rl(v) m g cos(grade)            f_rl = 0.01 (1 + v / 40.8)   (3.15)
     F_aero  = 0.5 rho c_d A k v^2               k = drag ratio of the formation, 1 alone
@@ -15,27 +16,24 @@ Still air: v is the speed relative to the air. ``k`` comes from
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..kernels import kernel
 from .params import G, RHO_AIR_STANDARD  # noqa: F401  (re-exported: the law's default air)
 
 
-_JIT = dict(cache=True, error_model="numpy")
-
-
-@njit(**_JIT)
+@kernel
 def rolling_coefficient(v):
     """Coefficient of rolling resistance f_rl = 0.01 (1 + v / 40.8) [-], eq (3.15); v [m/s]."""
     return 0.01 * (1.0 + v / 40.8)
 
 
-@njit(**_JIT)
+@kernel
 def rolling_force(v, m, grade):
     """Rolling resistance f_rl(v) m g cos(grade) [N]; v [m/s], m [kg], grade [rad] (3.15)."""
     return rolling_coefficient(v) * m * G * np.cos(grade)
 
 
-@njit(**_JIT)
+@kernel
 def aero_force(v, c_d, area, rho, ratio):
     """Aerodynamic drag 0.5 rho c_d ratio A v^2 [N]; v [m/s], area [m^2], rho [kg/m^3].
 
@@ -43,13 +41,13 @@ def aero_force(v, c_d, area, rho, ratio):
     return 0.5 * rho * c_d * ratio * area * v * v
 
 
-@njit(**_JIT)
+@kernel
 def grade_force(m, grade):
     """Weight component along the road m g sin(grade) [N]; grade [rad], positive uphill."""
     return m * G * np.sin(grade)
 
 
-@njit(**_JIT)
+@kernel
 def road_load(v, m, c_d, area, rho, ratio, grade):
     """Total driving resistance [N]: rolling + aerodynamic + grade at speed v [m/s].
 

@@ -1,10 +1,12 @@
 """Per-step inputs of the members' driving resistance: drag ratio and road grade.
 
-Called once per outer step by the loops (runner.free_space_steps, sumo_loop.sumo_steps)
-before the step's signals are recorded; the values are held over the step's control
-periods (FastFleet.set_road_load). The drag law itself is models/drag_interaction.py. The
-grade comes from the elevation (z) of the reference lane's shape in the SUMO network; a
-network without elevation (all bundled ones) and free space give 0 (docs/energy.md).
+:class:`FreeSpaceLoad` and :class:`RoadLoad` are the ``road_load`` part of a run
+(sim/loop.py RunParts): the loop calls one once per outer step, once the step's reference is
+known and before its signals are recorded; the values are held over the step's control
+periods (sim/fleet.py ``Fleet.set_road_load``). The drag law itself is
+models/drag_interaction.py. The grade comes from the elevation (z) of the reference lane's
+shape in the SUMO network; a network without elevation (all bundled ones) and free space
+give 0 (docs/energy.md).
 """
 from __future__ import annotations
 
@@ -18,6 +20,48 @@ from ..scenario.schema import Scenario
 def interaction_on(sc: Scenario) -> bool:
     """True when the scenario asks for resistances with the formation-aware drag."""
     return sc.energy.resistances and sc.energy.drag_interaction
+
+
+class FreeSpaceLoad:
+    """Drag ratios of the members among themselves in free space, resolved along the
+    virtual car's heading; no grade."""
+
+    def __init__(self, veh: VehicleParams):
+        self.veh = veh
+
+    def __call__(self, state, sensed, ref):
+        """(drag ratio (n,), None) for positions state.x[:, :2] [m] and ref.truth's heading."""
+        return free_space_ratios(self.veh, state.x[:, :2], float(ref.truth[2])), None
+
+
+class RoadLoad:
+    """Drag ratios among SUMO's vehicles (or 1 without the interaction) and the grade under
+    each member (or None: the network has no elevation)."""
+
+    def __init__(self, sc: Scenario, veh: VehicleParams, road, line):
+        self.veh, self.drag = veh, interaction_on(sc)
+        self.elevation = elevation_profile(road.net_file, road.route, sc.road.lane, line)
+
+    def __call__(self, state, sensed, ref):
+        nb, n_nb = sensed.nb, len(sensed.nb_s)
+        ratio = 1.0
+        if self.drag:
+            ratio = road_ratios(self.veh, sensed.m_s, sensed.m_d, sensed.active, sensed.nb_s,
+                                sensed.nb_d, nb.length if n_nb else sensed.nb_s,
+                                nb.width if n_nb else sensed.nb_s)
+        grade = None if self.elevation is None else grade_at(self.elevation, sensed.m_s)
+        return ratio, grade
+
+
+def road_load_part(sc: Scenario, veh: VehicleParams, road=None, line=None):
+    """The run's ``road_load`` part: None without resistances (nothing to compute), else
+    :class:`RoadLoad` on a road (``road``: sim/road_setup.py Road, ``line``: its reference
+    line) or :class:`FreeSpaceLoad` (None when the drag interaction is off: ratio 1)."""
+    if not sc.energy.resistances:
+        return None
+    if road is not None:
+        return RoadLoad(sc, veh, road, line)
+    return FreeSpaceLoad(veh) if interaction_on(sc) else None
 
 
 def free_space_ratios(veh: VehicleParams, pos: np.ndarray, heading: float) -> np.ndarray:
