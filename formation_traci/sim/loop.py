@@ -20,7 +20,7 @@ from ..record.columns import SIGNAL_COLUMNS
 from ..scenario.schema import Scenario
 from .fleet import Fleet, FleetState
 from .road_load import road_load_part
-from .setup import build_fleet, build_free_leader, build_initial_state, offsets, vehicle_params
+from .setup import build_fleet, build_free_leader, build_initial_state, member_vehicles, offsets
 from .timing import PhaseClock
 from .world import FreeSpace
 
@@ -57,7 +57,7 @@ def free_space_run(sc: Scenario) -> RunParts:
     state = build_initial_state(sc, cfg, leader.sample(0.0, pose))
     gen = FreeReference(leader, pose, offsets(sc), run.step / n_ctrl, n_ctrl)
     return RunParts(FreeSpace(cfg.n), gen, Fleet(cfg), state,
-                    road_load=road_load_part(sc, vehicle_params(sc)))
+                    road_load=road_load_part(sc, member_vehicles(sc)))
 
 
 def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float]]:

@@ -26,8 +26,8 @@ class FreeSpaceLoad:
     """Drag ratios of the members among themselves in free space, resolved along the
     virtual car's heading; no grade."""
 
-    def __init__(self, veh: VehicleParams):
-        self.veh = veh
+    def __init__(self, veh):
+        self.veh = veh  # one VehicleParams, or one per member
 
     def __call__(self, state, sensed, ref):
         """(drag ratio (n,), None) for positions state.x[:, :2] [m] and ref.truth's heading."""
@@ -38,7 +38,7 @@ class RoadLoad:
     """Drag ratios among SUMO's vehicles (or 1 without the interaction) and the grade under
     each member (or None: the network has no elevation)."""
 
-    def __init__(self, sc: Scenario, veh: VehicleParams, road, line):
+    def __init__(self, sc: Scenario, veh, road, line):
         self.veh, self.drag = veh, interaction_on(sc)
         self.elevation = elevation_profile(road.net_file, road.route, sc.road.lane, line)
 
@@ -53,8 +53,9 @@ class RoadLoad:
         return ratio, grade
 
 
-def road_load_part(sc: Scenario, veh: VehicleParams, road=None, line=None):
-    """The run's ``road_load`` part: None without resistances (nothing to compute), else
+def road_load_part(sc: Scenario, veh, road=None, line=None):
+    """The run's ``road_load`` part for the members' chassis ``veh`` (one VehicleParams, or
+    one per member): None without resistances (nothing to compute), else
     :class:`RoadLoad` on a road (``road``: sim/road_setup.py Road, ``line``: its reference
     line) or :class:`FreeSpaceLoad` (None when the drag interaction is off: ratio 1)."""
     if not sc.energy.resistances:
@@ -64,23 +65,34 @@ def road_load_part(sc: Scenario, veh: VehicleParams, road=None, line=None):
     return FreeSpaceLoad(veh) if interaction_on(sc) else None
 
 
-def free_space_ratios(veh: VehicleParams, pos: np.ndarray, heading: float) -> np.ndarray:
+def _bodies(veh, n: int):
+    """Length, width and CoG-to-front-bumper [m] of n members, (n,) each; ``veh`` is one
+    VehicleParams for all or one per member (a mixed formation)."""
+    vehs = [veh] * n if isinstance(veh, VehicleParams) else list(veh)
+    return tuple(np.array([getattr(v, q) for v in vehs], dtype=float)
+                 for q in ("length", "width", "cog_to_front_bumper"))
+
+
+def free_space_ratios(veh, pos: np.ndarray, heading: float) -> np.ndarray:
     """Drag ratio [-] of each member in free space (members only), positions (n, 2) [m]
-    resolved along the virtual car's heading [rad]."""
+    resolved along the virtual car's heading [rad]; ``veh``: one chassis or one per member."""
     s, d = along_heading(pos[:, 0], pos[:, 1], heading)
     n = len(s)
-    return drag_ratios(s, d, np.full(n, veh.length), np.full(n, veh.width), n, PLATOON_DRAG)
+    length, width, _ = _bodies(veh, n)
+    return drag_ratios(s, d, length, width, n, PLATOON_DRAG)
 
 
-def road_ratios(veh: VehicleParams, m_s, m_d, active, nb_s, nb_d, nb_length, nb_width) -> np.ndarray:
+def road_ratios(veh, m_s, m_d, active, nb_s, nb_d, nb_length, nb_width) -> np.ndarray:
     """Drag ratio [-] of each member on a road among SUMO's vehicles: members' centres of
-    gravity (m_s, m_d) [m] (``active``: still in SUMO), other vehicles' centres, lengths, widths [m]."""
+    gravity (m_s, m_d) [m] (``active``: still in SUMO), other vehicles' centres, lengths, widths
+    [m]; ``veh``: one chassis or one per member."""
     n = len(m_s)
-    centre = np.asarray(m_s, float) + (veh.cog_to_front_bumper - 0.5 * veh.length)  # CoG -> body
+    m_len, m_wid, d_front = _bodies(veh, n)
+    centre = np.asarray(m_s, float) + (d_front - 0.5 * m_len)  # CoG -> body centre
     s = np.concatenate([centre, np.asarray(nb_s, float)])
     d = np.concatenate([np.asarray(m_d, float), np.asarray(nb_d, float)])
-    length = np.concatenate([np.full(n, veh.length), np.asarray(nb_length, float)])
-    width = np.concatenate([np.full(n, veh.width), np.asarray(nb_width, float)])
+    length = np.concatenate([m_len, np.asarray(nb_length, float)])
+    width = np.concatenate([m_wid, np.asarray(nb_width, float)])
     present = np.concatenate([np.asarray(active, bool), np.ones(len(s) - n, bool)])
     return drag_ratios(s, d, length, width, n, PLATOON_DRAG, present)
 

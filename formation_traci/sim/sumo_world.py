@@ -13,15 +13,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..road.fast_line import FastLine
+from ..road.line_pack import FastLine
 from ..scenario.schema import Scenario
 from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
                      log_sumo_events)
 from .road_setup import rectangles_overlap
 from .ssm import convert_ssm
 from .sumo_adapter import SumoAdapter
-from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, RoadPlan, member_type, sumo_args
-from .traffic import flow_vehicles_per_hour, write_routes
+from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, RoadPlan, member_types, sumo_args
+from .traffic import CAR, flow_vehicles_per_hour, write_routes
 from .world import Sensed
 
 
@@ -38,6 +38,7 @@ class SumoWorld:
         self.line = FastLine.from_reference_line(plan.road.line)
         self.out_dir, self.sumo_dir = out_dir, out_dir / "sumo"
         self.active = np.ones(n, dtype=bool)
+        self.slot_index = np.arange(n, dtype=float)  # the 'slot' column; maneuvers change it
         self.inserted = False
         self.all_bg = sc.traffic.record_radius is None or baseline
         self.ctx_owner = None
@@ -50,7 +51,7 @@ class SumoWorld:
         self.traffic = TrafficWatch(rec, self.ids, lanes, sc.leader.time_gap, sc.leader.min_gap)
         self.emergency = EmergencyWatch(rec)
         self.refusals = RefusalWatch(rec, self.ids)
-        self.mtype = member_type(sc, plan.veh)
+        self.mtypes = member_types(sc, plan)
         self.adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
 
     # ------------------------------------------------------------------ start / close
@@ -83,7 +84,8 @@ class SumoWorld:
         meta["versions"]["sumo"] = meta["sumo"]["version"]
         ad.set_friction(meta["mu"])
         ad.add_route(MEMBER_ROUTE, road.route)
-        ad.add_member_type(self.mtype)
+        for mt in {mt.id: mt for mt in self.mtypes}.values():
+            ad.add_member_type(mt)
         for _ in range(warm_steps):
             ad.simulation_step()
 
@@ -92,7 +94,7 @@ class SumoWorld:
             self.adapter.close()
         finally:
             convert_ssm(self.sumo_dir / "ssm.xml", self.out_dir / "ssm.parquet",
-                        getattr(self, "t0", 0.0), set(self.ids))
+                        getattr(self, "t0", 0.0), set(self.ids), self.plan.road.line)
 
     # ------------------------------------------------------------------------- sense
     def sense(self, k: int, t: float, state) -> Sensed:
@@ -100,7 +102,7 @@ class SumoWorld:
         v_m = np.hypot(vel[:, 0], vel[:, 1])
         m_s, m_d = self.line.to_frenet(pos, self.m_s)
         self.m_s = m_s
-        sensed = Sensed(self.active, {"s": m_s, "d": m_d}, v_m, m_s, m_d)
+        sensed = Sensed(self.active, {"s": m_s, "d": m_d, "slot": self.slot_index}, v_m, m_s, m_d)
         if self.inserted and self.baseline:
             log_sumo_events(self.rec, t, self.ev, set(self.ids))
             sensed.nb = self.adapter.neighbours(True)
@@ -133,6 +135,18 @@ class SumoWorld:
         self.members.placement(t, gap_sumo)
         self.members.lane_changes(t, idx_act, present, lanes, lane_idx)
 
+    def release(self, t: float, i: int) -> None:
+        """Leave: hand member i over to SUMO's own driver model where it is (its lane,
+        position and speed); it drives on as an ordinary vehicle with a SUMO car's
+        acceleration and deceleration (sim/traffic.py CAR) and is no longer controlled."""
+        vid = self.ids[i]
+        if not self.active[i] or not self.inserted or self.baseline:
+            return
+        v = float(self.v_after[i])
+        lane = self.adapter.release(vid, float(CAR["accel"]), float(CAR["decel"]))
+        self.active[i] = False
+        self.rec.add_event(t, "handover", vid, "", f"leave: released to SUMO at {v:.2f} m/s on lane {lane}")
+
     def observe(self, t: float, sensed: Sensed, ref) -> None:
         info = ref.info
         self.emergency(t, info["a_vc"], info["emergency"])
@@ -157,10 +171,10 @@ class SumoWorld:
         ids, ad = self.ids, self.adapter
         if not self.inserted:
             ld = self.sc.leader
-            clear_insertion_zone(ad, self.rec, t_next, pos, heading, v_after, self.plan.veh,
+            clear_insertion_zone(ad, self.rec, t_next, pos, heading, v_after, self.plan.vehicles,
                                  ld.min_gap + ld.time_gap * v_after)
             for i in act_idx:
-                ad.insert_member(ids[i], MEMBER_ROUTE, self.mtype, pos[i, 0], pos[i, 1],
+                ad.insert_member(ids[i], MEMBER_ROUTE, self.mtypes[i], pos[i, 0], pos[i, 1],
                                  heading[i], v_after[i])
             return
         refused = dict(ad.place([ids[i] for i in act_idx], pos[act_idx, 0], pos[act_idx, 1],
@@ -213,13 +227,15 @@ def sumo_gap(road, pos, d, xs, ys, lanes, lane_idx, lat):
     return gap
 
 
-def clear_insertion_zone(adapter, rec, t, pos, heading, v, veh, front):
-    """Remove SUMO vehicles that stand where a member is inserted, or inside its time gap
-    ahead (``front`` [m]) or within INSERT_CLEAR_TIME of its speed behind it."""
+def clear_insertion_zone(adapter, rec, t, pos, heading, v, vehicles, front):
+    """Remove SUMO vehicles that stand where a member (chassis ``vehicles[i]``) is inserted,
+    or inside its time gap ahead (``front`` [m]) or within INSERT_CLEAR_TIME of its speed
+    behind it."""
     ids, x, y, psi, length, width = adapter.vehicle_bodies()
     for j, vid in enumerate(ids):
         for i in range(len(pos)):
             back = max(2.0, v[i] * INSERT_CLEAR_TIME)
+            veh = vehicles[i]
             zone_len = veh.length + front[i] + back
             shift = (front[i] - back) / 2
             zc = pos[i] + shift * np.array([math.cos(heading[i]), math.sin(heading[i])])
@@ -255,10 +271,25 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     yaw0 = plan.speed0 * line.curvature(line.to_frenet(plan.pos0)[0])
     state = initial_state(cfg, plan.pos0, plan.heading0, plan.speed0, yaw0, np.zeros(cfg.n), tg0)
     world = SumoWorld(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
-    gen = RoadReference(world.line.G, world.line.length, plan.slots, plan.rigid, plan.is_road,
-                        s0, v0, speed_profile, limits, np.full(cfg.n, veh.width / 2),
-                        veh.cog_to_front_bumper, sc.road.end_margin, run.step / n_ctrl, n_ctrl)
+    args = (world.line.G, world.line.length, plan.slots, plan.rigid, plan.is_road, s0, v0,
+            speed_profile, limits, np.array([v.width / 2 for v in plan.vehicles]),
+            np.array([v.cog_to_front_bumper for v in plan.vehicles]),
+            sc.road.end_margin, run.step / n_ctrl, n_ctrl)
     meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
                         "governor": 0.0, "control_model": 0.0, "record": 0.0}
-    load = None if baseline else road_load_part(sc, veh, plan.road, line)
-    return RunParts(world, gen, fleet, state, timing=meta["timing_s"], road_load=load)
+    load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, line)
+    if not sc.maneuvers:
+        return RunParts(world, RoadReference(*args), fleet, state, timing=meta["timing_s"],
+                        road_load=load)
+    from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
+    from ..control.maneuvers.planner import ManeuverPlanner
+    from .road_setup import road_room
+    lengths = np.array([v.length for v in plan.vehicles])
+    widths = np.array([v.width for v in plan.vehicles])
+    planner = ManeuverPlanner(sc.maneuvers, plan.slots, plan.road.lane_width, sc.maneuver_limits,
+                              lengths, widths, list(world.ids), road_room(plan.road),
+                              (ld.time_gap, ld.min_gap))
+    gen = ManeuverRoadReference(*args, planner=planner, on_event=rec.add_event, length=lengths,
+                                on_release=world.release)
+    return RunParts(world, gen, fleet, state, transforms=[PlanSlots(planner)],
+                    timing=meta["timing_s"], road_load=load)
