@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..record.ssm import SsmConverter
 from ..road.line_pack import FastLine
 from ..scenario.schema import Scenario
 from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
                      log_sumo_events)
 from .road_setup import rectangles_overlap
-from .ssm import convert_ssm
 from .sumo_adapter import SumoAdapter
 from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, RoadPlan, member_types, sumo_args
 from .traffic import CAR, flow_vehicles_per_hour, write_routes
@@ -53,6 +53,10 @@ class SumoWorld:
         self.refusals = RefusalWatch(rec, self.ids)
         self.mtypes = member_types(sc, plan)
         self.adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
+        if sc.sumo.ssm != "off":  # converted as the run goes, cut with the other tables (record/ssm.py)
+            t0 = int(round(sc.traffic.warmup / sc.run.step)) * sc.run.step
+            rec.ssm = SsmConverter(self.sumo_dir / "ssm.xml", out_dir / "ssm.parquet", t0, set(self.ids),
+                                   plan.road.line)
 
     # ------------------------------------------------------------------ start / close
     def start(self) -> None:
@@ -90,11 +94,7 @@ class SumoWorld:
             ad.simulation_step()
 
     def close(self) -> None:
-        try:
-            self.adapter.close()
-        finally:
-            convert_ssm(self.sumo_dir / "ssm.xml", self.out_dir / "ssm.parquet",
-                        getattr(self, "t0", 0.0), set(self.ids), self.plan.road.line)
+        self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
 
     # ------------------------------------------------------------------------- sense
     def sense(self, k: int, t: float, state) -> Sensed:

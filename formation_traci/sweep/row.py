@@ -37,10 +37,13 @@ METRICS: dict[str, tuple[str, str]] = {
     "emergency_brakes": ("-", "SUMO runs: emergency_brake events of the virtual car"),
     "energy_kwh_per_100km": ("kWh/100km", "all members' traction energy over their distance (docs/energy.md)"),
     "energy_saving_vs_alone": ("-", "1 - members' energy / their energy alone; NaN with resistances off"),
+    "leader_age_mean_s": ("s", "max of each member's mean age of the virtual-car state it held ([comm])"),
+    "leader_age_p95_s": ("s", "max of each member's 95th percentile of that age"),
+    "comm_timeouts": ("-", "SUMO runs: comm_timeout events (a member fell back: no state for longer than comm.timeout_s)"),
 }
 """Metric columns of ``summary.parquet``: unit and meaning."""
 
-COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes"})
+COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes", "comm_timeouts"})
 
 
 def empty_row(case: dict, status: str, reason: str | None) -> dict[str, Any]:
@@ -95,8 +98,10 @@ def _sumo_metrics(run_dir: Path, member_ids: set[str], meta: dict) -> dict[str, 
     if ssm is not None and len(ssm):
         x = pd.to_numeric(ssm.loc[ssm["member_involved"].astype(bool), "min_ttc"], errors="coerce")
         ttc = float(x.min()) if x.notna().any() else None
+    counts = meta.get("event_counts") or {}
     return {"collisions": n_coll, "min_ttc_s": ttc,
-            "emergency_brakes": int((meta.get("event_counts") or {}).get("emergency_brake", 0))}
+            "emergency_brakes": int(counts.get("emergency_brake", 0)),
+            "comm_timeouts": int(counts.get("comm_timeout", 0))}
 
 
 def _energy_metrics(members: pd.DataFrame) -> dict[str, Any]:
@@ -149,6 +154,9 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
         "friction_over_s": _max(_col(members, "friction_over_s")),
         "collisions": None, "min_ttc_s": None, "emergency_brakes": None,
         **_energy_metrics(members),
+        "leader_age_mean_s": _max(_col(members, "leader_age_mean_s")),
+        "leader_age_p95_s": _max(_col(members, "leader_age_p95_s")),
+        "comm_timeouts": None,
     }
     if (meta.get("scenario") or {}).get("road") is not None:
         out.update(_sumo_metrics(run_dir, set(map(str, members.index)), meta))
