@@ -74,6 +74,8 @@ class VehicleOverrides(Strict):
     front_overhang: NonNegFloat | None = Field(None, description="front axle to bumper [m]")
     steer_max_deg: PosFloat | None = Field(None, le=89, description="steering angle limit [deg]")
     steer_rate_max_deg_s: PosFloat | None = Field(None, description="steering rate limit [deg/s]")
+    c_d: PosFloat | None = Field(None, le=2.0, description="drag coefficient alone [-] (docs/energy.md)")
+    frontal_area: PosFloat | None = Field(None, le=15.0, description="frontal area [m^2] (docs/energy.md)")
 
 
 SURFACE_NAMES = Literal["good_dry", "good_wet", "poor_dry", "poor_wet", "ice"]
@@ -224,6 +226,16 @@ class SumoSpec(Strict):
         return self
 
 
+class EnergySpec(Strict):
+    """Driving resistances and the formation's drag (docs/energy.md)."""
+
+    resistances: bool = Field(False, description="rolling (eq 3.15), aerodynamic and grade resistance "
+                              "on; false: the seed's model, which drives against none")
+    drag_interaction: bool = Field(True, description="lower each member's drag for the vehicles "
+                                   "ahead of and behind it (needs resistances)")
+    air_density: PosFloat = Field(1.225, le=2.0, description="air density [kg/m^3] (ISO 2533 sea level)")
+
+
 JITTER_DISTRIBUTIONS = Literal["exponential", "uniform"]
 LOSS_MODELS = Literal["none", "independent", "bursty"]
 
@@ -315,10 +327,18 @@ class Scenario(Strict):
     road: RoadSpec | None = Field(None, description="SUMO road; without it the run is in free space")
     traffic: TrafficSpec = TrafficSpec()
     sumo: SumoSpec = SumoSpec()
+    energy: EnergySpec = EnergySpec()
     comm: CommSpec | None = Field(None, description="leader-to-member radio; default: perfect")
     open_loop: OpenLoopSpec | None = Field(None, description="drive the members open loop (free space only)")
     maneuvers: list[ManeuverSpec] = Field(default_factory=list, description="scheduled maneuvers, run one at a time in this order")
     maneuver_limits: ManeuverLimits = ManeuverLimits()
+
+    @model_validator(mode="after")
+    def _energy_needs_forces(self):
+        if self.energy.resistances and self.vehicle.model != "dynamic":
+            raise ValueError("energy.resistances needs vehicle.model = \"dynamic\" "
+                             "(the kinematic model has no forces)")
+        return self
 
     @model_validator(mode="after")
     def _comm_rules(self):

@@ -35,6 +35,8 @@ METRICS: dict[str, tuple[str, str]] = {
     "collisions": ("-", "SUMO runs: collision events involving a member (NaN in free space)"),
     "min_ttc_s": ("s", "SUMO runs: smallest SSM time to collision of a conflict involving a member"),
     "emergency_brakes": ("-", "SUMO runs: emergency_brake events (the virtual car or a member braking harder than comfortable)"),
+    "energy_kwh_per_100km": ("kWh/100km", "all members' traction energy over their distance (docs/energy.md)"),
+    "energy_saving_vs_alone": ("-", "1 - members' energy / their energy alone; NaN with resistances off"),
     "leader_age_mean_s": ("s", "max of each member's mean age of the virtual-car state it held ([comm])"),
     "leader_age_p95_s": ("s", "max of each member's 95th percentile of that age"),
     "comm_timeouts": ("-", "SUMO runs: comm_timeout events (a member fell back: no state for longer than comm.timeout_s)"),
@@ -102,6 +104,19 @@ def _sumo_metrics(run_dir: Path, member_ids: set[str], meta: dict) -> dict[str, 
             "comm_timeouts": int(counts.get("comm_timeout", 0))}
 
 
+def _energy_metrics(members: pd.DataFrame) -> dict[str, Any]:
+    """Formation energy from the members' analysis/energy.py columns (sums, not means)."""
+    e, d = _col(members, "traction_energy_kwh"), _col(members, "distance_km")
+    alone = _col(members, "energy_alone_kwh_per_100km") * d / 100.0
+    ok = np.isfinite(e) & np.isfinite(d)
+    out: dict[str, Any] = {"energy_kwh_per_100km": None, "energy_saving_vs_alone": None}
+    if ok.any() and d[ok].sum() > 0:
+        out["energy_kwh_per_100km"] = float(e[ok].sum() / d[ok].sum() * 100.0)
+        if np.isfinite(alone[ok]).all() and alone[ok].sum() > 0:
+            out["energy_saving_vs_alone"] = float(1.0 - e[ok].sum() / alone[ok].sum())
+    return out
+
+
 def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str, Any]:
     """The :data:`METRICS` of one analysed run.
 
@@ -138,6 +153,7 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
         "traction_over_s": _max(_col(members, "traction_over_s")),
         "friction_over_s": _max(_col(members, "friction_over_s")),
         "collisions": None, "min_ttc_s": None, "emergency_brakes": None,
+        **_energy_metrics(members),
         "leader_age_mean_s": _max(_col(members, "leader_age_mean_s")),
         "leader_age_p95_s": _max(_col(members, "leader_age_p95_s")),
         "comm_timeouts": None,
