@@ -438,6 +438,7 @@ def test_a_rerun_never_starts_a_case_that_is_still_running(tmp_path):
     orphan = spawn("run", free(tmp_path, 3000.0, "orphan.toml"), "--out", case_dir, "--no-progress")
     try:
         assert wait_for(lambda: meta_of(case_dir).get("status") == "running")
+        assert wait_for(lambda: (case_dir / "trajectories.parquet").is_dir())  # its first part
         started = meta_of(case_dir)["started"]
         res = run_sweep(path, tmp_path / "out", workers=1, progress=False)
         row = res.summary.iloc[0]
