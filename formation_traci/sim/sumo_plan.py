@@ -110,7 +110,8 @@ def member_type(sc: Scenario, veh: VehicleParams, preset: str | None = None) -> 
     preset = preset or sc.vehicle.preset
     return MemberType(id=f"member_{preset}", length=veh.length, width=veh.width,
                       d_front=veh.cog_to_front_bumper, color=veh.color,
-                      vclass="truck" if preset == "small_truck" else "passenger")
+                      vclass="truck" if preset == "small_truck" else "passenger",
+                      ssm_device=sc.sumo.ssm == "members")
 
 
 def member_types(sc: Scenario, plan: RoadPlan) -> list[MemberType]:
