@@ -111,7 +111,7 @@ def member_type(sc: Scenario, veh: VehicleParams, preset: str | None = None) -> 
     return MemberType(id=f"member_{preset}", length=veh.length, width=veh.width,
                       d_front=veh.cog_to_front_bumper, color=veh.color,
                       vclass="truck" if preset == "small_truck" else "passenger",
-                      ssm_device=sc.sumo.ssm == "members")
+                      ssm_device=sc.sumo.ssm == "members" and sc.sumo.attach_port is None)
 
 
 def member_types(sc: Scenario, plan: RoadPlan) -> list[MemberType]:
