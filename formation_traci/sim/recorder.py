@@ -133,6 +133,30 @@ class Recorder:
             cf.column(name)[sl] = sig[:, j]
         cf.commit(n)
 
+    def add_comfort_periods(self, ts, vals: np.ndarray, mask=None):
+        """The members' speed and accelerations at several control periods: ``vals``
+        (len(ts), n, 3) holds v, a_lon, a_lat at times ``ts`` [s]; rows in the order of
+        :meth:`add_comfort_rows` called once per period."""
+        codes = self.codes
+        if mask is not None and not mask.all():
+            vals, codes = vals[:, mask], codes[mask]
+        m, n = len(ts), len(codes)
+        cf = self.comfort
+        if cf.rows_buffered + m * n > cf.chunk_rows:  # a part ends inside: one period at a time
+            for j, t in enumerate(ts):
+                self._comfort_block(cf, t, vals[j:j + 1], codes)
+            return
+        self._comfort_block(cf, np.repeat(ts, n), vals, codes)
+
+    def _comfort_block(self, cf, t, vals, codes):
+        n = vals.shape[0] * vals.shape[1]
+        sl = cf.rows(n)
+        cf.column("t")[sl] = t
+        cf.column("vehicle_id")[sl] = np.tile(codes, vals.shape[0])
+        for q, name in enumerate(("v", "a_lon", "a_lat")):
+            cf.column(name)[sl] = vals[:, :, q].ravel()
+        cf.commit(n)
+
     def _flag_range(self, t, slip, usage, v, mask):
         bad = (slip > MAX_SLIP) | (usage > MAX_FRICTION_USAGE) | (v > MAX_SPEED)
         if mask is not None:
