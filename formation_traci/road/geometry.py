@@ -40,6 +40,8 @@ import scipy.sparse.linalg as sparse_linalg
 from scipy.interpolate import BPoly, BSpline
 from scipy.spatial import cKDTree
 
+from .bernstein import hermite_bpoly
+
 if TYPE_CHECKING:  # pragma: no cover
     import sumolib.net
 
@@ -213,7 +215,7 @@ class ReferenceLine:
         c1, c2 = d1(u_nodes), d2(u_nodes)
         g = np.hypot(c1[:, 0], c1[:, 1])
         derivs = np.stack([u_nodes, 1.0 / g, -_dot(c1, c2) / g ** 4], axis=1)  # u, u', u''
-        u_of_s = BPoly.from_derivatives(s_nodes, derivs, extrapolate=True)
+        u_of_s = hermite_bpoly(s_nodes, derivs, extrapolate=True)  # BPoly.from_derivatives
         heading_nodes = np.unwrap(np.arctan2(c1[:, 1], c1[:, 0]))
         length = float(s_nodes[-1])
         n_tree = max(math.ceil(length / 1.0), 2) + 1

@@ -191,11 +191,9 @@ class Recorder:
             return
         bg = self.background
         self.background.append({
-            "t": t, "vehicle_id": np.array([bg.code(i) for i in nb.ids], dtype=np.int32),
-            "type": np.array([bg.code(i) for i in nb.types], dtype=np.int32),
+            "t": t, "vehicle_id": bg.codes(nb.ids), "type": bg.codes(nb.types),
             "x": nb.x, "y": nb.y, "heading": nb.heading, "v": nb.v, "a": nb.a,
-            "length": nb.length, "width": nb.width,
-            "lane": np.array([bg.code(i) for i in nb.lane_ids], dtype=np.int32),
+            "length": nb.length, "width": nb.width, "lane": bg.codes(nb.lane_ids),
             "lane_index": nb.lane_index.astype(np.int32), "s": s, "d": d}, n)
 
     def flush(self, t_end: float | None = None) -> list[tuple[str, BaseException]]:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..record.ssm import SsmConverter
-from ..road.line_pack import FastLine
+from ..road.line_pack import FastLine, packed
 from ..scenario.schema import Scenario
 from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
                      log_sumo_events)
@@ -35,7 +35,7 @@ class SumoWorld:
         self.records_members = not baseline
         self.ids = [m.id for m in sc.members]
         n = len(self.ids)
-        self.line = FastLine.from_reference_line(plan.road.line)
+        self.line = FastLine(float(plan.road.line.length), packed(plan.road.line))  # packed once per line
         self.out_dir, self.sumo_dir = out_dir, out_dir / "sumo"
         self.active = np.ones(n, dtype=bool)
         self.slot_index = np.arange(n, dtype=float)  # the 'slot' column; maneuvers change it
