@@ -105,7 +105,10 @@ class EmergencyWatch:
         self.on = np.zeros(len(self.ids) + 1, dtype=bool)  # members, then the virtual car
 
     def __call__(self, t, info: dict) -> None:
-        now = np.append(info["emergency_members"], info["emergency"])
+        members, vc = info["emergency_members"], info["emergency"]
+        if not (vc or self.on[-1] or members.any() or self.on.any()):
+            return  # nobody braking hard, before or now
+        now = np.append(members, vc)
         n = len(self.ids)
         for i in np.flatnonzero(now != self.on):
             who = "vc" if i == n else self.ids[i]

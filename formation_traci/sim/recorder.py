@@ -144,18 +144,18 @@ class Recorder:
         cf = self.comfort
         if cf.rows_buffered + m * n > cf.chunk_rows:  # a part ends inside: one period at a time
             for j, t in enumerate(ts):
-                self._comfort_block(cf, t, vals[j:j + 1], codes)
+                self._comfort_block(cf, [t], vals[j:j + 1], codes)
             return
-        self._comfort_block(cf, np.repeat(ts, n), vals, codes)
+        self._comfort_block(cf, ts, vals, codes)
 
-    def _comfort_block(self, cf, t, vals, codes):
-        n = vals.shape[0] * vals.shape[1]
-        sl = cf.rows(n)
-        cf.column("t")[sl] = t
-        cf.column("vehicle_id")[sl] = np.tile(codes, vals.shape[0])
+    def _comfort_block(self, cf, ts, vals, codes):
+        m, n = vals.shape[0], vals.shape[1]
+        sl = cf.rows(m * n)
+        cf.column("t")[sl].reshape(m, n)[:] = np.array(ts)[:, None]
+        cf.column("vehicle_id")[sl].reshape(m, n)[:] = codes
         for q, name in enumerate(("v", "a_lon", "a_lat")):
-            cf.column(name)[sl] = vals[:, :, q].ravel()
-        cf.commit(n)
+            cf.column(name)[sl].reshape(m, n)[:] = vals[:, :, q]
+        cf.commit(m * n)
 
     def _flag_range(self, t, slip, usage, v, mask):
         bad = (slip > MAX_SLIP) | (usage > MAX_FRICTION_USAGE) | (v > MAX_SPEED)

@@ -6,7 +6,8 @@ front bumper and degrees clockwise from north against our CoG and radians counte
 from +x), the constants and the result dataclasses are in sim/sumo_types.py; the neighbour
 reads in sim/sumo_neighbours.py and the socket connection in sim/sumo_connect.py work on the
 module object this adapter imports (``self.api``) and import no SUMO themselves. Outside
-these modules code sees only numpy arrays and the small dataclasses. SUMO behaviours relied
+these modules code sees only numpy arrays and the small dataclasses. Friction, member types and
+the release of a member are in sim/sumo_vehicles.py (the same way). SUMO behaviours relied
 on here are documented in docs/sumo.md (each with the test that shows it).
 """
 from __future__ import annotations
@@ -17,6 +18,7 @@ import numpy as np
 
 from .sumo_connect import attach_socket, follow_view, start_socket
 from .sumo_neighbours import NeighbourReads
+from .sumo_vehicles import VehicleSetup
 from .sumo_types import (GUI_VIEW, GUI_ZOOM, KEEP_ROUTE, LANE_CHANGE_MODE_DEFAULT,  # noqa: F401
                          MATCH_THRESHOLD, REMOVED_REASONS, ROUTE_AHEAD_M, SPEED_MODE_DEFAULT,
                          START_TIMEOUT_S, MemberType, Neighbours, StepEvents, SumoError,
@@ -40,7 +42,7 @@ def _api(backend: str):
     return api, tc
 
 
-class SumoAdapter(NeighbourReads):
+class SumoAdapter(NeighbourReads, VehicleSetup):
     """One SUMO simulation. Call :meth:`start`, then per step :meth:`place` -> :meth:`step`
     -> :meth:`after_step`, and :meth:`close` at the end (also after errors)."""
 
@@ -120,14 +122,6 @@ class SumoAdapter(NeighbourReads):
         self.api.simulationStep()
 
     # -- network helpers -------------------------------------------------------------
-    def set_friction(self, mu: float) -> None:
-        """Set the friction of every edge of the network [-] (SUMO's cars with the friction
-        device slow down on slippery lanes). ``edge.setFriction``: the traci server rejects
-        ``lane.setFriction`` in SUMO 1.28."""
-        for edge in self.api.edge.getIDList():
-            if not edge.startswith(":"):
-                self.api.edge.setFriction(edge, mu)
-
     def add_route(self, route_id: str, edges: list[str]) -> None:
         self.api.route.add(route_id, edges)
         lengths = np.array([self.api.lane.getLength(f"{e}_0") for e in edges])
@@ -157,49 +151,6 @@ class SumoAdapter(NeighbourReads):
             return  # e.g. on a junction: the next edge tries again
         self._window[vid] = (route_id, i)
         self._window_lane[vid] = lane_id
-
-    def add_member_type(self, mt: MemberType) -> None:
-        vt = self.api.vehicletype
-        vt.copy("DEFAULT_VEHTYPE", mt.id)
-        vt.setLength(mt.id, mt.length)
-        vt.setWidth(mt.id, mt.width)
-        vt.setColor(mt.id, (*mt.color, 255))
-        vt.setVehicleClass(mt.id, mt.vclass)
-        vt.setMaxSpeed(mt.id, mt.max_speed)
-        vt.setMinGap(mt.id, 0.5)
-        vt.setImperfection(mt.id, 0.0)
-        vt.setSpeedDeviation(mt.id, 0.0)
-        vt.setAccel(mt.id, 10.0)
-        vt.setDecel(mt.id, 10.0)
-        vt.setEmergencyDecel(mt.id, 12.0)
-        vt.setMaxSpeedLat(mt.id, 10.0)
-        if mt.ssm_device:  # by the type, not --device.ssm.explicit: SUMO keeps that id list
-            vt.setParameter(mt.id, "has.ssm.device", "true")  # from the first run of a process
-
-    def release(self, vid: str, accel: float, decel: float) -> str:
-        """Hand member ``vid`` over to SUMO's own driver model at its lane, position and
-        speed: its route becomes the rest of the formation's route from its edge, its
-        acceleration and deceleration ``accel`` / ``decel`` [m/s^2], SUMO's safe-speed and
-        lane-change checks are on again (their default modes), and from now on it is an
-        ordinary vehicle (a neighbour). Returns its lane id."""
-        v = self.api.vehicle
-        window = self._window.pop(vid, None)
-        lane = self._member_lane.pop(vid, ("", -1, 0.0))[0]
-        self._overlap.pop(vid, None)
-        if window is not None and lane and not lane.startswith(":"):
-            edges = self._routes[window[0]][0]
-            edge = lane.rsplit("_", 1)[0]
-            if edge in edges:
-                try:
-                    v.setRoute(vid, edges[edges.index(edge):])
-                except self.api.TraCIException:
-                    pass  # keeps its window; SUMO reports it at the window's end
-        v.setAccel(vid, accel)
-        v.setDecel(vid, decel)
-        v.setSpeedMode(vid, SPEED_MODE_DEFAULT)
-        v.setLaneChangeMode(vid, LANE_CHANGE_MODE_DEFAULT)
-        self.members.pop(vid, None)
-        return lane
 
     # -- members ---------------------------------------------------------------------
     def insert_member(self, vid: str, route_id: str, mt: MemberType, x, y, psi, v) -> None:

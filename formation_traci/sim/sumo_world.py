@@ -38,6 +38,8 @@ class SumoWorld:
         self.line = FastLine(float(plan.road.line.length), packed(plan.road.line))  # packed once per line
         self.out_dir, self.sumo_dir = out_dir, out_dir / "sumo"
         self.active = np.ones(n, dtype=bool)
+        self._every = np.arange(n)
+        self._lane_d: dict = {}  # lane id -> its centre's offset from the reference line [m] (sumo_gap)
         self.slot_index = np.arange(n, dtype=float)  # the 'slot' column; maneuvers change it
         self.inserted = False
         self.all_bg = sc.traffic.record_radius is None or baseline
@@ -120,18 +122,25 @@ class SumoWorld:
 
     def _read_members(self, t, pos, m_d, extra) -> None:
         n = len(self.ids)
-        idx_act = np.flatnonzero(self.active)
+        every = self.active.all()
+        idx_act = self._every if every else np.flatnonzero(self.active)
         xs, ys, _, lanes, lane_idx, lat, present = self.adapter.read_members(
-            [self.ids[i] for i in idx_act])
-        for j, i in enumerate(idx_act):
-            if not present[j]:
-                self.members.removed(t, i)
-                self.active[i] = False
-        gap_sumo = np.full(n, np.nan)
-        lane_index = np.full(n, np.nan)
-        gap_sumo[idx_act] = sumo_gap(self.plan.road, pos[idx_act], m_d[idx_act], xs, ys, lanes,
-                                     lane_idx, lat)
-        lane_index[idx_act] = np.where(present, lane_idx, np.nan)
+            self.ids if every else [self.ids[i] for i in idx_act])
+        here = present.all()
+        if not here:
+            for j, i in enumerate(idx_act):
+                if not present[j]:
+                    self.members.removed(t, i)
+                    self.active[i] = False
+        if every and here:  # every member in the run and in SUMO (no copies, no masks)
+            gap_sumo = sumo_gap(self.plan.road, pos, m_d, xs, ys, lanes, lane_idx, lat, self._lane_d)
+            lane_index = lane_idx.astype(float)
+        else:
+            gap_sumo = np.full(n, np.nan)
+            lane_index = np.full(n, np.nan)
+            gap_sumo[idx_act] = sumo_gap(self.plan.road, pos[idx_act], m_d[idx_act], xs, ys, lanes,
+                                         lane_idx, lat, self._lane_d)
+            lane_index[idx_act] = np.where(present, lane_idx, np.nan)
         extra.update(sumo_gap=gap_sumo, lane_index=lane_index)
         self.members.placement(t, gap_sumo)
         self.members.lane_changes(t, idx_act, present, lanes, lane_idx)
@@ -224,15 +233,22 @@ def subscribe_context(adapter, ids, active, along, across, radius):
     return owner
 
 
-def sumo_gap(road, pos, d, xs, ys, lanes, lane_idx, lat):
+def sumo_gap(road, pos, d, xs, ys, lanes, lane_idx, lat, lane_d=None):
     """How far SUMO has each member from our pose [m]: the larger of the position gap and the
     lateral gap implied by SUMO's lane and lateral lane position. (In the step of a move SUMO
-    echoes the commanded x, y even where it put the vehicle on another lane.)"""
+    echoes the commanded x, y even where it put the vehicle on another lane.) ``lane_d``: a
+    dict kept by the caller, lane id -> offset of its centre from the reference line [m]
+    (None: not on the road's lanes)."""
     gap = np.hypot(xs - pos[:, 0], ys - pos[:, 1])
+    lane_d = {} if lane_d is None else lane_d
     for j, lane in enumerate(lanes):
-        offs = road.lane_d.get(lane.rsplit("_", 1)[0]) if lane else None
-        if offs is not None and 0 <= lane_idx[j] < len(offs) and np.isfinite(lat[j]):
-            gap[j] = max(gap[j], abs(offs[lane_idx[j]] + lat[j] - d[j]))
+        off = lane_d.get(lane, False)
+        if off is False:
+            offs = road.lane_d.get(lane.rsplit("_", 1)[0]) if lane else None
+            ok = offs is not None and 0 <= lane_idx[j] < len(offs)
+            off = lane_d[lane] = offs[lane_idx[j]] if ok else None
+        if off is not None and np.isfinite(lat[j]):
+            gap[j] = max(gap[j], abs(off + lat[j] - d[j]))
     return gap
 
 
