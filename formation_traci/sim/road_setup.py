@@ -22,6 +22,7 @@ MAIN_ROUTES = {
     "curved3": ["entry", "main"],
     "onramp": ["mw_up", "mw_accel", "mw_down"],
     "lanedrop": ["mw_up", "mw_down"],
+    "offramp": ["mw_up", "mw_decel", "mw_down"],
 }
 """Default main route of each bundled network (sumo_nets/README.md)."""
 
