@@ -22,7 +22,7 @@ SHORT = {  # every bundled maneuver scenario, shortened where its full run is lo
     # 32 s: with issue 19's jerk-limited caps (control/longitudinal.py) the truck closes up
     # about 5 s later than with the raw governor caps (back within 0.1 m at t = 30 s)
     "mixed_truck": {"run.duration": 32.0},
-    "join": {"run.duration": 20.0},  # taken over at 2 s, T = 10.3 s, then 5 time constants
+    "join": {"run.duration": 20.0},  # taken over at 2 s, T = 9.8 s, then 5 time constants
     "exit_leave": {"road.start": 1650.0, "run.duration": 28.0},  # on the off-ramp from ~24 s
 }
 _RUNS: dict = {}

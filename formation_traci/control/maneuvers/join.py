@@ -15,14 +15,15 @@ relative to the virtual car: the slot's offset is
 transition.py ``rate_basis``), so that at the take-over the desired point is where the
 vehicle is and moves as it moves: the controller starts from a zero formation error, with
 no jump. :func:`join_duration` is the shortest T that keeps the slot's acceleration and jerk
-within the comfort limits (sampled peaks; with r0 = 0 it is transition_duration).
+within the comfort limits (sampled peaks, searched upwards from min_duration; with r0 = 0 it
+is transition_duration's within 2 %).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from .gap import Others
-from .transition import ComfortLimits, transition_duration
+from .transition import ComfortLimits
 
 SIZE_TOLERANCE_LENGTH = 1.0
 """A vehicle taken over without being named may be this much longer or shorter [m]."""
@@ -53,7 +54,7 @@ def join_duration(d_along: float, d_across: float, r_along: float, r_across: flo
                   lim: ComfortLimits) -> float:
     """Shortest duration [s] (within T_STEP) of a join transition whose sampled peaks stay
     within ``lim``: along the road lon_accel / lon_jerk, across it lat_accel / lat_jerk."""
-    T = transition_duration(d_along, d_across, lim)
+    T = lim.min_duration  # a start rate towards the slot can make it shorter than for r0 = 0
     while T < T_MAX:
         a_l, j_l = join_peaks(d_along, r_along, T)
         a_c, j_c = join_peaks(d_across, r_across, T)
