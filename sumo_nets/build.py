@@ -353,12 +353,20 @@ def ramp_reference_line(step: float = SHAPE_STEP) -> list[tuple[float, float]]:
     curvature decreases linearly to zero, and it arrives tangentially (zero angle and zero
     curvature) exactly on the line of the acceleration lane (lane 0 of mw_accel).
     """
-    x_start = ONRAMP_MERGE_X - ONRAMP_RAMP_DX
-    n = math.ceil(ONRAMP_RAMP_DX / step)
+    return cubic_ramp(ONRAMP_MERGE_X - ONRAMP_RAMP_DX, ONRAMP_RAMP_DX, ONRAMP_RAMP_OFFSET, True, step)
+
+
+def cubic_ramp(x_start: float, dx: float, offset: float, joining: bool,
+               step: float = SHAPE_STEP) -> list[tuple[float, float]]:
+    """Left border of a ramp lane over x_start .. x_start + dx [m]: y = -3*3.5 - offset w^3
+    with w = 1 - u (joining: tangent to the motorway lanes' line at the end) or w = u
+    (leaving: tangent at the start), u = (x - x_start) / dx, sampled every <= step."""
+    n = math.ceil(dx / step)
     pts = []
     for i in range(n + 1):
         u = i / n
-        pts.append((x_start + u * ONRAMP_RAMP_DX, -3 * LANE_WIDTH - ONRAMP_RAMP_OFFSET * (1.0 - u) ** 3))
+        w = (1.0 - u) if joining else u
+        pts.append((x_start + u * dx, -3 * LANE_WIDTH - offset * w ** 3))
     return pts
 
 
@@ -429,10 +437,8 @@ def offramp_reference_line(step: float = SHAPE_STEP) -> list[tuple[float, float]
     deceleration lane (lane 0 of mw_decel) tangentially (zero angle and curvature) and ends
     D = 15 m to the right of the motorway's right border at an angle of atan(3D/400) = 6.4 deg.
     """
-    x0 = OFFRAMP_DECEL_X + OFFRAMP_DECEL_LENGTH
-    n = math.ceil(OFFRAMP_RAMP_DX / step)
-    return [(x0 + i / n * OFFRAMP_RAMP_DX, -3 * LANE_WIDTH - OFFRAMP_RAMP_OFFSET * (i / n) ** 3)
-            for i in range(n + 1)]
+    return cubic_ramp(OFFRAMP_DECEL_X + OFFRAMP_DECEL_LENGTH, OFFRAMP_RAMP_DX, OFFRAMP_RAMP_OFFSET,
+                      False, step)
 
 
 def offramp() -> Network:
