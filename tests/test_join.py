@@ -151,3 +151,33 @@ def test_join_duration_without_a_start_rate_is_the_transition_duration(d_along, 
     from formation_traci.control.maneuvers.transition import transition_duration
     T0 = transition_duration(d_along, d_across, LIM)
     assert T0 <= join_duration(d_along, d_across, 0.0, 0.0, LIM) <= T0 * 1.02
+
+
+def test_an_entering_member_waits_for_a_free_entry_then_is_the_vehicle_taken_over():
+    sc = parse_scenario(_doc([{"kind": "join", "member": "j", "at": {"time": 1.0},
+                               "enter": {"along": -60.0, "lanes": 1}}]))
+    p = ManeuverPlanner(sc.maneuvers, np.array([[0.0, 0.0], [-20.0, 0.0], [-10.0, 3.5]]), 3.5,
+                        ManeuverLimits(), 4.6, 1.8, ["a", "b", "j"], d_front=2.5)
+    active = np.array([True, True, False])
+
+    def sn(t, others):
+        return Situation(t, 500.0, np.array([500.0, 480.0, 0.0]), np.zeros(3), np.full(3, 25.0),
+                         active, others, 25.0)
+
+    # a car 20 m ahead of the entry point in its lane: inside 4.55 + 5 + 1 s * 25 m/s
+    ev = p.step(sn(1.0, _others([("car", 460.0, 3.5, 4.5, 1.8, 25.0)])))
+    assert [e.kind for e in ev] == ["maneuver_postponed"] and "blocked by car" in ev[0].detail
+    ev = p.step(sn(1.5, _others([("car", 480.0, 3.5, 4.5, 1.8, 25.0)])))  # 40 m: free
+    assert [(e.kind, e.member, e.where) for e in ev] == [("enter", 2, (440.0, 3.5, 25.0))]
+    near = [("car", 480.0, 3.5, 4.5, 1.8, 25.0), ("j", 470.0, 3.5, 4.6, 1.8, 30.0)]
+    assert p.step(sn(2.0, _others(near[:1]))) == []  # entered once; the car is not taken
+    ev = p.step(sn(3.0, _others(near)))
+    assert [(e.kind, e.name) for e in ev] == [("take_over", "j"), ("maneuver_start", "")]
+
+
+def test_enter_goes_with_a_join_of_the_members_own_vehicle_only():
+    for bad in ({"kind": "join", "member": "j", "vehicle": "x", "enter": {"along": -50.0, "lanes": 1},
+                 "at": {"time": 1.0}},
+                {"kind": "leave", "member": "a", "enter": {"along": -50.0, "lanes": 1}, "at": {"time": 1.0}}):
+        with pytest.raises(ScenarioError, match="'enter' is given with"):
+            parse_scenario(_doc([bad]))

@@ -24,14 +24,18 @@ SHORT = {  # every bundled maneuver scenario, shortened where its full run is lo
     "mixed_truck": {"run.duration": 32.0},
     "join": {"run.duration": 20.0},  # taken over at 2 s, T = 9.8 s, then 5 time constants
     "exit_leave": {"road.start": 1650.0, "run.duration": 28.0},  # on the off-ramp from ~24 s
+    # a member inserted later: its own car enters 60 m behind under SUMO's driver, then joins
+    "join_entering": {"maneuvers.0.enter": {"along": -60.0, "lanes": 1}, "run.duration": 24.0,
+                      "traffic.flows.0.veh_per_hour_per_lane": 300},
 }
+FILE = {"join_entering": "join"}  # cases that are a bundled scenario with other settings
 _RUNS: dict = {}
 
 
 def _run(tmp_path_factory, name):
     """One real SUMO run per bundled scenario (shortened: SHORT), shared by the tests."""
     if name not in _RUNS:
-        path = MANEUVERS / f"{name}.toml"
+        path = MANEUVERS / f"{FILE.get(name, name)}.toml"
         sc = load_scenario(path, **SHORT[name])
         out = tmp_path_factory.mktemp("maneuvers") / name
         res = run_scenario(sc, out, scenario_path=path, progress=False, force=True)
@@ -190,7 +194,7 @@ def test_every_bundled_maneuver_scenario_runs_clean(tmp_path_factory, name):
     recorded under the member's id), members' lateral acceleration inside the 3.6 m/s^2
     band during maneuvers (comfort.parquet, the control rate), and a start and an end event
     for every scheduled maneuver (none cancelled)."""
-    assert {p.stem for p in MANEUVERS.glob("*.toml")} == set(SHORT)  # none left out
+    assert {p.stem for p in MANEUVERS.glob("*.toml")} == set(SHORT) - set(FILE)  # none left out
     meta, ev, traj, _ = _run(tmp_path_factory, name)
     sc = _RUNS[name][0]
     assert meta["t_end"] == pytest.approx(sc.run.duration)
@@ -210,22 +214,18 @@ def test_every_bundled_maneuver_scenario_runs_clean(tmp_path_factory, name):
         assert np.max(np.abs(during.a_lat.to_numpy()), initial=0.0) < MEDIUM_COMFORT
 
 
-def test_join_takes_a_vehicle_over_where_it_is_and_converges_into_its_slot(tmp_path_factory):
-    """A car from the traffic is taken over into the free slot: the member starts where SUMO
-    had the car (no position, lane or speed jump), with zero formation error (its slot starts
-    at the car, with the car's own rate), and converges: |e| <= 0.5 m while the slot moves
-    (a tenth of a car length), |e| < 0.05 m from five time constants of the position loop
-    (1/k, eq 2.7: de/dt = -k e for small errors, k = 1 m/s per m) after the transition's
-    end (5/k s reduce 0.5 m to 3.4 mm; the margin covers the dynamic model's lag)."""
-    meta, ev, traj, bg = _run(tmp_path_factory, "join")
+def _join_checks(ev, traj, bg, member, slot):
+    """A vehicle taken over by ``member``'s join: the member starts where SUMO had it (no
+    position, lane or speed jump) with zero formation error, and converges into its slot
+    (index ``slot``). Returns (take-over time, SUMO id, the vehicle's background rows)."""
     (t0, t1), = _intervals(ev, "join")
     join = ev[ev.kind == "join"]
-    assert list(join.vehicle_id) == ["newcomer"] and join.t.iloc[0] == pytest.approx(t0)
+    assert list(join.vehicle_id) == [member] and join.t.iloc[0] == pytest.approx(t0)
     vid = join.other_id.iloc[0]
     T = float(ev[ev.kind == "maneuver_start"].detail.iloc[0].split("T = ")[1].split(" s")[0])
     assert t1 == pytest.approx(t0 + T, abs=0.051)
     theirs = bg[bg.vehicle_id == vid].sort_values("t")
-    ours = traj[traj.vehicle_id == "newcomer"].sort_values("t")
+    ours = traj[traj.vehicle_id == member].sort_values("t")
     assert theirs.t.max() < t0 and ours.t.min() == pytest.approx(t0)  # one or the other
     last, first = theirs.iloc[-1], ours.iloc[0]
     dt = first.t - last.t
@@ -237,9 +237,33 @@ def test_join_takes_a_vehicle_over_where_it_is_and_converges_into_its_slot(tmp_p
     k = 1.0  # controller.k [m/s], the scenario's default
     assert e[ours.t <= t1].max() <= 0.5
     assert e[ours.t >= t1 + 5.0 / k].max() < 0.05
-    assert (ours.slot == 2).all()
-    settled = ours[ours.t >= t1 + 5.0 / k]
-    np.testing.assert_allclose(settled.d, 3.5, atol=0.05)  # the free slot: left lane
+    assert (ours.slot == slot).all()
+    np.testing.assert_allclose(ours[ours.t >= t1 + 5.0 / k].d, 3.5, atol=0.05)  # left lane
+    return t0, vid, theirs
+
+
+def test_join_takes_a_vehicle_over_where_it_is_and_converges_into_its_slot(tmp_path_factory):
+    """A car from the traffic is taken over into the free slot: the member starts where SUMO
+    had the car (no position, lane or speed jump), with zero formation error (its slot starts
+    at the car, with the car's own rate), and converges: |e| <= 0.5 m while the slot moves
+    (a tenth of a car length), |e| < 0.05 m from five time constants of the position loop
+    (1/k, eq 2.7: de/dt = -k e for small errors, k = 1 m/s per m) after the transition's
+    end (5/k s reduce 0.5 m to 3.4 mm; the margin covers the dynamic model's lag)."""
+    meta, ev, traj, bg = _run(tmp_path_factory, "join")
+    t0, vid, _ = _join_checks(ev, traj, bg, "newcomer", 2)
+    assert vid != "newcomer" and vid in set(bg.vehicle_id)  # a car of the traffic
+
+
+def test_a_member_inserted_later_enters_under_sumos_driver_then_joins(tmp_path_factory):
+    """join.toml with ``enter``: the member's own car enters the left lane 60 m behind the
+    virtual car under SUMO's driver (SUMO accelerates it towards the lane's speed limit),
+    and is taken over into its slot as a traffic car would be."""
+    meta, ev, traj, bg = _run(tmp_path_factory, "join_entering")
+    entered = ev[ev.kind == "member_entered"]
+    assert list(entered.vehicle_id) == ["newcomer"]
+    t0, vid, theirs = _join_checks(ev, traj, bg, "newcomer", 2)
+    assert vid == "newcomer" and t0 > entered.t.iloc[0]
+    assert theirs.v.max() > 30.0 > 28.0 + 0.5  # SUMO drove it, faster than the formation
 
 
 def test_exit_leave_takes_the_off_ramp_after_a_clean_hand_over(tmp_path_factory):

@@ -64,6 +64,9 @@ class ManeuverSpec(_Strict):
     vehicle: str | None = Field(None, description="join: SUMO vehicle id to take over (default: the first of "
                                 "about the member's size that comes within reach)")
     reach: PosFloat = Field(30.0, description="join: take a vehicle over when its centre is this close to the free slot [m]")
+    enter: SlotSpec | None = Field(None, description="join: the member's own vehicle enters the road here (relative to "
+                                   "the virtual car, at its speed) under SUMO's driver when the join is due, and is "
+                                   "taken over when it comes within reach")
     timeout: PosFloat = Field(30.0, description="give up when the gap check keeps refusing this long after the trigger [s]")
     check_gaps: bool = Field(True, description="start only when the target lanes have room (docs/maneuvers.md)")
 
@@ -85,6 +88,9 @@ class ManeuverSpec(_Strict):
             raise ValueError("'exit' is given with kind = \"leave\" only")
         if self.vehicle is not None and self.kind != "join":
             raise ValueError("'vehicle' is given with kind = \"join\" only")
+        if self.enter is not None and (self.kind != "join" or self.vehicle is not None):
+            raise ValueError("'enter' is given with kind = \"join\" only, and not with 'vehicle' "
+                             "(the vehicle taken over is the member's own)")
         return self
 
 

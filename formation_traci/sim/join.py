@@ -20,6 +20,7 @@ import numpy as np
 from ..control.formation import initial_theta_star_at
 from ..control.targets import desired_point_at
 from .integrate import KINEMATIC
+from .traffic import CAR
 
 
 def drop_neighbour(sensed, j: int) -> None:
@@ -52,6 +53,26 @@ def take_over(world, t: float, i: int, vid: str, sensed) -> None:
     drop_neighbour(sensed, j)
     world.rec.add_event(t, "join", world.ids[i], vid,
                         f"join: took over {vid} at {v:.2f} m/s on lane {lane}")
+
+
+def enter(world, t: float, i: int, s: float, d: float, v: float) -> None:
+    """Member i's own vehicle enters the road under SUMO's driver (a join with ``enter``):
+    on the route edge and lane at arc length s, lateral offset d [m] of the reference line,
+    front bumper at s + its CoG-to-front distance, speed v [m/s]; SUMO inserts it there as
+    soon as that is safe and drives it, in its lane (lane-change mode 0), with a SUMO car's
+    acceleration and deceleration, until the join takes it over."""
+    road, vid = world.plan.road, world.ids[i]
+    s_front = s + world.plan.vehicles[i].cog_to_front_bumper
+    seg = next((g for g in road.segments if g.s0 <= s_front < g.s1), None)
+    if seg is None:
+        world.rec.add_event(t, "member_entered", vid, "", f"join: no road at s = {s_front:.1f} m: not entered")
+        return
+    lane = int(np.argmin(np.abs(road.lane_d[seg.edge] - d)))
+    pos = s_front - seg.s0
+    world.adapter.add_driven(vid, road.route[road.route.index(seg.edge):], lane, pos, v,
+                             world.mtypes[i], float(CAR["accel"]), float(CAR["decel"]))
+    world.rec.add_event(t, "member_entered", vid, "",
+                        f"join: enters {seg.edge}_{lane} at {pos:.1f} m, {v:.2f} m/s, under SUMO's driver")
 
 
 def adopt(fleet, state, ref, adopting: list) -> None:

@@ -318,6 +318,20 @@ class SumoAdapter:
         self.members.pop(vid, None)
         return lane
 
+    def add_driven(self, vid: str, edges: list[str], lane: int, pos: float, speed: float,
+                   mt: MemberType, accel: float, decel: float) -> None:
+        """A vehicle of type ``mt`` that SUMO drives: on ``edges[0]`` lane ``lane``, front
+        bumper ``pos`` [m] from the edge's start, ``speed`` [m/s] (inserted as soon as SUMO
+        finds it safe), acceleration / deceleration ``accel`` / ``decel`` [m/s^2], keeping
+        its lane (lane-change mode 0). A joining member before the join takes it over."""
+        rid = f"{vid}_entry"
+        self.api.route.add(rid, list(edges))
+        self.api.vehicle.add(vid, rid, typeID=mt.id, depart="now", departLane=str(int(lane)),
+                             departPos=f"{max(pos, 0.0):.3f}", departSpeed=f"{max(speed, 0.0):.3f}")
+        self.api.vehicle.setAccel(vid, accel)
+        self.api.vehicle.setDecel(vid, decel)
+        self.api.vehicle.setLaneChangeMode(vid, 0)
+
     def take_over(self, vid: str, mt: MemberType, route_id: str) -> None:
         """Join: SUMO vehicle ``vid`` becomes a member where it is: vType ``mt`` (SUMO keeps
         its front bumper where it is), no safe-speed or lane-change checks of its own, placed

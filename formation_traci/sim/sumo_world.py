@@ -19,7 +19,7 @@ from ..scenario.schema import Scenario
 from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
                      log_sumo_events)
 from .road_setup import rectangles_overlap
-from .join import adopt, take_over
+from .join import adopt, enter, take_over
 from .sumo_adapter import SumoAdapter, SumoError
 from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, RoadPlan, member_types, sumo_args
 from .traffic import CAR, flow_vehicles_per_hour, write_routes
@@ -161,11 +161,16 @@ class SumoWorld:
         self.rec.add_event(t, "handover", self.ids[i], vid if vid != self.ids[i] else "",
                            f"leave: released to SUMO at {v:.2f} m/s on lane {lane}{way}")
 
-    def take_over(self, t: float, i: int, vid: str, sensed) -> None:
-        """Join: SUMO vehicle ``vid`` becomes member i where it is (sim/join.py); a baseline
+    def take_over(self, t: float, i: int, vid: str, sensed, where=None) -> None:
+        """Join: SUMO vehicle ``vid`` becomes member i where it is, or (``where`` = (s, d, v))
+        member i's own vehicle enters the road under SUMO's driver (sim/join.py); a baseline
         twin has no formation to join."""
-        if self.inserted and not self.baseline:
+        if not self.inserted or self.baseline:
+            return
+        if where is None:
             take_over(self, t, i, vid, sensed)
+        else:
+            enter(self, t, i, *where)
 
     def adopt(self, state, ref):
         """The fleet state with the vehicles taken over in this step written in (sim/join.py)."""

@@ -72,7 +72,9 @@ class ManeuverRoadReference(RoadReference):
         self.planner, self.on_event = planner, on_event
         self.body_length = np.asarray(length, float)  # [m], one or one per member
         self.on_release = on_release  # on_release(t, i, exit_edge): hand member i over to the world
-        self.on_join = on_join  # on_join(t, i, vehicle, sensed): the world's vehicle becomes member i
+        # on_join(t, i, vehicle, sensed[, where]): the world's vehicle becomes member i, or
+        # (where = (s, d, v)) member i's own vehicle enters the road under the world's driver
+        self.on_join = on_join
 
     def governor(self, t: float, sensed):
         others = NO_OTHERS
@@ -85,6 +87,8 @@ class ManeuverRoadReference(RoadReference):
                 self.on_release(t, ev.member, ev.name)
             elif ev.kind == "take_over":  # the world drops it from sensed.nb
                 self.on_join(t, ev.member, ev.name, sensed)
+            elif ev.kind == "enter":
+                self.on_join(t, ev.member, "", sensed, ev.where)
             else:
                 self.on_event(t, ev.kind, "vc", "", ev.detail)
         now = self.planner.slots(t)

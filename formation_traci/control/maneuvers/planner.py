@@ -43,6 +43,7 @@ class PlannerEvent:
     detail: str  # "<maneuver>: ..." (the maneuver's name first)
     member: int = -1  # release / take_over: the member handed over to or taken from the world
     name: str = ""  # release: the exit edge ("" = stay on the route); take_over: the vehicle
+    where: tuple = ()  # enter: (s [m], d [m], v [m/s]) where and how fast the member's vehicle enters
 
 
 RoomFn = Callable[[float, float], tuple[float, float]]
@@ -83,6 +84,7 @@ class ManeuverPlanner:
         self.postponed = False
         self.intervals: list[tuple[str, float, float]] = []
         self.pending_goal: np.ndarray | None = None  # goal of the due maneuver while postponed
+        self.entered = -1  # index of the join whose member's vehicle has entered the road
 
     def goal(self) -> np.ndarray | None:
         """Slots (n, 2) the formation is moving to or waiting to move to (None: holding):
@@ -164,8 +166,11 @@ class ManeuverPlanner:
             return False, f"member {spec.member!r} is already in the formation", []
         goal = self.plan[i, 2:4].copy()
         o = sn.others
+        if spec.enter is not None and self.entered != self.next:
+            return self._enter(spec, i, sn)
+        vehicle = spec.member if spec.enter is not None else spec.vehicle
         j = pick_vehicle(o, sn.s_vc + goal[0], goal[1], spec.reach, self.lane_width,
-                         float(self.lengths[i]), float(self.widths[i]), spec.vehicle)
+                         float(self.lengths[i]), float(self.widths[i]), vehicle)
         if j < 0:
             return False, f"no vehicle within {spec.reach:g} m of the free slot of {spec.member!r}", []
         start = np.array([o.s[j] + o.length[j] / 2 - self.d_front[i] - sn.s_vc, o.d[j]])
@@ -192,6 +197,25 @@ class ManeuverPlanner:
         gap = float(np.hypot(*(goal - start)))
         return True, f"member {spec.member!r} {describe(o.ids[j], gap, T, r0)}", [
             PlannerEvent("take_over", f"join: {o.ids[j]}", i, o.ids[j])]
+
+    def _enter(self, spec, i: int, sn: Situation) -> tuple[bool, str, list[PlannerEvent]]:
+        """The joining member's own vehicle enters the road under SUMO's driver at
+        ``spec.enter`` from the virtual car, at its speed, once no vehicle in that lane is
+        closer than the bodies plus gap_min + gap_time v."""
+        e = spec.enter
+        s, d = sn.s_vc + e.along, e.across if e.across is not None else e.lanes * self.lane_width
+        o = sn.others
+        need = ((self.lengths[i] + o.length) / 2 + self.gap_min
+                + self.gap_time * np.maximum(o.v, sn.v_vc))
+        close = (np.abs(o.d - d) < self.lane_width / 2) & (np.abs(o.s - s) < need)
+        if close.any():
+            k = int(np.flatnonzero(close)[0])
+            return False, (f"the entry of {spec.member!r} is blocked by {o.ids[k]} "
+                           f"({o.s[k] - s:+.1f} m from it)"), []
+        self.entered = self.next
+        return False, (f"{spec.member!r} entered under SUMO's driver, waiting for it to come "
+                       f"within {spec.reach:g} m of the free slot"), [
+            PlannerEvent("enter", f"join: {spec.member}", i, "", (s, d, sn.v_vc))]
 
     def _advance(self):
         self.next += 1
