@@ -234,6 +234,7 @@ def _join_checks(ev, traj, bg, member, slot):
     e = np.hypot(ours.ex, ours.ey)
     assert e.iloc[0] < 0.01  # the slot starts where the car is
     assert ours[ours.t > t0].lane_index.iloc[0] == last.lane_index
+    assert ours.sumo_gap.max() < 0.1  # SUMO has it where our model puts it (its new vType too)
     k = 1.0  # controller.k [m/s], the scenario's default
     assert e[ours.t <= t1].max() <= 0.5
     assert e[ours.t >= t1 + 5.0 / k].max() < 0.05
