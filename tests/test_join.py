@@ -181,3 +181,21 @@ def test_enter_goes_with_a_join_of_the_members_own_vehicle_only():
                 {"kind": "leave", "member": "a", "enter": {"along": -50.0, "lanes": 1}, "at": {"time": 1.0}}):
         with pytest.raises(ScenarioError, match="'enter' is given with"):
             parse_scenario(_doc([bad]))
+
+
+def test_path_clearance_follows_the_real_path_with_its_start_rate():
+    """A car closing at r0 = 8 m/s from behind overshoots its slot (by 0.84 m over T = 12 s
+    for a 30 m move): a member 0.5 m clear of the slot ahead in the same lane is clear of
+    the straight path but not of the real one."""
+    from formation_traci.control.maneuvers.assign import min_clearance
+    from formation_traci.control.maneuvers.join import path_clearance
+    start, goal, held = np.array([-40.0, 3.5]), np.array([-10.0, 3.5]), np.array([[-4.9, 3.5]])
+    straight = min_clearance(np.vstack([held, start]), np.vstack([held, goal]), 4.6, 1.8)
+    assert straight == pytest.approx(0.5)
+    assert path_clearance(start, goal, 0.0, held, 4.6, 1.8, [4.6], [1.8]) == pytest.approx(straight, abs=1e-9)
+    T, r0 = 12.0, 8.0
+    tau = np.linspace(0, 1, 100001)
+    along = -40.0 + tau ** 3 * (10 - 15 * tau + 6 * tau ** 2) * 30.0 + r0 * T * (tau - 6 * tau ** 3 + 8 * tau ** 4 - 3 * tau ** 5)
+    expect = -4.9 - along.max() - 4.6
+    got = path_clearance(start, goal, r0 * T, held, 4.6, 1.8, [4.6], [1.8])
+    assert got == pytest.approx(expect, abs=0.01) and got < 0.0 < straight

@@ -65,6 +65,25 @@ def join_duration(d_along: float, d_across: float, r_along: float, r_across: flo
     return T_MAX
 
 
+def path_clearance(start, goal, shift: float, held, length: float, width: float, lengths,
+                   widths) -> float:
+    """Smallest clearance [m] between the joining vehicle (body ``length`` x ``width`` [m])
+    on its real path, along = start + h (goal - start) + shift g, across = start + h (goal -
+    start) (start, goal (2,) road frame [m]; shift = r0 T [m]), sampled over tau, and the
+    members holding their slots ``held`` (k, 2) with bodies ``lengths``, ``widths``: per pair
+    max(|d_along| - (L_i + L_j)/2, |d_across| - (W_i + W_j)/2), as assign.min_clearance."""
+    held = np.asarray(held, float).reshape(-1, 2)
+    if not len(held):
+        return np.inf
+    h = _TAU ** 3 * (10 - 15 * _TAU + 6 * _TAU ** 2)
+    g = _TAU - 6 * _TAU ** 3 + 8 * _TAU ** 4 - 3 * _TAU ** 5
+    a = start[0] + h * (goal[0] - start[0]) + shift * g
+    c = start[1] + h * (goal[1] - start[1])
+    da = np.abs(a[:, None] - held[None, :, 0]) - (length + np.asarray(lengths)[None, :]) / 2
+    dc = np.abs(c[:, None] - held[None, :, 1]) - (width + np.asarray(widths)[None, :]) / 2
+    return float(np.min(np.maximum(da, dc)))
+
+
 def pick_vehicle(others: Others, s_slot: float, d_slot: float, reach: float, lane_width: float,
                  length: float, width: float, vehicle: str | None) -> int:
     """Index in ``others`` of the vehicle to take over into the slot at (s_slot, d_slot)

@@ -18,7 +18,7 @@ import numpy as np
 
 from .assign import assign_slots, min_clearance
 from .gap import Others, check_gaps
-from .join import describe, join_duration, pick_vehicle, without
+from .join import describe, join_duration, path_clearance, pick_vehicle, without
 from .transition import ComfortLimits, hold_plan, slots_at, transition_duration
 from .triggers import is_due, queue_behind
 
@@ -185,10 +185,8 @@ class ManeuverPlanner:
                                  self.gap_min, [spec.member], *self.ahead)
             if not verdict.ok:
                 return False, f"no room: {verdict.reason}", []
-        held = self.plan[a, 2:4]
-        clear = min_clearance(np.vstack([held, start]), np.vstack([held, goal]),
-                              np.append(self.lengths[a], self.lengths[i]),
-                              np.append(self.widths[a], self.widths[i]))
+        clear = path_clearance(start, goal, r0 * T, self.plan[a, 2:4], float(self.lengths[i]),
+                               float(self.widths[i]), self.lengths[a], self.widths[a])
         if clear < 0.0:
             return False, f"its path into the slot crosses a member ({clear:.2f} m)", []
         self.plan[i] = [*start, *goal, sn.t, T, r0, 0.0]
