@@ -19,7 +19,6 @@ DEBT = {
     "module formation_traci/sim/sumo_adapter.py",
     "module formation_traci/road/geometry.py",
     "module analysis/iso2631.py",
-    "module analysis/traffic.py",
     "module analysis/figures.py",
     "module analysis/traffic_run.py",
     "module analysis/summary.py",
