@@ -32,7 +32,6 @@ class BaselineData:
     issues: tuple[Issue, ...] = field(default_factory=tuple)
 
 
-
 def load_baseline(run_dir: str | Path) -> BaselineData:
     """Read the parts of a baseline twin run the comparison needs.
 
@@ -64,7 +63,6 @@ def load_baseline(run_dir: str | Path) -> BaselineData:
         issues.append(Issue("warning", "baseline_mismatch", "baseline:run.json",
                             "run.json does not say \"baseline\": true; compared anyway"))
     return BaselineData(d, meta, bg, tuple(issues))
-
 
 
 def _mismatch(bm: dict[str, Any], meta: dict[str, Any]) -> list[Issue]:

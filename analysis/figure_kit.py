@@ -118,7 +118,6 @@ def _vc_frame(traj: pd.DataFrame, mid: str) -> tuple[np.ndarray, np.ndarray] | N
     return c * dx + s * dy, -s * dx + c * dy
 
 
-
 def _num(x) -> float:
     try:
         return float(x)

@@ -178,7 +178,6 @@ def _interaction(M: pd.DataFrame, P: pd.DataFrame, st: AnalysisSettings,
     return pairs, per, int(ia.size)
 
 
-
 def member_interaction(M: pd.DataFrame, P: pd.DataFrame, ids: list[str], st: AnalysisSettings,
                        dt: float, road: bool, mem: pd.DataFrame,
                        run: dict[str, Any]) -> tuple[pd.DataFrame, pd.DataFrame, str | None]:

@@ -51,7 +51,6 @@ def _mean(x) -> float | None:
     return float(x.mean()) if x.size else None
 
 
-
 def background_near(bg: pd.DataFrame | None, bg_ok: bool, road: bool, road_bg: bool,
                     M: pd.DataFrame, id_set: set[str], st: AnalysisSettings, dt: float,
                     run: dict[str, Any]) -> tuple[pd.DataFrame, pd.DataFrame]:

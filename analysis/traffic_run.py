@@ -100,7 +100,6 @@ class TrafficAnalysis:
     issues: tuple[Issue, ...]
 
 
-
 def compute_traffic(data: RunData, settings: AnalysisSettings,
                     baseline: BaselineData | None = None) -> TrafficAnalysis:
     """Compute every traffic metric of a loaded run.

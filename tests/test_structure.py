@@ -19,10 +19,8 @@ DEBT = {
     "module formation_traci/sim/sumo_adapter.py",
     "module formation_traci/road/geometry.py",
     "module analysis/iso2631.py",
-    "module analysis/summary.py",
     "module analysis/load.py",
     "function formation_traci/sweep/run.py:run_sweep",
-    "function analysis/summary.py:_member_metrics",
     "function analysis/load.py:load_run",
 }
 
