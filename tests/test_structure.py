@@ -19,9 +19,7 @@ DEBT = {
     "module formation_traci/sim/sumo_adapter.py",
     "module formation_traci/road/geometry.py",
     "module analysis/iso2631.py",
-    "module analysis/load.py",
     "function formation_traci/sweep/run.py:run_sweep",
-    "function analysis/load.py:load_run",
 }
 
 
