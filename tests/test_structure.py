@@ -18,7 +18,6 @@ MAX_FUNCTION_LINES = 80
 DEBT = {
     "module formation_traci/sim/sumo_adapter.py",
     "module formation_traci/road/geometry.py",
-    "function formation_traci/sweep/run.py:run_sweep",
 }
 
 
