@@ -180,12 +180,12 @@ def _interaction(M: pd.DataFrame, P: pd.DataFrame, st: AnalysisSettings,
 
 def member_interaction(M: pd.DataFrame, P: pd.DataFrame, ids: list[str], st: AnalysisSettings,
                        dt: float, road: bool, mem: pd.DataFrame,
-                       run: dict[str, Any]) -> tuple[pd.DataFrame, pd.DataFrame, str | None]:
+                       run: dict[str, Any]) -> tuple[pd.DataFrame, str | None]:
     """Per-sample series and the members' interaction metrics (filled into ``mem`` and ``run``).
 
     ``M`` are the members' rows (:func:`member_rows`), ``P`` every partner row (background and
-    members); ``road`` says whether road coordinates exist. Returns the per-sample ``series``,
-    the evaluated ``pairs`` and why the interaction is unavailable (None when computed).
+    members); ``road`` says whether road coordinates exist. Returns the per-sample ``series``
+    and why the interaction is unavailable (None when computed).
     """
     series = pd.DataFrame({"t": M["t"], "vehicle_id": M["vehicle_id"]})
     missing = None
@@ -244,4 +244,4 @@ def member_interaction(M: pd.DataFrame, P: pd.DataFrame, ids: list[str], st: Ana
         col = pd.to_numeric(mem[k], errors="coerce")
         run[k] = float(col.max()) if col.notna().any() else None
 
-    return series, pairs, missing
+    return series, missing

@@ -150,7 +150,7 @@ def compute_traffic(data: RunData, settings: AnalysisSettings,
         unavailable["lateral gap / headway"] = ("no road coordinates s, d in the "
                                                 "trajectories (not a road run)")
     P = pd.concat([B, M], ignore_index=True) if len(B) else M
-    series, _, missing = member_interaction(M, P, ids, st, dt, road, mem, run)
+    series, missing = member_interaction(M, P, ids, st, dt, road, mem, run)
     if missing:
         unavailable["interaction"] = missing
     win, near = background_near(bg, bg_ok, road, road_bg, M, id_set, st, dt, run)
