@@ -22,6 +22,7 @@ MAIN_ROUTES = {
     "curved3": ["entry", "main"],
     "onramp": ["mw_up", "mw_accel", "mw_down"],
     "lanedrop": ["mw_up", "mw_down"],
+    "offramp": ["mw_up", "mw_decel", "mw_down"],
 }
 """Default main route of each bundled network (sumo_nets/README.md)."""
 
@@ -96,6 +97,11 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
     missing = [e for e in route if not net.hasEdge(e)]
     if missing:
         raise ScenarioError(src, [("road.route", f"edges not in {net_file.name}: {missing}")])
+    bad_exits = [(f"maneuvers.{i}.exit", f"expected an edge of {net_file.name} off the route (an off-ramp), got {mv.exit!r}")
+                 for i, mv in enumerate(sc.maneuvers) if mv.exit is not None
+                 and (not net.hasEdge(mv.exit) or mv.exit in route)]
+    if bad_exits:
+        raise ScenarioError(src, bad_exits)
     first = net.getEdge(route[0])
     if sc.road.lane >= first.getLaneNumber():
         raise ScenarioError(src, [("road.lane", f"edge {route[0]!r} has lanes 0..{first.getLaneNumber() - 1}, "
