@@ -298,7 +298,7 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
             x[here], y[here], psi[here], lane_index[here], lat[here] = xs, ys, ps, lis, lts
             for j, i in enumerate(here):
                 lanes[i] = ls[j]
-        return x, y, psi, lanes, lane_index, lat, np.array([bool(r) for r in rows])
+        return x, y, psi, lanes, lane_index, lat, np.array([bool(r) for r in rows], dtype=bool)
 
     def _track_lanes(self, ids, lanes, lane_index, lat) -> None:
         """Per member: its lane as read, the neighbour lane its body reaches into (for
