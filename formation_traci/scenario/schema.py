@@ -180,8 +180,12 @@ class FlowSpec(Strict):
     route: list[str] | None = Field(None, min_length=1, description="edges; default: the main route")
     veh_per_hour_per_lane: PosFloat | None = Field(None, description="demand per lane of the first edge [veh/h]")
     veh_per_hour: PosFloat | None = Field(None, description="total demand [veh/h]")
-    depart_lane: Literal["best", "random", "free", "allowed"] | Annotated[int, Field(ge=0)] = "best"
-    depart_speed: Literal["desired", "max", "avg", "random"] | NonNegFloat = "desired"
+    depart_lane: Literal["best", "random", "free", "allowed", "first"] | Annotated[int, Field(ge=0)] = Field(
+        "best", description="SUMO departLane; 'best' spreads the flow over the lanes that continue")
+    depart_speed: Literal["desired", "max", "avg", "random", "speedLimit", "last"] | NonNegFloat = Field(
+        "max", description="SUMO departSpeed; 'max': the highest safe speed, so dense demand fits in")
+    depart_pos: Literal["base", "free", "random_free", "random", "last"] | NonNegFloat = Field(
+        "base", description="SUMO departPos [m from the edge start if a number]")
     begin: NonNegFloat = Field(0.0, description="SUMO time the flow starts [s] (warm-up included)")
     end: PosFloat | None = Field(None, description="SUMO time the flow ends [s]; default: end of the run")
     mix: dict[Literal["car", "truck"], Annotated[float, Field(ge=0, le=1)]] = Field(
@@ -201,6 +205,8 @@ class TrafficSpec(Strict):
     flows: list[FlowSpec] = Field(default_factory=list)
     warmup: NonNegFloat = Field(0.0, description="SUMO time simulated before the formation is inserted [s]")
     record_radius: PosFloat | None = Field(300.0, description="record background vehicles within this distance of a member [m]; omit for all")
+    measure_at: NonNegFloat | None = Field(1000.0, description="arc length along the main route where flow and "
+                                           "density are measured [m] (clamped to the route); None: not measured")
 
 
 class SumoSpec(Strict):

@@ -46,6 +46,7 @@ class Road:
     lane_width: float  # width of the reference lane on the first edge [m]
     edge_lanes: dict[str, int]  # lane count per route edge
     lane_d: dict[str, np.ndarray]  # per route edge: lateral offset of each lane centre from the reference line [m]
+    edge_length: dict[str, float] = None  # length of lane 0 of each route edge [m]
 
 
 def resolve_net(sc: Scenario, source: Path | None) -> Path:
@@ -100,7 +101,8 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
         raise ScenarioError(src, [("road.start", f"must be less than the route length minus end_margin "
                                                  f"({line.length - sc.road.end_margin:.1f} m)")])
     return Road(net_file, route, line, tuple(segments), first.getLane(sc.road.lane).getWidth(),
-                {e: net.getEdge(e).getLaneNumber() for e in route}, lane_d)
+                {e: net.getEdge(e).getLaneNumber() for e in route}, lane_d,
+                {e: net.getEdge(e).getLane(0).getLength() for e in route})
 
 
 def slot_offsets(sc: Scenario, road: Road) -> np.ndarray:

@@ -125,6 +125,7 @@ class SumoAdapter:
         self._lane_geometry: dict[str, tuple[float, int]] = {}  # lane -> (width [m], lanes of its edge)
         self._bodies: dict[str, tuple[float, float, str]] = {}  # vehicle -> (length, width [m], vType)
         self._started = False
+        self.departed: dict[str, int] = {}  # flow id -> vehicles SUMO inserted (see count_departures)
 
     # -- lifecycle -------------------------------------------------------------------
     def start(self, args: list[str]) -> str:
@@ -163,6 +164,20 @@ class SumoAdapter:
     def simulation_step(self) -> None:
         """Advance SUMO by one step (no member handling; used for the warm-up)."""
         self.api.simulationStep()
+        if self.departed:
+            self._count_departed()
+
+    def count_departures(self, flow_ids) -> None:
+        """Count, from now on, the vehicles SUMO inserts for each flow (SUMO names them
+        ``<flow id>.<n>``) in :attr:`departed`."""
+        self.departed = {f: 0 for f in flow_ids}
+
+    def _count_departed(self) -> None:
+        counts = self.departed
+        for vid in self.api.simulation.getDepartedIDList():
+            flow = vid.rpartition(".")[0]
+            if flow in counts and vid not in self.members:
+                counts[flow] += 1
 
     # -- network helpers -------------------------------------------------------------
     def set_friction(self, mu: float) -> None:
@@ -304,6 +319,8 @@ class SumoAdapter:
             ev.collisions.append((c.collider, c.victim, c.lane))
         ev.teleports = list(sim.getStartingTeleportIDList())
         ev.arrived = list(sim.getArrivedIDList())
+        if self.departed:
+            self._count_departed()
         for vid in ev.arrived:
             self._bodies.pop(vid, None)
         return ev
