@@ -35,10 +35,14 @@ METRICS: dict[str, tuple[str, str]] = {
     "collisions": ("-", "SUMO runs: collision events involving a member (NaN in free space)"),
     "min_ttc_s": ("s", "SUMO runs: smallest SSM time to collision of a conflict involving a member"),
     "emergency_brakes": ("-", "SUMO runs: emergency_brake events of the virtual car"),
+    "requested_veh": ("-", "SUMO runs: vehicles the flows asked for up to the run's end (warm-up included)"),
+    "inserted_veh": ("-", "SUMO runs: vehicles SUMO inserted for the flows"),
+    "flow_measured_veh_h": ("veh/h", "SUMO runs: flow over all lanes at traffic.measure_at during the formation's run"),
+    "density_measured_veh_km": ("veh/km", "SUMO runs: density over all lanes at traffic.measure_at during the formation's run"),
 }
 """Metric columns of ``summary.parquet``: unit and meaning."""
 
-COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes"})
+COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes", "requested_veh", "inserted_veh"})
 
 
 def empty_row(case: dict, status: str, reason: str | None) -> dict[str, Any]:
@@ -93,8 +97,15 @@ def _sumo_metrics(run_dir: Path, member_ids: set[str], meta: dict) -> dict[str, 
     if ssm is not None and len(ssm):
         x = pd.to_numeric(ssm.loc[ssm["member_involved"].astype(bool), "min_ttc"], errors="coerce")
         ttc = float(x.min()) if x.notna().any() else None
+    traffic = meta.get("traffic") or {}
+    flows = (traffic.get("flows") or {}).values()
+    measured = traffic.get("measured") or {}
     return {"collisions": n_coll, "min_ttc_s": ttc,
-            "emergency_brakes": int((meta.get("event_counts") or {}).get("emergency_brake", 0))}
+            "emergency_brakes": int((meta.get("event_counts") or {}).get("emergency_brake", 0)),
+            "requested_veh": sum(int(f["requested"]) for f in flows) if flows else None,
+            "inserted_veh": sum(int(f["inserted"]) for f in flows) if flows else None,
+            "flow_measured_veh_h": measured.get("flow_veh_h"),
+            "density_measured_veh_km": measured.get("density_veh_km")}
 
 
 def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str, Any]:
@@ -133,6 +144,8 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
         "traction_over_s": _max(_col(members, "traction_over_s")),
         "friction_over_s": _max(_col(members, "friction_over_s")),
         "collisions": None, "min_ttc_s": None, "emergency_brakes": None,
+        "requested_veh": None, "inserted_veh": None, "flow_measured_veh_h": None,
+        "density_measured_veh_km": None,
     }
     if (meta.get("scenario") or {}).get("road") is not None:
         out.update(_sumo_metrics(run_dir, set(map(str, members.index)), meta))
