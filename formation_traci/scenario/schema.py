@@ -165,19 +165,32 @@ class MemberSpec(Strict):
         return self
 
 
+class RouteEnds(Strict):
+    """A route by its two ends, joined by the network's shortest path (sumolib)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    from_: str | Pair = Field(alias="from", description="first edge id, or an [x, y] network position [m]")
+    to: str | Pair = Field(description="last edge id, or an [x, y] network position [m]")
+
+
+RouteValue = Union[Annotated[list[str], Field(min_length=1)], RouteEnds]
+
+
 class RoadSpec(Strict):
     """The SUMO road the virtual car drives along (its presence makes the run a SUMO run)."""
 
     net: str = Field(description="bundled network name (sumo_nets/) or a .net.xml path relative to the scenario file")
-    route: list[str] | None = Field(None, min_length=1, description="edges of the main route; default: the network's main route")
+    route: RouteValue | None = Field(None, description="edges of the main route, or {from, to} ends; default: the network's main route")
     lane: int = Field(1, ge=0, description="reference lane index the virtual car follows (0 = rightmost)")
     start: NonNegFloat = Field(200.0, description="virtual car's arc length along the route at t = 0 [m]")
     end_margin: NonNegFloat = Field(150.0, description="the run stops when the formation's front is this close to the route end [m]")
+    fit_tolerance: PosFloat = Field(1.1, description="largest distance of the fitted reference line from SUMO's "
+                                    "lane centre [m]; the smoothest fit within it is used (road/smoothing.py)")
 
 
 class FlowSpec(Strict):
     id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$")
-    route: list[str] | None = Field(None, min_length=1, description="edges; default: the main route")
+    route: RouteValue | None = Field(None, description="edges, or {from, to} ends; default: the main route")
     veh_per_hour_per_lane: PosFloat | None = Field(None, description="demand per lane of the first edge [veh/h]")
     veh_per_hour: PosFloat | None = Field(None, description="total demand [veh/h]")
     depart_lane: Literal["best", "random", "free", "allowed", "first"] | Annotated[int, Field(ge=0)] = Field(

@@ -359,6 +359,8 @@ class SumoAdapter:
             self._advance_route_window(vid, lane)
         x, y, psi = sumo_to_cog(np.array(xf), np.array(yf), np.array(ang), np.array(d_front))
         lane_index, lat, present = np.array(lane_index, dtype=int), np.array(lat), np.array(present, dtype=bool)
+        self.lane_pos = np.array([res[vid][tc.VAR_LANEPOSITION] if present[i] else math.nan
+                                  for i, vid in enumerate(ids)])  # front bumper along its lane [m]
         return x, y, psi, lanes, lane_index, lat, present
 
     # -- neighbours ------------------------------------------------------------------

@@ -174,8 +174,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
     t_sumo_end = t0 + run.duration + 2 * run.step
     flows = []
     for f in sc.traffic.flows:
-        edges = list(f.route or road.route)
-        lanes = road.edge_lanes.get(edges[0]) or 3
+        edges, lanes = road.flow_routes[f.id]
         flows.append((f, edges, flow_vehicles_per_hour(f, lanes)))
     routes = write_routes(sumo_dir / "traffic.rou.xml", flows, t_sumo_end)
     flows = [(f, e, vph, f.end if f.end is not None else t_sumo_end) for f, e, vph in flows]
@@ -252,7 +251,8 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                         active[i] = False
                 gap_sumo = np.full(n, np.nan)
                 lane_index = np.full(n, np.nan)
-                gap_sumo[idx_act] = _sumo_gap(road, pos[idx_act], m_d[idx_act], xs, ys, lanes, lane_idx, lat)
+                gap_sumo[idx_act] = _sumo_gap(road, pos[idx_act], heading[idx_act], d_front, xs, ys, lanes,
+                                              adapter.lane_pos, lat)
                 lane_index[idx_act] = np.where(present, lane_idx, np.nan)
                 extra.update(sumo_gap=gap_sumo, lane_index=lane_index)
                 off = gap_sumo > PLACEMENT_TOLERANCE
@@ -393,15 +393,18 @@ def _traffic_meta(meta, rec, flows, departed, t_sumo, t0, measure) -> None:
                           **(read_detectors(measure["out"], t0, measure["area_m"]) or {})}
 
 
-def _sumo_gap(road, pos, d, xs, ys, lanes, lane_idx, lat):
+def _sumo_gap(road, pos, heading, d_front, xs, ys, lanes, lane_pos, lat):
     """How far SUMO has each member from our pose [m]: the larger of the position gap and the
-    lateral gap implied by SUMO's lane and lateral lane position. (In the step of a move SUMO
+    distance between our front bumper and the point SUMO's lane, lane position and lateral
+    lane position give (SUMO's lane shapes, road/lanes.py). (In the step of a move SUMO
     echoes the commanded x, y even where it put the vehicle on another lane.)"""
     gap = np.hypot(xs - pos[:, 0], ys - pos[:, 1])
+    fx = pos[:, 0] + d_front * np.cos(heading)
+    fy = pos[:, 1] + d_front * np.sin(heading)
     for j, lane in enumerate(lanes):
-        offs = road.lane_d.get(lane.rsplit("_", 1)[0]) if lane else None
-        if offs is not None and 0 <= lane_idx[j] < len(offs) and np.isfinite(lat[j]):
-            gap[j] = max(gap[j], abs(offs[lane_idx[j]] + lat[j] - d[j]))
+        if lane and np.isfinite(lat[j]) and np.isfinite(lane_pos[j]):
+            sx, sy = road.shapes.xy(lane, lane_pos[j], lat[j])
+            gap[j] = max(gap[j], math.hypot(sx - fx[j], sy - fy[j]))
     return gap
 
 
