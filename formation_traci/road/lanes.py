@@ -89,6 +89,23 @@ def geometric_route_lanes(net, edges: Sequence[str], lane_index: int) -> list[st
     return ids
 
 
+def sideways_internal_lanes(net, edges: Sequence[str]) -> list[str]:
+    """Internal lanes of the route's joints whose connection leads a lane that continues
+    geometrically into another lane (e.g. LuST on-ramps: 1 -> 1 where lane 1 runs on as lane 0).
+    Members are kept off them so SUMO never sees two side-by-side members merging into one lane."""
+    out = []
+    for a, b in zip(edges, edges[1:]):
+        nxt = net.getEdge(b)
+        for lane in net.getEdge(a).getLanes():
+            geo = geometric_successor(lane, nxt)
+            if geo is None:
+                continue
+            for c in lane.getOutgoing():
+                if c.getTo().getID() == b and c.getToLane().getID() != geo.getID():
+                    out += _via_lanes(net, c)
+    return sorted(set(out))
+
+
 def geometric_route_shape(net, edges: Sequence[str], lane_index: int) -> np.ndarray:
     """Concatenated SUMO shapes of :func:`geometric_route_lanes` (n, 2) [m]; where the line
     leaves SUMO's connection it joins the two lanes' ends straight across the junction."""

@@ -22,7 +22,7 @@ import numpy as np
 
 from .geometry import LINE_FIT_DEFAULT, LineFit, ReferenceLine, clean_polyline
 
-FIT_TOLERANCE_DEFAULT = 1.1
+FIT_TOLERANCE_DEFAULT = 0.6
 """Largest lateral distance of the reference line from SUMO's lane centre [m] (road.fit_tolerance)."""
 MAX_SMOOTHING = 160.0
 """Longest smoothing length tried [m]."""

@@ -184,7 +184,7 @@ class RoadSpec(Strict):
     lane: int = Field(1, ge=0, description="reference lane index the virtual car follows (0 = rightmost)")
     start: NonNegFloat = Field(200.0, description="virtual car's arc length along the route at t = 0 [m]")
     end_margin: NonNegFloat = Field(150.0, description="the run stops when the formation's front is this close to the route end [m]")
-    fit_tolerance: PosFloat = Field(1.1, description="largest distance of the fitted reference line from SUMO's "
+    fit_tolerance: PosFloat = Field(0.6, description="largest distance of the fitted reference line from SUMO's "
                                     "lane centre [m]; the smoothest fit within it is used (road/smoothing.py)")
 
 
@@ -228,6 +228,9 @@ class SumoSpec(Strict):
     lateral_resolution: PosFloat = Field(0.8, description="sublane width [m] (--lateral-resolution)")
     ssm: bool = Field(True, description="SSM device on every vehicle (TTC, DRAC, PET)")
     fcd: bool = Field(False, description="also write SUMO's FCD output (Parquet)")
+    fcd_frame: Literal["sumo", "formation"] = Field(
+        "sumo", description="FCD in SUMO's frame (SUMO time, front bumper, deg CW from north) or the "
+                            "formation's (t = SUMO time - warm-up, centre of gravity, rad CCW from +x)")
     friction_device: bool = Field(True, description="SUMO's cars slow down on low-friction lanes (device.friction)")
     options: list[str] = Field(default_factory=list, description="extra SUMO command-line options")
     attach_port: int | None = Field(None, ge=1, le=65535, description="attach (traci) to a SUMO already "

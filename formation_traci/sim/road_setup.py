@@ -15,7 +15,8 @@ import numpy as np
 
 from ..models.params import VehicleParams
 from ..road.geometry import ReferenceLine, load_net
-from ..road.lanes import LaneShapes, geometric_route_lanes, geometric_route_shape, lane_centre_offsets
+from ..road.lanes import (LaneShapes, geometric_route_lanes, geometric_route_shape, lane_centre_offsets,
+                          sideways_internal_lanes)
 from ..road.smoothing import fit_within
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
@@ -54,6 +55,7 @@ class Road:
     flow_routes: dict[str, tuple[list[str], int]] = None  # flow id -> (edges, lanes of its first edge)
     fit: dict = None  # smoothing of the reference line: length used, largest deviation, tolerance [m]
     shapes: LaneShapes = None  # SUMO's lane shapes: (lane, position, lateral offset) -> x, y
+    member_forbidden: tuple[str, ...] = ()  # internal lanes members are kept off (road/lanes.py)
 
 
 def resolve_net(sc: Scenario, source: Path | None) -> Path:
@@ -117,7 +119,8 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
                                                  f"({line.length - sc.road.end_margin:.1f} m)")])
     return Road(net_file, route, line, tuple(segments), first.getLane(sc.road.lane).getWidth(),
                 {e: net.getEdge(e).getLaneNumber() for e in route}, lane_d,
-                {e: net.getEdge(e).getLane(0).getLength() for e in route}, flow_routes, fit, LaneShapes(net))
+                {e: net.getEdge(e).getLane(0).getLength() for e in route}, flow_routes, fit, LaneShapes(net),
+                tuple(sideways_internal_lanes(net, route)))
 
 
 _REFERENCE_CACHE: dict = {}

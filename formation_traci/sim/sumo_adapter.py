@@ -216,6 +216,12 @@ class SumoAdapter:
             return  # e.g. on a junction: the next edge tries again
         self._window[vid] = (route_id, i)
 
+    def forbid_lanes(self, lanes, vclasses) -> None:
+        """Disallow vehicle classes on lanes (added to each lane's disallowed classes)."""
+        for lane in lanes:
+            have = list(self.api.lane.getDisallowed(lane))
+            self.api.lane.setDisallowed(lane, sorted(set(have) | set(vclasses)))
+
     def add_member_type(self, mt: MemberType) -> None:
         vt = self.api.vehicletype
         vt.copy("DEFAULT_VEHTYPE", mt.id)

@@ -35,10 +35,14 @@ from .road_setup import (Road, build_road, check_no_overlap, check_slots, rectan
                          slot_offsets)
 from .setup import build_fleet, gain_schedule, profile, road_mu, vehicle_params
 from .sumo_adapter import MemberType, SumoAdapter
+from .messages import SUMO_ARGS as SUMO_QUIET, report as report_messages
 from .demand import flow_report, read_detectors, report_shortfall, route_point, write_detectors
 from .traffic import flow_vehicles_per_hour, write_routes
 
 MEMBER_ROUTE = "formation_route"
+MEMBER_VCLASS = {"passenger_car": "custom1", "small_truck": "custom2"}
+"""Members' own SUMO vehicle classes: lane permissions can keep them (only) off the internal
+lanes where the network's connections cross its lane geometry (road/lanes.py)."""
 ADHESION_SHARE_COMFORT = 0.5
 """The virtual car's acceleration and comfortable deceleration are at most this share of mu g."""
 ADHESION_SHARE_EMERGENCY = 0.8
@@ -111,6 +115,7 @@ def sumo_args(sc: Scenario, net: Path, routes: Path, sumo_dir: Path, t_end: floa
             "--collision.action", "warn", "--collision.mingap-factor", "0",
             "--collision.check-junctions", "true",
             "--no-step-log", "true", "--log", str(sumo_dir / "sumo.log"),
+            "--error-log", str(sumo_dir / "messages.log"), *SUMO_QUIET,
             "--duration-log.disable", "true"]
     if sc.sumo.ssm:
         args += ["--device.ssm.probability", "1", "--device.ssm.file", str(sumo_dir / "ssm.xml"),
@@ -126,7 +131,7 @@ def sumo_args(sc: Scenario, net: Path, routes: Path, sumo_dir: Path, t_end: floa
 def member_type(sc: Scenario, veh: VehicleParams) -> MemberType:
     return MemberType(id=f"member_{sc.vehicle.preset}", length=veh.length, width=veh.width,
                       d_front=veh.cog_to_front_bumper, color=veh.color,
-                      vclass="truck" if sc.vehicle.preset == "small_truck" else "passenger")
+                      vclass=MEMBER_VCLASS[sc.vehicle.preset])
 
 
 def _advance_vc(s, v, a, dt):
@@ -213,6 +218,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
         adapter.add_route(MEMBER_ROUTE, road.route)
         mtype = member_type(sc, veh)
         adapter.add_member_type(mtype)
+        adapter.forbid_lanes(road.member_forbidden, MEMBER_VCLASS.values())
         for _ in range(warm_steps):
             adapter.simulation_step()
 
@@ -369,6 +375,13 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
         adapter.close()
         _convert_ssm(sumo_dir / "ssm.xml", out_dir / "ssm.parquet", t0, set(ids))
         _traffic_meta(meta, rec, flows, adapter.departed, t_sumo, t0, measure)
+        meta["sumo"]["messages"] = report_messages(sumo_dir / "messages.log", t0, rec.add_event)
+        if sc.sumo.fcd and sc.sumo.fcd_frame == "formation":
+            from .fcd import to_formation_frame
+            to_formation_frame(sumo_dir / "fcd.parquet", t0, {i: d_front for i in ids})
+        meta["sumo"]["clock"] = ("trajectories, background, events, ssm: formation time t = SUMO time - warmup, "
+                                 "centre of gravity; sumo/*.log, sumo/*.xml: SUMO time; sumo/fcd.parquet: "
+                                 f"{'formation' if sc.sumo.fcd_frame == 'formation' else 'SUMO'} frame")
 
 
 def _measure_plan(sc: Scenario, road: Road, sumo_dir: Path) -> dict | None:
