@@ -13,7 +13,7 @@ import re
 import sys
 from pathlib import Path
 
-_TIME = re.compile(r"time=(-?[0-9.]+)")
+_TIME = re.compile(r"time=(-?[0-9]+(?:\.[0-9]+)?)")
 _VEHICLE = re.compile(r"[Vv]ehicle '([^']+)'")
 KINDS = (("emergency braking", "emergency_braking"), ("collision", "collision"),
          ("teleport", "teleport"), ("waited too long", "insertion_delay"),

@@ -371,7 +371,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 adapter.subscribe_departed()
             tm["sumo_place"] += clock() - c6
     finally:
-        t_sumo = adapter.time if adapter._started else t0
+        t_sumo = (adapter.time - run.step) if adapter._started else t0  # last step SUMO executed
         adapter.close()
         _convert_ssm(sumo_dir / "ssm.xml", out_dir / "ssm.parquet", t0, set(ids))
         _traffic_meta(meta, rec, flows, adapter.departed, t_sumo, t0, measure)

@@ -27,13 +27,16 @@ def flow_vehicles_per_hour(flow: FlowSpec, lanes_of_first_edge: int) -> float:
     return flow.veh_per_hour_per_lane * lanes_of_first_edge
 
 
-def requested_vehicles(vph: float, begin: float, end: float, t_end: float) -> int:
-    """Vehicles a flow of ``vph`` [veh/h] asks SUMO for from ``begin`` to ``min(end, t_end)``
-    [s]: SUMO departs them every 3600 / vph seconds from ``begin`` on (the first at ``begin``)."""
-    window = min(end, t_end) - begin
-    if window <= 0 or vph <= 0:
+def requested_vehicles(vph: float, begin: float, end: float, t_last: float) -> int:
+    """Vehicles a flow of ``vph`` [veh/h] asks SUMO for up to the last simulated step
+    ``t_last`` [s]: SUMO departs them every 3600 / vph seconds from ``begin`` on (the first at
+    ``begin``), before ``end`` [s]; a step at time t inserts those due at or before t."""
+    if vph <= 0 or t_last < begin or end <= begin:
         return 0
-    return int(math.ceil(window * vph / 3600.0 - 1e-9))
+    period = 3600.0 / vph
+    due = math.floor((t_last - begin) / period + 1e-9) + 1
+    before_end = math.ceil((end - begin) / period - 1e-9)
+    return int(min(due, before_end))
 
 
 def write_routes(path: Path, flows: list[tuple[FlowSpec, list[str], float]], end: float) -> Path:
