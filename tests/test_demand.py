@@ -15,9 +15,9 @@ HEAVY = ROOT / "scenarios" / "highway" / "straight_3lane_heavy.toml"
 
 
 def test_requested_vehicles_counts_departures_of_the_window():
-    # one vehicle every 1.8 s from t = 10 s: departures at 10, 11.8, ..., 100 (due by the step at 100 s)
-    assert requested_vehicles(2000.0, 10.0, 1e9, 100.0) == 51
-    assert requested_vehicles(2000.0, 10.0, 1e9, 99.9) == 50
+    # one vehicle every 1.8 s from t = 10 s: departures at 10, 11.8, ..., 98.2 before 100 s
+    assert requested_vehicles(2000.0, 10.0, 1e9, 100.0) == 50
+    assert requested_vehicles(2000.0, 10.0, 1e9, 100.1) == 51
     assert requested_vehicles(2000.0, 10.0, 55.0, 100.0) == 25  # 10 ... 53.2, none at 55
     assert requested_vehicles(2000.0, 120.0, 200.0, 100.0) == 0
 
@@ -56,7 +56,7 @@ def test_insertion_shortfall_is_an_event_and_a_warning(tmp_path, capsys):
     assert res.status == "completed", res.reason
     meta = json.loads((tmp_path / "run" / "run.json").read_text())
     jam = meta["traffic"]["flows"]["jam"]
-    assert jam["requested"] == pytest.approx(12000 * 22.0 / 3600, abs=1.5)
+    assert jam["requested"] == pytest.approx(12000 * 22.1 / 3600, abs=1.5)
     assert 0 < jam["inserted"] < 0.95 * jam["requested"]
     ev = pd.read_parquet(tmp_path / "run" / "events.parquet")
     short = ev[ev.kind == "insertion_shortfall"]

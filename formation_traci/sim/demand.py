@@ -118,3 +118,25 @@ def read_detectors(out: Path, t0: float, area_m: float) -> dict | None:
     k = veh_seconds / span / (area_m / 1000.0)
     return {"flow_veh_h": q, "density_veh_km": k, "speed_mps": (q / k / 3.6) if k > 0 else None,
             "seconds": span}
+
+
+def measure_plan(sc, road, sumo_dir: Path) -> dict | None:
+    """Detectors that measure flow and density at ``traffic.measure_at`` along the main route."""
+    if sc.traffic.measure_at is None or not sc.traffic.flows or sc.sumo.attach_port is not None:
+        return None
+    edge, pos = route_point(road.route, road.edge_length, sc.traffic.measure_at)
+    out = sumo_dir / "measure.xml"
+    area = write_detectors(sumo_dir / "measure.add.xml", out, edge, road.edge_lanes[edge],
+                           road.edge_length[edge], pos)
+    return {"file": sumo_dir / "measure.add.xml", "out": out, "edge": edge, "pos": pos, "area_m": area}
+
+
+def traffic_meta(meta, rec, flows, departed, t_sumo, t0, measure) -> None:
+    """run.json ``traffic``: flows requested/inserted, the measured operating point; a
+    flow short of its demand is an ``insertion_shortfall`` event and a warning."""
+    report = flow_report(flows, departed, t_sumo)
+    tr = meta["traffic"] = {"flows": report}
+    report_shortfall(report, rec.add_event, max(t_sumo - t0, 0.0))
+    if measure is not None:
+        tr["measured"] = {"edge": measure["edge"], "pos_m": measure["pos"],
+                          **(read_detectors(measure["out"], t0, measure["area_m"]) or {})}

@@ -35,8 +35,8 @@ from .road_setup import (Road, build_road, check_no_overlap, check_slots, rectan
                          slot_offsets)
 from .setup import build_fleet, gain_schedule, profile, road_mu, vehicle_params
 from .sumo_adapter import MemberType, SumoAdapter
-from .messages import SUMO_ARGS as SUMO_QUIET, report as report_messages
-from .demand import flow_report, read_detectors, report_shortfall, route_point, write_detectors
+from .messages import SUMO_ARGS as SUMO_QUIET, sumo_outputs_meta
+from .demand import measure_plan, traffic_meta
 from .traffic import flow_vehicles_per_hour, write_routes
 
 MEMBER_ROUTE = "formation_route"
@@ -183,7 +183,7 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
         flows.append((f, edges, flow_vehicles_per_hour(f, lanes)))
     routes = write_routes(sumo_dir / "traffic.rou.xml", flows, t_sumo_end)
     flows = [(f, e, vph, f.end if f.end is not None else t_sumo_end) for f, e, vph in flows]
-    measure = _measure_plan(sc, road, sumo_dir)
+    measure = measure_plan(sc, road, sumo_dir)
 
     s_vc, v_vc = float(sc.road.start), speed_profile(0.0)[0]
     tg0 = _targets(road, plan.slots, plan.rigid, plan.is_road, s_vc, v_vc, 0.0)
@@ -371,39 +371,11 @@ def sumo_steps(sc: Scenario, rec: Recorder, out_dir: Path, source: Path | None, 
                 adapter.subscribe_departed()
             tm["sumo_place"] += clock() - c6
     finally:
-        t_sumo = (adapter.time - run.step) if adapter._started else t0  # last step SUMO executed
+        t_sumo = adapter.time if adapter._started else t0
         adapter.close()
         _convert_ssm(sumo_dir / "ssm.xml", out_dir / "ssm.parquet", t0, set(ids))
-        _traffic_meta(meta, rec, flows, adapter.departed, t_sumo, t0, measure)
-        meta["sumo"]["messages"] = report_messages(sumo_dir / "messages.log", t0, rec.add_event)
-        if sc.sumo.fcd and sc.sumo.fcd_frame == "formation":
-            from .fcd import to_formation_frame
-            to_formation_frame(sumo_dir / "fcd.parquet", t0, {i: d_front for i in ids})
-        meta["sumo"]["clock"] = ("trajectories, background, events, ssm: formation time t = SUMO time - warmup, "
-                                 "centre of gravity; sumo/*.log, sumo/*.xml: SUMO time; sumo/fcd.parquet: "
-                                 f"{'formation' if sc.sumo.fcd_frame == 'formation' else 'SUMO'} frame")
-
-
-def _measure_plan(sc: Scenario, road: Road, sumo_dir: Path) -> dict | None:
-    """Detectors that measure flow and density at ``traffic.measure_at`` along the main route."""
-    if sc.traffic.measure_at is None or not sc.traffic.flows or sc.sumo.attach_port is not None:
-        return None
-    edge, pos = route_point(road.route, road.edge_length, sc.traffic.measure_at)
-    out = sumo_dir / "measure.xml"
-    area = write_detectors(sumo_dir / "measure.add.xml", out, edge, road.edge_lanes[edge],
-                           road.edge_length[edge], pos)
-    return {"file": sumo_dir / "measure.add.xml", "out": out, "edge": edge, "pos": pos, "area_m": area}
-
-
-def _traffic_meta(meta, rec, flows, departed, t_sumo, t0, measure) -> None:
-    """run.json ``traffic``: flows requested/inserted, the measured operating point; a
-    flow short of its demand is an ``insertion_shortfall`` event and a warning."""
-    report = flow_report(flows, departed, t_sumo)
-    tr = meta["traffic"] = {"flows": report}
-    report_shortfall(report, rec.add_event, max(t_sumo - t0, 0.0))
-    if measure is not None:
-        tr["measured"] = {"edge": measure["edge"], "pos_m": measure["pos"],
-                          **(read_detectors(measure["out"], t0, measure["area_m"]) or {})}
+        traffic_meta(meta, rec, flows, adapter.departed, t_sumo, t0, measure)
+        sumo_outputs_meta(meta, sc, rec, sumo_dir, t0, {i: d_front for i in ids})
 
 
 def _sumo_gap(road, pos, heading, d_front, xs, ys, lanes, lane_pos, lat):

@@ -27,16 +27,15 @@ def flow_vehicles_per_hour(flow: FlowSpec, lanes_of_first_edge: int) -> float:
     return flow.veh_per_hour_per_lane * lanes_of_first_edge
 
 
-def requested_vehicles(vph: float, begin: float, end: float, t_last: float) -> int:
-    """Vehicles a flow of ``vph`` [veh/h] asks SUMO for up to the last simulated step
-    ``t_last`` [s]: SUMO departs them every 3600 / vph seconds from ``begin`` on (the first at
-    ``begin``), before ``end`` [s]; a step at time t inserts those due at or before t."""
-    if vph <= 0 or t_last < begin or end <= begin:
+def requested_vehicles(vph: float, begin: float, end: float, t_end: float) -> int:
+    """Vehicles a flow of ``vph`` [veh/h] asks SUMO for before ``min(end, t_end)`` [s]: SUMO
+    departs them every 3600 / vph seconds from ``begin`` on (the first at ``begin``).
+    SUMO rounds departure times to its millisecond clock, so where a departure falls on
+    ``t_end`` itself SUMO may insert one vehicle more than this count."""
+    window = min(end, t_end) - begin
+    if vph <= 0 or window <= 0:
         return 0
-    period = 3600.0 / vph
-    due = math.floor((t_last - begin) / period + 1e-9) + 1
-    before_end = math.ceil((end - begin) / period - 1e-9)
-    return int(min(due, before_end))
+    return int(math.ceil(window * vph / 3600.0 - 1e-9))
 
 
 def write_routes(path: Path, flows: list[tuple[FlowSpec, list[str], float]], end: float) -> Path:
