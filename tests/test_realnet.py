@@ -115,7 +115,37 @@ def test_bad_flow_route_is_refused_before_sumo_starts(tmp_path, route, field, wo
     assert not (tmp_path / "out").exists()
 
 
-def test_three_abreast_through_on_ramps_and_past_exits(tmp_path, scenario):
+def test_rightmost_reference_lane_is_accepted_and_stays_in_its_lane(tmp_path, scenario):
+    """With lane 0 as reference (slots in lanes 0, 1, 2) the formation used to swerve a lane in
+    each on-ramp junction or be refused as 'off the road'; now it is accepted and the reference
+    line stays within the fit tolerance of lane 0's centre on every 3-lane edge."""
+    from formation_traci.sim.sumo_loop import prepare
+    p = tmp_path / "right.toml"
+    p.write_text(SCENARIO.replace("lane = 1\n", "lane = 0\n").replace("lanes = -1 }", "lanes = 2 }"))
+    plan = prepare(load_scenario(p), p)
+    line = plan.road.line
+    for edge in ROUTE[::2]:
+        assert abs(plan.road.lane_d[edge][0]) < 0.6, edge
+    assert sorted(plan.slots[:, 1].round(1)) == [0.0, 3.3, 6.6]
+
+
+def test_sumo_messages_are_events_on_the_formation_clock(tmp_path):
+    from formation_traci.sim.messages import record_messages, summary_line
+    log = tmp_path / "messages.log"
+    log.write_text("Warning: Vehicle 'a' performs emergency braking on lane 'x_0' with decel=9.1, "
+                   "wished=4.5, severity=1.0, time=44.15.\n"
+                   "Warning: Value of 'emergencyDecel' (3.00) should be higher than 'decel'.\n")
+    got = []
+    counts = record_messages(log, 30.0, lambda *a: got.append(a))
+    assert got[0][:4] == (pytest.approx(14.15), "sumo_message", "a", "emergency_braking")
+    assert "t=14.15 s (formation clock)" in got[0][4] and "time=" not in got[0][4]
+    assert got[1][0] == -30.0 and got[1][3] == "other"  # at loading: SUMO's start, before t = 0
+    assert counts == {"warnings": 2, "errors": 0, "during_warmup": 1,
+                      "by_kind": {"emergency_braking": 1, "other": 1}}
+    assert "2 warnings" in summary_line(counts)
+
+
+def test_three_abreast_through_on_ramps_and_past_exits(tmp_path, scenario, capfd):
     """120 s past three on-ramps and two exits: no collision involving a member, fewer than 5
     placement mismatches (193 before: lanes placed 3.2 m apart, 3.3 m in SUMO), SUMO's messages
     recorded on the formation's clock, and each member's peak lateral acceleration within 20 %
@@ -132,7 +162,10 @@ def test_three_abreast_through_on_ramps_and_past_exits(tmp_path, scenario):
     assert (ev.kind == "placement_mismatch").sum() < 5
     assert not (ev.kind == "member_removed").any()
     assert meta["sumo"]["route"] == ROUTE
-    assert "messages" in meta["sumo"]
+    assert "Warning:" not in capfd.readouterr().err  # SUMO's messages are events, not terminal lines
+    msgs = ev[ev.kind == "sumo_message"]
+    assert sum(meta["sumo"]["messages"]["by_kind"].values()) == len(msgs)
+    assert msgs.t.between(-sc.traffic.warmup, sc.run.duration + 0.1).all()
     traj = pd.read_parquet(out / "trajectories.parquet")
     m = traj[(traj.vehicle_id != "vc") & (traj.t > 5.0)]
     assert m.s.max() - m.s.min() > 2500  # it drove through the junctions

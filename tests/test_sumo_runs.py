@@ -158,6 +158,23 @@ def test_fcd_output_as_parquet(tmp_path):
     assert set(meta and [m["id"] for m in meta["members"]]) <= set(fcd.vehicle_id)
 
 
+def test_fcd_on_the_formation_clock_and_centre_of_gravity(tmp_path):
+    """sumo.fcd_frame = "formation": FCD rows carry t = SUMO time - warm-up and the members'
+    centre of gravity, equal to the recorded trajectories (SUMO's front bumper converted back)."""
+    path = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
+    _, meta, traj, _, out = run(tmp_path, path, **{"run.duration": 3.0, "traffic.warmup": 10.0,
+                                                   "sumo.fcd": True, "sumo.fcd_frame": "formation"})
+    fcd = pd.read_parquet(out / "sumo" / "fcd.parquet")
+    assert {"t", "vehicle_id", "x", "y", "heading"} <= set(fcd.columns)
+    assert fcd.t.min() == pytest.approx(-10.0, abs=0.06) and fcd.t.max() == pytest.approx(3.0, abs=0.11)
+    f = fcd[fcd.vehicle_id == "centre"].assign(k=lambda d: (d.t / 0.05).round().astype(int))
+    r = traj[traj.vehicle_id == "centre"].assign(k=lambda d: (d.t / 0.05).round().astype(int))
+    m = f.merge(r, on="k", suffixes=("_f", ""))
+    assert len(m) > 40
+    assert np.hypot(m.x_f - m.x, m.y_f - m.y).max() < 0.01
+    assert np.abs(np.angle(np.exp(1j * (m.heading_f - m.heading)))).max() < 1e-6
+
+
 def test_baseline_twin_has_the_same_traffic_without_the_formation(tmp_path):
     """`--baseline`: same scenario and seed, no member enters SUMO, every vehicle recorded; the
     vehicles that departed are the same ones as in the formation run (seeded departures)."""
