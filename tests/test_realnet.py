@@ -136,9 +136,9 @@ def test_sumo_messages_are_events_on_the_formation_clock(tmp_path):
                    "wished=4.5, severity=1.0, time=44.15.\n"
                    "Warning: Value of 'emergencyDecel' (3.00) should be higher than 'decel'.\n")
     got = []
-    counts = record_messages(log, 30.0, lambda *a: got.append(a))
-    assert got[0][:4] == (pytest.approx(14.15), "sumo_message", "a", "emergency_braking")
-    assert "t=14.15 s (formation clock)" in got[0][4] and "time=" not in got[0][4]
+    counts = record_messages(log, 30.0, lambda *a: got.append(a), 0.05)
+    assert got[0][:4] == (pytest.approx(14.2), "sumo_message", "a", "emergency_braking")
+    assert "t=14.20 s (formation clock)" in got[0][4] and "time=" not in got[0][4]
     assert got[1][0] == -30.0 and got[1][3] == "other"  # at loading: SUMO's start, before t = 0
     assert counts == {"warnings": 2, "errors": 0, "during_warmup": 1,
                       "by_kind": {"emergency_braking": 1, "other": 1}}

@@ -159,14 +159,15 @@ def test_fcd_output_as_parquet(tmp_path):
 
 
 def test_fcd_on_the_formation_clock_and_centre_of_gravity(tmp_path):
-    """sumo.fcd_frame = "formation": FCD rows carry t = SUMO time - warm-up and the members'
-    centre of gravity, equal to the recorded trajectories (SUMO's front bumper converted back)."""
+    """sumo.fcd_frame = "formation": FCD rows carry the formation time of the state (SUMO labels a
+    step's state with the step's start) and the members' centre of gravity, equal to the recorded
+    trajectories row for row (SUMO's front bumper converted back)."""
     path = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
     _, meta, traj, _, out = run(tmp_path, path, **{"run.duration": 3.0, "traffic.warmup": 10.0,
                                                    "sumo.fcd": True, "sumo.fcd_frame": "formation"})
     fcd = pd.read_parquet(out / "sumo" / "fcd.parquet")
     assert {"t", "vehicle_id", "x", "y", "heading"} <= set(fcd.columns)
-    assert fcd.t.min() == pytest.approx(-10.0, abs=0.06) and fcd.t.max() == pytest.approx(3.0, abs=0.11)
+    assert fcd.t.min() == pytest.approx(-10.0 + 0.05, abs=1e-6) and fcd.t.max() == pytest.approx(3.0, abs=0.11)
     f = fcd[fcd.vehicle_id == "centre"].assign(k=lambda d: (d.t / 0.05).round().astype(int))
     r = traj[traj.vehicle_id == "centre"].assign(k=lambda d: (d.t / 0.05).round().astype(int))
     m = f.merge(r, on="k", suffixes=("_f", ""))

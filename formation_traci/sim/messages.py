@@ -2,8 +2,9 @@
 
 SUMO is started with ``--no-warnings --error-log sumo/messages.log``: nothing of SUMO's reaches
 the terminal. After the run every warning and error of that file becomes a ``sumo_message``
-event at formation time ``t = SUMO time - warm-up`` (negative during the warm-up; messages
-without a time, e.g. at loading, get the time SUMO started, ``-warm-up``), with SUMO's text
+event at formation time ``t = SUMO time + step - warm-up`` (SUMO stamps a message with the time the
+step began; our events of the same step, e.g. collisions, are at the time it ends), negative
+during the warm-up; messages without a time, e.g. at loading, get ``-warm-up``; with SUMO's text
 where ``time=...`` is rewritten on the formation's clock. run.json ``sumo.messages`` counts
 them by kind, and one summary line goes to stderr.
 """
@@ -31,7 +32,7 @@ def message_kind(text: str) -> str:
     return "other"
 
 
-def record_messages(path: Path, t0: float, add_event) -> dict:
+def record_messages(path: Path, t0: float, add_event, step: float = 0.0) -> dict:
     """Turn SUMO's error log into events; returns the counts for run.json.
 
     Parameters
@@ -42,6 +43,8 @@ def record_messages(path: Path, t0: float, add_event) -> dict:
         Warm-up [s]: formation time = SUMO time - t0.
     add_event : callable
         ``add_event(t, kind, vehicle_id, other_id, detail)``.
+    step : float
+        SUMO's step length [s], added to SUMO's stamp (the start of the step).
     """
     counts = {"warnings": 0, "errors": 0, "during_warmup": 0, "by_kind": {}}
     if not path.exists():
@@ -52,7 +55,7 @@ def record_messages(path: Path, t0: float, add_event) -> dict:
             continue
         counts["warnings" if level == "Warning" else "errors"] += 1
         m = _TIME.search(text)
-        t = float(m.group(1)) - t0 if m else -t0
+        t = float(m.group(1)) + step - t0 if m else -t0
         if t < 0:
             counts["during_warmup"] += 1
         kind = message_kind(text)
@@ -75,9 +78,9 @@ def summary_line(counts: dict) -> str | None:
             f"formation's clock (events.parquet)")
 
 
-def report(path: Path, t0: float, add_event) -> dict:
+def report(path: Path, t0: float, add_event, step: float) -> dict:
     """:func:`record_messages` and the summary line on stderr."""
-    counts = record_messages(path, t0, add_event)
+    counts = record_messages(path, t0, add_event, step)
     line = summary_line(counts)
     if line:
         print(line, file=sys.stderr)
@@ -87,10 +90,10 @@ def report(path: Path, t0: float, add_event) -> dict:
 def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_front: dict) -> None:
     """After the run: SUMO's messages as events (run.json ``sumo.messages``), the FCD in the
     formation's frame if asked for, and which clock and frame each output uses."""
-    meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, rec.add_event)
+    meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, rec.add_event, sc.run.step)
     if sc.sumo.fcd and sc.sumo.fcd_frame == "formation":
         from .fcd import to_formation_frame
-        to_formation_frame(sumo_dir / "fcd.parquet", t0, member_d_front)
+        to_formation_frame(sumo_dir / "fcd.parquet", t0, member_d_front, sc.run.step)
     meta["sumo"]["clock"] = ("trajectories, background, events, ssm: formation time t = SUMO time - warmup, "
                              "centre of gravity; sumo/*.log, sumo/*.xml: SUMO time; sumo/fcd.parquet: "
                              f"{'formation' if sc.sumo.fcd_frame == 'formation' else 'SUMO'} frame")
