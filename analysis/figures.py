@@ -436,7 +436,7 @@ def birdseye_animation(analysis: RunAnalysis, path: str | Path) -> Path:
     frame_keys = frame_keys[np.isin(frame_keys, vc.index.to_numpy())]
     if frame_keys.size == 0:
         raise ValueError("no virtual-car pose in the animation window")
-    fp = traffic.member_footprint(a.data.meta.get("scenario"))[0]
+    fp = traffic.member_footprint(a.data.meta.get("scenario"), a.data.meta.get("members"))[0]
     M = member_rows(a.data, fp, dt)
     M = M.loc[M["key"].isin(frame_keys)]
     bg = _background(a)

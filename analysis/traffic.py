@@ -73,10 +73,9 @@ MEMBER_FOOTPRINTS: dict[str, Footprint] = {
     "passenger_car": Footprint(length=4.6, width=1.8, a=1.421, front_overhang=0.9),
     "small_truck": Footprint(length=7.5, width=2.3, a=1.7, front_overhang=1.3),
 }
-"""Members' body sizes per ``scenario.vehicle.preset``, mirroring
-``formation_traci/models/params.py`` (``PASSENGER_CAR``: a from Table 3.1, body ours;
-``SMALL_TRUCK``: a from Table 3.5, body ours). Copied because the analysis may not import
-the model package; a test checks that they agree."""
+"""Fallback for recordings whose run.json has no member ``body`` (written before the runner
+recorded it): body sizes per ``scenario.vehicle.preset`` as the presets of
+``formation_traci/models/params.py`` had them (a test checks that they still agree)."""
 
 CLEARANCE_THRESHOLD_M = 1.0
 """Outline-to-outline clearance below which a member is "close" to another vehicle [m]
@@ -129,15 +128,20 @@ def _num(x: Any) -> float | None:
     return v if np.isfinite(v) and v > 0 else None
 
 
-def member_footprint(scenario: Mapping[str, Any] | None) -> tuple[Footprint, str]:
-    """Members' body outline from the recorded scenario (``run.json`` ``scenario``).
+def member_footprint(scenario: Mapping[str, Any] | None,
+                     members: Any = None) -> tuple[Footprint, str]:
+    """Members' body outline from run.json: the ``body`` the runner recorded for the members
+    (``members[i].body``: length, width, a, front_overhang [m]); for older recordings from
+    the recorded scenario.
 
     Parameters
     ----------
     scenario : mapping or None
-        The validated scenario: ``vehicle.preset`` picks :data:`MEMBER_FOOTPRINTS`,
-        ``vehicle.params`` (``length``, ``width``, ``a``, ``front_overhang`` [m]) overrides
-        single values.
+        The validated scenario (``run.json`` ``scenario``), used when no member carries a
+        body: ``vehicle.preset`` picks :data:`MEMBER_FOOTPRINTS`, ``vehicle.params``
+        (``length``, ``width``, ``a``, ``front_overhang`` [m]) overrides single values.
+    members : list of mappings or None
+        ``run.json`` ``members``.
 
     Returns
     -------
@@ -150,6 +154,13 @@ def member_footprint(scenario: Mapping[str, Any] | None) -> tuple[Footprint, str
     >>> member_footprint({"vehicle": {"preset": "small_truck"}})[0].cog_to_front
     3.0
     """
+    bodies = [m.get("body") for m in members or [] if isinstance(m, Mapping)]
+    body = bodies[0] if bodies and isinstance(bodies[0], Mapping) else None
+    if body is not None:
+        values = {k: _num(body.get(k)) for k in ("length", "width", "a")}
+        overhang = body.get("front_overhang")
+        if None not in values.values() and isinstance(overhang, (int, float)) and overhang >= 0:
+            return Footprint(front_overhang=float(overhang), **values), "run.json members body"
     veh = scenario.get("vehicle") if isinstance(scenario, Mapping) else None
     veh = veh if isinstance(veh, Mapping) else {}
     preset = veh.get("preset")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -19,8 +19,7 @@ from analysis import traffic as tr
 from analysis.load import Issue, RunData, read_meta, read_table
 from formation_traci.record.columns import VIRTUAL_CAR_ID
 
-if TYPE_CHECKING:  # the settings live in summary, which imports this module
-    from analysis.summary import AnalysisSettings
+from analysis.settings import AnalysisSettings
 
 __all__ = [
     "TRAFFIC_MEMBER_METRICS",
@@ -397,7 +396,7 @@ def compute_traffic(data: RunData, settings: AnalysisSettings,
     run: dict[str, Any] = {k: None for k in TRAFFIC_RUN_METRICS}
     mem = pd.DataFrame(index=pd.Index(ids, name="id"), columns=list(TRAFFIC_MEMBER_METRICS),
                        dtype=object)
-    fp, fp_source = tr.member_footprint(meta.get("scenario"))
+    fp, fp_source = tr.member_footprint(meta.get("scenario"), meta.get("members"))
     run["member_footprint"] = (f"{fp.length:g} x {fp.width:g} m, CoG to front bumper "
                                f"{fp.cog_to_front:g} m ({fp_source})")
     if "assumed" in fp_source:

@@ -29,7 +29,7 @@ def main() -> None:
     import overhead as ob  # noqa: E402  (reads BENCH_EDGE_M)
     import libsumo as api
     from formation_traci.scenario import parse_scenario
-    from formation_traci.sim.sumo_loop import sumo_args
+    from formation_traci.sim.sumo_plan import sumo_args
 
     sc = parse_scenario(ob.scenario(5, a.duration, None, 1), "moved_members")
     out = Path(tempfile.mkdtemp(prefix="moved_"))

@@ -160,7 +160,7 @@ def child_sumo(n, duration, flow_end, seed):
     """The twin (n > 0: members as SUMO vehicles) or the bare traffic (n = 0)."""
     from formation_traci.scenario import parse_scenario
     from formation_traci.sim.sumo_adapter import SumoAdapter
-    from formation_traci.sim.sumo_loop import sumo_args
+    from formation_traci.sim.sumo_plan import sumo_args
     sc = parse_scenario(scenario(max(n, 1), duration, flow_end, seed), "benchmark")
     out = Path(tempfile.mkdtemp(prefix="bench_"))
     t0 = time.perf_counter()

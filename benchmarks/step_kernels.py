@@ -1,31 +1,32 @@
-"""Per SUMO step: the compiled formation layer against the numpy reference path.
+"""Per step: the compiled formation layer (reference, recorded signals, controllers and models).
 
     python benchmarks/step_kernels.py
 
-For the dynamic and kinematic models and 1, 5, 20, 50 members on the curved bundled net: the
-Frenet projection of the members and of 40 neighbours, the recorded signals and five control
-periods (0.05 s step, 10 ms periods), with and without the previous arc lengths as guesses.
-The builders are the ones tests/test_fast_step.py checks the two paths with.
+For the dynamic and kinematic models and 1, 5, 20, 50 members on the curved bundled net
+(road slots, 0.05 s step of five 10 ms control periods): the road reference generator's
+virtual-car rows, ``Fleet.signals`` and ``Fleet.step`` (sim/fleet.py), microseconds per step.
 """
 from __future__ import annotations
 
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-import test_fast_step as h  # noqa: E402  (the test's builders)
+from formation_traci.control.reference_road import road_vc_rows
+from formation_traci.control.reference import FRAME_ROAD, Reference, constant_slots
+from formation_traci.control.schedule import SPEED_GAINS_CAR, YAW_GAINS_RETUNED
+from formation_traci.models.params import PASSENGER_CAR, bicycle_params, make_tires, stack
+from formation_traci.record.columns import SIGNAL_COLUMNS
+from formation_traci.road.fast_line import packed
+from formation_traci.road.geometry import reference_line_from_net
+from formation_traci.road.targets import road_targets
+from formation_traci.sim.fleet import Fleet, FleetConfig, initial_state
+from sumo_nets import net_path
 
-from formation_traci.road.geometry import reference_line_from_net  # noqa: E402
-from formation_traci.sim import fast  # noqa: E402
-from formation_traci.sim import fleet as fl  # noqa: E402
-from formation_traci.sim.fast import SIGNAL_COLUMNS, FastFleet  # noqa: E402
-from sumo_nets import net_path  # noqa: E402
+N_CTRL, DT_C = 5, 0.01
 
 
-def per_call(fn, reps: int) -> float:
+def per_call(fn, reps: int = 2000) -> float:
     """Mean time of one call [s] over ``reps`` calls after one warm-up call."""
     fn()
     t0 = time.perf_counter()
@@ -35,45 +36,32 @@ def per_call(fn, reps: int) -> float:
 
 
 def main() -> None:
-    fast.warmup()
-    curved = reference_line_from_net(net_path("curved3"), ["entry", "main"], 1)
-    road = h._Road(curved)
-    rng = np.random.default_rng(9)
-    nb_s = rng.uniform(700.0, 1100.0, 40)
-    nb_xy = curved.from_frenet(nb_s, rng.choice([-3.5, 0.0, 3.5], 40))
-    print("per SUMO step (to_frenet of members + 40 neighbours, signals, 5 control periods):")
+    line = reference_line_from_net(net_path("curved3"), ["entry", "main"], 1)
+    G = packed(line)
+    print("per step (reference rows + signals + 5 control periods), microseconds:")
     for model in ("dynamic", "kinematic"):
         for n in (1, 5, 20, 50):
-            cfg = h.make_cfg(model, n)
-            slots, rigid, is_road = h.make_slots(n)
-            ff = FastFleet.from_config(cfg, curved, slots, rigid, is_road)
-            st = h.initial(cfg, curved, slots, rigid, is_road, 900.0, 25.0)
-            v_cap, a_cap = h.caps(50, n, True)
-            m_s = curved.to_frenet(fl.kinematics(cfg, st)[0])[0]
+            p = stack([bicycle_params(PASSENGER_CAR, 1.0, make_tires(PASSENGER_CAR, 1.0))] * n)
+            cfg = FleetConfig(tuple(f"m{i}" for i in range(n)), model,
+                              p if model == "dynamic" else None, np.full(n, 3.0),
+                              np.full(n, 2.0), SPEED_GAINS_CAR, YAW_GAINS_RETUNED, 0.01)
+            fleet = Fleet(cfg)
+            offs = np.c_[-10.0 * (np.arange(n) // 3), 3.5 * (np.arange(n) % 3 - 1)]
+            tg = road_targets(line, 900.0, 25.0, 0.0, offs)
+            st = initial_state(cfg, tg.p + 0.5, np.arctan2(tg.v[:, 1], tg.v[:, 0]),
+                               np.full(n, 24.0), np.zeros(n), np.zeros(n), tg)
+            vc = np.empty((N_CTRL, n, 8))
+            road_vc_rows(G, 900.0, 25.0, 0.3, DT_C, vc)
+            ref = Reference(0.0, DT_C, vc, constant_slots(offs, N_CTRL),
+                            np.full(n, FRAME_ROAD), np.ones(n, bool), np.full(n, np.inf),
+                            np.full(n, np.inf), line=G, truth=vc[0, 0])
             out = np.full((n, len(SIGNAL_COLUMNS)), np.nan)
-
-            def ref():
-                curved.to_frenet(fl.kinematics(cfg, st)[0])
-                curved.to_frenet(nb_xy)
-                h.ref_step(cfg, road, slots, rigid, is_road, st, 900.0, 25.0, 0.3, v_cap, a_cap)
-
-            def compiled(guess: bool):
-                pos = ff.kinematics(st)[0]
-                ff.to_frenet(pos, m_s if guess else None)
-                ff.to_frenet(nb_xy, nb_s if guess else None)
-                ff.signals(st, 900.0, 25.0, 0.3, v_cap, a_cap, out)
-                ff.step(st, 900.0, 25.0, 0.3, v_cap, a_cap, h.DT_C, h.N_CTRL)
-
-            t_ref = per_call(ref, 20 if n <= 20 else 8)
-            t_f = per_call(lambda: compiled(True), 2000)
-            t_fn = per_call(lambda: compiled(False), 2000)
-            t_step = per_call(lambda: ff.step(st, 900.0, 25.0, 0.3, v_cap, a_cap, h.DT_C, h.N_CTRL), 2000)
-            t_sig = per_call(lambda: ff.signals(st, 900.0, 25.0, 0.3, v_cap, a_cap, out), 2000)
-            t_fr = per_call(lambda: ff.to_frenet(nb_xy, nb_s), 2000)
-            print(f"  {model:9s} n={n:2d}: reference {t_ref * 1e3:7.3f} ms | kernels "
-                  f"{t_f * 1e6:7.1f} us (no s guess {t_fn * 1e6:6.1f} us) = step "
-                  f"{t_step * 1e6:6.1f} + signals {t_sig * 1e6:5.1f} + to_frenet(40) "
-                  f"{t_fr * 1e6:5.1f} + members | x{t_ref / t_f:5.0f}")
+            t_vc = per_call(lambda: road_vc_rows(G, 900.0, 25.0, 0.3, DT_C, vc))
+            t_sig = per_call(lambda: fleet.signals(st, ref, out))
+            t_step = per_call(lambda: fleet.step(st, ref))
+            print(f"  {model:9s} n={n:2d}: reference {t_vc * 1e6:6.1f} + signals "
+                  f"{t_sig * 1e6:6.1f} + step {t_step * 1e6:7.1f} = "
+                  f"{(t_vc + t_sig + t_step) * 1e6:7.1f} us")
 
 
 if __name__ == "__main__":

@@ -118,7 +118,9 @@ def analyze_sweep_cmd(
     spread: str = typer.Option("minmax", help="spread over seeds: minmax | std"),
 ) -> None:
     """Plot metrics against the swept values (spread over seeds) and write sweep_report.html."""
-    from .sweep import SweepError, analyze_sweep
+    from analysis.sweep_report import analyze_sweep
+
+    from .sweep import SweepError
 
     try:
         rep = analyze_sweep(sweep_dir, metrics=metric or None, out=out, spread=spread)

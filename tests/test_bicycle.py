@@ -6,7 +6,11 @@ from formation_traci.models import bicycle, tire
 from formation_traci.models.bicycle import S, U
 from formation_traci.models.params import (G, MF_SEED, PASSENGER_CAR, SURFACES, bicycle_params,
                                            make_tires)
-from formation_traci.sim.integrate import integrate
+from formation_traci.models import params as params_mod
+from formation_traci.models.params import SMALL_TRUCK, pack_params, stack
+from formation_traci.sim.integrate import DYNAMIC, integrate
+
+pytestmark = pytest.mark.jit_off  # also run with NUMBA_DISABLE_JIT=1 (README)
 
 RNG = np.random.default_rng(1)
 
@@ -102,7 +106,7 @@ def test_side_slip_equation_is_exact_and_agrees_with_seed_3_2_at_zero_beta():
     x = random_states(100)
     u = np.zeros((100, 2))
     u[:, U.A_REF] = RNG.uniform(-1, 1, 100)
-    _, _, fcf, fcr, f_lf, _ = bicycle._forces(x, u, p)
+    _, _, fcf, fcr, f_lf, _ = bicycle.forces(x, u, p)
     v, beta, r, d = x[:, S.V], x[:, S.BETA], x[:, S.R], x[:, S.DELTA]
     fx = f_lf * np.cos(d) - fcf * np.sin(d)
     fy = f_lf * np.sin(d) + fcf * np.cos(d) + fcr
@@ -116,7 +120,7 @@ def test_side_slip_equation_is_exact_and_agrees_with_seed_3_2_at_zero_beta():
     x0 = x.copy()
     x0[:, S.BETA] = 0.0
     dx0 = bicycle.rhs(x0, u, p)
-    _, _, fcf0, fcr0, flf0, _ = bicycle._forces(x0, u, p)
+    _, _, fcf0, fcr0, flf0, _ = bicycle.forces(x0, u, p)
     fy0 = flf0 * np.sin(d) + fcf0 * np.cos(d) + fcr0
     np.testing.assert_allclose(dx0[:, S.BETA], fy0 / (p.m * v) - r, rtol=1e-12)
     assert np.max(np.abs(seed_3_2 - dx[:, S.BETA])) > 1e-4  # they do differ at beta != 0
@@ -127,7 +131,7 @@ def test_yaw_and_position_equations():
     x = random_states(50)
     u = np.zeros((50, 2))
     dx = bicycle.rhs(x, u, p)
-    _, _, fcf, fcr, f_lf, _ = bicycle._forces(x, u, p)
+    _, _, fcf, fcr, f_lf, _ = bicycle.forces(x, u, p)
     d = x[:, S.DELTA]
     np.testing.assert_allclose(dx[:, S.R], ((f_lf * np.sin(d) + fcf * np.cos(d)) * p.a - fcr * p.b) / p.Izz)
     course = x[:, S.PSI] + x[:, S.BETA]  # (3.20)-(3.23) composed
@@ -145,7 +149,7 @@ def test_steering_rate_and_angle_limits():
     rate = bicycle.steering_rate(x, u, p)
     assert rate[0] == pytest.approx(p.steer_rate_max) and rate[1] == pytest.approx(-p.steer_rate_max)
     assert rate[2] == 0.0
-    x2 = integrate(bicycle.rhs, x, u, p, 5.0, 0.01, bicycle.project)
+    x2 = integrate(DYNAMIC, x, u, pack_params(p, len(x)), 5.0, 0.01)
     assert np.all(np.abs(x2[:, S.DELTA]) <= p.steer_max + 1e-12)
 
 
@@ -165,7 +169,7 @@ def test_stop_and_go_to_standstill_and_back_has_no_nan_and_no_reversing():
         v_ref = 25.0 if t < 10 else (0.0 if t < 50 else 15.0)
         u = np.array([[desired_acceleration(v_ref, x[0, S.V], SPEED_GAINS_CAR),
                        0.002 * np.sin(0.5 * t)]])  # |delta| <= 0.008 rad
-        x_new = integrate(bicycle.rhs, x, u, p, dt, 0.01, bicycle.project)
+        x_new = integrate(DYNAMIC, x, u, pack_params(p, len(x)), dt, 0.01)
         heading = np.array([np.cos(x[0, S.PSI]), np.sin(x[0, S.PSI])])
         traj.append((t, x_new[0].copy(), float(heading @ (x_new[0, :2] - x[0, :2]))))
         x = x_new
@@ -187,7 +191,7 @@ def test_low_speed_blend_is_kinematic_bicycle():
     p = params("load")
     x = np.zeros((1, bicycle.N_STATES))
     x[0, S.V], x[0, S.DELTA] = 0.5, 0.2
-    x = integrate(bicycle.rhs, x, np.zeros((1, 2)), p, 2.0, 0.01, bicycle.project)
+    x = integrate(DYNAMIC, x, np.zeros((1, 2)), pack_params(p, len(x)), 2.0, 0.01)
     L = PASSENGER_CAR.wheelbase
     beta_k = np.arctan(PASSENGER_CAR.b * np.tan(0.2) / L)
     assert x[0, S.R] == pytest.approx(0.5 * np.cos(beta_k) * np.tan(0.2) / L, rel=1e-3)
@@ -204,3 +208,23 @@ def test_vectorised_over_mixed_fleet():
     d = bicycle.rhs(x, u, both)
     np.testing.assert_allclose(d[0], bicycle.rhs(x[:1], u[:1], pc)[0], rtol=1e-13)
     np.testing.assert_allclose(d[1], bicycle.rhs(x[1:], u[1:], pt)[0], rtol=1e-13)
+
+
+def test_pack_params_broadcasts_and_validates():
+    car = params("load", 0.25)
+    P = params_mod.pack_params(car, 3)
+    assert P.shape == (3, params_mod.N_PARAMS) and P.dtype == np.float64
+    assert P.flags.c_contiguous
+    for j, name in enumerate(params_mod.PARAM_NAMES):
+        assert np.all(P[:, j] == float(getattr(car, name)))
+    lin = params_mod.pack_params(params("load", 0.25, linear=True), 2)
+    assert np.all(lin[:, params_mod.PARAM_NAMES.index("linear_tire")] == 1.0)
+    assert np.all(P[:, params_mod.PARAM_NAMES.index("linear_tire")] == 0.0)
+
+    fleet = stack([car, params("load", 1.0, veh=SMALL_TRUCK)])
+    Pf = params_mod.pack_params(fleet, 2)
+    m = params_mod.PARAM_NAMES.index("m")
+    assert list(Pf[:, m]) == [PASSENGER_CAR.m, SMALL_TRUCK.m]
+    with pytest.raises(ValueError):
+        params_mod.pack_params(fleet, 3)  # (2,) arrays cannot fill 3 rows
+    assert params_mod.pack_params(car, 0).shape == (0, params_mod.N_PARAMS)

@@ -9,6 +9,8 @@ from formation_traci.control.schedule import (SPEED_GAINS_CAR, SPEED_GAINS_TRUCK
 from formation_traci.control.speed import desired_acceleration
 from formation_traci.control.yaw import steering_angle, steering_rate
 
+pytestmark = pytest.mark.jit_off  # also run with NUMBA_DISABLE_JIT=1 (README)
+
 OFFSETS = np.array([[4.0, 10.0], [-6.0, -6.0], [0.0, 3.0]])
 
 

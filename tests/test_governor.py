@@ -1,10 +1,12 @@
-"""The traffic-aware governor (formation_traci/sim/governor.py) against hand-worked cases and
+"""The traffic-aware governor (formation_traci.control.governor.py) against hand-worked cases and
 a brute-force search."""
 import numpy as np
 import pytest
 
-from formation_traci.sim.governor import (B_COMFORT, K_GAP, K_REL, K_SPEED, LATERAL_MARGIN, leader_accel,
+from formation_traci.control.governor import (B_COMFORT, K_GAP, K_REL, K_SPEED, LATERAL_MARGIN, leader_accel,
                                           member_speed_cap, time_gap_accel, vehicles_ahead)
+
+pytestmark = pytest.mark.jit_off  # also run with NUMBA_DISABLE_JIT=1 (README)
 
 HALF_W = 0.9  # m
 
@@ -96,7 +98,7 @@ def test_governor_step_is_the_composition_of_the_laws(k_others):
     """The compiled one-step kernel of the SUMO loop gives exactly what the public functions give
     when composed as the loop composed them: gaps to the members' and the slots' leaders, the
     virtual car's law over the active members' slot gaps, the speed cap and the acceleration cap."""
-    from formation_traci.sim.governor import governor_step
+    from formation_traci.control.governor import governor_step
     rng = np.random.default_rng(k_others)
     n = 5
     m_s = 1000.0 + rng.uniform(-40, 0, n)

@@ -6,9 +6,11 @@ from formation_traci.models import bicycle
 from formation_traci.models.bicycle import S, U
 from formation_traci.models.linear import (critical_speed, full_ab, lateral_ab,
                                            steady_state_yaw_gain, understeer_gradient)
-from formation_traci.sim.integrate import rk4_step
-from formation_traci.models.params import (MF_SEED, PASSENGER_CAR, SMALL_TRUCK, axle_loads,
+from formation_traci.sim.integrate import DYNAMIC, integrate
+from formation_traci.models.params import (pack_params, MF_SEED, PASSENGER_CAR, SMALL_TRUCK, axle_loads,
                                            bicycle_params, make_tires)
+
+pytestmark = pytest.mark.jit_off  # also run with NUMBA_DISABLE_JIT=1 (README)
 
 SEED_TIRES = make_tires(PASSENGER_CAR, 1.0, "seed", linear=True)
 
@@ -108,8 +110,7 @@ def test_steady_state_yaw_gain_matches_single_track_closed_form(tire_kind, v):
     x = np.zeros((1, bicycle.N_STATES))
     x[0, S.V], x[0, S.DELTA] = v, delta
     u = np.zeros((1, 2))  # a_ref = 0 keeps v constant through (3.13)
-    for _ in range(3000):  # 15 s at 5 ms
-        x = bicycle.project(rk4_step(bicycle.rhs, x, u, p, 0.005), p)
+    x = integrate(DYNAMIC, x, u, pack_params(p, 1), 15.0, 0.005)  # 3000 RK4 steps of 5 ms
     gain = x[0, S.R] / delta
     expected = steady_state_yaw_gain(v, PASSENGER_CAR, tires)
     assert x[0, S.V] == pytest.approx(v, rel=1e-9)

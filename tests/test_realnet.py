@@ -119,7 +119,7 @@ def test_rightmost_reference_lane_is_accepted_and_stays_in_its_lane(tmp_path, sc
     """With lane 0 as reference (slots in lanes 0, 1, 2) the formation used to swerve a lane in
     each on-ramp junction or be refused as 'off the road'; now it is accepted and the reference
     line stays within the fit tolerance of lane 0's centre on every 3-lane edge."""
-    from formation_traci.sim.sumo_loop import prepare
+    from formation_traci.sim.sumo_plan import prepare
     p = tmp_path / "right.toml"
     p.write_text(SCENARIO.replace("lane = 1\n", "lane = 0\n").replace("lanes = -1 }", "lanes = 2 }"))
     plan = prepare(load_scenario(p), p)

@@ -278,6 +278,7 @@ def _check_fd(line, traj, offsets, times, h=0.002, tol_v=1e-6, tol_a=2e-5):
         np.testing.assert_allclose((pp - 2 * tg.p + pm) / h ** 2, tg.a, atol=tol_a)
 
 
+@pytest.mark.jit_off
 def test_road_targets_derivatives_clothoid(clothoid):
     # up to kappa = 1/267 m, kappa' = 1/A^2, with dx and dy != 0 and varying speed
     _check_fd(clothoid, _trajectory, OFFSETS, np.linspace(0.0, 14.0, 15))
@@ -285,12 +286,14 @@ def test_road_targets_derivatives_clothoid(clothoid):
     assert np.max(np.linalg.norm(tg.a, axis=1)) > 2.0  # the test sees curvature terms
 
 
+@pytest.mark.jit_off
 def test_road_targets_derivatives_curved3(curved):
     # across the first clothoid and into the left arc (s = 750 .. 1100)
     traj = lambda t: (750.0 + 30.0 * t + 0.5 * t ** 2, 30.0 + t, 1.0)  # noqa: E731
     _check_fd(curved, traj, OFFSETS, np.linspace(0.0, 11.0, 23))
 
 
+@pytest.mark.jit_off
 def test_road_targets_on_lane_centrelines(curved):
     tg = road_targets(curved, 1300.0, 30.0, 0.0, np.array([[0.0, 3.5], [20.0, -3.5]]))
     s, d = curved.to_frenet(tg.p)
@@ -302,6 +305,7 @@ def test_road_targets_on_lane_centrelines(curved):
 
 
 @pytest.mark.parametrize("exact", [True, False])
+@pytest.mark.jit_off
 def test_road_targets_equal_rigid_targets_on_straight(exact):
     th = 0.3
     ends = np.array([[100.0, 50.0], [100.0 + 800.0 * np.cos(th), 50.0 + 800.0 * np.sin(th)]])
@@ -322,6 +326,7 @@ def test_road_targets_equal_rigid_targets_on_straight(exact):
         np.testing.assert_allclose(rt.a, rig.a, atol=tol)
 
 
+@pytest.mark.jit_off
 def test_road_leader_state(clothoid):
     h = 0.002
     for t in np.linspace(0.0, 14.0, 8):

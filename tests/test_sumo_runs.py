@@ -26,11 +26,15 @@ def run(tmp_path, path, **overrides):
 
 @pytest.mark.parametrize("path", HIGHWAY, ids=lambda p: p.stem)
 def test_bundled_highway_scenario_runs_to_the_end(tmp_path, path):
-    """Each bundled scenario, shortened (30 s warm-up, 12 s of formation), runs headless to its
-    end with SUMO: no collision, every member present, SUMO's positions equal ours within 1 cm."""
-    res, meta, traj, events, out = run(tmp_path, path, **{"run.duration": 12.0, "traffic.warmup": 30.0})
+    """Each bundled scenario, shortened (30 s warm-up, 20 s of formation), runs headless to its
+    end with SUMO: no collision, every member present, SUMO's positions equal ours within 1 cm,
+    and the trajectories (members and virtual car) equal the golden ones (tests/golden/highway.npz,
+    recorded before issue 14's restructuring) within 1e-6 m."""
+    from test_golden import SUMO_TOL_M, compare, golden
+    res, meta, traj, events, out = run(tmp_path, path, **golden.HIGHWAY_OVERRIDES)
     assert res.status == "completed", res.reason
-    assert meta["t_end"] == pytest.approx(12.0)
+    assert meta["t_end"] == pytest.approx(golden.HIGHWAY_OVERRIDES["run.duration"])
+    compare("highway", path.stem, traj, SUMO_TOL_M)
     assert meta["sumo"]["version"].startswith("SUMO 1.28")
     assert not (events.kind == "collision").any(), events[events.kind == "collision"]
     assert not (events.kind == "member_removed").any()

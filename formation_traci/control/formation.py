@@ -2,14 +2,20 @@
 
 Each member tracks a desired point attached to the virtual car. The desired point's
 position, velocity and acceleration are computed analytically from the virtual car's
-pose, v, omega and their time derivatives (no finite differences). All arrays broadcast
-over members: positions have shape (n, 2), scalars per member shape (n,).
+pose, v, omega and their time derivatives (no finite differences), and from the slot's
+offset and its time derivatives (zero for a fixed structure; a maneuver moves the slot).
+
+The laws are compiled scalar kernels (``*_at``), called per member by the step kernels of
+sim/fleet.py; :func:`rigid_targets`, :func:`formation_control` and
+:func:`initial_theta_star` are thin array wrappers (positions (n, 2), per-member (n,)).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+
+from ..kernels import clip, kernel, maximum, wrap_angle as _wrap
 
 V_EPS = 0.5
 """Floor of the commanded speed in the denominators of (2.9) and of v dot [m/s] (ours)."""
@@ -42,31 +48,6 @@ class Targets:
     a: np.ndarray  # [m/s^2]
 
 
-def rigid_targets(vc: LeaderState, offsets: np.ndarray) -> Targets:
-    """Desired points of a rigid virtual structure, eq (2.4), and their derivatives.
-
-    p_d = p_vc + R(theta) d,
-    p_d' = v t + omega R(theta) J d,
-    p_d'' = v' t + v omega n + omega' R(theta) J d - omega^2 R(theta) d,
-    with t = (cos theta, sin theta), n = (-sin theta, cos theta), J = rotation by +90 deg.
-
-    Parameters
-    ----------
-    offsets : ndarray, shape (n, 2)
-        (d_x, d_y) of each member in the virtual car frame [m] (x forward, y left).
-    """
-    c, s = np.cos(vc.theta), np.sin(vc.theta)
-    dx, dy = offsets[:, 0], offsets[:, 1]
-    rd = np.stack([dx * c - dy * s, dx * s + dy * c], axis=1)  # R d
-    rjd = np.stack([-dx * s - dy * c, dx * c - dy * s], axis=1)  # R J d
-    t = np.array([c, s])
-    nrm = np.array([-s, c])
-    p = np.array([vc.x, vc.y]) + rd
-    v = vc.v * t + vc.omega * rjd
-    a = vc.v_dot * t + vc.v * vc.omega * nrm + vc.omega_dot * rjd - vc.omega ** 2 * rd
-    return Targets(p, v, a)
-
-
 @dataclass(frozen=True, slots=True)
 class FormationOutput:
     """References and intermediate signals of one controller evaluation (all shape (n,))."""
@@ -80,63 +61,121 @@ class FormationOutput:
     heading_error: np.ndarray  # (2.10) [rad], wrapped to (-pi, pi]
 
 
-def _tilde(targets: Targets, pos: np.ndarray, k):
-    """x~, y~ of eq (2.7), shape (n, 2), and the error e (2.5)."""
-    e = targets.p - pos
-    return targets.v + k[:, None] * np.tanh(e), e
+@kernel
+def rigid_target_at(X, Y, th, v, om, v_dot, om_dot, dx, dy, dx_dot, dy_dot, dx_ddot, dy_ddot):
+    """Desired point of a slot d = (dx, dy) in the virtual car's frame, eq (2.4), and its
+    time derivatives: (px, py, vx, vy, ax, ay).
+
+    p_d = p_vc + R(theta) d,
+    p_d' = v t + omega R J d + R d',
+    p_d'' = v' t + v omega n + omega' R J d - omega^2 R d + 2 omega R J d' + R d'',
+    with t = (cos theta, sin theta), n = (-sin theta, cos theta), J = rotation by +90 deg;
+    d' = d'' = 0 is the seed's rigid structure.
+    """
+    c = np.cos(th)
+    s = np.sin(th)
+    rdx = dx * c - dy * s
+    rdy = dx * s + dy * c
+    rjx = -dx * s - dy * c
+    rjy = dx * c - dy * s
+    vo = v * om
+    om2 = om ** 2
+    return (X + rdx, Y + rdy,
+            v * c + om * rjx + (dx_dot * c - dy_dot * s),
+            v * s + om * rjy + (dx_dot * s + dy_dot * c),
+            v_dot * c + vo * -s + om_dot * rjx - om2 * rdx
+            + (2.0 * om * (-dx_dot * s - dy_dot * c) + (dx_ddot * c - dy_ddot * s)),
+            v_dot * s + vo * c + om_dot * rjy - om2 * rdy
+            + (2.0 * om * (dx_dot * c - dy_dot * s) + (dx_ddot * s + dy_ddot * c)))
+
+
+@kernel
+def formation_at(px, py, tvx, tvy, tax, tay, X, Y, velx, vely, heading, theta_star, k, k_theta):
+    """Eqs (2.5)-(2.10) for one member with desired point (p, p', p'') and position,
+    velocity, heading, theta* (2.11): (v_ref, omega_ref, theta* dot, v_ref dot, ex, ey,
+    heading error).
+
+    e = p_d - p (2.5); (x~, y~) = p_d' + k tanh(e) (2.7); v_ref = |(x~, y~)| (2.6);
+    theta* dot from the rotation of (x~, y~) (2.9); omega_ref = theta* dot + k_theta
+    wrap(theta* - theta) (2.8, 2.10). V_EPS floors v_ref in the denominators. No turning
+    around (ours, docs/model.md): when (x~, y~) points sideways or behind the member it
+    fades into waiting (theta* relaxes to the heading at K_WAIT).
+    """
+    ex = px - X
+    ey = py - Y
+    tlx = tvx + k * np.tanh(ex)
+    tly = tvy + k * np.tanh(ey)
+    chx = np.cosh(ex)
+    chy = np.cosh(ey)
+    tldx = tax + k * (1.0 / (chx * chx)) * (tvx - velx)
+    tldy = tay + k * (1.0 / (chy * chy)) * (tvy - vely)
+    v_ref = np.hypot(tlx, tly)
+    v_safe = maximum(v_ref, V_EPS)
+    tsd = (-tldx * tly + tldy * tlx) / (v_safe * v_safe)
+    he = _wrap(theta_star - heading)
+    omega_ref = tsd + k_theta * he
+    v_ref_dot = (tlx * tldx + tly * tldy) / v_safe
+    w = clip((tlx * np.cos(heading) + tly * np.sin(heading)) / v_safe / COS_WAIT, 0.0, 1.0)
+    if w < 1.0:
+        v_ref = w * v_ref
+        omega_ref = w * omega_ref
+        v_ref_dot = w * v_ref_dot
+        tsd = w * tsd - (1.0 - w) * K_WAIT * np.sin(theta_star - heading)
+    return (v_ref, omega_ref, tsd, v_ref_dot, ex, ey, he)
+
+
+@kernel
+def initial_theta_star_at(px, py, tvx, tvy, X, Y, heading, k):
+    """theta*(0) = atan2(y~(0), x~(0)), eq (2.11); the heading where |(x~, y~)| < V_EPS."""
+    tlx = tvx + k * np.tanh(px - X)
+    tly = tvy + k * np.tanh(py - Y)
+    if np.hypot(tlx, tly) < V_EPS:
+        return heading
+    return np.arctan2(tly, tlx)
+
+
+# ------------------------------------------------------------------ array wrappers
+
+def wrap_angle(a):
+    """Wrap an angle to (-pi, pi] [rad] (kernels.wrap_angle on floats or arrays)."""
+    a = np.asarray(a, dtype=float)
+    return float(_wrap(float(a))) if a.ndim == 0 else _wrap(np.ascontiguousarray(a))
+
+
+def rigid_targets(vc: LeaderState, offsets: np.ndarray) -> Targets:
+    """Desired points of a rigid virtual structure, eq (2.4), and their derivatives
+    (:func:`rigid_target_at` per member; offsets (n, 2) (d_x, d_y) [m], x forward, y left)."""
+    offsets = np.asarray(offsets, dtype=float)
+    T = np.array([rigid_target_at(vc.x, vc.y, vc.theta, vc.v, vc.omega, vc.v_dot, vc.omega_dot,
+                                  float(dx), float(dy), 0.0, 0.0, 0.0, 0.0)
+                  for dx, dy in offsets], dtype=float).reshape(len(offsets), 6)
+    return Targets(T[:, 0:2], T[:, 2:4], T[:, 4:6])
 
 
 def initial_theta_star(targets: Targets, pos: np.ndarray, heading: np.ndarray, k) -> np.ndarray:
-    """theta*(0) = atan2(y~(0), x~(0)), eq (2.11); the member's heading where |(x~, y~)| < V_EPS."""
-    tl, _ = _tilde(targets, pos, np.asarray(k, dtype=float) * np.ones(len(pos)))
-    th = np.arctan2(tl[:, 1], tl[:, 0])
-    return np.where(np.hypot(tl[:, 0], tl[:, 1]) < V_EPS, heading, th)
-
-
-def wrap_angle(a):
-    """Wrap an angle to (-pi, pi] [rad]."""
-    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
+    """theta*(0) of every member, eq (2.11) (:func:`initial_theta_star_at`)."""
+    n = len(pos)
+    k = np.broadcast_to(np.asarray(k, dtype=float), (n,))
+    heading = np.broadcast_to(np.asarray(heading, dtype=float), (n,))
+    return np.array([initial_theta_star_at(targets.p[i, 0], targets.p[i, 1], targets.v[i, 0],
+                                           targets.v[i, 1], pos[i, 0], pos[i, 1], heading[i],
+                                           k[i]) for i in range(n)], dtype=float)
 
 
 def formation_control(targets: Targets, pos: np.ndarray, vel: np.ndarray, heading: np.ndarray,
                       theta_star: np.ndarray, k, k_theta) -> FormationOutput:
-    """Evaluate eqs (2.5)-(2.10) for every member.
+    """Eqs (2.5)-(2.10) for every member (:func:`formation_at`).
 
-    Parameters
-    ----------
-    targets : Targets
-        Desired position/velocity/acceleration (eq 2.4 and derivatives).
-    pos, vel : ndarray, shape (n, 2)
-        Member position [m] and velocity [m/s] in the global frame (e dot = p_d' - vel).
-    heading : ndarray, shape (n,)
-        Member heading theta_i [rad].
-    theta_star : ndarray, shape (n,)
-        Integrated desired heading, eq (2.11) [rad].
-    k, k_theta : float or ndarray, shape (n,)
-        Gains of (2.7) [m/s] and (2.8) [1/s].
+    targets: desired position/velocity/acceleration (eq 2.4 and derivatives); pos, vel (n, 2)
+    member position [m] and velocity [m/s]; heading, theta_star (n,) [rad]; k [m/s],
+    k_theta [1/s] float or (n,).
     """
     n = len(pos)
     k = np.broadcast_to(np.asarray(k, dtype=float), (n,))
     k_theta = np.broadcast_to(np.asarray(k_theta, dtype=float), (n,))
-    tl, e = _tilde(targets, pos, k)
-    e_dot = targets.v - vel
-    sech2 = 1.0 / np.cosh(e) ** 2
-    tl_dot = targets.a + k[:, None] * sech2 * e_dot  # d/dt of (x~, y~)
-    v_ref = np.hypot(tl[:, 0], tl[:, 1])  # (2.6)
-    v_safe = np.maximum(v_ref, V_EPS)
-    theta_star_dot = (-tl_dot[:, 0] * tl[:, 1] + tl_dot[:, 1] * tl[:, 0]) / (v_safe * v_safe)  # (2.9)
-    heading_error = wrap_angle(theta_star - heading)  # (2.10)
-    omega_ref = theta_star_dot + k_theta * heading_error  # (2.8)
-    v_ref_dot = (tl[:, 0] * tl_dot[:, 0] + tl[:, 1] * tl_dot[:, 1]) / v_safe
-    # no turning around (ours, docs/model.md): when (x~, y~) points sideways or behind the
-    # member, e.g. it stopped just past a stopped slot, it waits instead of driving a U-turn
-    cos_dir = (tl[:, 0] * np.cos(heading) + tl[:, 1] * np.sin(heading)) / v_safe
-    w = np.clip(cos_dir / COS_WAIT, 0.0, 1.0)
-    if np.any(w < 1.0):
-        v_ref = w * v_ref
-        omega_ref = w * omega_ref
-        v_ref_dot = w * v_ref_dot
-        # smooth relaxation towards the heading (no jump where theta* - heading = +-pi)
-        theta_star_dot = w * theta_star_dot - (1.0 - w) * K_WAIT * np.sin(theta_star - heading)
-    return FormationOutput(v_ref, omega_ref, theta_star_dot, v_ref_dot, e[:, 0], e[:, 1],
-                           heading_error)
+    out = np.array([formation_at(targets.p[i, 0], targets.p[i, 1], targets.v[i, 0],
+                                 targets.v[i, 1], targets.a[i, 0], targets.a[i, 1], pos[i, 0],
+                                 pos[i, 1], vel[i, 0], vel[i, 1], heading[i], theta_star[i],
+                                 k[i], k_theta[i]) for i in range(n)], dtype=float)
+    out = out.reshape(n, 7)
+    return FormationOutput(*(out[:, j].copy() for j in range(7)))

@@ -5,6 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..kernels import kernel
+
 
 @dataclass(frozen=True, slots=True)
 class GainSchedule:
@@ -40,6 +42,31 @@ GAIN_PRESETS: dict[str, GainSchedule] = {
 }
 
 
+@kernel
+def scheduled_gain(error, g_min, g_max, k_min):
+    """K(e) = (G_max - G_min) exp(-|e| K_min) + G_min, eq (3.34) (scalar or array e)."""
+    return (g_max - g_min) * np.exp(-np.abs(error) * k_min) + g_min
+
+
+@kernel
+def p_law(reference, actual, g_min, g_max, k_min):
+    """The scheduled proportional law K(e) e with e = reference - actual (3.32-3.33, 3.35-3.37)."""
+    e = reference - actual
+    return scheduled_gain(e, g_min, g_max, k_min) * e
+
+
+def as_float(x):
+    """x as a float64 array (numba compiles one signature for arrays, one for floats)."""
+    a = np.asarray(x, dtype=np.float64)
+    return float(a) if a.ndim == 0 else np.ascontiguousarray(a)
+
+
 def gain(error, sched: GainSchedule):
     """Scheduled gain K(error), eq (3.34); broadcasts over ``error``."""
-    return (sched.g_max - sched.g_min) * np.exp(-np.abs(error) * sched.k_min) + sched.g_min
+    return scheduled_gain(as_float(error), sched.g_min, sched.g_max, sched.k_min)
+
+
+def apply(reference, actual, sched: GainSchedule):
+    """:func:`p_law` with the gains of ``sched`` (arrays or floats, broadcast)."""
+    r, a = np.broadcast_arrays(np.asarray(reference, float), np.asarray(actual, float))
+    return p_law(as_float(r), as_float(a), sched.g_min, sched.g_max, sched.k_min)

@@ -11,6 +11,10 @@ Input (columns of ``u``, shape (n, 2)), see :class:`U`:
     A_REF [m/s^2]  desired acceleration a_r, turned into traction force by (3.13)
     STEER_RATE [rad/s]  steering rate delta dot (3.37)
 
+Every law is a compiled scalar kernel (``*_at``) taking one vehicle's state and row ``i`` of
+the per-member parameter array ``P`` (models/params.py ``pack_params``); :func:`rhs`,
+:func:`outputs` and :func:`project` are thin array wrappers over them.
+
 Deviations from the seed (see docs/model.md): beta dot uses the exact single-track form
 instead of (3.2); the traction limit (3.14) uses the static front-axle load (b, not a);
 braking is limited by mu m g; below a few m/s the model blends into the kinematic bicycle.
@@ -21,7 +25,9 @@ from enum import IntEnum
 
 import numpy as np
 
-from .params import G, BicycleParams
+from ..kernels import clip, kernel, maximum
+from .params import (_A, _B, _BF, _BR, _CF, _CR, _DF, _DR, _EF, _ER, _H, _IZZ, _LIN, _M, _MU,
+                     _SMAX, _SRMAX, _TAU, _TAUSTOP, _VHIGH, _VLOW, G, BicycleParams, pack_params)
 from .tire import cornering_force
 
 
@@ -47,21 +53,209 @@ class U(IntEnum):
 N_STATES = len(S)
 
 
+@kernel
 def rolling_resistance(v):
     """Coefficient of rolling resistance f_rl = 0.01 (1 + v / 40.8) [-], eq (3.15); v in m/s."""
     return 0.01 * (1.0 + v / 40.8)
 
 
-def traction_force_max(v, p: BicycleParams):
+@kernel
+def traction_force_max_at(v, m, a, b, h, mu):
     """Adhesion limit of the driven front axle [N], eq (3.14) with the front static load.
 
     F_max = mu W (b + f_rl h) / L / (1 + mu h / L). The seed writes ``a`` where the
     front-wheel-drive formula needs the CoG-to-rear-axle distance ``b`` (the front axle
     carries W b / L); see docs/model.md.
     """
-    L = p.a + p.b
-    w = p.m * G
-    return p.mu * w * (p.b + rolling_resistance(v) * p.h) / L / (1.0 + p.mu * p.h / L)
+    L = a + b
+    return mu * (m * G) * (b + rolling_resistance(v) * h) / L / (1.0 + mu * h / L)
+
+
+@kernel
+def slip_angles_at(v, beta, r, delta, a, b, v_low):
+    """Front and rear tire slip angles [rad], eqs (3.7)-(3.8).
+
+    Body velocities are x dot = v cos(beta), y dot = v sin(beta) (3.20)-(3.21). The speed is
+    floored at ``v_low`` so that the angles stay finite at standstill.
+    """
+    vs = maximum(v, v_low)
+    vx = vs * np.cos(beta)
+    vy = vs * np.sin(beta)
+    return np.arctan2(vy + a * r, vx) - delta, np.arctan2(vy - b * r, vx)
+
+
+@kernel
+def traction_from_acceleration_at(a_ref, beta, delta, fcf, fcr, m):
+    """Traction force F_lf [N] that gives v dot = a_ref, eq (3.13) (unclipped)."""
+    num = m * a_ref - fcf * (np.cos(delta) * np.sin(beta) - np.sin(delta) * np.cos(beta)) \
+        - fcr * np.sin(beta)
+    den = np.cos(delta) * np.cos(beta) + np.sin(delta) * np.sin(beta)
+    return num / den
+
+
+@kernel
+def forces_at(v, beta, r, delta, a_ref, P, i):
+    """Slip angles, cornering forces (3.9-3.12), the clipped traction force (3.13-3.15) and
+    its upper limit of vehicle i: (alpha_f, alpha_r, F_cf, F_cr, F_lf, F_max)."""
+    m = P[i, _M]
+    alpha_f, alpha_r = slip_angles_at(v, beta, r, delta, P[i, _A], P[i, _B], P[i, _VLOW])
+    lin = P[i, _LIN] != 0.0
+    fcf = cornering_force(alpha_f, P[i, _BF], P[i, _CF], P[i, _DF], P[i, _EF], lin)
+    fcr = cornering_force(alpha_r, P[i, _BR], P[i, _CR], P[i, _DR], P[i, _ER], lin)
+    f_max = traction_force_max_at(v, m, P[i, _A], P[i, _B], P[i, _H], P[i, _MU])
+    f_lf = clip(traction_from_acceleration_at(a_ref, beta, delta, fcf, fcr, m),
+                -(P[i, _MU] * m * G), f_max)
+    return alpha_f, alpha_r, fcf, fcr, f_lf, f_max
+
+
+@kernel
+def steering_rate_at(delta, rate_in, steer_max, steer_rate_max):
+    """Applied steering rate [rad/s]: the input clipped to the rate limit and zeroed when it
+    would push the wheel past the angle limit (3.37-3.38 with actuator limits)."""
+    rate = clip(rate_in, -steer_rate_max, steer_rate_max)
+    if (delta >= steer_max and rate > 0.0) or (delta <= -steer_max and rate < 0.0):
+        return 0.0
+    return rate
+
+
+@kernel
+def kinematic_bicycle_at(v, beta, r, delta, v_dot, ddelta, a, b, tau):
+    """Low-speed part: beta and r relax with time constant tau to the kinematic bicycle's
+    beta_k = atan(b tan(delta) / L), r_k = v cos(beta_k) tan(delta) / L, plus their
+    feed-forward rates. Returns (beta dot, r dot)."""
+    L = a + b
+    td = np.tan(delta)
+    sec2 = 1.0 + td * td
+    k = b * td / L
+    beta_k = np.arctan(k)
+    dbeta_k = (b / L) * sec2 / (1.0 + k * k)
+    cbk = np.cos(beta_k)
+    r_k = v * cbk * td / L
+    dr_k_dd = v / L * (cbk * sec2 - np.sin(beta_k) * dbeta_k * td)
+    beta_dot = (beta_k - beta) / tau + dbeta_k * ddelta
+    r_dot = (r_k - r) / tau + cbk * td / L * v_dot + dr_k_dd * ddelta
+    return beta_dot, r_dot
+
+
+@kernel
+def rhs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i):
+    """Time derivative of vehicle i's state (X, Y, psi, v, beta, r, delta dot).
+
+    Dynamic part (weight w = 1 above v_high):
+        v dot    = [F_x cos(beta) + F_y sin(beta)] / m                    (3.1)
+        beta dot = [F_y cos(beta) - F_x sin(beta)] / (m v) - psi dot       (exact form of 3.2)
+        psi ddot = [(F_lf sin(delta) + F_cf cos(delta)) a - F_cr b] / Izz  (3.3)
+    with F_x = F_lf cos(delta) - F_cf sin(delta), F_y = F_lf sin(delta) + F_cf cos(delta) + F_cr.
+    Kinematic part (w = 0 below v_low): :func:`kinematic_bicycle_at`; C1 smoothstep between.
+    Position (3.22)-(3.23): X dot = v cos(psi + beta), Y dot = v sin(psi + beta). Near
+    standstill braking is capped at v / tau_stop (an exponential stop, no reversing).
+    """
+    m = P[i, _M]
+    a = P[i, _A]
+    b = P[i, _B]
+    _, _, fcf, fcr, f_lf, f_max = forces_at(v, beta, r, delta, a_ref, P, i)
+    sb = np.sin(beta)
+    cb = np.cos(beta)
+    sd = np.sin(delta)
+    cd = np.cos(delta)
+    fx = f_lf * cd - fcf * sd
+    fy = f_lf * sd + fcf * cd + fcr
+    v_dot_dyn = (fx * cb + fy * sb) / m
+    beta_dot_dyn = (fy * cb - fx * sb) / (m * maximum(v, P[i, _VLOW])) - r
+    r_dot_dyn = ((f_lf * sd + fcf * cd) * a - fcr * b) / P[i, _IZZ]
+    ddelta = steering_rate_at(delta, rate_in, P[i, _SMAX], P[i, _SRMAX])
+    v_dot_kin = clip(a_ref, -(P[i, _MU] * m * G) / m, f_max / m)
+    beta_dot_kin, r_dot_kin = kinematic_bicycle_at(v, beta, r, delta, v_dot_kin, ddelta, a, b,
+                                                   P[i, _TAU])
+    s = clip((v - P[i, _VLOW]) / (P[i, _VHIGH] - P[i, _VLOW]), 0.0, 1.0)
+    w = s * s * (3.0 - 2.0 * s)
+    v_dot = w * v_dot_dyn + (1.0 - w) * v_dot_kin
+    v_dot = maximum(v_dot, -maximum(v, 0.0) / P[i, _TAUSTOP])
+    course = psi + beta
+    return (v * np.cos(course), v * np.sin(course), r, v_dot,
+            w * beta_dot_dyn + (1.0 - w) * beta_dot_kin, w * r_dot_dyn + (1.0 - w) * r_dot_kin,
+            ddelta)
+
+
+@kernel
+def project_at(v, delta, steer_max):
+    """State constraints after an integration step: v >= 0, |delta| <= steer_max."""
+    return maximum(v, 0.0), clip(delta, -steer_max, steer_max)
+
+
+@kernel
+def outputs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i):
+    """Recorded signals of vehicle i: (a_lon, a_lat, slip_front, slip_rear, traction_force,
+    traction_force_max, friction_usage, steer_rate).
+
+    Accelerations are those of the centre of gravity in the body frame, from the kinematics
+    of the state derivative: a_lon = v dot cos(beta) - v sin(beta)(beta dot + r),
+    a_lat = v dot sin(beta) + v cos(beta)(beta dot + r); at steady state a_lat = v r (3.6).
+    """
+    alpha_f, alpha_r, _, _, f_lf, f_max = forces_at(v, beta, r, delta, a_ref, P, i)
+    d = rhs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i)
+    course_rate = d[4] + r
+    a_lon = d[3] * np.cos(beta) - v * np.sin(beta) * course_rate
+    a_lat = d[3] * np.sin(beta) + v * np.cos(beta) * course_rate
+    usage = np.hypot(a_lon, a_lat) / (P[i, _MU] * G)
+    return a_lon, a_lat, alpha_f, alpha_r, f_lf, f_max, usage, d[6]
+
+
+# ------------------------------------------------------------------ array wrappers
+
+@kernel
+def _rows(x, u, P, what):
+    n = x.shape[0]
+    out = np.empty((n, 8 if what == 1 else 7))
+    for i in range(n):
+        if what == 1:
+            res = outputs_at(x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6], u[i, 0], u[i, 1], P, i)
+            for j in range(8):
+                out[i, j] = res[j]
+        else:
+            res7 = rhs_at(x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6], u[i, 0], u[i, 1], P, i)
+            for j in range(7):
+                out[i, j] = res7[j]
+    return out
+
+
+def _arrays(x, u, p: BicycleParams):
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    u = np.ascontiguousarray(np.broadcast_to(u, (len(x), 2)), dtype=np.float64)
+    return x, u, pack_params(p, len(x))
+
+
+def rhs(x, u, p: BicycleParams) -> np.ndarray:
+    """Time derivative of the states x (n, 7) under inputs u (n, 2): :func:`rhs_at` per row."""
+    return _rows(*_arrays(x, u, p), 0)
+
+
+def outputs(x, u, p: BicycleParams) -> dict[str, np.ndarray]:
+    """Recorded signals for state x under input u (all shape (n,)): :func:`outputs_at`."""
+    o = _rows(*_arrays(x, u, p), 1)
+    names = ("a_lon", "a_lat", "slip_front", "slip_rear", "traction_force",
+             "traction_force_max", "friction_usage", "steer_rate")
+    return {name: o[:, j].copy() for j, name in enumerate(names)}
+
+
+def forces(x, u, p: BicycleParams):
+    """(alpha_f, alpha_r, F_cf, F_cr, F_lf, F_max) of every row of x under u, each (n,)
+    (:func:`forces_at`)."""
+    x, u, P = _arrays(x, u, p)
+    res = [forces_at(x[i, 3], x[i, 4], x[i, 5], x[i, 6], u[i, 0], P, i) for i in range(len(x))]
+    return tuple(np.array(res, dtype=float).reshape(len(x), 6).T)
+
+
+def steering_rate(x, u, p: BicycleParams) -> np.ndarray:
+    """Applied steering rate of every row [rad/s] (:func:`steering_rate_at`)."""
+    x, u, P = _arrays(x, u, p)
+    return np.array([steering_rate_at(x[i, 6], u[i, 1], P[i, _SMAX], P[i, _SRMAX])
+                     for i in range(len(x))], dtype=float)
+
+
+def traction_force_max(v, p: BicycleParams):
+    """:func:`traction_force_max_at` for parameters p (v [m/s], float or array)."""
+    return traction_force_max_at(v, p.m, p.a, p.b, p.h, p.mu)
 
 
 def braking_force_max(p: BicycleParams):
@@ -69,145 +263,8 @@ def braking_force_max(p: BicycleParams):
     return p.mu * p.m * G
 
 
-def slip_angles(v, beta, r, delta, p: BicycleParams):
-    """Front and rear tire slip angles [rad], eqs (3.7)-(3.8).
-
-    Body velocities are x dot = v cos(beta), y dot = v sin(beta) (3.20)-(3.21). The speed
-    is floored at ``p.v_low`` so that the angles stay finite at standstill (the tire forces
-    are not used there, see :func:`rhs`).
-    """
-    vs = np.maximum(v, p.v_low)
-    vx = vs * np.cos(beta)
-    vy = vs * np.sin(beta)
-    alpha_f = np.arctan2(vy + p.a * r, vx) - delta
-    alpha_r = np.arctan2(vy - p.b * r, vx)
-    return alpha_f, alpha_r
-
-
-def tire_forces(alpha_f, alpha_r, p: BicycleParams):
-    """Front and rear cornering forces F_cf, F_cr [N], eqs (3.9)-(3.10) or (3.12)."""
-    fcf = cornering_force(alpha_f, p.Bf, p.Cf, p.Df, p.Ef, p.linear_tire)
-    fcr = cornering_force(alpha_r, p.Br, p.Cr, p.Dr, p.Er, p.linear_tire)
-    return fcf, fcr
-
-
-def traction_from_acceleration(a_ref, beta, delta, fcf, fcr, p: BicycleParams):
-    """Traction force F_lf [N] that gives v dot = a_ref, eq (3.13) (unclipped)."""
-    num = p.m * a_ref - fcf * (np.cos(delta) * np.sin(beta) - np.sin(delta) * np.cos(beta)) \
-        - fcr * np.sin(beta)
-    den = np.cos(delta) * np.cos(beta) + np.sin(delta) * np.sin(beta)
-    return num / den
-
-
-def _blend_weight(v, p: BicycleParams):
-    """0 below v_low (kinematic), 1 above v_high (dynamic), C1 smoothstep between."""
-    s = np.clip((v - p.v_low) / (p.v_high - p.v_low), 0.0, 1.0)
-    return s * s * (3.0 - 2.0 * s)
-
-
-def _forces(x, u, p: BicycleParams):
-    """Slip angles, cornering forces and the clipped traction force for state x, input u."""
-    v, beta, r, delta = x[:, S.V], x[:, S.BETA], x[:, S.R], x[:, S.DELTA]
-    alpha_f, alpha_r = slip_angles(v, beta, r, delta, p)
-    fcf, fcr = tire_forces(alpha_f, alpha_r, p)
-    f_max = traction_force_max(v, p)
-    f_lf = traction_from_acceleration(u[:, U.A_REF], beta, delta, fcf, fcr, p)
-    f_lf = np.clip(f_lf, -braking_force_max(p), f_max)
-    return alpha_f, alpha_r, fcf, fcr, f_lf, f_max
-
-
-def steering_rate(x, u, p: BicycleParams):
-    """Applied steering rate [rad/s]: the input clipped to the rate limit and zeroed when
-    it would push the wheel past the angle limit (3.37-3.38 with actuator limits)."""
-    rate = np.clip(u[:, U.STEER_RATE], -p.steer_rate_max, p.steer_rate_max)
-    delta = x[:, S.DELTA]
-    at_limit = ((delta >= p.steer_max) & (rate > 0)) | ((delta <= -p.steer_max) & (rate < 0))
-    return np.where(at_limit, 0.0, rate)
-
-
-def rhs(x, u, p: BicycleParams):
-    """Time derivative of the dynamic bicycle state, shape (n, 7).
-
-    Dynamic part (weight w = 1 above ``p.v_high``):
-        v dot    = [F_x cos(beta) + F_y sin(beta)] / m                    (3.1)
-        beta dot = [F_y cos(beta) - F_x sin(beta)] / (m v) - psi dot       (exact form of 3.2)
-        psi ddot = [(F_lf sin(delta) + F_cf cos(delta)) a - F_cr b] / Izz  (3.3)
-    with F_x = F_lf cos(delta) - F_cf sin(delta), F_y = F_lf sin(delta) + F_cf cos(delta) + F_cr
-    and F_lf from (3.13) clipped to [-mu m g, F_max(v)] (3.14-3.15).
-    Kinematic part (w = 0 below ``p.v_low``): beta and psi dot relax with time constant
-    ``p.tau`` to the kinematic bicycle values beta_k = atan(b tan(delta) / L),
-    r_k = v cos(beta_k) tan(delta) / L, plus their feed-forward rates.
-    Position (3.22)-(3.23): X dot = v cos(psi + beta), Y dot = v sin(psi + beta).
-    """
-    psi, v, beta, r, delta = (x[:, S.PSI], x[:, S.V], x[:, S.BETA], x[:, S.R], x[:, S.DELTA])
-    _, _, fcf, fcr, f_lf, f_max = _forces(x, u, p)
-    sd, cd, sb, cb = np.sin(delta), np.cos(delta), np.sin(beta), np.cos(beta)
-    fx = f_lf * cd - fcf * sd
-    fy = f_lf * sd + fcf * cd + fcr
-    vs = np.maximum(v, p.v_low)
-
-    v_dot_dyn = (fx * cb + fy * sb) / p.m
-    beta_dot_dyn = (fy * cb - fx * sb) / (p.m * vs) - r
-    r_dot_dyn = ((f_lf * sd + fcf * cd) * p.a - fcr * p.b) / p.Izz
-
-    ddelta = steering_rate(x, u, p)
-    L = p.a + p.b
-    td = np.tan(delta)
-    sec2 = 1.0 + td * td
-    k = p.b * td / L
-    beta_k = np.arctan(k)
-    dbeta_k = (p.b / L) * sec2 / (1.0 + k * k)
-    v_dot_kin = np.clip(u[:, U.A_REF], -braking_force_max(p) / p.m, f_max / p.m)
-    r_k = v * np.cos(beta_k) * td / L
-    dr_k_dv = np.cos(beta_k) * td / L
-    dr_k_dd = v / L * (np.cos(beta_k) * sec2 - np.sin(beta_k) * dbeta_k * td)
-    beta_dot_kin = (beta_k - beta) / p.tau + dbeta_k * ddelta
-    r_dot_kin = (r_k - r) / p.tau + dr_k_dv * v_dot_kin + dr_k_dd * ddelta
-
-    w = _blend_weight(v, p)
-    v_dot = w * v_dot_dyn + (1.0 - w) * v_dot_kin
-    # near standstill braking is capped at v / tau_stop: an exponential stop, no reversing
-    v_dot = np.maximum(v_dot, -np.maximum(v, 0.0) / p.tau_stop)
-
-    dx = np.empty_like(x)
-    course = psi + beta
-    dx[:, S.X] = v * np.cos(course)
-    dx[:, S.Y] = v * np.sin(course)
-    dx[:, S.PSI] = r
-    dx[:, S.V] = v_dot
-    dx[:, S.BETA] = w * beta_dot_dyn + (1.0 - w) * beta_dot_kin
-    dx[:, S.R] = w * r_dot_dyn + (1.0 - w) * r_dot_kin
-    dx[:, S.DELTA] = ddelta
-    return dx
-
-
 def project(x, p: BicycleParams):
-    """Enforce the state constraints after an integration step: v >= 0, |delta| <= limit."""
+    """Enforce the state constraints after an integration step (:func:`project_at`)."""
     x[:, S.V] = np.maximum(x[:, S.V], 0.0)
     x[:, S.DELTA] = np.clip(x[:, S.DELTA], -p.steer_max, p.steer_max)
     return x
-
-
-def outputs(x, u, p: BicycleParams) -> dict[str, np.ndarray]:
-    """Recorded signals for state x under input u (all shape (n,)).
-
-    Accelerations are those of the centre of gravity in the body frame, from the
-    kinematics of the state derivative: a_lon = v dot cos(beta) - v sin(beta)(beta dot + r),
-    a_lat = v dot sin(beta) + v cos(beta)(beta dot + r); at steady state a_lat = v r (3.6).
-    """
-    alpha_f, alpha_r, _, _, f_lf, f_max = _forces(x, u, p)
-    dx = rhs(x, u, p)
-    v, beta = x[:, S.V], x[:, S.BETA]
-    course_rate = dx[:, S.BETA] + x[:, S.R]
-    a_lon = dx[:, S.V] * np.cos(beta) - v * np.sin(beta) * course_rate
-    a_lat = dx[:, S.V] * np.sin(beta) + v * np.cos(beta) * course_rate
-    return {
-        "a_lon": a_lon,
-        "a_lat": a_lat,
-        "slip_front": alpha_f,
-        "slip_rear": alpha_r,
-        "traction_force": f_lf,
-        "traction_force_max": np.broadcast_to(f_max, v.shape).astype(float),
-        "friction_usage": np.hypot(a_lon, a_lat) / (p.mu * G),
-        "steer_rate": dx[:, S.DELTA],
-    }

@@ -10,6 +10,8 @@ from enum import IntEnum
 
 import numpy as np
 
+from ..kernels import kernel, maximum
+
 
 class KS(IntEnum):
     """State slots of the unicycle."""
@@ -29,15 +31,18 @@ class KU(IntEnum):
 N_STATES = len(KS)
 
 
-def rhs(x, u, p=None):
-    """x dot = v cos(theta), y dot = v sin(theta), theta dot = w, eq (2.2); shape (n, 3).
+@kernel
+def rhs_at(psi, v_in, omega):
+    """x dot = v cos(theta), y dot = v sin(theta), theta dot = w, eq (2.2).
 
-    The speed input is floored at 0: the vehicles of the seed only move forward.
-    ``p`` is unused and kept for the common ``rhs(x, u, p)`` signature.
-    """
-    v = np.maximum(u[:, KU.V], 0.0)
-    dx = np.empty_like(x)
-    dx[:, KS.X] = v * np.cos(x[:, KS.PSI])
-    dx[:, KS.Y] = v * np.sin(x[:, KS.PSI])
-    dx[:, KS.PSI] = u[:, KU.OMEGA]
+    The speed input is floored at 0: the vehicles of the seed only move forward."""
+    v = maximum(v_in, 0.0)
+    return v * np.cos(psi), v * np.sin(psi), omega
+
+
+def rhs(x, u, p=None):
+    """:func:`rhs_at` for every row of x (n, 3) under u (n, 2); ``p`` is unused."""
+    dx = np.empty_like(np.asarray(x, dtype=float))
+    for i in range(len(dx)):
+        dx[i] = rhs_at(float(x[i, KS.PSI]), float(u[i, KU.V]), float(u[i, KU.OMEGA]))
     return dx

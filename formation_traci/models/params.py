@@ -212,3 +212,69 @@ def stack(params: list[BicycleParams]) -> BicycleParams:
         else:
             values[f.name] = np.array([getattr(p, f.name) for p in params], dtype=float)
     return BicycleParams(**values)
+
+
+# ------------------------------------------------ per-member parameter arrays (kernels)
+
+PARAM_NAMES: tuple[str, ...] = (
+    "m", "Izz", "a", "b", "h", "mu",
+    "Bf", "Cf", "Df", "Ef", "Br", "Cr", "Dr", "Er",
+    "linear_tire", "steer_max", "steer_rate_max",
+    "v_low", "v_high", "tau", "tau_stop",
+)
+"""Column order of the packed parameter array ``P`` (one column per BicycleParams field)."""
+
+N_PARAMS = len(PARAM_NAMES)
+
+# column indices (module-level ints: numba freezes them as compile-time constants)
+_M = PARAM_NAMES.index("m")
+_IZZ = PARAM_NAMES.index("Izz")
+_A = PARAM_NAMES.index("a")
+_B = PARAM_NAMES.index("b")
+_H = PARAM_NAMES.index("h")
+_MU = PARAM_NAMES.index("mu")
+_BF = PARAM_NAMES.index("Bf")
+_CF = PARAM_NAMES.index("Cf")
+_DF = PARAM_NAMES.index("Df")
+_EF = PARAM_NAMES.index("Ef")
+_BR = PARAM_NAMES.index("Br")
+_CR = PARAM_NAMES.index("Cr")
+_DR = PARAM_NAMES.index("Dr")
+_ER = PARAM_NAMES.index("Er")
+_LIN = PARAM_NAMES.index("linear_tire")
+_SMAX = PARAM_NAMES.index("steer_max")
+_SRMAX = PARAM_NAMES.index("steer_rate_max")
+_VLOW = PARAM_NAMES.index("v_low")
+_VHIGH = PARAM_NAMES.index("v_high")
+_TAU = PARAM_NAMES.index("tau")
+_TAUSTOP = PARAM_NAMES.index("tau_stop")
+
+
+def pack_params(p: BicycleParams, n: int) -> np.ndarray:
+    """Pack ``p`` into a C-contiguous float64 array of shape (n, N_PARAMS), columns PARAM_NAMES.
+
+    Scalar fields are broadcast to all n rows; (n,) array fields (a mixed fleet from
+    ``params.stack``) are copied per row; ``linear_tire`` becomes 0.0 / 1.0. Pack once per
+    fleet and reuse: the array does not change while the parameters do not.
+    """
+    names = tuple(f.name for f in fields(BicycleParams))
+    if set(names) != set(PARAM_NAMES):
+        raise ValueError(f"BicycleParams fields {names} do not match the kernel's {PARAM_NAMES}")
+    n = int(n)
+    if n < 0:
+        raise ValueError(f"n must be >= 0, got {n}")
+    P = np.empty((n, N_PARAMS), dtype=np.float64)
+    for j, name in enumerate(PARAM_NAMES):
+        value = getattr(p, name)
+        if name == "linear_tire":
+            col = np.asarray(value)
+            if col.ndim != 0:
+                raise ValueError("linear_tire must be one bool shared by the whole fleet")
+            P[:, j] = 1.0 if bool(col) else 0.0
+            continue
+        col = np.asarray(value, dtype=np.float64)
+        if col.ndim == 0 or col.shape == (n,):
+            P[:, j] = col
+        else:
+            raise ValueError(f"parameter {name!r} has shape {col.shape}, expected () or ({n},)")
+    return P

@@ -103,3 +103,10 @@ SSM_COLUMNS: tuple[Column, ...] = (
     Column("pet", "float64", "s", "post-encroachment time (crossing/merging conflicts)"),
 )
 """Columns of ``ssm.parquet``: SUMO's SSM device conflicts, converted from its XML output."""
+
+FILLED_BY_CALLER = ("t", "vehicle_id", "s", "d", "lane_index", "sumo_gap")
+"""Trajectory columns the member-signal kernel (sim/fleet.py) does not compute."""
+
+SIGNAL_COLUMNS: tuple[str, ...] = tuple(c.name for c in TRAJECTORY_COLUMNS
+                                        if c.name not in FILLED_BY_CALLER)
+"""Columns of the member-signal array, in the order of TRAJECTORY_COLUMNS."""

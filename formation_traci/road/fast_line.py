@@ -34,9 +34,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from scipy.interpolate import BPoly, BSpline, PPoly
 
+from ..kernels import kernel
 from .geometry import _DEGREE, _NEWTON_ITERATIONS, _NEWTON_TOL, ReferenceLine
 
 LEAF_SIZE = 8
@@ -183,13 +183,13 @@ def _build_tree(xy: np.ndarray) -> np.ndarray:
 # ------------------------------------------------------------------------------ kernels
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _wrap(a):
     """np.pi - np.mod(np.pi - a, 2 pi): wrap to (-pi, pi]."""
     return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _interval(G, off, n, xv, inv):
     """scipy's find_interval over the n breakpoints x = G[off:off + n]: x[i] <= xv < x[i+1],
     closed at the right end, the first / last interval outside (xv not NaN). The breakpoints
@@ -222,7 +222,7 @@ def _interval(G, off, n, xv, inv):
     return lo
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _curve(G, s):
     """c(u(s)) and the u-derivatives c', c'', c''' at s clipped to [0, length]; returns
     (sc, interval of sc in s_nodes, x0, y0, x1, y1, x2, y2, x3, y3)."""
@@ -294,7 +294,7 @@ def _curve(G, s):
     return sc, si, x0, y0, x1, y1, x2, y2, x3, y3
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def frame_at(G, s):
     """ReferenceLine.frame(s) for one arc length s [m].
 
@@ -331,7 +331,7 @@ def frame_at(G, s):
     return px, py, tx, ty, heading, kappa, kappa_rate
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _point_at(G, s):
     """What the projection needs of frame_at (same arithmetic): x, y, tx, ty, kappa."""
     sc, si, x0, y0, x1, y1, x2, y2, x3, y3 = _curve(G, s)
@@ -345,7 +345,7 @@ def _point_at(G, s):
     return x0 + ext * tx, y0 + ext * ty, tx, ty, kappa
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _nearest_sample(G, px, py, s_guess, stack):
     """Index of the line sample nearest to (px, py), exactly (the ReferenceLine's cKDTree
     query). With a guess: walk downhill from the guess's sample and accept the local minimum
@@ -427,7 +427,7 @@ def _nearest_sample(G, px, py, s_guess, stack):
     return best_i
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _newton_step(G, s, px, py, max_step):
     """One step of ReferenceLine.to_frenet's Newton iteration on (p - c(s)).t = 0."""
     x, y, tx, ty, kappa = _point_at(G, s)
@@ -446,7 +446,7 @@ def _newton_step(G, s, px, py, max_step):
     return step
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def to_frenet_one(G, px, py, s_guess):
     """ReferenceLine.to_frenet for one point: (s, d). ``s_guess`` (NaN: none) only speeds up
     the exact search for the nearest 1 m sample; from it the Newton iteration is the
@@ -467,7 +467,7 @@ def to_frenet_one(G, px, py, s_guess):
     return s, (px - x) * (-ty) + (py - y) * tx
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def to_frenet_many(G, xy, s_guess):
     """to_frenet_one for points xy (n, 2) with guesses s_guess (n,) (NaN: none): (s, d).
 
@@ -513,7 +513,7 @@ def to_frenet_many(G, xy, s_guess):
     return s, d
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def frame_many(G, s):
     """frame_at over an array s (n,): (n, 7) columns x, y, tx, ty, heading, kappa, kappa_rate."""
     out = np.empty((s.shape[0], 7))
@@ -522,3 +522,22 @@ def frame_many(G, s):
         for j in range(7):
             out[i, j] = r[j]
     return out
+
+
+def packed(line) -> np.ndarray:
+    """The buffer G of a ReferenceLine (built once per line and kept on it); a FastLine or a
+    G buffer passes through."""
+    if isinstance(line, np.ndarray):
+        return line
+    if isinstance(line, FastLine):
+        return line.G
+    hit = _PACKED.get(id(line))
+    if hit is None or hit[0] is not line:
+        hit = (line, FastLine.from_reference_line(line).G)
+        _PACKED[id(line)] = hit
+        while len(_PACKED) > 16:  # a process uses one or two lines; keep a few
+            del _PACKED[next(iter(_PACKED))]
+    return hit[1]
+
+
+_PACKED: dict[int, tuple] = {}

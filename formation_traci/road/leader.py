@@ -2,7 +2,18 @@
 from __future__ import annotations
 
 from ..control.formation import LeaderState
+from ..kernels import kernel
+from .fast_line import frame_at, packed
 from .geometry import ReferenceLine
+
+
+@kernel
+def road_leader_at(G, s, v, v_dot):
+    """The virtual car on the line G at arc length s [m], speed v, acceleration v_dot:
+    (x, y, theta, v, omega, v_dot, omega_dot), omega = v kappa(s),
+    omega_dot = v_dot kappa + v^2 kappa'(s)."""
+    x, y, tx, ty, heading, kappa, kappa_rate = frame_at(G, s)
+    return x, y, heading, v, v * kappa, v_dot, v_dot * kappa + v ** 2 * kappa_rate
 
 
 def road_leader_state(line: ReferenceLine, s: float, v: float, v_dot: float) -> LeaderState:
@@ -29,14 +40,5 @@ def road_leader_state(line: ReferenceLine, s: float, v: float, v_dot: float) -> 
         Position [m], heading [rad] (unwrapped along the line), v, omega [rad/s], v_dot,
         omega_dot [rad/s^2].
     """
-    f = line.frame(float(s))
-    kappa, kappa_rate = float(f.curvature), float(f.curvature_rate)
-    return LeaderState(
-        x=float(f.position[0]),
-        y=float(f.position[1]),
-        theta=float(f.heading),
-        v=float(v),
-        omega=float(v) * kappa,
-        v_dot=float(v_dot),
-        omega_dot=float(v_dot) * kappa + float(v) ** 2 * kappa_rate,
-    )
+    return LeaderState(*(float(q) for q in road_leader_at(packed(line), float(s), float(v),
+                                                           float(v_dot))))

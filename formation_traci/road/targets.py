@@ -15,13 +15,41 @@ s_dot = v, s_ddot = v_dot of the virtual car, the exact time derivatives are
 
 all evaluated at s + dx_i. They feed eqs (2.5)-(2.9) in place of the derivatives of (2.4).
 On a straight line they equal :func:`~formation_traci.control.formation.rigid_targets`.
+A slot that moves (a maneuver: dx(t), dy(t)) adds the terms of its own rates, see
+:func:`road_target_at`.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..control.formation import Targets
+from ..kernels import kernel
+from .fast_line import frame_at, packed
 from .geometry import ReferenceLine
+
+
+@kernel
+def road_target_at(G, s, v, v_dot, dx, dy, dx_dot, dy_dot, dx_ddot, dy_ddot):
+    """Desired point of a road-frame slot (dx, dy) for the virtual car at arc length s [m],
+    speed v and acceleration v_dot along the line G (road/fast_line.py): (px, py, vx, vy,
+    ax, ay). With sigma = s + dx, sigma' = v + dx', sigma'' = v_dot + dx'' and
+    stretch = 1 - dy kappa (all at sigma):
+
+        p'  = sigma' stretch t + dy' n,
+        p'' = [sigma'' stretch - sigma'^2 dy kappa' - 2 sigma' dy' kappa] t
+              + [sigma'^2 stretch kappa + dy''] n.
+    """
+    x, y, tx, ty, heading, kappa, kappa_rate = frame_at(G, s + dx)
+    nx = -ty
+    ny = tx
+    sv = v + dx_dot
+    sa = v_dot + dx_ddot
+    stretch = 1.0 - dy * kappa
+    vs = sv * stretch
+    ct = sa * stretch - sv * sv * dy * kappa_rate - 2.0 * sv * dy_dot * kappa
+    cn = sv * sv * stretch * kappa + dy_ddot
+    return (x + dy * nx, y + dy * ny, vs * tx + dy_dot * nx, vs * ty + dy_dot * ny,
+            ct * tx + cn * nx, ct * ty + cn * ny)
 
 
 def road_targets(line: ReferenceLine, s: float, v: float, v_dot: float,
@@ -52,13 +80,8 @@ def road_targets(line: ReferenceLine, s: float, v: float, v_dot: float,
     offsets = np.asarray(offsets, dtype=float)
     if offsets.ndim != 2 or offsets.shape[1] != 2:
         raise ValueError(f"offsets must have shape (n, 2), got {offsets.shape}")
-    dx, dy = offsets[:, 0], offsets[:, 1]
-    f = line.frame(float(s) + dx)
-    kappa, kappa_rate = f.curvature, f.curvature_rate
-    t, n = f.tangent, f.normal
-    stretch = 1.0 - dy * kappa  # speed of the offset point per unit arc length [-]
-    p = f.position + dy[:, None] * n
-    vel = (v * stretch)[:, None] * t
-    acc = ((v_dot * stretch - v * v * dy * kappa_rate)[:, None] * t
-           + (v * v * stretch * kappa)[:, None] * n)
-    return Targets(p, vel, acc)
+    G = packed(line)
+    T = np.array([road_target_at(G, float(s), float(v), float(v_dot), float(dx), float(dy),
+                                 0.0, 0.0, 0.0, 0.0) for dx, dy in offsets], dtype=float)
+    T = T.reshape(len(offsets), 6)
+    return Targets(T[:, 0:2], T[:, 2:4], T[:, 4:6])

@@ -1,53 +1,61 @@
-"""The formation members as one vectorised closed loop (Figure 3.46).
+"""The formation members as one closed loop (Figure 3.46), compiled per step.
 
-Per control period: the formation controller (2.4-2.11) gives v_ref, omega_ref; the
-kinematic unicycle applies them directly (2.2), the dynamic bicycle tracks them with the
-scheduled speed (3.32-3.34) and steering-rate (3.35-3.38) loops; the input is held
-(zero-order hold) while RK4 integrates the vehicles over the period.
+Per control period of a step, for every member: its desired point from the step's
+:class:`~formation_traci.control.reference.Reference` (control/targets.py) -> the formation
+controller (2.5-2.10) -> the model input (kinematic: v_ref, omega_ref; dynamic: the
+scheduled speed loop 3.32-3.34 capped by the safety layer, the steering-rate loop 3.37) ->
+the input held while RK4 integrates the vehicle (sim/integrate.py) and Euler theta* (2.11).
+The laws live in their home modules; this module only wires them, per member, in one
+compiled call per step (:func:`step_members`) and one for the recorded signals
+(:func:`member_signals`). Parameters are per-member arrays (a formation may mix vehicles).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
-from ..control.formation import FormationOutput, Targets, formation_control, initial_theta_star
-from ..control.schedule import GainSchedule
-from ..control.speed import desired_acceleration
-from ..control.yaw import steering_rate
-from ..models import bicycle, bicycle_fast, kinematic
-from ..models.bicycle import S, U
-from ..models.kinematic import KS, KU
-from ..models.params import BicycleParams
-from .integrate import substeps
+from ..control.formation import formation_at, initial_theta_star
+from ..control.reference import Reference
+from ..control.schedule import GainSchedule, p_law
+from ..control.targets import desired_point_at
+from ..kernels import kernel, maximum, minimum, substeps
+from ..models import bicycle, kinematic
+from ..models.params import BicycleParams, N_PARAMS, pack_params
+from ..record.columns import SIGNAL_COLUMNS
+from .integrate import DYNAMIC, KINEMATIC, rk4_at
+
+_KERNEL_SIGNALS = ("x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "ex", "ey",
+                   "e_lon", "e_lat", "x_des", "y_des", "v_ref", "omega_ref", "steer",
+                   "steer_rate", "beta", "slip_front", "slip_rear", "traction_force",
+                   "traction_force_max", "friction_usage")
+"""The signals :func:`member_signals` computes, in its internal order."""
+N_SIGNALS = len(_KERNEL_SIGNALS)
+
+
+def signal_column_map(columns: tuple[str, ...] = SIGNAL_COLUMNS) -> np.ndarray:
+    """Output column of every kernel signal (-1: not recorded)."""
+    return np.array([columns.index(n) if n in columns else -1 for n in _KERNEL_SIGNALS],
+                    dtype=np.int64)
 
 
 @dataclass(frozen=True)
 class FleetConfig:
-    """Static description of the members' closed loop."""
+    """Static description of the members' closed loop (per-member arrays of length n)."""
 
     ids: tuple[str, ...]
     model: Literal["dynamic", "kinematic"]
-    params: BicycleParams | None  # dynamic model only
+    params: BicycleParams | None  # dynamic model only; fields scalar or (n,)
     k: np.ndarray  # (n,) position gain of (2.7) [m/s]
     k_theta: np.ndarray  # (n,) heading gain of (2.8) [1/s]
-    speed_gains: GainSchedule
-    yaw_gains: GainSchedule
+    speed_gains: GainSchedule | tuple[GainSchedule, ...]  # one, or one per member
+    yaw_gains: GainSchedule | tuple[GainSchedule, ...]  # one, or one per member
     physics_step: float  # [s]
 
     @property
     def n(self) -> int:
         return len(self.ids)
-
-    @property
-    def packed(self) -> np.ndarray:
-        """Parameters packed for the compiled model (bicycle_fast.pack_params), built once."""
-        p = self.__dict__.get("_packed")
-        if p is None:
-            p = bicycle_fast.pack_params(self.params, self.n)
-            object.__setattr__(self, "_packed", p)
-        return p
 
 
 @dataclass
@@ -59,96 +67,220 @@ class FleetState:
     speed_in: np.ndarray  # (n,) unicycle only: speed input applied last [m/s]
 
 
-def kinematics(cfg: FleetConfig, state: FleetState):
-    """Position (n, 2) [m], velocity (n, 2) [m/s], heading (n,) [rad] of the members."""
-    x = state.x
-    if cfg.model == "kinematic":
-        psi, v = x[:, KS.PSI], state.speed_in
-        vel = np.stack([v * np.cos(psi), v * np.sin(psi)], axis=1)
-        return x[:, [KS.X, KS.Y]], vel, psi
-    pos = x[:, [S.X, S.Y]]
-    course = x[:, S.PSI] + x[:, S.BETA]
-    v = x[:, S.V]
-    vel = np.stack([v * np.cos(course), v * np.sin(course)], axis=1)
-    return pos, vel, x[:, S.PSI]
-
-
-def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, targets: Targets) -> FleetState:
-    """Members at rest in their initial pose; theta*(0) from eq (2.11)."""
+def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, targets) -> FleetState:
+    """Members in their initial pose and speed; theta*(0) from eq (2.11)."""
     n = cfg.n
     if cfg.model == "kinematic":
         x = np.zeros((n, kinematic.N_STATES))
-        x[:, KS.X], x[:, KS.Y], x[:, KS.PSI] = pos[:, 0], pos[:, 1], heading
+        x[:, 0], x[:, 1], x[:, 2] = pos[:, 0], pos[:, 1], heading
     else:
         x = np.zeros((n, bicycle.N_STATES))
-        x[:, S.X], x[:, S.Y], x[:, S.PSI] = pos[:, 0], pos[:, 1], heading
-        x[:, S.V], x[:, S.R], x[:, S.DELTA] = speed, yaw_rate, steer
+        x[:, 0], x[:, 1], x[:, 2] = pos[:, 0], pos[:, 1], heading
+        x[:, 3], x[:, 5], x[:, 6] = speed, yaw_rate, steer
     theta0 = initial_theta_star(targets, pos, heading, cfg.k)
     return FleetState(x, theta0, np.asarray(speed, dtype=float) * np.ones(n))
 
 
-def control(cfg: FleetConfig, state: FleetState, targets: Targets, v_cap=None, a_cap=None):
-    """Controller evaluation at one sampling instant.
+# ---------------------------------------------------------------------------- kernels
 
-    Returns the input to hold, shape (n, 2), and the formation controller's output.
-    Traffic safety layer (not in the seed, docs/model.md): ``v_cap`` (n,) [m/s] caps the
-    speed reference and ``a_cap`` (n,) [m/s^2] the desired acceleration a_r of (3.32), so
-    a member keeps its time gap to a vehicle ahead even where the scheduled gain (3.34)
-    would brake too gently.
+@kernel
+def motion_at(kind, x, i, speed_in_i):
+    """Speed [m/s], yaw rate [rad/s] and course angle [rad] of member i."""
+    if kind == KINEMATIC:
+        return speed_in_i, 0.0, x[i, 2]
+    return x[i, 3], x[i, 5], x[i, 2] + x[i, 4]
+
+
+@kernel
+def member_input_at(kind, x, i, theta_star_i, speed_in_i, k_i, k_theta_i, gains, px, py, tvx,
+                    tvy, tax, tay, v_cap_i, a_cap_i):
+    """Formation controller and model input of member i for its desired point:
+    (u0, u1, capped v_ref, omega_ref, theta* dot, v_ref dot, ex, ey, heading error)."""
+    v, r, course = motion_at(kind, x, i, speed_in_i)
+    vr, om, tsd, vrd, ex, ey, he = formation_at(
+        px, py, tvx, tvy, tax, tay, x[i, 0], x[i, 1], v * np.cos(course), v * np.sin(course),
+        x[i, 2], theta_star_i, k_i, k_theta_i)
+    vr = minimum(vr, v_cap_i)
+    if kind == KINEMATIC:
+        return vr, om, vr, om, tsd, vrd, ex, ey, he
+    a_r = minimum(p_law(vr, v, gains[i, 0], gains[i, 1], gains[i, 2]), a_cap_i)
+    return (a_r, p_law(om, r, gains[i, 3], gains[i, 4], gains[i, 5]), vr, om, tsd, vrd, ex, ey,
+            he)
+
+
+@kernel
+def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, vc, slots,
+                 v_cap, a_cap, dt_c, n_sub):
+    """One step: for each of the vc.shape[0] control periods of dt_c [s], every member's
+    input from the reference, held over RK4 in n_sub sub-steps. Inputs are not modified;
+    returns (x, theta_star, speed_in) after the step."""
+    n = x.shape[0]
+    m = x.shape[1]
+    x = x.copy()
+    theta_star = theta_star.copy()
+    speed_in = speed_in.copy()
+    U0 = np.empty(n)
+    U1 = np.empty(n)
+    tsd = np.empty(n)
+    h = dt_c / n_sub
+    for j in range(vc.shape[0]):
+        for i in range(n):
+            px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, j, i)
+            res = member_input_at(kind, x, i, theta_star[i], speed_in[i], k[i], k_theta[i],
+                                  gains, px, py, tvx, tvy, tax, tay, v_cap[i], a_cap[i])
+            U0[i] = res[0]
+            U1[i] = res[1]
+            tsd[i] = res[4]
+        for i in range(n):
+            theta_star[i] = theta_star[i] + tsd[i] * dt_c
+            if kind == KINEMATIC:
+                s = rk4_at(kind, x[i, 0], x[i, 1], x[i, 2], 0.0, 0.0, 0.0, 0.0, U0[i], U1[i], P,
+                           i, h, n_sub)
+                speed_in[i] = maximum(U0[i], 0.0)
+            else:
+                s = rk4_at(kind, x[i, 0], x[i, 1], x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6],
+                           U0[i], U1[i], P, i, h, n_sub)
+            for q in range(m):
+                x[i, q] = s[q]
+    return x, theta_star, speed_in
+
+
+@kernel
+def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
+    """The recorded signals of member i (vals, _KERNEL_SIGNALS order; NaN where the
+    kinematic model has no value)."""
+    vals[0] = x[i, 0]
+    vals[1] = x[i, 1]
+    vals[2] = x[i, 2]
+    ex = res[6]
+    ey = res[7]
+    vals[7] = ex
+    vals[8] = ey
+    vals[9] = c * ex + s * ey
+    vals[10] = -s * ex + c * ey
+    vals[11] = px
+    vals[12] = py
+    vals[13] = res[2]
+    vals[14] = res[3]
+    if kind == KINEMATIC:
+        vk = maximum(u0, 0.0)
+        vals[3] = vk
+        vals[4] = u1
+        vals[5] = res[5]
+        vals[6] = vk * u1
+        for q in (15, 16, 17, 18, 19, 20, 21, 22):
+            vals[q] = np.nan
+        return
+    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate = bicycle.outputs_at(
+        x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6], u0, u1, P, i)
+    vals[3] = x[i, 3]
+    vals[4] = x[i, 5]
+    vals[5] = a_lon
+    vals[6] = a_lat
+    vals[15] = x[i, 6]
+    vals[16] = rate
+    vals[17] = x[i, 4]
+    vals[18] = sf
+    vals[19] = sr
+    vals[20] = f_lf
+    vals[21] = f_max
+    vals[22] = usage
+
+
+@kernel
+def member_signals(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, vc, slots,
+                   v_cap, a_cap, cols, out):
+    """The recorded signals at the start of a step (the first control period's reference)
+    into out[i, cols[q]]; e_lon / e_lat in the frame of the member's virtual car."""
+    vals = np.empty(N_SIGNALS)
+    for i in range(x.shape[0]):
+        px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, 0, i)
+        res = member_input_at(kind, x, i, theta_star[i], speed_in[i], k[i], k_theta[i], gains,
+                              px, py, tvx, tvy, tax, tay, v_cap[i], a_cap[i])
+        th = vc[0, i, 2]
+        _signal_values(kind, x, i, P, res[0], res[1], res, px, py, np.cos(th), np.sin(th),
+                       vals)
+        for q in range(N_SIGNALS):
+            if cols[q] >= 0:
+                out[i, cols[q]] = vals[q]
+
+
+@kernel
+def kinematics_rows(x, speed_in, kind):
+    """Position (n, 2) [m], velocity (n, 2) [m/s], heading (n,) [rad] of the members."""
+    n = x.shape[0]
+    pos = np.empty((n, 2))
+    vel = np.empty((n, 2))
+    hd = np.empty(n)
+    for i in range(n):
+        v, r, course = motion_at(kind, x, i, speed_in[i])
+        pos[i, 0] = x[i, 0]
+        pos[i, 1] = x[i, 1]
+        vel[i, 0] = v * np.cos(course)
+        vel[i, 1] = v * np.sin(course)
+        hd[i] = x[i, 2]
+    return pos, vel, hd
+
+
+# ------------------------------------------------------------------------ the wrapper
+
+def _f64(a) -> np.ndarray:
+    """a as a C-contiguous, writeable float64 array (no copy when it already is one)."""
+    if (type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous
+            and a.flags.writeable):
+        return a
+    return np.array(a, dtype=np.float64, order="C")
+
+
+class Fleet:
+    """A FleetConfig packed once into the kernels' per-member arrays.
+
+        fleet = Fleet(cfg)
+        state = fleet.step(state, ref)               # ref: control.reference.Reference
+        sig = fleet.signals(state, ref)              # (n, len(SIGNAL_COLUMNS))
     """
-    pos, vel, heading = kinematics(cfg, state)
-    fo = formation_control(targets, pos, vel, heading, state.theta_star, cfg.k, cfg.k_theta)
-    if v_cap is not None:
-        fo = replace(fo, v_ref=np.minimum(fo.v_ref, v_cap))
-    u = np.empty((cfg.n, 2))
-    if cfg.model == "kinematic":
-        u[:, KU.V] = fo.v_ref
-        u[:, KU.OMEGA] = fo.omega_ref
-    else:
-        u[:, U.A_REF] = desired_acceleration(fo.v_ref, state.x[:, S.V], cfg.speed_gains)
-        if a_cap is not None:
-            u[:, U.A_REF] = np.minimum(u[:, U.A_REF], a_cap)
-        u[:, U.STEER_RATE] = steering_rate(fo.omega_ref, state.x[:, S.R], cfg.yaw_gains)
-    return u, fo
 
+    def __init__(self, cfg: FleetConfig):
+        n = cfg.n
+        self.cfg = cfg
+        if cfg.model == "dynamic":
+            self.kind, self.P = DYNAMIC, pack_params(cfg.params, n)
+        elif cfg.model == "kinematic":
+            self.kind, self.P = KINEMATIC, np.zeros((n, N_PARAMS))
+        else:
+            raise ValueError(f"unknown model {cfg.model!r}")
+        self.k = _f64(np.broadcast_to(np.asarray(cfg.k, dtype=float), (n,)))
+        self.k_theta = _f64(np.broadcast_to(np.asarray(cfg.k_theta, dtype=float), (n,)))
+        sg, yg = (g if isinstance(g, (tuple, list)) else (g,) * n
+                  for g in (cfg.speed_gains, cfg.yaw_gains))
+        self.gains = _f64([[a.g_min, a.g_max, a.k_min, b.g_min, b.g_max, b.k_min]
+                           for a, b in zip(sg, yg, strict=True)])
+        self.cols = signal_column_map()
 
-def advance(cfg: FleetConfig, state: FleetState, u: np.ndarray, fo: FormationOutput, dt: float) -> FleetState:
-    """Hold u for dt [s]: RK4 on the vehicles, forward Euler on theta* (2.11).
+    def n_sub(self, dt_c: float) -> int:
+        return substeps(dt_c, self.cfg.physics_step)
 
-    The compiled kernels of models/bicycle_fast.py compute exactly what
-    ``integrate(bicycle.rhs, ...)`` / ``integrate(kinematic.rhs, ...)`` compute (tests pin it
-    to 1e-11), about 100x faster for a few vehicles.
-    """
-    theta_star = state.theta_star + fo.theta_star_dot * dt
-    n_sub = substeps(dt, cfg.physics_step)
-    if cfg.model == "kinematic":
-        x = bicycle_fast.integrate_unicycle(state.x, u, dt, n_sub)
-        return FleetState(x, theta_star, np.maximum(u[:, KU.V], 0.0))
-    x = bicycle_fast.integrate_bicycle(state.x, u, cfg.packed, dt, n_sub)
-    return FleetState(x, theta_star, state.speed_in)
+    def step(self, state: FleetState, ref: Reference) -> FleetState:
+        """The members over one step of ``ref.n_ctrl`` control periods of ``ref.dt``."""
+        x, ts, sp = step_members(
+            _f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self.kind, self.P,
+            self.k, self.k_theta, self.gains, ref.line, ref.frame, ref.vc, ref.slots,
+            _f64(ref.v_cap), _f64(ref.a_cap), float(ref.dt), self.n_sub(ref.dt))
+        return FleetState(x, ts, sp)
 
-
-def member_signals(cfg: FleetConfig, state: FleetState, u: np.ndarray, fo: FormationOutput,
-                   targets: Targets, vc_theta: float) -> dict[str, np.ndarray]:
-    """The recorded columns of every member at one instant (record/columns.py)."""
-    x = state.x
-    nan = np.full(cfg.n, np.nan)
-    c, s = np.cos(vc_theta), np.sin(vc_theta)
-    out = {
-        "x": x[:, 0].copy(), "y": x[:, 1].copy(), "heading": x[:, 2].copy(),
-        "ex": fo.ex, "ey": fo.ey,
-        "e_lon": c * fo.ex + s * fo.ey, "e_lat": -s * fo.ex + c * fo.ey,
-        "x_des": targets.p[:, 0].copy(), "y_des": targets.p[:, 1].copy(),
-        "v_ref": fo.v_ref, "omega_ref": fo.omega_ref,
-    }
-    if cfg.model == "kinematic":
-        v = np.maximum(u[:, KU.V], 0.0)
-        out.update(v=v, yaw_rate=u[:, KU.OMEGA].copy(), a_lon=fo.v_ref_dot,
-                   a_lat=v * u[:, KU.OMEGA], steer=nan, steer_rate=nan, beta=nan,
-                   slip_front=nan, slip_rear=nan, traction_force=nan,
-                   traction_force_max=nan, friction_usage=nan)
+    def signals(self, state: FleetState, ref: Reference, out: np.ndarray | None = None):
+        """The recorded member columns at the start of the step (SIGNAL_COLUMNS order)."""
+        if out is None:
+            out = np.full((self.cfg.n, len(SIGNAL_COLUMNS)), np.nan)
+        member_signals(_f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self.kind,
+                       self.P, self.k, self.k_theta, self.gains, ref.line, ref.frame, ref.vc,
+                       ref.slots, _f64(ref.v_cap), _f64(ref.a_cap), self.cols, out)
         return out
-    sig = bicycle.outputs(x, u, cfg.params)
-    out.update(v=x[:, S.V].copy(), yaw_rate=x[:, S.R].copy(), steer=x[:, S.DELTA].copy(),
-               beta=x[:, S.BETA].copy(), **sig)
-    return out
+
+    def kinematics(self, state: FleetState):
+        """Position (n, 2) [m], velocity (n, 2) [m/s], heading (n,) [rad]."""
+        return kinematics_rows(_f64(state.x), _f64(state.speed_in), self.kind)
+
+    def speed(self, state: FleetState) -> np.ndarray:
+        """Speed of every member [m/s] (the unicycle's applied speed input)."""
+        return state.x[:, 3].copy() if self.kind == DYNAMIC else state.speed_in.copy()

@@ -5,10 +5,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..record.columns import (BACKGROUND_COLUMNS, EVENT_COLUMNS, TRAJECTORY_COLUMNS,
-                              VIRTUAL_CAR_ID)
+from ..record.columns import (BACKGROUND_COLUMNS, EVENT_COLUMNS, FILLED_BY_CALLER,
+                              SIGNAL_COLUMNS, TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID)
 from ..record.writer import ChunkedTable
-from .fast import FILLED_BY_CALLER, SIGNAL_COLUMNS
+
 
 STEPS_PER_CHUNK = 1200
 """Outer steps per trajectory part file (60 s of simulated time at the default 0.05 s step)."""
@@ -56,7 +56,7 @@ class Recorder:
 
     def add_signal_rows(self, t, sig: np.ndarray, extra: dict, mask=None):
         """Record the members from the compiled path: ``sig`` is the (n, len(SIGNAL_COLUMNS))
-        array of fast.FastFleet.signals (columns in trajectory order), ``extra`` the road and
+        array of fleet.Fleet.signals (columns in trajectory order), ``extra`` the road and
         SUMO columns (s, d, lane_index, sumo_gap; (n,) arrays), ``mask`` the members still in
         the run."""
         ix = self._sig_index

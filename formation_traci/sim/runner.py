@@ -1,9 +1,10 @@
 """Run one scenario headless and record it: the library call behind ``formation-traci run``.
 
-Loop structure (rates from the scenario, see docs/scenarios.md): every outer ``step`` is
-``step / control_step`` controller periods; each period evaluates the controllers once,
-holds the input and integrates with RK4 sub-steps of at most ``physics_step``. One row per
-vehicle is recorded at every outer step, from the first controller evaluation of the step.
+The step loop itself is sim/loop.py (one loop over a World, docs/architecture.md). Rates
+from the scenario (docs/scenarios.md): every outer ``step`` is ``step / control_step``
+controller periods; each period evaluates the controllers once, holds the input and
+integrates with RK4 sub-steps of at most ``physics_step``. One row per vehicle is recorded
+at every outer step, from the first controller evaluation of the step.
 """
 from __future__ import annotations
 
@@ -18,24 +19,18 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 
-from typing import Iterator
 
 from ..record.writer import atomic_write_json
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
-from . import fleet as fl
+from .loop import ModelRangeError, check_finite, free_space_run, step_loop  # noqa: F401
 from .recorder import Recorder
-from .setup import build_fleet, build_free_leader, build_initial_state, offsets, road_mu
+from .setup import road_mu, vehicle_params
 
 
 class RunDirExists(FileExistsError):
     """The output directory exists and --force was not given."""
-
-
-class ModelRangeError(RuntimeError):
-    """A vehicle state became non-finite: the model left its valid range."""
 
 
 @dataclass(frozen=True)
@@ -97,6 +92,9 @@ def stop_on_signals():
 
 
 def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
+    veh = vehicle_params(sc)
+    body = {"length": veh.length, "width": veh.width, "a": veh.a,
+            "front_overhang": veh.front_overhang}  # [m], analysis footprints read it
     return {
         "status": "running",
         "reason": None,
@@ -110,7 +108,8 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
         "members": [{"id": m.id,
                      "offset": list(m.offset) if m.offset is not None else [m.slot.along, m.slot.across],
                      "lanes": None if m.slot is None else m.slot.lanes,
-                     "frame": "vehicle" if m.offset is not None else "road"} for m in sc.members],
+                     "frame": "vehicle" if m.offset is not None else "road", "body": body}
+                    for m in sc.members],
         "versions": versions(),
         "started": _now(),
         "finished": None,
@@ -119,43 +118,9 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
     }
 
 
-def free_space_steps(sc: Scenario, rec: Recorder, meta: dict) -> Iterator[tuple[int, float]]:
-    """Simulate ``sc`` in free space; yields (step index, time [s]) after recording each step.
-
-    The per-step work runs in the compiled kernels of sim/fast.py, checked against the numpy
-    reference path (fleet.control/advance) when the fleet is built."""
-    from .fast import FastFleet, SIGNAL_COLUMNS
-    run = sc.run
-    n_steps = int(round(run.duration / run.step))
-    n_ctrl = int(round(run.step / run.control_step))
-    dt_c = run.step / n_ctrl
-    ids = [m.id for m in sc.members]
-    cfg = build_fleet(sc)
-    leader, pose = build_free_leader(sc)
-    d = offsets(sc)
-    state = build_initial_state(sc, cfg, leader.sample(0.0, pose))
-    ff = FastFleet.free_space(cfg, d, leader)
-    buf = np.full((cfg.n, len(SIGNAL_COLUMNS)), np.nan)
-    for k in range(n_steps + 1):
-        t = k * run.step
-        rec.add_signal_rows(t, ff.signals_free(state, t, pose, out=buf), {})
-        rec.add_vc(t, leader.sample(t, pose))
-        yield k, t
-        if k == n_steps:
-            return
-        state, pose = ff.step_free(state, t, pose, dt_c, n_ctrl)
-        check_finite(state, ids, t + run.step)
-
-
-def check_finite(state, ids, t):
-    if not np.all(np.isfinite(state.x)):
-        bad = [ids[i] for i in np.flatnonzero(~np.all(np.isfinite(state.x), axis=1))]
-        raise ModelRangeError(f"vehicle state became non-finite for {bad} at t = {t:.3f} s")
-
-
 def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | None = None,
                  force: bool = False, progress: bool = True, baseline: bool = False,
-                 step_hook=None) -> RunResult:
+                 step_hook=None, transforms=()) -> RunResult:
     """Run ``sc`` (free space, or on a SUMO road when it has a [road]) and record it.
 
     Writes ``run.json`` (status ``running`` at once, updated at every trajectory part file
@@ -165,13 +130,15 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
     ``baseline`` (road scenarios): the twin run with the same traffic and seed but without
     the formation, for ``formation-traci analyze RUN --baseline TWIN``. ``step_hook(k, t,
     adapter)`` is called after every SUMO step (fault injection, extensions).
+    ``transforms``: callables Reference -> Reference applied to every step's reference in
+    order (maneuvers, communication channels; docs/architecture.md).
     """
     if baseline and sc.road is None:
         raise ScenarioError(scenario_path or "<scenario>", [("road", "--baseline needs a road scenario")])
     src = None if scenario_path is None else Path(scenario_path)
     plan = None
     if sc.road is not None:  # road, route, lanes and slots are checked before anything runs
-        from .sumo_loop import prepare
+        from .sumo_plan import prepare
         plan = prepare(sc, src)
     out_dir = prepare_out_dir(out_dir, force)
     meta = run_meta(sc, None if scenario_path is None else str(scenario_path))
@@ -186,10 +153,11 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
     steps = None
     try:
         if sc.road is None:
-            steps = free_space_steps(sc, rec, meta)
+            build = lambda: free_space_run(sc)  # noqa: E731
         else:
-            from .sumo_loop import sumo_steps
-            steps = sumo_steps(sc, rec, out_dir, src, meta, plan, baseline, step_hook)
+            from .sumo_world import road_run
+            build = lambda: road_run(sc, plan, rec, out_dir, meta, baseline, step_hook)  # noqa: E731
+        steps = step_loop(sc, _with_transforms(build, transforms), rec, meta)
         if progress:
             from tqdm import tqdm
             bar = tqdm(total=n_steps, unit="step", desc=sc.name or "run", mininterval=0.5)
@@ -223,6 +191,14 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
             meta["event_counts"] = rec.event_counts
             atomic_write_json(meta_path, meta)
     return RunResult(out_dir, status, reason, float(t), int(k))
+
+
+def _with_transforms(build, transforms):
+    def built():
+        parts = build()
+        parts.transforms.extend(transforms)
+        return parts
+    return built
 
 
 def _progress_meta(path, meta, t, k):

@@ -7,13 +7,12 @@ import numpy as np
 
 from ..control.formation import LeaderState, rigid_targets
 from ..control.schedule import GAIN_PRESETS, GainSchedule
+from ..control.virtual_car import FreeLeader, Profile
 from ..models.linear import stable_blend_speed
 from ..models.params import (LOW_SPEED_DEFAULT, SURFACES, VEHICLE_PRESETS, VehicleParams,
                              bicycle_params, make_tires, stack)
 from ..scenario.schema import GainSpec, ProfileSpec, Scenario
 from .fleet import FleetConfig, FleetState, initial_state
-from .leader import FreeLeader
-from .profile import Profile
 
 
 def road_mu(sc: Scenario) -> float:

@@ -1,8 +1,8 @@
 """Parameter studies: a sweep file expands into cases, each run in its own process.
 
 ``expand_sweep(path)`` lists the cases, ``run_sweep(path, out_dir, ...)`` runs them (a local
-pool or a Dask cluster; resumable) into ``out_dir/summary.parquet``, and
-``analyze_sweep(out_dir)`` plots metrics against the swept values. See docs/sweeps.md.
+pool or a Dask cluster; resumable) into ``out_dir/summary.parquet``. Plotting them is
+analysis's job: ``analysis.sweep_report.analyze_sweep(out_dir)``. See docs/sweeps.md.
 
 Names are imported on first use, so the case process (``python -m
 formation_traci.sweep.case``) loads only what it needs.
@@ -14,7 +14,6 @@ import importlib
 _EXPORTS = {
     "Case": "expand", "Sweep": "expand", "expand_sweep": "expand", "load_sweep": "expand",
     "CaseSpec": "case", "run_case": "case",
-    "SweepReport": "report", "analyze_sweep": "report",
     "METRICS": "row",
     "SweepResult": "run", "run_sweep": "run",
     "SweepError": "spec",

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -267,3 +268,33 @@ def test_section_travel_times():
     assert out.loc["a", "travel_time_s"] == pytest.approx(5.5)
     with pytest.raises(ValueError, match="s_b"):
         tr.section_travel_times(_vehicle("a", t, t), 5.0, 5.0)
+
+
+def test_member_footprint_from_run_json_members_body():
+    """run.json members carry the body the runner simulated; it wins over the preset table
+    (a scenario saying small_truck with a recorded 5 m body gives the recorded body)."""
+    members = [{"id": "a", "body": {"length": 5.0, "width": 2.0, "a": 1.5, "front_overhang": 0.0}}]
+    fp, src = tr.member_footprint({"vehicle": {"preset": "small_truck"}}, members)
+    assert (fp.length, fp.width, fp.a, fp.front_overhang) == (5.0, 2.0, 1.5, 0.0)
+    assert fp.cog_to_front == 1.5 and src == "run.json members body"
+    # a damaged body falls back to the scenario
+    fp, src = tr.member_footprint({"vehicle": {"preset": "small_truck"}},
+                                  [{"body": {"length": "x"}}])
+    assert fp == tr.MEMBER_FOOTPRINTS["small_truck"] and "preset" in src
+
+
+def test_runner_records_the_member_body(tmp_path):
+    from formation_traci.models.params import SMALL_TRUCK
+    from formation_traci.scenario import load_scenario
+    from formation_traci.sim.runner import run_scenario
+    import json
+    root = Path(__file__).resolve().parents[2]
+    sc = load_scenario(root / "scenarios" / "thesis" / "dynamic_case1.toml",
+                       **{"run.duration": 0.1, "vehicle.preset": "small_truck",
+                          "vehicle.params.length": 9.0})
+    run_scenario(sc, tmp_path / "r", progress=False, force=True)
+    meta = json.loads((tmp_path / "r" / "run.json").read_text())
+    fp, src = tr.member_footprint(meta["scenario"], meta["members"])
+    assert src == "run.json members body"
+    assert (fp.length, fp.width, fp.a, fp.front_overhang) == (
+        9.0, SMALL_TRUCK.width, SMALL_TRUCK.a, SMALL_TRUCK.front_overhang)

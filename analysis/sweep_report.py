@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from .row import METRICS
-from .spec import SweepError
+from formation_traci.sweep.row import METRICS
+from formation_traci.sweep.spec import SweepError
 
 DEFAULT_METRICS: tuple[str, ...] = ("e_rms_m", "e_max_settled_m", "a_lat_peak_mps2",
                                     "jerk_lat_rms_mps3", "t_lat_above_comfort_s",
@@ -178,7 +178,7 @@ def analyze_sweep(sweep_dir: str | Path, metrics: list[str] | None = None,
     files: dict[str, Path] = {}
     figs, fig_errors = {}, {}
     if len(done) and chosen:
-        from .figures import sweep_figures
+        from analysis.sweep_figures import sweep_figures
 
         labels = {k: k.split(".")[-1] for k in swept}
         figs, fig_errors = sweep_figures(done, swept, meta.get("grid_keys", []), chosen,

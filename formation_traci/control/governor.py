@@ -8,7 +8,8 @@ its slot is blocked (a cut-in) gets its speed reference capped so it keeps a saf
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from ..kernels import kernel
 
 K_SPEED = 0.5
 """Free-road speed law gain [1/s]: a = K (v_set - v) + v_set dot."""
@@ -46,7 +47,7 @@ def vehicles_ahead(m_s_front, m_d, m_half_w, o_s_rear, o_d, o_half_w, o_v):
     return _vehicles_ahead(m_s_front, m_d, m_half_w, *o)
 
 
-@njit(cache=True)
+@kernel(error_model="python")
 def _vehicles_ahead(m_s_front, m_d, m_half_w, o_s_rear, o_d, o_half_w, o_v):
     """Loop form of :func:`vehicles_ahead` (compiled: it runs every step over every pair)."""
     n, k = m_s_front.shape[0], o_s_rear.shape[0]
@@ -78,7 +79,7 @@ def time_gap_accel(gap, v, v_lead, time_gap, min_gap):
     return out
 
 
-@njit(cache=True)
+@kernel(error_model="python")
 def _gap_law(gap, v, v_lead, time_gap, min_gap):
     """:func:`time_gap_accel` for one member."""
     if not np.isfinite(gap):
@@ -90,7 +91,7 @@ def _gap_law(gap, v, v_lead, time_gap, min_gap):
     return law
 
 
-@njit(cache=True)
+@kernel(error_model="python")
 def _gap_laws(gap, v, v_lead, time_gap, min_gap, out):
     for i in range(gap.shape[0]):
         out[i] = _gap_law(gap[i], v[i], v_lead[i], time_gap, min_gap)
@@ -103,7 +104,7 @@ def leader_accel(v_vc, v_set, v_set_dot, member_accels, accel_max, decel_emergen
                        float(accel_max), float(decel_emergency))
 
 
-@njit(cache=True)
+@kernel(error_model="python")
 def _leader_law(v_vc, v_set, v_set_dot, member_accels, use, accel_max, decel_emergency):
     a = K_SPEED * (v_set - v_vc) + v_set_dot
     for i in range(member_accels.shape[0]):
@@ -127,7 +128,7 @@ def member_speed_cap(gap, v_lead, time_gap, min_gap):
     return out
 
 
-@njit(cache=True)
+@kernel(error_model="python")
 def _speed_cap(gap, v_lead, time_gap, min_gap):
     """:func:`member_speed_cap` for one member."""
     if not np.isfinite(gap):
@@ -135,13 +136,13 @@ def _speed_cap(gap, v_lead, time_gap, min_gap):
     return max(v_lead + (gap - min_gap - time_gap * v_lead) / time_gap, 0.0)
 
 
-@njit(cache=True)
+@kernel(error_model="python")
 def _speed_caps(gap, v_lead, time_gap, min_gap, out):
     for i in range(gap.shape[0]):
         out[i] = _speed_cap(gap[i], v_lead[i], time_gap, min_gap)
 
 
-@njit(cache=True)
+@kernel(error_model="python")
 def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
                   o_s_rear, o_d, o_half_w, o_v, time_gap, min_gap, accel_max, decel_emergency):
     """One step of the governor over all members (compiled; the laws are the functions above).

@@ -1,0 +1,128 @@
+"""The one way a law becomes compiled code: :func:`kernel` (numba ``njit``, cached on disk).
+
+Every physical and control law of the package is a ``@kernel`` function in its home module
+(models/, control/, road/); the step kernels in sim/fleet.py call them. With the environment
+variable ``NUMBA_DISABLE_JIT=1`` the same functions run as plain Python: that is the
+reference the ``jit_off`` tests run (README, CI).
+
+Two chores live here:
+
+* one line on stderr when kernels are compiled for the first time in a process (a cold
+  numba cache costs tens of seconds; the user should not see a silent stall);
+* numba keys its on-disk cache on the file that defines a function only, not on the files
+  of the functions it calls: a digest of every module that defines kernels is stored next
+  to each cache directory, and a directory whose digest differs is emptied of kernels.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+from numba.core import event
+
+_NOTICE = "formation-traci: compiling the numba kernels (first run only, cached afterwards) ..."
+_STAMP = "formation_kernels.digest"
+
+
+def _package_digest() -> str:
+    """sha256 over every module of the package that defines kernels."""
+    h = hashlib.sha256()
+    root = Path(__file__).resolve().parent
+    for p in sorted(root.rglob("*.py")):
+        text = p.read_bytes()
+        if b"@kernel" in text or p.name == "kernels.py":
+            h.update(str(p.relative_to(root)).encode())
+            h.update(text)
+    return h.hexdigest()
+
+
+_DIGEST = _package_digest()
+_CHECKED: set = set()
+
+
+def _drop_stale_cache(dispatcher) -> None:
+    """Numba keys its on-disk cache on the file that defines a function only, not on the
+    files of the functions it calls: when any kernel module changed since a cache directory
+    was written, every cached kernel in it goes (they compile afresh)."""
+    cache = getattr(dispatcher, "_cache", None)
+    path = getattr(cache, "cache_path", None)
+    if path is None or path in _CHECKED:
+        return  # NUMBA_DISABLE_JIT, or this directory was checked already
+    _CHECKED.add(path)
+    try:
+        stamp = Path(path) / _STAMP
+        if (stamp.read_text().strip() if stamp.exists() else None) != _DIGEST:
+            for f in Path(path).glob("*.nb[ic]"):
+                f.unlink()
+            stamp.parent.mkdir(parents=True, exist_ok=True)
+            stamp.write_text(_DIGEST)
+    except OSError:  # pragma: no cover - read-only install: the shipped cache is current
+        pass
+
+
+def kernel(fn=None, **options):
+    """``numba.njit(cache=True, error_model="numpy")`` (options override), with the stale
+    cache check of :func:`_drop_stale_cache`."""
+    def wrap(f):
+        d = njit(**{"cache": True, "error_model": "numpy", **options})(f)
+        _drop_stale_cache(d)
+        return d
+    return wrap(fn) if fn is not None else wrap
+
+
+class _CompileNotice(event.Listener):
+    """Prints :data:`_NOTICE` once, when numba starts compiling one of our kernels."""
+
+    printed = False
+
+    def on_start(self, ev):
+        disp = (ev.data or {}).get("dispatcher")
+        mod = getattr(getattr(disp, "py_func", None), "__module__", "") or ""
+        if not _CompileNotice.printed and mod.startswith("formation_traci"):
+            _CompileNotice.printed = True
+            print(_NOTICE, file=sys.stderr, flush=True)
+
+    def on_end(self, ev):
+        pass
+
+
+event.register("numba:compile", _CompileNotice())
+
+
+# --- scalar helpers with numpy's semantics (NaN propagates like np.maximum / np.minimum) ---
+
+@kernel
+def maximum(a, b):
+    """np.maximum for scalars."""
+    if a >= b or a != a:
+        return a
+    return b
+
+
+@kernel
+def minimum(a, b):
+    """np.minimum for scalars."""
+    if a <= b or a != a:
+        return a
+    return b
+
+
+@kernel
+def clip(x, lo, hi):
+    """np.clip(x, lo, hi) == minimum(maximum(x, lo), hi) for scalars."""
+    return minimum(maximum(x, lo), hi)
+
+
+@kernel
+def wrap_angle(a):
+    """Wrap an angle to (-pi, pi] [rad]."""
+    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
+
+
+def substeps(dt: float, max_step: float) -> int:
+    """Number of equal sub-steps of at most ``max_step`` [s] that cover ``dt`` [s]."""
+    return max(1, math.ceil(dt / max_step - 1e-9))

@@ -1,0 +1,121 @@
+"""Event detectors of road runs: each watches one thing and writes rows to the recorder.
+
+Kinds (docs/outputs.md): member_removed, placement_mismatch, lane_change, cut_in,
+collision, teleport, emergency_brake, move_refused, end_of_road, cleared_at_insertion.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+PLACEMENT_TOLERANCE = 0.1
+"""SUMO's position of a member farther than this from ours is a placement_mismatch event [m]."""
+MAX_REFUSED = 20
+"""A member whose moveToXY is refused this many steps in a row is taken out of the run."""
+
+
+class LaneTracker:
+    """Last (edge, lane index) of every vehicle seen; shared by the member and traffic
+    watches so a lane change is reported once per vehicle."""
+
+    def __init__(self):
+        self.prev: dict[str, tuple[str, int]] = {}
+
+
+class MemberWatch:
+    """What SUMO reports about the members: removed, placed elsewhere, changed lane."""
+
+    def __init__(self, rec, ids, lanes: LaneTracker):
+        n = len(ids)
+        self.rec, self.ids, self.lanes = rec, ids, lanes
+        self.mismatch = np.zeros(n, dtype=bool)
+        self.lane_prev = np.full(n, -1)
+
+    def removed(self, t, i):
+        self.rec.add_event(t, "member_removed", self.ids[i], "", "SUMO no longer has the member")
+
+    def placement(self, t, gap_sumo):
+        off = gap_sumo > PLACEMENT_TOLERANCE
+        for i in np.flatnonzero(off & ~self.mismatch):
+            self.rec.add_event(t, "placement_mismatch", self.ids[i], "",
+                               f"SUMO has the member {gap_sumo[i]:.2f} m from where the model put it")
+        self.mismatch = off
+
+    def lane_changes(self, t, idx_act, present, lanes, lane_idx):
+        prev, ids = self.lanes.prev, self.ids
+        for j, i in enumerate(idx_act):
+            if present[j] and self.lane_prev[i] >= 0 and lane_idx[j] != self.lane_prev[i] \
+                    and lanes[j].rsplit("_", 1)[0] == prev.get(ids[i], ("", -1))[0]:
+                self.rec.add_event(t, "lane_change", ids[i], "", f"{self.lane_prev[i]} -> {lane_idx[j]}")
+            if present[j]:
+                self.lane_prev[i] = lane_idx[j]
+                prev[ids[i]] = (lanes[j].rsplit("_", 1)[0], int(lane_idx[j]))
+
+
+def log_sumo_events(rec, t, ev, members: set[str]) -> None:
+    """Collisions and teleports SUMO reported for the last step."""
+    if ev is None:
+        return
+    for collider, victim, lane in ev.collisions:
+        rec.add_event(t, "collision", collider, victim, f"lane {lane}")
+    for vid in ev.teleports:
+        rec.add_event(t, "teleport", vid, "", "member" if vid in members else "")
+
+
+class TrafficWatch:
+    """Lane changes of nearby vehicles; a cut-in when one becomes the vehicle right ahead
+    of a member inside its time gap."""
+
+    def __init__(self, rec, ids, lanes: LaneTracker, time_gap: float, min_gap: float):
+        self.rec, self.ids, self.lanes = rec, ids, lanes
+        self.time_gap, self.min_gap = time_gap, min_gap
+
+    def __call__(self, t, nb, lead_idx, gap, v_m, active):
+        changed = set()
+        prev = self.lanes.prev
+        for j, vid in enumerate(nb.ids):
+            edge = nb.lane_ids[j].rsplit("_", 1)[0]
+            li = int(nb.lane_index[j])
+            old = prev.get(vid)
+            if old is not None and old[0] == edge and old[1] != li and not edge.startswith(":"):
+                self.rec.add_event(t, "lane_change", vid, "", f"{old[1]} -> {li}")
+                changed.add(j)
+            prev[vid] = (edge, li)
+        for i in np.flatnonzero(active):
+            j = lead_idx[i]
+            if j >= 0 and j in changed and gap[i] < self.min_gap + self.time_gap * v_m[i]:
+                self.rec.add_event(t, "cut_in", nb.ids[j], self.ids[i],
+                                   f"gap {gap[i]:.1f} m ahead of the member")
+
+
+class EmergencyWatch:
+    """An emergency_brake event when the virtual car starts braking harder than comfort."""
+
+    def __init__(self, rec):
+        self.rec, self.on = rec, False
+
+    def __call__(self, t, a_vc, emergency: bool):
+        if emergency and not self.on:
+            self.rec.add_event(t, "emergency_brake", "vc", "", f"virtual car decelerates at {-a_vc:.2f} m/s^2")
+        self.on = emergency
+
+
+class RefusalWatch:
+    """Counts refused moves per member; after MAX_REFUSED in a row the member leaves."""
+
+    def __init__(self, rec, ids):
+        self.rec, self.ids = rec, ids
+        self.run = np.zeros(len(ids), dtype=int)
+
+    def __call__(self, t, act_idx, refused: dict, active, adapter) -> None:
+        for i in act_idx:
+            vid = self.ids[i]
+            if vid not in refused:
+                self.run[i] = 0
+                continue
+            self.run[i] += 1
+            self.rec.add_event(t, "move_refused", vid, "", refused[vid])
+            if self.run[i] >= MAX_REFUSED:
+                active[i] = False
+                adapter.remove_vehicle(vid)
+                self.rec.add_event(t, "member_removed", vid, "",
+                                   f"dropped after {MAX_REFUSED} refused moves in a row")

@@ -1,0 +1,112 @@
+"""Everything a road run prepares and checks before SUMO starts: the road, the slots,
+the members' initial poses, SUMO's command line and the members' vehicle type."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..control.formation import Targets, rigid_targets
+from ..models.params import VehicleParams
+from ..road.leader import road_leader_state
+from ..road.targets import road_targets
+from ..scenario.schema import Scenario
+from .road_setup import Road, build_road, check_no_overlap, check_slots, slot_offsets
+from .setup import profile, vehicle_params
+from .messages import SUMO_ARGS as SUMO_QUIET
+from .sumo_adapter import MemberType
+
+MEMBER_ROUTE = "formation_route"
+ADHESION_SHARE_COMFORT = 0.5
+"""The virtual car's acceleration and comfortable deceleration are at most this share of mu g."""
+ADHESION_SHARE_EMERGENCY = 0.8
+"""Its emergency deceleration is at most this share of mu g (the members must be able to follow)."""
+
+
+INSERT_CLEAR_TIME = 1.0
+"""Free space kept behind every member when it is inserted, as time at its speed [s]."""
+
+
+@dataclass(frozen=True)
+class RoadPlan:
+    """Everything prepared and checked before SUMO starts."""
+
+    road: Road
+    veh: VehicleParams
+    slots: np.ndarray  # (n, 2) road-frame (along, across) [m]; NaN rows for rigid members
+    rigid: np.ndarray  # (n, 2) virtual-car-frame offsets [m]; NaN rows for road members
+    is_road: np.ndarray  # (n,) bool
+    pos0: np.ndarray  # (n, 2) initial CoG [m]
+    heading0: np.ndarray  # (n,) [rad]
+    speed0: np.ndarray  # (n,) [m/s]
+
+
+def prepare(sc: Scenario, source: Path | None) -> RoadPlan:
+    """Resolve and check the road and the formation; raises ScenarioError before anything runs."""
+    road = build_road(sc, source)
+    veh = vehicle_params(sc)
+    slots = slot_offsets(sc, road)
+    check_slots(sc, road, slots, veh, source)
+    is_road = np.array([m.slot is not None for m in sc.members])
+    rigid = np.array([m.offset if m.offset is not None else [np.nan, np.nan] for m in sc.members], float)
+    v0, v0_dot = profile(sc.leader.speed)(0.0)
+    tg = initial_targets(road, slots, rigid, is_road, sc.road.start, v0, 0.0)
+    pos0 = tg.p.copy()
+    heading0 = np.arctan2(tg.v[:, 1], tg.v[:, 0])
+    speed0 = np.hypot(tg.v[:, 0], tg.v[:, 1])
+    for i, m in enumerate(sc.members):
+        if m.position is not None:
+            pos0[i] = m.position
+            heading0[i] = float(road.line.heading(road.line.to_frenet(np.asarray([m.position]))[0][0]))
+        if m.heading_deg is not None:
+            heading0[i] = math.radians(m.heading_deg)
+        if m.speed is not None:
+            speed0[i] = m.speed
+    check_no_overlap(sc, pos0, heading0, veh, source)
+    return RoadPlan(road, veh, slots, rigid, is_road, pos0, heading0, speed0)
+
+
+def initial_targets(road: Road, slots, rigid, is_road, s, v, a) -> Targets:
+    """Desired points of all members at virtual-car arc length s [m], speed v, acceleration a."""
+    if is_road.all():
+        return road_targets(road.line, s, v, a, slots)
+    vc = road_leader_state(road.line, s, v, a)
+    rt = rigid_targets(vc, np.nan_to_num(rigid))
+    if not is_road.any():
+        return rt
+    tr = road_targets(road.line, s, v, a, np.nan_to_num(slots))
+    m = is_road[:, None]
+    return Targets(np.where(m, tr.p, rt.p), np.where(m, tr.v, rt.v), np.where(m, tr.a, rt.a))
+
+
+def sumo_args(sc: Scenario, net: Path, routes: Path, sumo_dir: Path, t_end: float) -> list[str]:
+    args = ["-n", str(net), "-r", str(routes), "--step-length", repr(sc.run.step),
+            "--begin", "0", "--end", repr(t_end), "--seed", str(sc.run.seed),
+            "--lateral-resolution", repr(sc.sumo.lateral_resolution),
+            "--collision.action", "warn", "--collision.mingap-factor", "0",
+            "--collision.check-junctions", "true",
+            "--no-step-log", "true", "--log", str(sumo_dir / "sumo.log"),
+            "--error-log", str(sumo_dir / "messages.log"), *SUMO_QUIET,
+            "--duration-log.disable", "true"]
+    if sc.sumo.ssm:
+        args += ["--device.ssm.probability", "1", "--device.ssm.file", str(sumo_dir / "ssm.xml"),
+                 "--device.ssm.measures", "TTC DRAC PET", "--device.ssm.thresholds", "3.0 3.0 2.0",
+                 "--device.ssm.range", "50"]
+    if sc.sumo.friction_device:
+        args += ["--device.friction.probability", "1", "--device.friction.stdDev", "0"]
+    if sc.sumo.fcd:
+        args += ["--fcd-output", str(sumo_dir / "fcd.parquet")]
+    return args + list(sc.sumo.options)
+
+
+def member_type(sc: Scenario, veh: VehicleParams) -> MemberType:
+    return MemberType(id=f"member_{sc.vehicle.preset}", length=veh.length, width=veh.width,
+                      d_front=veh.cog_to_front_bumper, color=veh.color,
+                      vclass=MEMBER_VCLASS[sc.vehicle.preset])
+
+
+MEMBER_VCLASS = {"passenger_car": "custom1", "small_truck": "custom2"}
+"""Members' own SUMO vehicle classes: lane permissions can keep them (only) off the internal
+lanes where the network's connections cross its lane geometry (road/lanes.py)."""

@@ -1,0 +1,280 @@
+"""SUMO as the World of a road run (over the one libsumo adapter, sim/sumo_adapter.py).
+
+sense: read back where SUMO put the members (removed, placement mismatch, lane changes)
+and the vehicles near them; observe: traffic events and background rows; actuate: insert
+the members at the first step, then place them with moveToXY; step: SUMO's step, then tell
+SUMO the members' true speed and acceleration. A baseline twin (``baseline=True``) runs the
+same traffic without the formation: no member enters SUMO, every vehicle is recorded.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..road.fast_line import FastLine
+from ..scenario.schema import Scenario
+from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
+                     log_sumo_events)
+from .road_setup import rectangles_overlap
+from .ssm import convert_ssm
+from .sumo_adapter import SumoAdapter
+from .demand import measure_plan, traffic_meta
+from .messages import sumo_outputs_meta
+from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_type, sumo_args
+from .traffic import flow_vehicles_per_hour, write_routes
+from .world import Sensed
+
+
+class SumoWorld:
+    """The members among SUMO's traffic on the plan's road (see the module docstring)."""
+
+    def __init__(self, sc: Scenario, plan: RoadPlan, fleet, rec, out_dir: Path, meta: dict,
+                 baseline: bool = False, step_hook=None):
+        self.sc, self.plan, self.fleet, self.rec, self.meta = sc, plan, fleet, rec, meta
+        self.baseline, self.step_hook = baseline, step_hook
+        self.records_members = not baseline
+        self.ids = [m.id for m in sc.members]
+        n = len(self.ids)
+        self.line = FastLine.from_reference_line(plan.road.line)
+        self.out_dir, self.sumo_dir = out_dir, out_dir / "sumo"
+        self.active = np.ones(n, dtype=bool)
+        self.inserted = False
+        self.all_bg = sc.traffic.record_radius is None or baseline
+        self.ctx_owner = None
+        self.m_s = None
+        self.ev = None
+        self.along = np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])
+        self.slot_d_0 = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
+        lanes = LaneTracker()
+        self.members = MemberWatch(rec, self.ids, lanes)
+        self.traffic = TrafficWatch(rec, self.ids, lanes, sc.leader.time_gap, sc.leader.min_gap)
+        self.emergency = EmergencyWatch(rec)
+        self.refusals = RefusalWatch(rec, self.ids)
+        self.mtype = member_type(sc, plan.veh)
+        self.adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
+
+    # ------------------------------------------------------------------ start / close
+    def start(self) -> None:
+        sc, run, road = self.sc, self.sc.run, self.plan.road
+        self.sumo_dir.mkdir(exist_ok=True)
+        warm_steps = int(round(sc.traffic.warmup / run.step))
+        self.t0 = warm_steps * run.step
+        t_sumo_end = self.t0 + run.duration + 2 * run.step
+        flows = []
+        for f in sc.traffic.flows:
+            edges, lanes = road.flow_routes[f.id]
+            flows.append((f, edges, flow_vehicles_per_hour(f, lanes)))
+        routes = write_routes(self.sumo_dir / "traffic.rou.xml", flows, t_sumo_end)
+        self.flows = [(f, e, vph, f.end if f.end is not None else t_sumo_end) for f, e, vph in flows]
+        self.measure = measure_plan(sc, road, self.sumo_dir)
+        args = sumo_args(sc, road.net_file, routes, self.sumo_dir, t_sumo_end)
+        if self.measure is not None:
+            args += ["-a", str(self.measure["file"])]
+        meta, plan = self.meta, self.plan
+        meta["sumo"] = {"args": args, "warmup": self.t0, "net": str(road.net_file),
+                        "route": road.route, "reference_lane": sc.road.lane}
+        meta["members"] = [dict(m, **{"frame": "road" if plan.is_road[i] else "vehicle",
+                                      "offset": (plan.slots[i] if plan.is_road[i]
+                                                 else plan.rigid[i]).tolist()})
+                           for i, m in enumerate(meta["members"])]
+        ad = self.adapter
+        if sc.sumo.attach_port is not None:
+            meta["sumo"]["args"] = f"attached to port {sc.sumo.attach_port}"
+            meta["sumo"]["version"] = ad.attach(sc.sumo.attach_port)
+        else:
+            meta["sumo"]["version"] = ad.start(args)
+        meta["versions"]["sumo"] = meta["sumo"]["version"]
+        ad.count_departures([f.id for f in sc.traffic.flows])
+        ad.set_friction(meta["mu"])
+        ad.add_route(MEMBER_ROUTE, road.route)
+        ad.add_member_type(self.mtype)
+        ad.forbid_lanes(road.member_forbidden, MEMBER_VCLASS.values())
+        for _ in range(warm_steps):
+            ad.simulation_step()
+
+    def close(self) -> None:
+        t0 = getattr(self, "t0", 0.0)
+        t_sumo = self.adapter.time if self.adapter._started else t0
+        try:
+            self.adapter.close()
+        finally:
+            convert_ssm(self.sumo_dir / "ssm.xml", self.out_dir / "ssm.parquet", t0, set(self.ids))
+            if hasattr(self, "flows"):
+                traffic_meta(self.meta, self.rec, self.flows, self.adapter.departed, t_sumo, t0,
+                             self.measure)
+                sumo_outputs_meta(self.meta, self.sc, self.rec, self.sumo_dir, t0,
+                                  {i: self.mtype.d_front for i in self.ids})
+
+    # ------------------------------------------------------------------------- sense
+    def sense(self, k: int, t: float, state) -> Sensed:
+        pos, vel, heading = self.fleet.kinematics(state)
+        self._heading = heading
+        v_m = np.hypot(vel[:, 0], vel[:, 1])
+        m_s, m_d = self.line.to_frenet(pos, self.m_s)
+        self.m_s = m_s
+        sensed = Sensed(self.active, {"s": m_s, "d": m_d}, v_m, m_s, m_d)
+        if self.inserted and self.baseline:
+            log_sumo_events(self.rec, t, self.ev, set(self.ids))
+            sensed.nb = self.adapter.neighbours(True)
+        elif self.inserted:
+            self._read_members(t, pos, m_d, sensed.extra)
+            log_sumo_events(self.rec, t, self.ev, set(self.ids))
+            sensed.nb = self.adapter.neighbours(self.all_bg)
+        nb = sensed.nb
+        if nb is not None and len(nb.ids):
+            sensed.nb_s, sensed.nb_d = self.line.to_frenet(np.column_stack([nb.x, nb.y]))
+            sensed.nb_rear, sensed.nb_half_w, sensed.nb_v = (sensed.nb_s - nb.length / 2,
+                                                             nb.width / 2, nb.v)
+        return sensed
+
+    def _read_members(self, t, pos, m_d, extra) -> None:
+        n = len(self.ids)
+        idx_act = np.flatnonzero(self.active)
+        xs, ys, _, lanes, lane_idx, lat, present = self.adapter.read_members(
+            [self.ids[i] for i in idx_act])
+        for j, i in enumerate(idx_act):
+            if not present[j]:
+                self.members.removed(t, i)
+                self.active[i] = False
+        gap_sumo = np.full(n, np.nan)
+        lane_index = np.full(n, np.nan)
+        heading = self._heading[idx_act]
+        gap_sumo[idx_act] = sumo_gap(self.plan.road, pos[idx_act], heading, self.mtype.d_front, xs, ys,
+                                     lanes, self.adapter.lane_pos, lat)
+        lane_index[idx_act] = np.where(present, lane_idx, np.nan)
+        extra.update(sumo_gap=gap_sumo, lane_index=lane_index)
+        self.members.placement(t, gap_sumo)
+        self.members.lane_changes(t, idx_act, present, lanes, lane_idx)
+
+    def observe(self, t: float, sensed: Sensed, ref) -> None:
+        info = ref.info
+        self.emergency(t, info["a_vc"], info["emergency"])
+        if sensed.nb is not None:
+            self.traffic(t, sensed.nb, info["lead_idx"], info["gap"], sensed.v_m, self.active)
+            self.rec.add_background(t, sensed.nb, sensed.nb_s, sensed.nb_d)
+
+    def stop_reason(self, t: float):
+        if not self.active.any():
+            return None, "", f"no member left in SUMO at t = {t:.2f} s"
+        return None
+
+    # ------------------------------------------------------------------ actuate / step
+    def actuate(self, t_next: float, state, v_before) -> None:
+        pos, vel, heading = self.fleet.kinematics(state)
+        v_after = self.fleet.speed(state)
+        self.a_mean = (v_after - v_before) / self.sc.run.step
+        self.v_after = v_after
+        act_idx = np.flatnonzero(self.active)
+        if self.baseline:
+            return  # the formation stays out of SUMO
+        ids, ad = self.ids, self.adapter
+        if not self.inserted:
+            ld = self.sc.leader
+            clear_insertion_zone(ad, self.rec, t_next, pos, heading, v_after, self.plan.veh,
+                                 ld.min_gap + ld.time_gap * v_after)
+            for i in act_idx:
+                ad.insert_member(ids[i], MEMBER_ROUTE, self.mtype, pos[i, 0], pos[i, 1],
+                                 heading[i], v_after[i])
+            return
+        refused = dict(ad.place([ids[i] for i in act_idx], pos[act_idx, 0], pos[act_idx, 1],
+                                heading[act_idx]))
+        self.refusals(t_next, act_idx, refused, self.active, ad)
+
+    def step(self, k: int, t_next: float) -> None:
+        ad = self.adapter
+        self.ev = ad.step()
+        if self.step_hook is not None:
+            self.step_hook(k, t_next, ad)
+        if self.baseline:
+            ad.subscribe_departed()
+            self.inserted = True  # reads neighbours (every vehicle) from now on
+            return
+        act_idx = np.flatnonzero(self.active)
+        ad.set_true_speeds([self.ids[i] for i in act_idx], self.v_after[act_idx],
+                           self.a_mean[act_idx])
+        if not self.all_bg and self.active.any() and (
+                not self.inserted or self.ctx_owner is None or not self.active[self.ctx_owner]):
+            self.ctx_owner = subscribe_context(ad, self.ids, self.active, self.along,
+                                               self.slot_d_0, self.sc.traffic.record_radius)
+        self.inserted = True
+        if self.all_bg:
+            ad.subscribe_departed()
+
+
+def subscribe_context(adapter, ids, active, along, across, radius):
+    """One context subscription for the whole formation: on the active member nearest the
+    middle of the formation, with the radius grown by the formation's extent around it.
+    Returns that member's index."""
+    idx = np.flatnonzero(active)
+    centre = np.array([along[idx].mean(), across[idx].mean()])
+    dist = np.hypot(along[idx] - centre[0], across[idx] - centre[1])
+    owner = int(idx[np.argmin(dist)])
+    extent = float(np.max(np.hypot(along[idx] - along[owner], across[idx] - across[owner])))
+    adapter.subscribe_neighbours(ids[owner], radius + extent)
+    return owner
+
+
+def sumo_gap(road, pos, heading, d_front, xs, ys, lanes, lane_pos, lat):
+    """How far SUMO has each member from our pose [m]: the larger of the position gap and the
+    distance between our front bumper and the point SUMO's lane, lane position and lateral
+    lane position give (SUMO's lane shapes, road/lanes.py). (In the step of a move SUMO
+    echoes the commanded x, y even where it put the vehicle on another lane.)"""
+    gap = np.hypot(xs - pos[:, 0], ys - pos[:, 1])
+    fx = pos[:, 0] + d_front * np.cos(heading)
+    fy = pos[:, 1] + d_front * np.sin(heading)
+    for j, lane in enumerate(lanes):
+        if lane and np.isfinite(lat[j]) and np.isfinite(lane_pos[j]):
+            sx, sy = road.shapes.xy(lane, lane_pos[j], lat[j])
+            gap[j] = max(gap[j], math.hypot(sx - fx[j], sy - fy[j]))
+    return gap
+
+
+def clear_insertion_zone(adapter, rec, t, pos, heading, v, veh, front):
+    """Remove SUMO vehicles that stand where a member is inserted, or inside its time gap
+    ahead (``front`` [m]) or within INSERT_CLEAR_TIME of its speed behind it."""
+    ids, x, y, psi, length, width = adapter.vehicle_bodies()
+    for j, vid in enumerate(ids):
+        for i in range(len(pos)):
+            back = max(2.0, v[i] * INSERT_CLEAR_TIME)
+            zone_len = veh.length + front[i] + back
+            shift = (front[i] - back) / 2
+            zc = pos[i] + shift * np.array([math.cos(heading[i]), math.sin(heading[i])])
+            if rectangles_overlap(zc, heading[i], np.array([x[j], y[j]]), psi[j], zone_len, veh.width + 0.6,
+                                  length[j], width[j]):
+                adapter.remove_vehicle(vid)
+                rec.add_event(t, "cleared_at_insertion", vid, "", "removed: it stood where a member is inserted")
+                break
+
+
+def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
+             baseline: bool = False, step_hook=None):
+    """World, reference generator and fleet of a road run (loop.step_loop runs them)."""
+    from ..control.reference_road import GovernorLimits, RoadReference
+    from .fleet import Fleet, initial_state
+    from .loop import RunParts
+    from .setup import build_fleet, profile, road_mu
+    from .sumo_plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
+
+    run, ld, veh, line = sc.run, sc.leader, plan.veh, plan.road.line
+    n_ctrl = int(round(run.step / run.control_step))
+    cfg = build_fleet(sc)
+    fleet = Fleet(cfg)
+    speed_profile = profile(ld.speed)
+    # the virtual car never asks for more than the road's adhesion allows the members
+    mu_g = road_mu(sc) * 9.81
+    limits = GovernorLimits(ld.time_gap, ld.min_gap, min(ld.accel_max, ADHESION_SHARE_COMFORT * mu_g),
+                            min(ld.decel_max, ADHESION_SHARE_COMFORT * mu_g),
+                            min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g))
+    s0, v0 = float(sc.road.start), speed_profile(0.0)[0]
+    tg0 = initial_targets(plan.road, plan.slots, plan.rigid, plan.is_road, s0, v0, 0.0)
+    yaw0 = plan.speed0 * line.curvature(line.to_frenet(plan.pos0)[0])
+    state = initial_state(cfg, plan.pos0, plan.heading0, plan.speed0, yaw0, np.zeros(cfg.n), tg0)
+    world = SumoWorld(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
+    gen = RoadReference(world.line.G, world.line.length, plan.slots, plan.rigid, plan.is_road,
+                        s0, v0, speed_profile, limits, np.full(cfg.n, veh.width / 2),
+                        veh.cog_to_front_bumper, sc.road.end_margin, run.step / n_ctrl, n_ctrl)
+    meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
+                        "governor": 0.0, "control_model": 0.0, "record": 0.0}
+    return RunParts(world, gen, fleet, state, timing=meta["timing_s"])

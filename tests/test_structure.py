@@ -1,0 +1,135 @@
+"""Layout rules (GUIDE, issue 14): no import circle in formation_traci or analysis, no module
+over 400 lines, no function over 80 lines, exactly one module imports libsumo/traci.
+
+``DEBT`` names the modules and functions that were over the limits when the rule came in and
+have not been split yet; the test fails for any other violation and for a listed one that
+is fixed (so the list only shrinks). The test walks the source with ``ast`` (imports inside
+functions count too), like /work/shared/tools/structure_check.py.
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("formation_traci", "analysis")
+MAX_MODULE_LINES = 400
+MAX_FUNCTION_LINES = 80
+DEBT = {
+    "module formation_traci/sim/sumo_adapter.py",
+    "module formation_traci/road/fast_line.py",
+    "module formation_traci/road/geometry.py",
+    "module analysis/iso2631.py",
+    "module analysis/traffic.py",
+    "module analysis/figures.py",
+    "module analysis/traffic_run.py",
+    "module analysis/summary.py",
+    "module analysis/load.py",
+    "function formation_traci/sweep/run.py:run_sweep",
+    "function analysis/report.py:run_report",
+    "function analysis/api.py:analyze_run",
+    "function analysis/api.py:compare_runs",
+    "function analysis/figures.py:birdseye_animation",
+    "function analysis/figures.py:compare_figures",
+    "function analysis/traffic_run.py:compute_traffic",
+    "function analysis/summary.py:_member_metrics",
+    "function analysis/load.py:load_run",
+}
+
+
+def modules() -> dict[str, Path]:
+    out = {}
+    for pkg in PACKAGES:
+        for p in sorted((ROOT / pkg).rglob("*.py")):
+            rel = p.relative_to(ROOT).with_suffix("")
+            out[".".join(rel.parts).removesuffix(".__init__")] = p
+    return out
+
+
+def imports(name: str, path: Path, known: set[str]) -> set[str]:
+    """Modules of the two packages that ``name`` imports (relative imports resolved)."""
+    pkg = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+    deps = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            deps.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = pkg.split(".")
+                base = ".".join(parts[:len(parts) - (node.level - 1)] + ([base] if base else []))
+            deps.add(base)
+            deps.update(f"{base}.{a.name}" for a in node.names)
+    return {d for d in deps if d in known and d != name}
+
+
+def test_no_import_circles():
+    mods = modules()
+    inits = {m for m, p in mods.items() if p.name == "__init__.py"}
+    graph = {m: imports(m, p, set(mods)) - inits for m, p in mods.items() if m not in inits}
+    state: dict[str, int] = {}
+    circles = []
+
+    def visit(u, stack):
+        state[u] = 1
+        stack.append(u)
+        for v in sorted(graph.get(u, ())):
+            if state.get(v) == 1:
+                circles.append(" -> ".join(stack[stack.index(v):] + [v]))
+            elif not state.get(v):
+                visit(v, stack)
+        stack.pop()
+        state[u] = 2
+
+    for m in sorted(graph):
+        if not state.get(m):
+            visit(m, [])
+    assert not circles, circles
+
+
+def violations() -> set[str]:
+    found = set()
+    for p in modules().values():
+        rel = p.relative_to(ROOT).as_posix()
+        src = p.read_text()
+        if len(src.splitlines()) > MAX_MODULE_LINES:
+            found.add(f"module {rel}")
+        for node in ast.walk(ast.parse(src)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                if node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES:
+                    found.add(f"function {rel}:{node.name}")
+    return found
+
+
+def test_module_and_function_sizes():
+    found = violations()
+    assert not found - DEBT, f"over the limits: {sorted(found - DEBT)}"
+    assert not DEBT - found, f"fixed, remove from DEBT: {sorted(DEBT - found)}"
+
+
+def test_one_module_imports_libsumo():
+    users = set()
+    for name, p in modules().items():
+        for node in ast.walk(ast.parse(p.read_text())):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            if any(n.split(".")[0] in ("libsumo", "traci") for n in names):
+                users.add(name)
+    assert users == {"formation_traci.sim.sumo_adapter"}, users
+
+
+def test_the_checker_finds_a_circle(tmp_path, monkeypatch):
+    """The walk sees a circle made of relative imports inside functions."""
+    pkg = tmp_path / "formation_traci"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("def f():\n    from . import b\n")
+    (pkg / "b.py").write_text("from .a import f\n")
+    monkeypatch.setattr(__import__(__name__), "ROOT", tmp_path)
+    monkeypatch.setattr(__import__(__name__), "PACKAGES", ("formation_traci",))
+    try:
+        test_no_import_circles()
+    except AssertionError as e:
+        assert "formation_traci.a -> formation_traci.b -> formation_traci.a" in str(e)
+    else:
+        raise AssertionError("the circle a <-> b was not found")
