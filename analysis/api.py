@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.load import Issue, NoTrajectoryData, load_run
+from analysis.maneuvers import PHASE_METRICS, maneuver_intervals, phase_metrics
 from analysis.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN_METRICS,
                               AnalysisSettings, RunAnalysis, compute_run, settings_dict)
 from analysis.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
@@ -124,6 +125,8 @@ def _traffic_json(t: TrafficAnalysis | None) -> dict[str, Any] | None:
         "units": TRAFFIC_RUN_METRICS,
         "ssm": {g: _jsonable(r.to_dict()) for g, r in t.ssm.iterrows()},
         "member_conflicts": _records(t.member_conflicts),
+        "ssm_extremes": _records(t.ssm_extremes),
+        "conflicts": _records(t.conflicts),
         "baseline_vehicles": base,
         "unavailable": dict(t.unavailable),
     }
@@ -203,6 +206,7 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
         "settings": settings_dict(settings),
         "units": {"run": RUN_METRICS, "members": MEMBER_METRICS},
         "traffic": _traffic_json(a.traffic),
+        "maneuvers": _maneuvers_json(a),
         "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()},
     }
     p_json = out / METRICS_JSON
@@ -230,6 +234,16 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
                           files=files,
                           traffic=_jsonable(a.traffic.run) if a.traffic is not None else None,
                           baseline=base_tab)
+
+
+def _maneuvers_json(a) -> dict[str, Any]:
+    """Maneuver intervals and the steady / maneuver split of error and comfort per member."""
+    traj = a.data.trajectories
+    iv = maneuver_intervals(a.data.tables.get("events"), float(traj["t"].max()) if len(traj) else 0.0)
+    if iv.empty:
+        return {"intervals": [], "phases": [], "units": PHASE_METRICS}
+    ph = phase_metrics(traj, [m.id for m in a.data.members], iv, a.data.dt)
+    return {"intervals": _records(iv), "phases": _records(ph.reset_index()), "units": PHASE_METRICS}
 
 
 def _labels(run_dirs: Sequence[Path]) -> list[str]:

@@ -17,6 +17,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 
 from analysis import comfort, limits, traffic
+from analysis.maneuvers import maneuver_intervals
 from analysis.summary import RunAnalysis
 from analysis.traffic_run import member_rows, time_keys
 from formation_traci.record.columns import VIRTUAL_CAR_ID
@@ -78,6 +79,24 @@ def _member_groups(a: RunAnalysis):
     traj = a.data.trajectories
     ids = [m.id for m in a.data.members if (traj["vehicle_id"] == m.id).any()]
     return traj, ids, _colours(ids)
+
+
+_MANEUVER_COLOURS = {"reshape": "#c6dbef", "lane_change": "#e5d8f0"}
+
+
+def _mark_maneuvers(a: RunAnalysis, axes) -> None:
+    """Shade every maneuver interval (events.parquet) on time plots, labelled once."""
+    traj = a.data.trajectories
+    t_end = float(traj["t"].max()) if len(traj) else 0.0
+    iv = maneuver_intervals(a.data.tables.get("events"), t_end)
+    seen = set()
+    for name, t0, t1 in zip(iv["name"], iv["start_s"], iv["end_s"]):
+        for ax in axes:
+            ax.axvspan(t0, t1, color=_MANEUVER_COLOURS.get(name, "#eeeeee"), alpha=0.6, zorder=0,
+                       label=None if name in seen or ax is not axes[-1] else f"maneuver: {name}")
+        seen.add(name)
+    if seen:
+        axes[-1].legend(loc="upper right", fontsize=7)
 
 
 def _not_recorded(ax, what: str) -> None:
@@ -168,6 +187,7 @@ def _errors(a: RunAnalysis, path: Path) -> Path:
         _not_recorded(axes[3], "shape error")
     axes[3].set(ylabel="shape error [m]", xlabel="t [s]")
     axes[3].grid(alpha=0.3)
+    _mark_maneuvers(a, axes)
     return _save(fig, path)
 
 
@@ -187,6 +207,7 @@ def _tracking(a: RunAnalysis, path: Path) -> Path:
         ax.grid(alpha=0.3)
     if axes[0].get_legend_handles_labels()[0]:
         axes[0].legend(loc="best", fontsize=8, ncols=4)
+    _mark_maneuvers(a, axes)
     return _save(fig, path)
 
 
@@ -231,6 +252,7 @@ def _comfort(a: RunAnalysis, path: Path) -> Path:
                       f"order {w.jerk_polyorder}")
     for ax in axes:
         ax.grid(alpha=0.3)
+    _mark_maneuvers(a, axes)
     return _save(fig, path)
 
 

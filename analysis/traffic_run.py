@@ -16,6 +16,9 @@ import numpy as np
 import pandas as pd
 
 from analysis import traffic as tr
+from analysis.conflict_run import (CONFLICT_MEMBER_METRICS, CONFLICT_RUN_METRICS, SSM_RUN_METRICS,
+                                   recorded_section, ssm_section)
+from analysis.conflicts import time_keys
 from analysis.load import Issue, RunData, read_meta, read_table
 from formation_traci.record.columns import VIRTUAL_CAR_ID
 
@@ -42,21 +45,14 @@ TRAFFIC_MEMBER_METRICS: dict[str, str] = {
     "headway_min_s": "s", "headway_mean_s": "s", "t_headway_below_s": "s",
     "follower_headway_min_s": "s", "t_follower_headway_below_s": "s",
     "ssm_n_conflicts": "-", "ssm_ttc_min_s": "s", "ssm_drac_max_mps2": "m/s^2",
+    **CONFLICT_MEMBER_METRICS,
     "n_cut_ins": "-", "n_lane_changes": "-", "n_collisions": "-", "n_teleports": "-",
 }
 """Per-member traffic metrics with their units (columns of ``metrics.csv`` too)."""
 
-_SSM_RUN = {"n": "-", "ttc_min": "s", "drac_max": "m/s^2", "pet_min": "s",
-            "n_ttc_warning": "-", "n_ttc_critical": "-", "n_drac_high": "-"}
-_SSM_COL = {"n": "n_conflicts", "ttc_min": "ttc_min_s", "drac_max": "drac_max_mps2",
-            "pet_min": "pet_min_s", "n_ttc_warning": "n_ttc_warning",
-            "n_ttc_critical": "n_ttc_critical", "n_drac_high": "n_drac_high"}
-_SUFFIX = {"-": "", "s": "_s", "m/s^2": "_mps2"}
-
 TRAFFIC_RUN_METRICS: dict[str, str] = {
     "member_footprint": "-",
-    **{f"ssm_{k}_{g}{_SUFFIX[u]}": u for g in ("member", "other") for k, u in _SSM_RUN.items()},
-    "ssm_n_other_near": "-", "ssm_n_before_start": "-", "ssm_n_duplicates_merged": "-",
+    **SSM_RUN_METRICS, **CONFLICT_RUN_METRICS,
     "clearance_min_m": "m", "clearance_members_min_m": "m", "clearance_bg_min_m": "m",
     "lat_gap_min_m": "m", "ttc2d_min_s": "s", "headway_min_s": "s", "follower_headway_min_s": "s",
     "t_clearance_below_s": "s", "t_lat_gap_below_s": "s", "t_ttc2d_below_s": "s",
@@ -108,7 +104,9 @@ class TrafficAnalysis:
     run: dict[str, Any]  # TRAFFIC_RUN_METRICS
     members: pd.DataFrame  # index "id", columns TRAFFIC_MEMBER_METRICS
     ssm: pd.DataFrame  # analysis.traffic.ssm_summary by group "member"/"other"
-    member_conflicts: pd.DataFrame  # SSM conflicts involving a member, merged
+    member_conflicts: pd.DataFrame  # SSM conflicts involving a member, merged, artefacts left out
+    ssm_extremes: pd.DataFrame  # SSM records with TTC 0 or an extreme DRAC, with their "class"
+    conflicts: pd.DataFrame  # conflicts from the recording (analysis.conflicts.CONFLICT_COLUMNS)
     baseline: pd.DataFrame | None  # per-vehicle comparison with the twin, or None
     series: pd.DataFrame  # per member sample: t, vehicle_id, clearance_m (to any vehicle),
     # clearance_members_m, clearance_bg_m, ttc2d_s, lat_gap_m, headway_s, follower_headway_s
@@ -147,39 +145,6 @@ def load_baseline(run_dir: str | Path) -> BaselineData:
         issues.append(Issue("warning", "baseline_mismatch", "baseline:run.json",
                             "run.json does not say \"baseline\": true; compared anyway"))
     return BaselineData(d, meta, bg, tuple(issues))
-
-
-def time_keys(t, dt: float) -> np.ndarray:
-    """Integer step index of each time, to match rows of different tables.
-
-    Parameters
-    ----------
-    t : array_like
-        Times on the formation clock [s].
-    dt : float
-        Sample spacing [s]; when not finite, microseconds are used.
-
-    Returns
-    -------
-    ndarray of int64
-        ``round(t / dt)``.
-
-    Examples
-    --------
-    >>> time_keys([0.0, 0.15000000000000002, 0.3], 0.05).tolist()
-    [0, 3, 6]
-    """
-    t = np.asarray(t, float)
-    step = dt if (dt is not None and math.isfinite(dt) and dt > 0) else 1e-6
-    return np.round(t / step).astype(np.int64)
-
-
-def _f(x: Any) -> float | None:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
 
 
 def member_rows(data: RunData, fp: tr.Footprint, dt: float) -> pd.DataFrame:
@@ -541,58 +506,26 @@ def compute_traffic(data: RunData, settings: AnalysisSettings,
                          ("lane_change", "n_lane_changes"), ("cut_in", "n_cut_ins")):
             mem[dst] = counts[src].astype(object)
 
-    # --- SSM conflicts ----------------------------------------------------------------------
-    ssm_tab = pd.DataFrame(columns=list(tr.SSM_GROUP_COLUMNS))
-    conflicts = pd.DataFrame(columns=["begin", "end", "ego", "foe", "min_ttc",
-                                      "min_ttc_time", "max_drac", "max_drac_time", "pet"])
-    need = {"begin", "end", "ego", "foe"}
-    if ssm is None or not need <= set(ssm.columns):
-        unavailable["ssm"] = ("ssm.parquet missing (sumo.ssm off or not a SUMO run)"
-                              if ssm is None else "ssm.parquet lacks begin/end/ego/foe")
+    # --- SSM conflicts (SUMO's device) and conflicts from the recording ----------------------
+    bg_keys = set(zip(B["vehicle_id"], B["key"])) if bg_ok else None
+    member_s = M[["t", "vehicle_id", "s"]] if len(M) else None
+    sr = ssm_section(ssm, ids, t_first, t_last, st, bg_keys, dt, ev, member_s)
+    run.update(sr.run)
+    if sr.unavailable:
+        unavailable["ssm"] = sr.unavailable
+    for m_id, vals in sr.members.items():
+        for k, v in vals.items():
+            mem.loc[m_id, k] = v
+    conf_tab = pd.DataFrame(columns=["follower", "leader"])
+    if road and len(M):
+        c_run, c_mem, conf_tab = recorded_section(pd.concat([M, B], ignore_index=True) if len(B) else M,
+                                                  ids, st)
+        run.update(c_run)
+        for m_id, vals in c_mem.items():
+            for k, v in vals.items():
+                mem.loc[m_id, k] = v
     else:
-        s0 = ssm.assign(ego=ssm["ego"].astype(str), foe=ssm["foe"].astype(str))
-        merged = tr.merge_ssm_duplicates(s0)
-        run["ssm_n_duplicates_merged"] = int(len(s0) - len(merged))
-        end = pd.to_numeric(merged["end"], errors="coerce")
-        begin = pd.to_numeric(merged["begin"], errors="coerce")
-        during = (end >= t_first) & (begin <= t_last)
-        run["ssm_n_before_start"] = int((~during).sum())
-        merged = merged.loc[during].reset_index(drop=True)
-        is_m = merged["ego"].isin(id_set) | merged["foe"].isin(id_set)
-        if "member_involved" in merged.columns:
-            is_m |= merged["member_involved"].fillna(False).astype(bool)
-        groups = np.where(is_m, "member", "other")
-        ssm_tab = tr.ssm_summary(merged, groups, ttc_warning=st.ssm_ttc_warning_s,
-                                 ttc_critical=st.ssm_ttc_critical_s,
-                                 drac_high=st.ssm_drac_high_mps2)
-        for g in ("member", "other"):
-            for k, u in _SSM_RUN.items():
-                name = f"ssm_{k}_{g}{_SUFFIX[u]}"
-                if g in ssm_tab.index:
-                    val = ssm_tab.loc[g, _SSM_COL[k]]
-                    run[name] = _f(val) if u != "-" else int(val)
-                elif u == "-":
-                    run[name] = 0
-        other = merged.loc[~is_m]
-        if bg_ok and len(other):
-            when = pd.to_numeric(other.get("min_ttc_time"), errors="coerce")
-            when = when.fillna(pd.to_numeric(other.get("max_drac_time"), errors="coerce"))
-            when = when.fillna(pd.to_numeric(other["begin"], errors="coerce"))
-            present = set(zip(B["vehicle_id"], B["key"]))
-            kk = time_keys(when.to_numpy(float), dt)
-            run["ssm_n_other_near"] = int(sum(
-                (e_, k_) in present or (f_, k_) in present
-                for e_, f_, k_ in zip(other["ego"], other["foe"], kk)))
-        elif bg_ok:
-            run["ssm_n_other_near"] = 0
-        conflicts = merged.loc[is_m].reset_index(drop=True)
-        for m_id in ids:
-            c = conflicts.loc[(conflicts["ego"] == m_id) | (conflicts["foe"] == m_id)]
-            ttc = pd.to_numeric(c.get("min_ttc"), errors="coerce")
-            drac = pd.to_numeric(c.get("max_drac"), errors="coerce")
-            mem.loc[m_id, "ssm_n_conflicts"] = int(len(c))
-            mem.loc[m_id, "ssm_ttc_min_s"] = _f(ttc.min()) if len(c) else None
-            mem.loc[m_id, "ssm_drac_max_mps2"] = _f(drac.max()) if len(c) else None
+        unavailable["conflicts"] = "no road coordinates or lanes in the trajectories (not a road run)"
 
     # --- baseline twin ----------------------------------------------------------------------
     base_tab = None
@@ -656,9 +589,10 @@ def compute_traffic(data: RunData, settings: AnalysisSettings,
                         run["bg_speed_mean_near_mps"] is not None:
                     run["baseline_bg_speed_delta_near_mps"] = (
                         run["bg_speed_mean_near_mps"] - run["baseline_bg_speed_mean_near_mps"])
-    for c in ("ssm_n_conflicts", "n_cut_ins", "n_lane_changes", "n_collisions", "n_teleports"):
+    for c in ("ssm_n_conflicts", "conflict_n", "n_cut_ins", "n_lane_changes", "n_collisions",
+              "n_teleports"):
         mem[c] = [None if v is None or (isinstance(v, float) and math.isnan(v)) else int(v)
                   for v in mem[c]]
-    return TrafficAnalysis(run=run, members=mem, ssm=ssm_tab, member_conflicts=conflicts,
-                           baseline=base_tab, series=series, unavailable=unavailable,
+    return TrafficAnalysis(run=run, members=mem, ssm=sr.table, member_conflicts=sr.member_conflicts,
+                           ssm_extremes=sr.extremes, conflicts=conf_tab, baseline=base_tab, series=series, unavailable=unavailable,
                            issues=tuple(issues))

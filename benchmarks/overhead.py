@@ -15,6 +15,7 @@ Then the scaling with 1, 5, 20 and 50 members, and a 600 s versus 3600 s run for
     python benchmarks/overhead.py                 # full (40 minutes or more on 2 cores)
     python benchmarks/overhead.py --quick         # 60 s runs, 1 pair, small scaling table
     python benchmarks/overhead.py --no-ssm        # SUMO's SSM device off in every run
+    python benchmarks/overhead.py --ssm-all       # SUMO's SSM device on every vehicle
     python benchmarks/overhead.py --edge-m 120000 # the motorway as one 120 km edge
 
 Pair i runs with seed ``--seed`` + i (formation, twin and bare of a pair share it). A formation
@@ -111,7 +112,7 @@ def scenario(n: int, duration: float, flow_end: float | None, seed: int) -> dict
         "leader": {"speed": SPEED},
         "members": formation_slots(n),
         "traffic": {"warmup": 0.0, "flows": [flow]},
-        "sumo": {"ssm": os.environ.get("BENCH_SSM", "1") == "1"},
+        "sumo": {"ssm": os.environ.get("BENCH_SSM", "members")},
     }
 
 
@@ -199,7 +200,10 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="60 s runs, 1 pair, members 1 5, no long run")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--no-ssm", action="store_true",
-                    help="SUMO's SSM device off in every run (it dominates SUMO's time and memory)")
+                    help="SUMO's SSM device off in every run")
+    ap.add_argument("--ssm-all", action="store_true",
+                    help="SUMO's SSM device on every vehicle (before issue 18 the default; it dominates "
+                         "SUMO's time and memory); default: on the members only (sumo.ssm = members)")
     ap.add_argument("--edge-m", type=float, default=1000.0,
                     help="length of one edge of the 120 km motorway [m] (120000: a single edge)")
     ap.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
@@ -212,13 +216,13 @@ def main() -> None:
         return
     if a.quick:
         a.pairs, a.duration, a.members, a.skip_long = 1, 60.0, [1, 5], True
-    os.environ["BENCH_SSM"] = "0" if a.no_ssm else "1"  # inherited by the children
+    os.environ["BENCH_SSM"] = "off" if a.no_ssm else ("all" if a.ssm_all else "members")  # children inherit it
     os.environ["BENCH_EDGE_M"] = str(a.edge_m)
 
     long_net()
     print(f"machine: {os.cpu_count()} cores, Python {sys.version.split()[0]}; "
           f"reference: 5-member wedge, dynamic model, 1500 veh/h/lane, step 0.05 s, {a.duration:.0f} s, "
-          f"SSM device {'off' if a.no_ssm else 'on'}, edges of {a.edge_m:.0f} m")
+          f"SSM device {os.environ['BENCH_SSM']}, edges of {a.edge_m:.0f} m")
     form, twin, bare = [], [], []
     for i in range(a.pairs):
         seed = a.seed + i  # a pair shares its seed; pairs differ (see RESULTS.md: traffic realisations)

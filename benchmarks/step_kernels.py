@@ -17,7 +17,7 @@ from formation_traci.control.reference import FRAME_ROAD, Reference, constant_sl
 from formation_traci.control.schedule import SPEED_GAINS_CAR, YAW_GAINS_RETUNED
 from formation_traci.models.params import PASSENGER_CAR, bicycle_params, make_tires, stack
 from formation_traci.record.columns import SIGNAL_COLUMNS
-from formation_traci.road.fast_line import packed
+from formation_traci.road.line_pack import packed
 from formation_traci.road.geometry import reference_line_from_net
 from formation_traci.road.targets import road_targets
 from formation_traci.sim.fleet import Fleet, FleetConfig, initial_state

@@ -12,7 +12,7 @@ import pytest
 
 from formation_traci.control.channel import Delay
 from formation_traci.control.formation import rigid_target_at
-from formation_traci.road.fast_line import packed
+from formation_traci.road.line_pack import packed
 from formation_traci.road.geometry import reference_line_from_net
 from formation_traci.road.targets import road_target_at
 from formation_traci.scenario import parse_scenario

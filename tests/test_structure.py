@@ -17,7 +17,6 @@ MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 80
 DEBT = {
     "module formation_traci/sim/sumo_adapter.py",
-    "module formation_traci/road/fast_line.py",
     "module formation_traci/road/geometry.py",
     "module analysis/iso2631.py",
     "module analysis/traffic.py",

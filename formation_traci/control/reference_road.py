@@ -41,7 +41,7 @@ class RoadReference:
     acceleration per step; ``slots`` / ``rigid`` (n, 2) with NaN rows for the other kind."""
 
     def __init__(self, G, length: float, slots, rigid, is_road, s0: float, v0: float,
-                 speed_profile, limits: GovernorLimits, half_w, d_front: float,
+                 speed_profile, limits: GovernorLimits, half_w, d_front,
                  end_margin: float, dt_c: float, n_ctrl: int):
         self.G, self.length = G, float(length)
         self.is_road = np.asarray(is_road, dtype=bool)
@@ -52,7 +52,8 @@ class RoadReference:
         self.slots = constant_slots(offsets, n_ctrl)
         self.s, self.v = float(s0), float(v0)
         self.prof = speed_profile.packed()
-        self.limits, self.half_w, self.d_front = limits, half_w, float(d_front)
+        # d_front: CoG to front bumper [m], one or one per member (a mixed formation)
+        self.limits, self.half_w, self.d_front = limits, half_w, np.asarray(d_front, float)
         self.end_margin = float(end_margin)
         self.dt_c, self.n_ctrl = float(dt_c), int(n_ctrl)
         self._next = None
@@ -87,7 +88,7 @@ class RoadReference:
 
     def stop_reason(self, t: float):
         """('end_of_road', message) when the formation's front nears the route's end."""
-        if self.s + float(np.max(self.along)) + self.d_front + self.end_margin > self.length:
+        if self.s + float(np.max(self.along + self.d_front)) + self.end_margin > self.length:
             return ("end_of_road",
                     f"formation front within {self.end_margin} m of the route end",
                     f"end of the route reached at t = {t:.2f} s")

@@ -50,6 +50,7 @@ TRAJECTORY_COLUMNS: tuple[Column, ...] = (
     Column("d", "float64", "m", "lateral offset of the CoG from the reference line, left positive (road runs)"),
     Column("lane_index", "float64", "-", "SUMO lane index the member is on, 0 = rightmost (SUMO runs)"),
     Column("sumo_gap", "float64", "m", "distance between our CoG and the CoG SUMO reports (SUMO runs)"),
+    Column("slot", "float64", "-", "index of the formation slot the member holds (road runs; changes with reshapes)"),
 )
 """Columns of ``trajectories.parquet``: one row per vehicle per recorded step.
 
@@ -65,10 +66,11 @@ TRAJECTORY_FLOAT_COLUMNS: tuple[str, ...] = tuple(
 EVENT_COLUMNS: tuple[Column, ...] = (
     Column("t", "float64", "s", "simulated time (formation clock)"),
     Column("kind", "string", "-", "collision | teleport | member_removed | move_refused | lane_change | "
-                                  "cut_in | cleared_at_insertion | emergency_brake | end_of_road | placement_mismatch | model_range"),
+                                  "cut_in | cleared_at_insertion | emergency_brake | end_of_road | placement_mismatch | model_range | "
+                                  "maneuver_start | maneuver_end | maneuver_postponed | maneuver_cancelled"),
     Column("vehicle_id", "string", "-", "the vehicle the event is about"),
     Column("other_id", "string", "-", "the other vehicle involved, or empty"),
-    Column("detail", "string", "-", "free text"),
+    Column("detail", "string", "-", "free text; maneuver events: the maneuver's name first ('reshape: ...')"),
 )
 """Columns of ``events.parquet``: one row per event."""
 
@@ -101,10 +103,14 @@ SSM_COLUMNS: tuple[Column, ...] = (
     Column("max_drac", "float64", "m/s^2", "maximum deceleration rate to avoid a crash"),
     Column("max_drac_time", "float64", "s", "when max_drac occurred"),
     Column("pet", "float64", "s", "post-encroachment time (crossing/merging conflicts)"),
+    Column("min_ttc_type", "float64", "-", "SUMO's encounter type at min_ttc (2/3 following as "
+                                           "follower/leader, 111 collision: gap <= 0, ...)"),
+    Column("min_ttc_s", "float64", "m", "where SUMO put min_ttc: arc length along the reference line"),
+    Column("min_ttc_d", "float64", "m", "where SUMO put min_ttc: lateral offset, left positive"),
 )
 """Columns of ``ssm.parquet``: SUMO's SSM device conflicts, converted from its XML output."""
 
-FILLED_BY_CALLER = ("t", "vehicle_id", "s", "d", "lane_index", "sumo_gap")
+FILLED_BY_CALLER = ("t", "vehicle_id", "s", "d", "lane_index", "sumo_gap", "slot")
 """Trajectory columns the member-signal kernel (sim/fleet.py) does not compute."""
 
 SIGNAL_COLUMNS: tuple[str, ...] = tuple(c.name for c in TRAJECTORY_COLUMNS

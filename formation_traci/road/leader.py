@@ -3,7 +3,8 @@ from __future__ import annotations
 
 from ..control.formation import LeaderState
 from ..kernels import kernel
-from .fast_line import frame_at, packed
+from .fast_line import frame_at
+from .line_pack import packed
 from .geometry import ReferenceLine
 
 

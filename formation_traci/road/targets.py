@@ -24,7 +24,8 @@ import numpy as np
 
 from ..control.formation import Targets
 from ..kernels import kernel
-from .fast_line import frame_at, packed
+from .fast_line import frame_at
+from .line_pack import packed
 from .geometry import ReferenceLine
 
 

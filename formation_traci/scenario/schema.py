@@ -10,6 +10,8 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec
+
 PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -132,20 +134,6 @@ class LeaderSpec(Strict):
         return v
 
 
-class SlotSpec(Strict):
-    """A slot in road coordinates: along the reference lane and across it (left positive)."""
-
-    along: Finite = Field(0.0, description="arc length ahead of the virtual car [m]")
-    across: Finite | None = Field(None, description="lateral offset from the reference lane centre [m]")
-    lanes: int | None = Field(None, description="lateral offset in lanes from the reference lane (+1 = one lane left)")
-
-    @model_validator(mode="after")
-    def _one_lateral(self):
-        if (self.across is None) == (self.lanes is None):
-            raise ValueError("give exactly one of 'across' [m] or 'lanes'")
-        return self
-
-
 class MemberSpec(Strict):
     id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$")
     offset: Pair | None = Field(None, description="[d_x, d_y] in the virtual car frame [m], eq 2.4")
@@ -155,6 +143,10 @@ class MemberSpec(Strict):
     speed: NonNegFloat | None = Field(None, description="initial speed [m/s]; default the leader's")
     yaw_rate_deg_s: Finite = Field(0.0, description="initial yaw rate [deg/s] (dynamic model)")
     steer_deg: Finite = Field(0.0, description="initial steering angle [deg] (dynamic model)")
+    preset: Literal["passenger_car", "small_truck"] | None = Field(
+        None, description="per-member vehicle preset (mixed formations); default vehicle.preset")
+    speed_gains: GAIN_TABLES | GainSpec | None = Field(None, description="per-member override of controller.speed_gains")
+    yaw_gains: GAIN_TABLES | GainSpec | None = Field(None, description="per-member override of controller.yaw_gains")
     k: PosFloat | None = Field(None, description="per-member override of controller.k")
     k_theta: PosFloat | None = Field(None, description="per-member override of controller.k_theta")
 
@@ -226,7 +218,10 @@ class SumoSpec(Strict):
     backend: Literal["libsumo", "traci"] = "libsumo"
     gui: bool = Field(False, description="run sumo-gui (traci backend only)")
     lateral_resolution: PosFloat = Field(0.8, description="sublane width [m] (--lateral-resolution)")
-    ssm: bool = Field(True, description="SSM device on every vehicle (TTC, DRAC, PET)")
+    ssm: Literal["members", "all", "off"] = Field(
+        "members", description="SUMO's SSM device (TTC, DRAC, PET): on the formation members only "
+        "(default; background pairs are measured from the recording by the analysis), on every "
+        "vehicle (about 10x the cost of the run), or off; true/false mean \"all\"/\"off\"")
     fcd: bool = Field(False, description="also write SUMO's FCD output (Parquet)")
     fcd_frame: Literal["sumo", "formation"] = Field(
         "sumo", description="FCD in SUMO's frame (SUMO time, front bumper, deg CW from north) or the "
@@ -235,6 +230,13 @@ class SumoSpec(Strict):
     options: list[str] = Field(default_factory=list, description="extra SUMO command-line options")
     attach_port: int | None = Field(None, ge=1, le=65535, description="attach (traci) to a SUMO already "
                                     "running with --remote-port PORT instead of starting one")
+
+    @field_validator("ssm", mode="before")
+    @classmethod
+    def _ssm_bool(cls, v):
+        if isinstance(v, bool):  # the earlier boolean form: true was every vehicle
+            return "all" if v else "off"
+        return v
 
     @model_validator(mode="after")
     def _attach(self):
@@ -254,6 +256,23 @@ class Scenario(Strict):
     road: RoadSpec | None = Field(None, description="SUMO road; without it the run is in free space")
     traffic: TrafficSpec = TrafficSpec()
     sumo: SumoSpec = SumoSpec()
+    maneuvers: list[ManeuverSpec] = Field(default_factory=list, description="scheduled maneuvers, run one at a time in this order")
+    maneuver_limits: ManeuverLimits = ManeuverLimits()
+
+    @model_validator(mode="after")
+    def _maneuver_rules(self):
+        if not self.maneuvers:
+            return self
+        if self.road is None:
+            raise ValueError("maneuvers need a [road] table")
+        if any(m.slot is None for m in self.members):
+            raise ValueError("maneuvers need road-frame slots ('slot') for every member")
+        for i, mv in enumerate(self.maneuvers):
+            if mv.slots is not None and len(mv.slots) < len(self.members):
+                raise ValueError(f"maneuvers.{i}.slots: {len(mv.slots)} slots for {len(self.members)} members")
+            if mv.member is not None and mv.member not in [m.id for m in self.members]:
+                raise ValueError(f"maneuvers.{i}.member: no member {mv.member!r}")
+        return self
 
     @model_validator(mode="after")
     def _world_rules(self):

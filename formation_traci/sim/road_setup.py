@@ -163,17 +163,20 @@ def _lane_across(sc: Scenario, road: Road, lanes: int) -> float:
     return lanes * road.lane_width
 
 
-def check_slots(sc: Scenario, road: Road, slots: np.ndarray, veh: VehicleParams, source) -> None:
-    """A slot must keep the member's body on the road everywhere the formation will drive."""
+def check_slots(sc: Scenario, road: Road, slots: np.ndarray, vehicles: list[VehicleParams], source,
+                s_max: float | None = None) -> None:
+    """A slot must keep the member's body (``vehicles``, one per member) on the road
+    everywhere the formation will drive (up to the virtual car's arc length ``s_max`` [m]
+    when maneuvers change the slots there)."""
     problems = []
-    half = veh.width / 2
     for i, m in enumerate(sc.members):
+        half = vehicles[i].width / 2
         if m.slot is None:
             continue
         dx, dy = slots[i]
         s_first = sc.road.start + dx
         for seg in road.segments:
-            if seg.s1 < s_first:
+            if seg.s1 < s_first or (s_max is not None and seg.s0 > s_max + dx):
                 continue
             if dy - half < seg.d_min - 1e-6 or dy + half > seg.d_max + 1e-6:
                 problems.append((f"members.{i}.slot", (
@@ -185,11 +188,14 @@ def check_slots(sc: Scenario, road: Road, slots: np.ndarray, veh: VehicleParams,
         raise ScenarioError(source or "<scenario>", problems)
 
 
-def check_no_overlap(sc: Scenario, pos: np.ndarray, heading: np.ndarray, veh: VehicleParams, source) -> None:
-    """Members' initial footprints must not overlap each other."""
+def check_no_overlap(sc: Scenario, pos: np.ndarray, heading: np.ndarray,
+                     vehicles: list[VehicleParams], source) -> None:
+    """Members' initial footprints (``vehicles``, one per member) must not overlap each other."""
     problems = []
     for i, j in itertools.combinations(range(len(sc.members)), 2):
-        if rectangles_overlap(pos[i], heading[i], pos[j], heading[j], veh.length, veh.width):
+        vi, vj = vehicles[i], vehicles[j]
+        if rectangles_overlap(pos[i], heading[i], pos[j], heading[j], vi.length, vi.width,
+                              vj.length, vj.width):
             problems.append((f"members.{j}", f"member {sc.members[j].id!r} would be inserted on top of "
                                              f"{sc.members[i].id!r} (their bodies overlap at t = 0)"))
     if problems:
@@ -214,3 +220,28 @@ def rectangles_overlap(p1, h1, p2, h2, length, width, length2=None, width2=None)
         if pa.max() <= pb.min() or pb.max() <= pa.min():
             return False
     return True
+
+
+def road_room(road: Road):
+    """room(s0, s1) -> (d_min, d_max): the narrowest lateral extent of the road over
+    [s0, s1] [m] (relative to the reference line, left positive), from its segments."""
+    segments = road.segments
+
+    def room(s0: float, s1: float) -> tuple[float, float]:
+        lo, hi = -np.inf, np.inf
+        for seg in segments:
+            if seg.s1 >= s0 and seg.s0 <= s1:
+                lo, hi = max(lo, seg.d_min), min(hi, seg.d_max)
+        return lo, hi
+
+    return room
+
+
+def initial_check_limit(sc: Scenario) -> float | None:
+    """How far along the route [m] the initial slots must stay on the road: up to the first
+    position-triggered maneuver; only the start when the first maneuver is triggered by time
+    or traffic (the planner checks the road ahead before every maneuver). None: no maneuvers."""
+    if not sc.maneuvers:
+        return None
+    first = sc.maneuvers[0].at
+    return first.s if first.s is not None else sc.road.start

@@ -26,7 +26,7 @@ from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
 from .loop import ModelRangeError, check_finite, free_space_run, step_loop  # noqa: F401
 from .recorder import Recorder
-from .setup import road_mu, vehicle_params
+from .setup import member_vehicles, road_mu
 
 
 class RunDirExists(FileExistsError):
@@ -92,9 +92,8 @@ def stop_on_signals():
 
 
 def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
-    veh = vehicle_params(sc)
-    body = {"length": veh.length, "width": veh.width, "a": veh.a,
-            "front_overhang": veh.front_overhang}  # [m], analysis footprints read it
+    bodies = [{"length": v.length, "width": v.width, "a": v.a, "front_overhang": v.front_overhang}
+              for v in member_vehicles(sc)]  # [m], analysis footprints read it
     return {
         "status": "running",
         "reason": None,
@@ -108,8 +107,9 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
         "members": [{"id": m.id,
                      "offset": list(m.offset) if m.offset is not None else [m.slot.along, m.slot.across],
                      "lanes": None if m.slot is None else m.slot.lanes,
-                     "frame": "vehicle" if m.offset is not None else "road", "body": body}
-                    for m in sc.members],
+                     "frame": "vehicle" if m.offset is not None else "road", "body": bodies[i],
+                     "preset": m.preset or sc.vehicle.preset}
+                    for i, m in enumerate(sc.members)],
         "versions": versions(),
         "started": _now(),
         "finished": None,

@@ -20,9 +20,10 @@ def road_mu(sc: Scenario) -> float:
     return sc.vehicle.mu if sc.vehicle.mu is not None else SURFACES[sc.vehicle.surface]
 
 
-def vehicle_params(sc: Scenario) -> VehicleParams:
-    """The preset chassis with the scenario's overrides applied."""
-    veh = VEHICLE_PRESETS[sc.vehicle.preset]
+def vehicle_params(sc: Scenario, preset: str | None = None) -> VehicleParams:
+    """The preset chassis (``preset``, default vehicle.preset) with the scenario's
+    vehicle.params overrides applied."""
+    veh = VEHICLE_PRESETS[preset or sc.vehicle.preset]
     o = sc.vehicle.params
     changes = {k: v for k, v in o.model_dump().items()
                if v is not None and k not in ("steer_max_deg", "steer_rate_max_deg_s")}
@@ -31,6 +32,20 @@ def vehicle_params(sc: Scenario) -> VehicleParams:
     if o.steer_rate_max_deg_s is not None:
         changes["steer_rate_max"] = float(np.deg2rad(o.steer_rate_max_deg_s))
     return replace(veh, **changes)
+
+
+def member_vehicles(sc: Scenario) -> list[VehicleParams]:
+    """Every member's chassis: its own preset (members.preset) or vehicle.preset."""
+    return [vehicle_params(sc, m.preset) for m in sc.members]
+
+
+def _member_gains(sc: Scenario, name: str):
+    """One GainSchedule, or one per member when any member overrides ``name``."""
+    default = getattr(sc.controller, name)
+    own = [getattr(m, name) for m in sc.members]
+    if all(g is None for g in own):
+        return gain_schedule(default)
+    return tuple(gain_schedule(g if g is not None else default) for g in own)
 
 
 def gain_schedule(spec: str | GainSpec) -> GainSchedule:
@@ -47,16 +62,19 @@ def profile(spec, scale: float = 1.0) -> Profile:
 
 
 def build_fleet(sc: Scenario) -> FleetConfig:
-    veh = vehicle_params(sc)
+    vehicles = member_vehicles(sc)
     mu = road_mu(sc)
     params = None
     if sc.vehicle.model == "dynamic":
-        tires = make_tires(veh, mu, sc.vehicle.tire, linear=sc.vehicle.tire_law == "linear")
-        # the dynamic model takes over only where the RK4 step is stable (docs/model.md)
-        v_low = stable_blend_speed(veh, tires, sc.run.physics_step, LOW_SPEED_DEFAULT.v_low)
+        linear = sc.vehicle.tire_law == "linear"
+        kinds = {v: make_tires(v, mu, sc.vehicle.tire, linear=linear) for v in set(vehicles)}
+        # the dynamic model takes over only where the RK4 step is stable (docs/model.md);
+        # one blend for the fleet: the highest such speed of its vehicles
+        v_low = max(stable_blend_speed(v, tires, sc.run.physics_step, LOW_SPEED_DEFAULT.v_low)
+                    for v, tires in kinds.items())
         blend = replace(LOW_SPEED_DEFAULT, v_low=v_low,
                         v_high=v_low + (LOW_SPEED_DEFAULT.v_high - LOW_SPEED_DEFAULT.v_low))
-        params = stack([bicycle_params(veh, mu, tires, blend)] * len(sc.members))
+        params = stack([bicycle_params(v, mu, kinds[v], blend) for v in vehicles])
     ctl = sc.controller
     return FleetConfig(
         ids=tuple(m.id for m in sc.members),
@@ -64,8 +82,8 @@ def build_fleet(sc: Scenario) -> FleetConfig:
         params=params,
         k=np.array([m.k if m.k is not None else ctl.k for m in sc.members]),
         k_theta=np.array([m.k_theta if m.k_theta is not None else ctl.k_theta for m in sc.members]),
-        speed_gains=gain_schedule(ctl.speed_gains),
-        yaw_gains=gain_schedule(ctl.yaw_gains),
+        speed_gains=_member_gains(sc, "speed_gains"),
+        yaw_gains=_member_gains(sc, "yaw_gains"),
         physics_step=sc.run.physics_step,
     )
 

@@ -30,6 +30,12 @@ behind it) for the nearest lane, so on a route of many edges a member carries on
 the formation's route up to here, moved on whenever it enters the next edge (SUMO keeps the
 edges already driven in the route; docs/sumo.md)."""
 
+SPEED_MODE_DEFAULT = 31
+"""SUMO's default speed mode: all safe-speed, acceleration and right-of-way checks on
+(https://sumo.dlr.de/docs/TraCI/Change_Vehicle_State.html#speed_mode_0xb3)."""
+LANE_CHANGE_MODE_DEFAULT = 1621
+"""SUMO's default lane change mode (TraCI/Change_Vehicle_State.html#lane_change_mode_0xb6)."""
+
 REMOVED_REASONS = ("arrived", "vanished")
 
 
@@ -237,6 +243,30 @@ class SumoAdapter:
         vt.setDecel(mt.id, 10.0)
         vt.setEmergencyDecel(mt.id, 12.0)
         vt.setMaxSpeedLat(mt.id, 10.0)
+
+    def release(self, vid: str, accel: float, decel: float) -> str:
+        """Hand member ``vid`` over to SUMO's own driver model at its lane, position and
+        speed: its route becomes the rest of the formation's route from its edge, its
+        acceleration and deceleration ``accel`` / ``decel`` [m/s^2], SUMO's safe-speed and
+        lane-change checks are on again (their default modes), and from now on it is an
+        ordinary vehicle (a neighbour). Returns its lane id."""
+        v = self.api.vehicle
+        window = self._window.pop(vid, None)
+        lane = self._member_lane.pop(vid, ("", -1, 0.0))[0]
+        if window is not None and lane and not lane.startswith(":"):
+            edges = self._routes[window[0]][0]
+            edge = lane.rsplit("_", 1)[0]
+            if edge in edges:
+                try:
+                    v.setRoute(vid, edges[edges.index(edge):])
+                except self.api.TraCIException:
+                    pass  # keeps its window; SUMO reports it at the window's end
+        v.setAccel(vid, accel)
+        v.setDecel(vid, decel)
+        v.setSpeedMode(vid, SPEED_MODE_DEFAULT)
+        v.setLaneChangeMode(vid, LANE_CHANGE_MODE_DEFAULT)
+        self.members.pop(vid, None)
+        return lane
 
     # -- members ---------------------------------------------------------------------
     def insert_member(self, vid: str, route_id: str, mt: MemberType, x, y, psi, v) -> None:

@@ -13,9 +13,11 @@ from ..models.params import VehicleParams
 from ..road.leader import road_leader_state
 from ..road.targets import road_targets
 from ..scenario.schema import Scenario
-from .road_setup import Road, build_road, check_no_overlap, check_slots, slot_offsets
-from .setup import profile, vehicle_params
 from .messages import SUMO_ARGS as SUMO_QUIET
+from .road_setup import (Road, build_road, check_no_overlap, check_slots, initial_check_limit,
+                         slot_offsets)
+from .setup import member_vehicles, profile, vehicle_params
+from .ssm import ssm_args
 from .sumo_adapter import MemberType
 
 MEMBER_ROUTE = "formation_route"
@@ -34,13 +36,14 @@ class RoadPlan:
     """Everything prepared and checked before SUMO starts."""
 
     road: Road
-    veh: VehicleParams
+    veh: VehicleParams  # vehicle.preset's chassis (the scenario's default)
     slots: np.ndarray  # (n, 2) road-frame (along, across) [m]; NaN rows for rigid members
     rigid: np.ndarray  # (n, 2) virtual-car-frame offsets [m]; NaN rows for road members
     is_road: np.ndarray  # (n,) bool
     pos0: np.ndarray  # (n, 2) initial CoG [m]
     heading0: np.ndarray  # (n,) [rad]
     speed0: np.ndarray  # (n,) [m/s]
+    vehicles: tuple[VehicleParams, ...] = ()  # every member's chassis (members.preset)
 
 
 def prepare(sc: Scenario, source: Path | None) -> RoadPlan:
@@ -48,7 +51,8 @@ def prepare(sc: Scenario, source: Path | None) -> RoadPlan:
     road = build_road(sc, source)
     veh = vehicle_params(sc)
     slots = slot_offsets(sc, road)
-    check_slots(sc, road, slots, veh, source)
+    vehicles = member_vehicles(sc)
+    check_slots(sc, road, slots, vehicles, source, s_max=initial_check_limit(sc))
     is_road = np.array([m.slot is not None for m in sc.members])
     rigid = np.array([m.offset if m.offset is not None else [np.nan, np.nan] for m in sc.members], float)
     v0, v0_dot = profile(sc.leader.speed)(0.0)
@@ -64,8 +68,8 @@ def prepare(sc: Scenario, source: Path | None) -> RoadPlan:
             heading0[i] = math.radians(m.heading_deg)
         if m.speed is not None:
             speed0[i] = m.speed
-    check_no_overlap(sc, pos0, heading0, veh, source)
-    return RoadPlan(road, veh, slots, rigid, is_road, pos0, heading0, speed0)
+    check_no_overlap(sc, pos0, heading0, vehicles, source)
+    return RoadPlan(road, veh, slots, rigid, is_road, pos0, heading0, speed0, tuple(vehicles))
 
 
 def initial_targets(road: Road, slots, rigid, is_road, s, v, a) -> Targets:
@@ -90,10 +94,7 @@ def sumo_args(sc: Scenario, net: Path, routes: Path, sumo_dir: Path, t_end: floa
             "--no-step-log", "true", "--log", str(sumo_dir / "sumo.log"),
             "--error-log", str(sumo_dir / "messages.log"), *SUMO_QUIET,
             "--duration-log.disable", "true"]
-    if sc.sumo.ssm:
-        args += ["--device.ssm.probability", "1", "--device.ssm.file", str(sumo_dir / "ssm.xml"),
-                 "--device.ssm.measures", "TTC DRAC PET", "--device.ssm.thresholds", "3.0 3.0 2.0",
-                 "--device.ssm.range", "50"]
+    args += ssm_args(sc.sumo.ssm, [m.id for m in sc.members], sumo_dir / "ssm.xml")
     if sc.sumo.friction_device:
         args += ["--device.friction.probability", "1", "--device.friction.stdDev", "0"]
     if sc.sumo.fcd:
@@ -101,12 +102,19 @@ def sumo_args(sc: Scenario, net: Path, routes: Path, sumo_dir: Path, t_end: floa
     return args + list(sc.sumo.options)
 
 
-def member_type(sc: Scenario, veh: VehicleParams) -> MemberType:
-    return MemberType(id=f"member_{sc.vehicle.preset}", length=veh.length, width=veh.width,
+def member_type(sc: Scenario, veh: VehicleParams, preset: str | None = None) -> MemberType:
+    """SUMO vType of members with chassis ``veh`` of ``preset`` (default vehicle.preset)."""
+    preset = preset or sc.vehicle.preset
+    return MemberType(id=f"member_{preset}", length=veh.length, width=veh.width,
                       d_front=veh.cog_to_front_bumper, color=veh.color,
-                      vclass=MEMBER_VCLASS[sc.vehicle.preset])
+                      vclass=MEMBER_VCLASS[preset])
 
 
 MEMBER_VCLASS = {"passenger_car": "custom1", "small_truck": "custom2"}
 """Members' own SUMO vehicle classes: lane permissions can keep them (only) off the internal
 lanes where the network's connections cross its lane geometry (road/lanes.py)."""
+
+
+def member_types(sc: Scenario, plan: RoadPlan) -> list[MemberType]:
+    """Every member's SUMO vType (its own preset in a mixed formation)."""
+    return [member_type(sc, plan.vehicles[i], m.preset) for i, m in enumerate(sc.members)]

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..road.fast_line import FastLine
+from ..road.line_pack import FastLine
 from ..scenario.schema import Scenario
 from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
                      log_sumo_events)
@@ -22,8 +22,8 @@ from .ssm import convert_ssm
 from .sumo_adapter import SumoAdapter
 from .demand import measure_plan, traffic_meta
 from .messages import sumo_outputs_meta
-from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_type, sumo_args
-from .traffic import flow_vehicles_per_hour, write_routes
+from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
+from .traffic import CAR, flow_vehicles_per_hour, write_routes
 from .world import Sensed
 
 
@@ -40,6 +40,7 @@ class SumoWorld:
         self.line = FastLine.from_reference_line(plan.road.line)
         self.out_dir, self.sumo_dir = out_dir, out_dir / "sumo"
         self.active = np.ones(n, dtype=bool)
+        self.slot_index = np.arange(n, dtype=float)  # the 'slot' column; maneuvers change it
         self.inserted = False
         self.all_bg = sc.traffic.record_radius is None or baseline
         self.ctx_owner = None
@@ -52,7 +53,8 @@ class SumoWorld:
         self.traffic = TrafficWatch(rec, self.ids, lanes, sc.leader.time_gap, sc.leader.min_gap)
         self.emergency = EmergencyWatch(rec)
         self.refusals = RefusalWatch(rec, self.ids)
-        self.mtype = member_type(sc, plan.veh)
+        self.mtypes = member_types(sc, plan)
+        self.d_front = np.array([mt.d_front for mt in self.mtypes])  # CoG to front bumper [m]
         self.adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
 
     # ------------------------------------------------------------------ start / close
@@ -89,7 +91,8 @@ class SumoWorld:
         ad.count_departures([f.id for f in sc.traffic.flows])
         ad.set_friction(meta["mu"])
         ad.add_route(MEMBER_ROUTE, road.route)
-        ad.add_member_type(self.mtype)
+        for mt in {mt.id: mt for mt in self.mtypes}.values():
+            ad.add_member_type(mt)
         ad.forbid_lanes(road.member_forbidden, MEMBER_VCLASS.values())
         for _ in range(warm_steps):
             ad.simulation_step()
@@ -100,12 +103,13 @@ class SumoWorld:
         try:
             self.adapter.close()
         finally:
-            convert_ssm(self.sumo_dir / "ssm.xml", self.out_dir / "ssm.parquet", t0, set(self.ids))
+            convert_ssm(self.sumo_dir / "ssm.xml", self.out_dir / "ssm.parquet", t0, set(self.ids),
+                        self.plan.road.line)
             if hasattr(self, "flows"):
                 traffic_meta(self.meta, self.rec, self.flows, self.adapter.departed, t_sumo, t0,
                              self.measure)
                 sumo_outputs_meta(self.meta, self.sc, self.rec, self.sumo_dir, t0,
-                                  {i: self.mtype.d_front for i in self.ids})
+                                  {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)})
 
     # ------------------------------------------------------------------------- sense
     def sense(self, k: int, t: float, state) -> Sensed:
@@ -114,7 +118,7 @@ class SumoWorld:
         v_m = np.hypot(vel[:, 0], vel[:, 1])
         m_s, m_d = self.line.to_frenet(pos, self.m_s)
         self.m_s = m_s
-        sensed = Sensed(self.active, {"s": m_s, "d": m_d}, v_m, m_s, m_d)
+        sensed = Sensed(self.active, {"s": m_s, "d": m_d, "slot": self.slot_index}, v_m, m_s, m_d)
         if self.inserted and self.baseline:
             log_sumo_events(self.rec, t, self.ev, set(self.ids))
             sensed.nb = self.adapter.neighbours(True)
@@ -141,12 +145,24 @@ class SumoWorld:
         gap_sumo = np.full(n, np.nan)
         lane_index = np.full(n, np.nan)
         heading = self._heading[idx_act]
-        gap_sumo[idx_act] = sumo_gap(self.plan.road, pos[idx_act], heading, self.mtype.d_front, xs, ys,
-                                     lanes, self.adapter.lane_pos, lat)
+        gap_sumo[idx_act] = sumo_gap(self.plan.road, pos[idx_act], heading, self.d_front[idx_act],
+                                     xs, ys, lanes, self.adapter.lane_pos, lat)
         lane_index[idx_act] = np.where(present, lane_idx, np.nan)
         extra.update(sumo_gap=gap_sumo, lane_index=lane_index)
         self.members.placement(t, gap_sumo)
         self.members.lane_changes(t, idx_act, present, lanes, lane_idx)
+
+    def release(self, t: float, i: int) -> None:
+        """Leave: hand member i over to SUMO's own driver model where it is (its lane,
+        position and speed); it drives on as an ordinary vehicle with a SUMO car's
+        acceleration and deceleration (sim/traffic.py CAR) and is no longer controlled."""
+        vid = self.ids[i]
+        if not self.active[i] or not self.inserted or self.baseline:
+            return
+        v = float(self.v_after[i])
+        lane = self.adapter.release(vid, float(CAR["accel"]), float(CAR["decel"]))
+        self.active[i] = False
+        self.rec.add_event(t, "handover", vid, "", f"leave: released to SUMO at {v:.2f} m/s on lane {lane}")
 
     def observe(self, t: float, sensed: Sensed, ref) -> None:
         info = ref.info
@@ -172,10 +188,10 @@ class SumoWorld:
         ids, ad = self.ids, self.adapter
         if not self.inserted:
             ld = self.sc.leader
-            clear_insertion_zone(ad, self.rec, t_next, pos, heading, v_after, self.plan.veh,
+            clear_insertion_zone(ad, self.rec, t_next, pos, heading, v_after, self.plan.vehicles,
                                  ld.min_gap + ld.time_gap * v_after)
             for i in act_idx:
-                ad.insert_member(ids[i], MEMBER_ROUTE, self.mtype, pos[i, 0], pos[i, 1],
+                ad.insert_member(ids[i], MEMBER_ROUTE, self.mtypes[i], pos[i, 0], pos[i, 1],
                                  heading[i], v_after[i])
             return
         refused = dict(ad.place([ids[i] for i in act_idx], pos[act_idx, 0], pos[act_idx, 1],
@@ -218,7 +234,7 @@ def subscribe_context(adapter, ids, active, along, across, radius):
 
 def sumo_gap(road, pos, heading, d_front, xs, ys, lanes, lane_pos, lat):
     """How far SUMO has each member from our pose [m]: the larger of the position gap and the
-    distance between our front bumper and the point SUMO's lane, lane position and lateral
+    distance between our front bumper (``d_front`` [m] ahead of the CoG, per member) and the point SUMO's lane, lane position and lateral
     lane position give (SUMO's lane shapes, road/lanes.py). (In the step of a move SUMO
     echoes the commanded x, y even where it put the vehicle on another lane.)"""
     gap = np.hypot(xs - pos[:, 0], ys - pos[:, 1])
@@ -231,13 +247,15 @@ def sumo_gap(road, pos, heading, d_front, xs, ys, lanes, lane_pos, lat):
     return gap
 
 
-def clear_insertion_zone(adapter, rec, t, pos, heading, v, veh, front):
-    """Remove SUMO vehicles that stand where a member is inserted, or inside its time gap
-    ahead (``front`` [m]) or within INSERT_CLEAR_TIME of its speed behind it."""
+def clear_insertion_zone(adapter, rec, t, pos, heading, v, vehicles, front):
+    """Remove SUMO vehicles that stand where a member (chassis ``vehicles[i]``) is inserted,
+    or inside its time gap ahead (``front`` [m]) or within INSERT_CLEAR_TIME of its speed
+    behind it."""
     ids, x, y, psi, length, width = adapter.vehicle_bodies()
     for j, vid in enumerate(ids):
         for i in range(len(pos)):
             back = max(2.0, v[i] * INSERT_CLEAR_TIME)
+            veh = vehicles[i]
             zone_len = veh.length + front[i] + back
             shift = (front[i] - back) / 2
             zc = pos[i] + shift * np.array([math.cos(heading[i]), math.sin(heading[i])])
@@ -272,9 +290,23 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     yaw0 = plan.speed0 * line.curvature(line.to_frenet(plan.pos0)[0])
     state = initial_state(cfg, plan.pos0, plan.heading0, plan.speed0, yaw0, np.zeros(cfg.n), tg0)
     world = SumoWorld(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
-    gen = RoadReference(world.line.G, world.line.length, plan.slots, plan.rigid, plan.is_road,
-                        s0, v0, speed_profile, limits, np.full(cfg.n, veh.width / 2),
-                        veh.cog_to_front_bumper, sc.road.end_margin, run.step / n_ctrl, n_ctrl)
+    args = (world.line.G, world.line.length, plan.slots, plan.rigid, plan.is_road, s0, v0,
+            speed_profile, limits, np.array([v.width / 2 for v in plan.vehicles]),
+            np.array([v.cog_to_front_bumper for v in plan.vehicles]),
+            sc.road.end_margin, run.step / n_ctrl, n_ctrl)
     meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
                         "governor": 0.0, "control_model": 0.0, "record": 0.0}
-    return RunParts(world, gen, fleet, state, timing=meta["timing_s"])
+    if not sc.maneuvers:
+        return RunParts(world, RoadReference(*args), fleet, state, timing=meta["timing_s"])
+    from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
+    from ..control.maneuvers.planner import ManeuverPlanner
+    from .road_setup import road_room
+    lengths = np.array([v.length for v in plan.vehicles])
+    widths = np.array([v.width for v in plan.vehicles])
+    planner = ManeuverPlanner(sc.maneuvers, plan.slots, plan.road.lane_width, sc.maneuver_limits,
+                              lengths, widths, list(world.ids), road_room(plan.road),
+                              (ld.time_gap, ld.min_gap))
+    gen = ManeuverRoadReference(*args, planner=planner, on_event=rec.add_event, length=lengths,
+                                on_release=world.release)
+    return RunParts(world, gen, fleet, state, transforms=[PlanSlots(planner)],
+                    timing=meta["timing_s"])

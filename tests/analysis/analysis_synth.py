@@ -223,8 +223,10 @@ def events(rows) -> pd.DataFrame:
 
 def ssm(rows) -> pd.DataFrame:
     """SSM table from ``(begin, end, ego, foe, member_involved, min_ttc, min_ttc_time,
-    max_drac, max_drac_time, pet)`` tuples."""
-    return pd.DataFrame(list(rows), columns=[c.name for c in SSM_COLUMNS])
+    max_drac, max_drac_time, pet[, min_ttc_type, min_ttc_s, min_ttc_d])`` tuples (the last
+    three NaN when left out)."""
+    cols = [c.name for c in SSM_COLUMNS]
+    return pd.DataFrame([tuple(r) + (np.nan,) * (len(cols) - len(r)) for r in rows], columns=cols)
 
 
 def write_traffic(path: Path, *, background_df: pd.DataFrame | None = None,

@@ -267,21 +267,23 @@ def test_compare_runs_has_traffic_rows(tmp_path):
     assert os.path.isfile(tmp_path / "cmp" / "compare.csv")
 
 
-def test_a_600_s_run_with_50_vehicles_in_range_takes_seconds(tmp_path):
-    import time
+def test_a_600_s_run_with_50_vehicles_in_range_pairs_every_vehicle_with_every_member(tmp_path):
+    """A long run with 50 vehicles in range: every (member, vehicle, step) pair is analysed.
+    Its time is measured in benchmarks/analysis_speed.py, never here (timings stay out of tests)."""
+    run = long_run_with_traffic(tmp_path / "long")
+    a = compute_run(load_run(run), FAST)
+    n_steps = int(round(600.0 / DT)) + 1
+    assert a.traffic.run["n_pairs"] >= 3 * 50 * n_steps  # each member with each vehicle, each step
 
+
+def long_run_with_traffic(run, t_end=600.0, n_vehicles=50):
+    """A synthetic 3-abreast road run of ``t_end`` [s] with ``n_vehicles`` around it."""
     offsets = {"r": (0.0, -3.5), "c": (0.0, 0.0), "l": (0.0, 3.5)}
-    run = tmp_path / "long"
-    S.write_run(run, S.trajectories(dt=DT, t_end=600.0, v=25.0, offsets=offsets, road=True),
+    S.write_run(run, S.trajectories(dt=DT, t_end=t_end, v=25.0, offsets=offsets, road=True),
                 offsets=offsets, meta=S.ROAD_META, n_parts=4)
     rng = np.random.default_rng(1)
     vehicles = {f"bg{k}": {"s0": float(rng.uniform(-90, 90)), "d": 3.5 * (k % 3 - 1),
-                           "v": 25.0} for k in range(50)}
-    S.write_traffic(run, background_df=S.background(S.time_vector(DT, 600.0), vehicles),
+                           "v": 25.0} for k in range(n_vehicles)}
+    S.write_traffic(run, background_df=S.background(S.time_vector(DT, t_end), vehicles),
                     n_parts=4)
-    data = load_run(run)
-    t0 = time.perf_counter()
-    a = compute_run(data, FAST)
-    elapsed = time.perf_counter() - t0
-    assert a.traffic.run["n_pairs"] > 1_800_000
-    assert elapsed < 20.0, f"traffic analysis of a long run took {elapsed:.1f} s"
+    return run

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .reference import Reference
+from ..reference import Reference
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,99 @@
+"""Maneuvers through the reference seam (docs/architecture.md): a road reference generator
+that consults the planner every step, and a transform that writes the planner's slot plan
+into the step's Reference.
+
+* :class:`ManeuverRoadReference` (a control/reference_road.py RoadReference): before the
+  governor runs it hands the planner what the world sensed (members and the vehicles around
+  them in road coordinates), records the planner's events, gives the governor the slots of
+  this instant, and limits the virtual car's acceleration by :func:`room_accel` while a
+  maneuver is due or running;
+* :class:`PlanSlots` (a Reference transform): every member's slot and its exact rates at
+  each control period of the step, from the plan (transition.py). The kernels are untouched:
+  road/targets.py ``road_target_at`` takes the slot's rates.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..governor import LATERAL_MARGIN, time_gap_accel
+from ..reference import Reference
+from ..reference_road import RoadReference
+from .gap import Others
+from .planner import ManeuverPlanner, Situation
+from .transition import plan_slots_into
+
+ROOM_DECEL = 1.0
+"""Largest deceleration of the virtual car to open room ahead of goal slots [m/s^2]."""
+
+_NONE = np.empty(0)
+NO_OTHERS = Others((), _NONE, _NONE, _NONE, _NONE, _NONE)
+
+
+class PlanSlots:
+    """Reference transform: slots (n_ctrl, n, 6) with rates from the planner's plan."""
+
+    def __init__(self, planner: ManeuverPlanner):
+        self.planner = planner
+
+    def __call__(self, ref: Reference) -> Reference:
+        slots = plan_slots_into(self.planner.plan, float(ref.t), float(ref.dt),
+                                np.empty_like(ref.slots))
+        return ref.with_(slots=slots)
+
+
+def room_accel(goal, s_vc_front, v_vc, half_w, length, active, o_rear, o_d, o_half_w, o_length,
+               o_v, time_gap, min_gap) -> float:
+    """Acceleration [m/s^2] of the virtual car that keeps every goal slot (n, 2) a time gap
+    behind the nearest vehicle in its lane that is ahead of it or beside it (front bumper
+    ahead of the slot's rear; gap = its rear minus the slot's front, negative when beside),
+    by the governor's constant-time-gap law, bounded below by -ROOM_DECEL; +inf: no such
+    vehicle. ``s_vc_front``: the virtual car's arc length plus the CoG-to-front distance [m]."""
+    if not len(o_rear):
+        return np.inf
+    front = s_vc_front + goal[:, 0]
+    rear = front - length
+    lane = (np.abs(o_d[None, :] - goal[:, 1][:, None])
+            < o_half_w[None, :] + half_w[:, None] + LATERAL_MARGIN)
+    cand = lane & ((o_rear + o_length)[None, :] > rear[:, None]) & active[:, None]
+    if not cand.any():
+        return np.inf
+    i, j = np.nonzero(cand)
+    gaps = o_rear[j] - front[i]
+    a = time_gap_accel(np.maximum(gaps, 0.0), v_vc, o_v[j], time_gap, min_gap)
+    return max(float(np.min(a)), -ROOM_DECEL)
+
+
+class ManeuverRoadReference(RoadReference):
+    """RoadReference whose slots follow the maneuver planner (see the module docstring)."""
+
+    def __init__(self, *args, planner: ManeuverPlanner, on_event, length: float,
+                 on_release=None, **kw):
+        super().__init__(*args, **kw)
+        self.planner, self.on_event = planner, on_event
+        self.body_length = np.asarray(length, float)  # [m], one or one per member
+        self.on_release = on_release  # on_release(t, i): hand member i over to the world
+
+    def governor(self, t: float, sensed):
+        others = NO_OTHERS
+        nb = sensed.nb
+        if nb is not None and len(nb.ids):
+            others = Others(tuple(nb.ids), sensed.nb_s, sensed.nb_d, nb.length, nb.width, nb.v)
+        for ev in self.planner.step(Situation(float(t), self.s, sensed.m_s, sensed.m_d,
+                                              sensed.v_m, sensed.active, others)):
+            if ev.kind == "release":
+                self.on_release(t, ev.member)
+            else:
+                self.on_event(t, ev.kind, "vc", "", ev.detail)
+        now = self.planner.slots(t)
+        self.along, self.slot_d = now[:, 0], now[:, 1]
+        sensed.extra["slot"] = self.planner.slot_of.astype(float)
+        a_vc, gap, lead_idx, v_cap, a_cap = super().governor(t, sensed)
+        goal = self.planner.goal()
+        if goal is not None and len(others.ids):
+            lim = self.limits
+            a_room = room_accel(goal, self.s + self.d_front, self.v, self.half_w,
+                                self.body_length, sensed.active, sensed.nb_rear, sensed.nb_d,
+                                sensed.nb_half_w, nb.length, sensed.nb_v, lim.time_gap,
+                                lim.min_gap)
+            a_vc = min(a_vc, a_room)
+        return a_vc, gap, lead_idx, v_cap, a_cap

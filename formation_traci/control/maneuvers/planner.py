@@ -1,0 +1,196 @@
+"""The maneuver planner: the scenario's schedule -> a slot plan, step by step.
+
+Once per SUMO step the planner looks at what was sensed (virtual car, members, the vehicles
+around them in road coordinates) and returns the events of the step. Maneuvers run one at a
+time in the order listed. A due maneuver starts when its target slots are on the road and
+(``check_gaps``) its target lanes have room; otherwise it is postponed (one
+``maneuver_postponed`` event with the reason) and retried every step until ``timeout``
+seconds after it became due, then given up (``maneuver_cancelled``). A started maneuver
+writes the transition of every active member into :attr:`plan` (transition.py), which the
+step kernels evaluate at every control period with its exact derivatives.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .assign import assign_slots, min_clearance
+from .gap import Others, check_gaps
+from .transition import ComfortLimits, hold_plan, slots_at, transition_duration
+from .triggers import is_due, queue_behind
+
+
+@dataclass(frozen=True, slots=True)
+class Situation:
+    """What the planner sees at the start of a step (road coordinates)."""
+
+    t: float  # formation time [s]
+    s_vc: float  # virtual car's arc length [m]
+    m_s: np.ndarray  # (n,) members' centre arc length [m]
+    m_d: np.ndarray  # (n,) members' lateral offset [m]
+    v_m: np.ndarray  # (n,) members' speed [m/s]
+    active: np.ndarray  # (n,) bool
+    others: Others
+
+
+@dataclass(frozen=True, slots=True)
+class PlannerEvent:
+    kind: str  # maneuver_start | maneuver_end | maneuver_postponed | maneuver_cancelled | release
+    detail: str  # "<maneuver>: ..." (the maneuver's name first)
+    member: int = -1  # release: the member to hand over to the world's own driver
+
+
+RoomFn = Callable[[float, float], tuple[float, float]]
+"""room(s0, s1) -> (d_min, d_max): the road's lateral extent over [s0, s1] [m]."""
+
+
+def limits_from_spec(spec) -> ComfortLimits:
+    """ComfortLimits from a scenario.maneuvers.ManeuverLimits."""
+    return ComfortLimits(spec.lat_accel, spec.lat_jerk, spec.lon_accel, spec.lon_jerk,
+                         spec.min_duration)
+
+
+class ManeuverPlanner:
+    """Holds the slot plan (n, 6), the formation's shape (m, 2) and who holds which slot."""
+
+    def __init__(self, specs, slots0: np.ndarray, lane_width: float, limits_spec,
+                 lengths, widths, ids, room: RoomFn | None = None,
+                 follow: tuple[float, float] = (0.0, 0.0)):
+        self.specs = list(specs)
+        self.plan = hold_plan(slots0)
+        self.shape = np.array(slots0, dtype=float)
+        self.slot_of = np.arange(len(slots0))
+        self.lane_width = float(lane_width)
+        self.limits = limits_from_spec(limits_spec)
+        self.gap_time, self.gap_min = limits_spec.gap_time, limits_spec.gap_min
+        # towards vehicles ahead: at least the governor's (time gap [s], standstill gap [m])
+        self.ahead = (max(self.gap_time, follow[0]), max(self.gap_min, follow[1]))
+        self.lengths = np.broadcast_to(np.asarray(lengths, float), (len(slots0),))
+        self.widths = np.broadcast_to(np.asarray(widths, float), (len(slots0),))
+        self.ids = list(ids)
+        self.room = room
+        self.next = 0
+        self.running: tuple[str, float] | None = None  # (name, end time [s])
+        self.due_since: float | None = None
+        self.postponed = False
+        self.intervals: list[tuple[str, float, float]] = []
+        self.pending_goal: np.ndarray | None = None  # goal of the due maneuver while postponed
+
+    def goal(self) -> np.ndarray | None:
+        """Slots (n, 2) the formation is moving to or waiting to move to (None: holding):
+        the governor keeps room ahead of them as well as of the present slots."""
+        if self.running is not None:
+            return self.plan[:, 2:4]
+        if self.due_since is not None:
+            return self.pending_goal
+        return None
+
+    @property
+    def idle(self) -> bool:
+        return self.running is None and self.next >= len(self.specs)
+
+    def slots(self, t: float) -> np.ndarray:
+        """Members' slots (n, 2) at time t [s]."""
+        return slots_at(self.plan, t)[0]
+
+    def step(self, sn: Situation) -> list[PlannerEvent]:
+        events: list[PlannerEvent] = []
+        if self.running is not None:
+            name, t_end = self.running
+            if sn.t < t_end - 1e-9:
+                return events
+            events.append(PlannerEvent("maneuver_end", name))
+            self.running = None
+        while self.next < len(self.specs):
+            spec = self.specs[self.next]
+            if self.due_since is None:
+                q = 0
+                if spec.at.queue_behind is not None:
+                    a = sn.active
+                    q = queue_behind(sn.m_s[a], sn.m_d[a], self.lengths[a], self.lane_width,
+                                     sn.others, spec.at.queue_reach)
+                if not is_due(spec.at, sn.t, sn.s_vc, q):
+                    break
+                self.due_since = sn.t
+            if spec.kind == "leave":
+                events += self._leave(spec, sn)
+                self._advance()
+                continue
+            ok, detail = self._try_start(spec, sn)
+            if ok:
+                events.append(PlannerEvent("maneuver_start", f"{spec.kind}: {detail}"))
+                self._advance()
+                break
+            if sn.t - self.due_since >= spec.timeout - 1e-9:
+                events.append(PlannerEvent("maneuver_cancelled",
+                                           f"{spec.kind}: timed out after {spec.timeout:g} s: {detail}"))
+                self._advance()
+                continue
+            if not self.postponed:
+                events.append(PlannerEvent("maneuver_postponed", f"{spec.kind}: {detail}"))
+                self.postponed = True
+            break
+        return events
+
+    def _leave(self, spec, sn: Situation) -> list[PlannerEvent]:
+        """A leave: the member is released at once (a following reshape may close its slot)."""
+        i = self.ids.index(spec.member)
+        if not sn.active[i]:
+            return [PlannerEvent("maneuver_cancelled", f"leave: member {spec.member!r} is no longer in the run")]
+        self.intervals.append(("leave", sn.t, sn.t))
+        return [PlannerEvent("maneuver_start", f"leave: member {spec.member!r}"),
+                PlannerEvent("release", f"leave: member {spec.member!r}", i),
+                PlannerEvent("maneuver_end", "leave")]
+
+    def _advance(self):
+        self.next += 1
+        self.due_since = None
+        self.postponed = False
+        self.pending_goal = None
+
+    def _target(self, spec, active):
+        """New shape (m, 2), and each active member's slot index in it."""
+        held = self.plan[:, 2:4]
+        if spec.kind == "lane_change":
+            shape = self.shape + np.array([0.0, spec.lanes * self.lane_width])
+            return shape, self.slot_of.copy()
+        shape = np.array([[s.along, s.across if s.across is not None else s.lanes * self.lane_width]
+                          for s in spec.slots], dtype=float)
+        slot_of = self.slot_of.copy()
+        idx = np.flatnonzero(active)
+        slot_of[idx] = assign_slots(held[idx], shape)
+        return shape, slot_of
+
+    def _try_start(self, spec, sn: Situation) -> tuple[bool, str]:
+        a = sn.active
+        shape, slot_of = self._target(spec, a)
+        start = self.plan[:, 2:4].copy()
+        goal = start.copy()
+        goal[a] = shape[slot_of[a]]
+        T = transition_duration(goal[a, 0] - start[a, 0], goal[a, 1] - start[a, 1], self.limits)
+        self.pending_goal = goal
+        v = float(np.max(sn.v_m[a], initial=0.0))
+        if self.room is not None:
+            s_lo = sn.s_vc + float(np.min(goal[a, 0]))
+            d_min, d_max = self.room(s_lo, s_lo + v * T + float(np.ptp(goal[a, 0])) + 50.0)
+            half = self.widths[a] / 2
+            if np.any(goal[a, 1] - half < d_min - 1e-6) or np.any(goal[a, 1] + half > d_max + 1e-6):
+                return False, "target slots off the road ahead"
+        if spec.check_gaps:
+            ai = np.flatnonzero(a)
+            verdict = check_gaps(sn.m_s[ai], goal[ai, 0] - start[ai, 0], sn.m_d[ai], goal[ai, 1],
+                                 self.lengths[ai], self.widths[ai], sn.v_m[ai], sn.others, T,
+                                 self.gap_time, self.gap_min, [self.ids[i] for i in ai], *self.ahead)
+            if not verdict.ok:
+                return False, f"no room: {verdict.reason}"
+        clear = min_clearance(start[a], goal[a], self.lengths[a], self.widths[a])
+        self.plan[:, 0:2] = start
+        self.plan[:, 2:4] = goal
+        self.plan[:, 4] = sn.t
+        self.plan[:, 5] = T
+        self.shape, self.slot_of = shape, slot_of
+        self.running = (spec.kind, sn.t + T)
+        self.intervals.append((spec.kind, sn.t, sn.t + T))
+        return True, f"T = {T:.2f} s, min clearance {clear:.2f} m"
