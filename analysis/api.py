@@ -23,6 +23,7 @@ from analysis.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN
                               AnalysisSettings, RunAnalysis, compute_run, settings_dict)
 from analysis.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
                                   TrafficAnalysis, load_baseline)
+from formation_traci.record.rundir import open_report_dir, require_run_dir
 
 __all__ = [
     "SCHEMA",
@@ -30,6 +31,7 @@ __all__ = [
     "METRICS_CSV",
     "REPORT_HTML",
     "BASELINE_CSV",
+    "COMM_AGE_CSV",
     "FIGURES_DIR",
     "AnalysisResult",
     "CompareResult",
@@ -45,6 +47,8 @@ METRICS_JSON = "metrics.json"
 METRICS_CSV = "metrics.csv"
 REPORT_HTML = "report.html"
 BASELINE_CSV = "baseline.csv"
+COMM_AGE_CSV = "comm_age.csv"
+"""Error and comfort per leader-age bin and member (analysis/comm.py)."""
 FIGURES_DIR = "figures"
 
 _COMPARE_RUN_ROWS = ("status", "model", "mu", "duration_s", "sample_rate_hz",
@@ -168,9 +172,14 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
     NoTrajectoryData
         If the run has no readable trajectory row at all.
     """
-    run_dir = Path(run_dir)
+    run_dir = require_run_dir(Path(run_dir))
     out = Path(out_dir) if out_dir is not None else run_dir
-    out.mkdir(parents=True, exist_ok=True)
+    with open_report_dir(out, METRICS_JSON, own_run=run_dir):  # one writer at a time
+        return _analyze_into(run_dir, out, settings, figures, baseline)
+
+
+def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures: bool,
+                  baseline: str | Path | None) -> AnalysisResult:
     base = load_baseline(baseline) if baseline is not None else None
     a = compute_run(load_run(run_dir), settings, baseline=base)
     files: dict[str, Path] = {}
@@ -206,6 +215,7 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
         "settings": settings_dict(settings),
         "units": {"run": RUN_METRICS, "members": MEMBER_METRICS},
         "traffic": _traffic_json(a.traffic),
+        "comm_age": _records(a.comm_age) if a.comm_age is not None else [],
         "maneuvers": _maneuvers_json(a),
         "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()},
     }
@@ -215,6 +225,12 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
     p_csv = out / METRICS_CSV
     a.members.reset_index().to_csv(p_csv, index=False)
     files["metrics_csv"] = p_csv
+    if a.comm_age is not None and len(a.comm_age):
+        p_comm = out / COMM_AGE_CSV
+        a.comm_age.to_csv(p_comm, index=False)
+        files["comm_age_csv"] = p_comm
+    else:
+        (out / COMM_AGE_CSV).unlink(missing_ok=True)
     base_tab = a.traffic.baseline if a.traffic is not None else None
     p_base = out / BASELINE_CSV
     if base_tab is not None:
@@ -301,8 +317,13 @@ def compare_runs(run_dirs: Sequence[str | Path], out_dir: str | Path, *,
     if len(bases) != len(dirs):
         raise ValueError(f"baselines has {len(bases)} entries, run_dirs {len(dirs)}: give "
                          "one per run (None where there is none)")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    for d in dirs:
+        require_run_dir(d)
+    with open_report_dir(Path(out_dir), "compare.json"):  # never into a run: its report stays
+        return _compare_into(dirs, bases, Path(out_dir), settings)
+
+
+def _compare_into(dirs: list[Path], bases: list, out: Path, settings: AnalysisSettings) -> CompareResult:
     analyses: dict[str, RunAnalysis] = {}
     issues: dict[str, list[Issue]] = {}
     runs: dict[str, Path] = {}

@@ -575,6 +575,38 @@ def birdseye_animation(analysis: RunAnalysis, path: str | Path) -> Path:
     return path
 
 
+def _has_comm(a: RunAnalysis) -> bool:
+    """A run whose members held virtual-car states of more than one age ([comm])."""
+    age = pd.to_numeric(a.data.trajectories.get("leader_age_s"), errors="coerce")
+    return age is not None and bool((age.fillna(0.0) > 0.0).any())
+
+
+def comm_figure(a: RunAnalysis, path: Path) -> Path:
+    """Age of the virtual-car state each member held over time, and the r.m.s. formation
+    error and longitudinal acceleration per age bin (analysis/comm.py)."""
+    traj, ids, col = _member_groups(a)
+    fig, axes = _new(3, sharex=False)
+    bins = a.comm_age if a.comm_age is not None else pd.DataFrame()
+    for mid in ids:
+        g = traj.loc[traj["vehicle_id"] == mid]
+        axes[0].plot(*_dec(g["t"], g["leader_age_s"]), color=col[mid], lw=1, label=mid)
+        b = bins[bins["id"] == mid] if len(bins) else bins
+        if len(b):
+            mid_age = np.where(np.isfinite(b["age_hi_s"]), (b["age_lo_s"] + b["age_hi_s"]) / 2,
+                               b["age_lo_s"] * 1.5)
+            axes[1].plot(mid_age, b["e_rms_m"], "o-", color=col[mid], label=mid)
+            axes[2].plot(mid_age, b["a_lon_rms_mps2"], "o-", color=col[mid], label=mid)
+    axes[0].set(xlabel="t [s]", ylabel="leader age [s]",
+                title="Age of the newest virtual-car state each member holds")
+    axes[1].set(ylabel="r.m.s. |e| [m]", title="Formation error and comfort per age bin")
+    axes[2].set(xlabel="leader age (bin centre) [s]", ylabel="r.m.s. a_lon [m/s²]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    if ids:
+        axes[0].legend(loc="upper right", fontsize=8, ncols=4)
+    return _save(fig, path)
+
+
 _RUN_FIGURES = (("paths", _paths), ("errors", _errors), ("tracking", _tracking),
                 ("comfort", _comfort), ("limits", _limits))
 _TRAFFIC_FIGURES = (("traffic_spacetime", spacetime_figure, ".png"),
@@ -595,7 +627,8 @@ def run_figures(analysis: RunAnalysis, out_dir: str | Path) -> tuple[dict[str, P
     -------
     (dict, dict)
         Figure name to written path (``paths``, ``errors``, ``tracking``, ``comfort``,
-        ``limits``; for road runs also ``traffic_spacetime`` (PNG) and
+        ``limits``; ``comm`` when the members held states of varying age; for road runs
+        also ``traffic_spacetime`` (PNG) and
         ``traffic_birdseye`` (GIF, or a PNG strip without pillow)), and figure name to
         error message for figures that could not be drawn (damaged data never stops the
         others).
@@ -611,6 +644,12 @@ def run_figures(analysis: RunAnalysis, out_dir: str | Path) -> tuple[dict[str, P
             written[name] = fn(analysis, out / f"{name}.png")
         except Exception as exc:  # noqa: BLE001 - report, keep drawing the others
             failed[name] = f"{type(exc).__name__}: {exc}"
+    (out / "comm.png").unlink(missing_ok=True)
+    if _has_comm(analysis):
+        try:
+            written["comm"] = comm_figure(analysis, out / "comm.png")
+        except Exception as exc:  # noqa: BLE001
+            failed["comm"] = f"{type(exc).__name__}: {exc}"
     if _is_road_run(analysis):
         for name, fn, ext in _TRAFFIC_FIGURES:
             try:

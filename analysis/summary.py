@@ -16,6 +16,7 @@ import pandas as pd
 
 from analysis import comfort, formation, iso2631, limits, traffic
 from analysis.load import GAP_FACTOR, Issue, Member, RunData
+from analysis.comm import COMM_MEMBER_METRICS, comm_analysis
 from analysis.traffic_run import (TRAFFIC_MEMBER_METRICS, BaselineData, TrafficAnalysis,
                                   compute_traffic)
 from analysis.settings import DEFAULT_SETTINGS, AnalysisSettings, settings_dict
@@ -63,9 +64,11 @@ FORMATION_MEMBER_METRICS: dict[str, str] = {
 }
 """Per-member formation, comfort and limit metrics with their units."""
 
-MEMBER_METRICS: dict[str, str] = {**FORMATION_MEMBER_METRICS, **TRAFFIC_MEMBER_METRICS}
+MEMBER_METRICS: dict[str, str] = {**FORMATION_MEMBER_METRICS, **COMM_MEMBER_METRICS,
+                                  **TRAFFIC_MEMBER_METRICS}
 """Per-member metrics, in output order, with their units (see docs/metrics.md): the
-formation metrics, then the traffic ones
+formation metrics, the communication ones (:data:`analysis.comm.COMM_MEMBER_METRICS`), then
+the traffic ones
 (:data:`analysis.traffic_run.TRAFFIC_MEMBER_METRICS`)."""
 
 RUN_METRICS: dict[str, str] = {
@@ -108,6 +111,7 @@ class RunAnalysis:
     shape: pd.DataFrame  # t, shape_error [m]
     issues: tuple[Issue, ...]
     traffic: TrafficAnalysis | None = None  # traffic interaction (None if not computed)
+    comm_age: pd.DataFrame | None = None  # error and comfort per leader-age bin (analysis/comm.py)
 
 
 class _Member:
@@ -460,10 +464,11 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
     mdf = pd.DataFrame(rows, columns=["id", *FORMATION_MEMBER_METRICS]).set_index("id")
     tra = compute_traffic(data, settings, baseline)
     issues += list(tra.issues)
-    mdf = mdf.join(tra.members, how="left")[list(MEMBER_METRICS)]
     signals = pd.concat([s for s in sigs if len(s)], ignore_index=True) if any(
         len(s) for s in sigs) else pd.DataFrame(columns=["t", "vehicle_id", "e_norm",
                                                          "jerk_lon", "jerk_lat"])
+    comm_members, comm_age = comm_analysis(traj, signals, [m.id for m in members])
+    mdf = mdf.join(tra.members, how="left").join(comm_members, how="left")[list(MEMBER_METRICS)]
     shape_res, shape_df, shape_issues = _shape(data, members)
     issues += shape_issues
     ss = _string_stability(members, signals, settings)
@@ -501,4 +506,4 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
     run["worst"] = worst
     return RunAnalysis(data=data, settings=settings, run=run, members=mdf,
                        string_stability=ss, unavailable=unavailable, signals=signals,
-                       shape=shape_df, issues=tuple(issues), traffic=tra)
+                       shape=shape_df, issues=tuple(issues), traffic=tra, comm_age=comm_age)

@@ -1,5 +1,7 @@
 """Sweep figures: one PNG per metric, one panel per swept field (matplotlib, imported lazily).
 
+A metric whose positive values span more than LOG_SPAN is drawn on a logarithmic axis.
+
 Each point is the mean over the seeds of one combination of swept values; the error bar
 spans the spread (min-max or +-1 std) over those seeds. With other swept fields, one line
 per combination of them (up to :data:`MAX_LINES`; beyond that the others are pooled).
@@ -13,6 +15,8 @@ import pandas as pd
 
 MAX_LINES = 8
 """More combinations of the other swept fields than this are pooled into one line."""
+LOG_SPAN = 100.0
+"""A metric whose positive values span more than this factor is drawn on a log axis."""
 
 
 def _agg(df: pd.DataFrame, by: list[str], metric: str, spread: str) -> pd.DataFrame:
@@ -103,6 +107,11 @@ def sweep_figures(done: pd.DataFrame, swept: list[str], grid_keys: list[str], me
                 others = [k for k in swept if k != p]
                 _panel(ax, done, p, others, metric, spread, p in grid_keys or p == "seed",
                        labels or {})
+            vals = pd.to_numeric(done[metric], errors="coerce").to_numpy(dtype=float)
+            vals = vals[np.isfinite(vals)]
+            if vals.size and vals.min() > 0 and vals.max() > LOG_SPAN * vals.min():
+                for ax in axes:
+                    ax.set_yscale("log")
             unit = units.get(metric, "")
             axes[0].set_ylabel(f"{metric} [{unit}]" if unit and unit != "-" else metric)
             fig.suptitle(f"{metric}: mean over seeds, bars {'min-max' if spread == 'minmax' else '±1 std'}",

@@ -1,18 +1,69 @@
-"""Command line: ``formation-traci run|analyze|compare``; each a thin layer over a library call."""
+"""Command line: ``formation-traci run|analyze|compare``; each a thin layer over a library call.
+
+Every command ends with exit 0 (done), 1 (the run or the work failed; the reason is printed
+and recorded), 2 (bad input: nothing created) or 130 (SIGINT/SIGTERM). No traceback reaches
+the user unless ``--debug`` is given (docs/reliability.md).
+"""
 from __future__ import annotations
 
-from pathlib import Path
-from typing import Optional
+import os
+import sys
 
-import typer
+from .interrupt import Interrupted, exit_130_on_signals, raising_signals
+
+if __name__ == "__main__" or os.path.basename(sys.argv[0]) == "formation-traci":
+    exit_130_on_signals()  # (formation_traci/__init__.py did so already, before any import)
+
+import contextlib  # noqa: E402
+import traceback  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Optional  # noqa: E402
+
+import typer  # noqa: E402
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Formation control experiments: run scenarios, analyse recordings.")
+_DEBUG = {"on": False}
 
 
 @app.callback()
-def _group() -> None:
+def _group(debug: bool = typer.Option(False, "--debug", help="show the traceback of an error")) -> None:
     """Formation control experiments: run scenarios, analyse recordings."""
+    _DEBUG["on"] = debug
+
+
+def _bad_input_types() -> tuple[type, ...]:
+    from analysis.load import NoTrajectoryData
+
+    from .record.rundir import RunDirError
+    from .scenario import ScenarioError
+    from .sweep import SweepError
+    return ScenarioError, RunDirError, SweepError, NoTrajectoryData
+
+
+@contextlib.contextmanager
+def _outcome():
+    """Map what a command raises to its exit code and a one-paragraph message; inside,
+    SIGINT and SIGTERM raise Interrupted (a run turns them into its own stop flag)."""
+    try:
+        with raising_signals():
+            yield
+    except typer.Exit:
+        raise
+    except KeyboardInterrupt as exc:  # Interrupted too
+        name = exc.signame if isinstance(exc, Interrupted) else "SIGINT"
+        typer.echo(f"interrupted: {name} received", err=True)
+        raise typer.Exit(130)
+    except Exception as exc:
+        if _DEBUG["on"]:
+            traceback.print_exc()
+        if isinstance(exc, _bad_input_types()):
+            typer.echo(f"error: {exc}", err=True)
+            raise typer.Exit(2)
+        what = f"{exc.strerror}: {exc.filename}" if isinstance(exc, OSError) and exc.filename else str(exc)
+        typer.echo(f"error: {type(exc).__name__}: {what}" + ("" if _DEBUG["on"] else
+                   "\n(run with --debug for the traceback)"), err=True)
+        raise typer.Exit(1)
 
 
 @app.command()
@@ -27,16 +78,13 @@ def run(
     baseline: bool = typer.Option(False, "--baseline", help="road scenarios: the twin run with the same traffic and seed but no formation"),
 ) -> None:
     """Run SCENARIO headless and record it under OUT (run.json, trajectories.parquet, ...)."""
-    from .scenario import ScenarioError, load_scenario
-    from .sim.runner import RunDirExists, run_scenario
+    with _outcome():
+        from .scenario import load_scenario
+        from .sim.runner import run_scenario
 
-    try:
         sc = load_scenario(scenario, **{"run.duration": duration, "run.seed": seed,
                                         "vehicle.model": model})
         res = run_scenario(sc, out, scenario_path=scenario, force=force, progress=progress, baseline=baseline)
-    except (ScenarioError, RunDirExists) as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2)
     typer.echo(f"{res.status}: t_end={res.t_end:.2f} s, steps={res.steps_done}, out={res.out_dir}"
                + (f"\nreason: {res.reason}" if res.reason else ""))
     if res.status != "completed":
@@ -51,14 +99,10 @@ def analyze(
     baseline: Optional[Path] = typer.Option(None, "--baseline", help="twin run from `run --baseline` (same traffic and seed, no formation)"),
 ) -> None:
     """Compute metrics of a recorded run: metrics.json, metrics.csv, figures/, report.html."""
-    from analysis.api import analyze_run
-    from analysis.load import NoTrajectoryData
+    with _outcome():
+        from analysis.api import analyze_run
 
-    try:
         res = analyze_run(run_dir, out, figures=figures, baseline=baseline)
-    except NoTrajectoryData as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2)
     for name, path in res.files.items():
         typer.echo(f"{name}: {path}")
     if len(res.issues):
@@ -71,14 +115,10 @@ def compare(
     out: Path = typer.Option(..., "--out", "-o", help="directory for compare.csv, figures and report.html"),
 ) -> None:
     """Overlay several runs (e.g. kinematic vs dynamic model) and tabulate key metrics."""
-    from analysis.api import compare_runs
-    from analysis.load import NoTrajectoryData
+    with _outcome():
+        from analysis.api import compare_runs
 
-    try:
         res = compare_runs(run_dirs, out)
-    except NoTrajectoryData as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2)
     for name, path in res.files.items():
         typer.echo(f"{name}: {path}")
 
@@ -94,16 +134,15 @@ def sweep(
     """Run every case of a sweep (each in its own process), analyse each, write summary.parquet.
 
     Re-running the same command skips finished cases and retries failed ones."""
-    from .sweep import SweepError, run_sweep
+    from .sweep import run_sweep
 
     try:
-        res = run_sweep(sweep_file, out, scheduler=scheduler, workers=workers, progress=progress)
-    except SweepError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2)
-    except KeyboardInterrupt as exc:
-        typer.echo(f"interrupted: {exc}; run the same command again to finish", err=True)
-        raise typer.Exit(130)
+        with _outcome():
+            res = run_sweep(sweep_file, out, scheduler=scheduler, workers=workers, progress=progress)
+    except typer.Exit as exc:
+        if exc.exit_code == 130:
+            typer.echo("run the same command again to finish the sweep", err=True)
+        raise
     typer.echo(f"{res.n_cases} cases: {res.n_completed} completed, {res.n_failed} not completed "
                f"({res.n_run} run now, {res.n_skipped} done before); summary: {res.files['summary']}")
     if res.n_failed:
@@ -118,21 +157,20 @@ def analyze_sweep_cmd(
     spread: str = typer.Option("minmax", help="spread over seeds: minmax | std"),
 ) -> None:
     """Plot metrics against the swept values (spread over seeds) and write sweep_report.html."""
-    from analysis.sweep_report import analyze_sweep
+    with _outcome():
+        from analysis.sweep_report import analyze_sweep
 
-    from .sweep import SweepError
-
-    try:
         rep = analyze_sweep(sweep_dir, metrics=metric or None, out=out, spread=spread)
-    except SweepError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2)
     for name, path in rep.files.items():
         typer.echo(f"{name}: {path}")
 
 
 def main() -> None:  # pragma: no cover
-    app()
+    """Console entry point: SIGTERM handled like Ctrl-C (exit 130) from the start."""
+    try:
+        app()
+    except KeyboardInterrupt:  # a signal between two commands' handlers (e.g. at start-up)
+        sys.exit(130)
 
 
 if __name__ == "__main__":  # pragma: no cover

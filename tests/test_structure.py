@@ -26,8 +26,6 @@ DEBT = {
     "module analysis/load.py",
     "function formation_traci/sweep/run.py:run_sweep",
     "function analysis/report.py:run_report",
-    "function analysis/api.py:analyze_run",
-    "function analysis/api.py:compare_runs",
     "function analysis/figures.py:birdseye_animation",
     "function analysis/figures.py:compare_figures",
     "function analysis/traffic_run.py:compute_traffic",

@@ -51,6 +51,7 @@ TRAJECTORY_COLUMNS: tuple[Column, ...] = (
     Column("lane_index", "float64", "-", "SUMO lane index the member is on, 0 = rightmost (SUMO runs)"),
     Column("sumo_gap", "float64", "m", "distance between our CoG and the CoG SUMO reports (SUMO runs)"),
     Column("slot", "float64", "-", "index of the formation slot the member holds (road runs; changes with reshapes)"),
+    Column("leader_age_s", "float64", "s", "age of the newest virtual-car state the member holds (0: perfect communication)"),
 )
 """Columns of ``trajectories.parquet``: one row per vehicle per recorded step.
 
@@ -67,7 +68,8 @@ EVENT_COLUMNS: tuple[Column, ...] = (
     Column("t", "float64", "s", "simulated time (formation clock)"),
     Column("kind", "string", "-", "collision | teleport | member_removed | move_refused | lane_change | "
                                   "cut_in | cleared_at_insertion | emergency_brake | end_of_road | placement_mismatch | model_range | "
-                                  "maneuver_start | maneuver_end | maneuver_postponed | maneuver_cancelled"),
+                                  "maneuver_start | maneuver_end | maneuver_postponed | maneuver_cancelled | "
+                                  "comm_timeout | comm_restored"),
     Column("vehicle_id", "string", "-", "the vehicle the event is about"),
     Column("other_id", "string", "-", "the other vehicle involved, or empty"),
     Column("detail", "string", "-", "free text; maneuver events: the maneuver's name first ('reshape: ...')"),
@@ -110,7 +112,7 @@ SSM_COLUMNS: tuple[Column, ...] = (
 )
 """Columns of ``ssm.parquet``: SUMO's SSM device conflicts, converted from its XML output."""
 
-FILLED_BY_CALLER = ("t", "vehicle_id", "s", "d", "lane_index", "sumo_gap", "slot")
+FILLED_BY_CALLER = ("t", "vehicle_id", "s", "d", "lane_index", "sumo_gap", "slot", "leader_age_s")
 """Trajectory columns the member-signal kernel (sim/fleet.py) does not compute."""
 
 SIGNAL_COLUMNS: tuple[str, ...] = tuple(c.name for c in TRAJECTORY_COLUMNS

@@ -24,11 +24,15 @@ from .columns import Column
 def atomic_write_text(path: Path, text: str) -> None:
     """Write text to ``path`` via a temporary file and a rename (never half-written)."""
     tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)  # e.g. disk full: no half-written temporary left behind
+        raise
 
 
 def atomic_write_json(path: Path, obj) -> None:
@@ -83,6 +87,11 @@ class ChunkedTable:
         self.rows_written = 0
         self.progress_column = progress_column
         self._done: list[float] = []  # progress value of each part on disk, in order
+        self.parts_on_disk = 0  # part files completely written
+        self.rows_on_disk = 0
+        self.last_on_disk: float | None = None  # progress value (or mark) of the last part on disk
+        self._failed: BaseException | None = None  # first failed write, seen by the caller
+        self._broken = False  # a write failed: the writer thread writes no later part
         self._pool: ThreadPoolExecutor | None = None
         self._pending: list[Future] = []
         self._schema = pa.schema([
@@ -155,10 +164,12 @@ class ChunkedTable:
             if self.parts_written == 0:
                 self.flush(allow_empty=True)
         finally:
-            self.wait()
-            if self._pool is not None:
-                self._pool.shutdown(wait=True)
-                self._pool = None
+            try:
+                self.wait()
+            finally:
+                if self._pool is not None:
+                    self._pool.shutdown(wait=True)
+                    self._pool = None
 
     def wait(self) -> None:
         """Block until every part handed to the writer is on disk; re-raise a failed write."""
@@ -172,26 +183,49 @@ class ChunkedTable:
         done, self._done = self._done, []  # one swap: the writer thread appends to the new list
         return done[-1] if done else None
 
-    def flush(self, allow_empty: bool = False) -> None:
-        """Hand the buffered rows (if any) to the writer thread as the next part file."""
+    def flush(self, allow_empty: bool = False, mark: float | None = None) -> None:
+        """Hand the buffered rows (if any) to the writer thread as the next part file.
+
+        ``mark``: the table is complete up to this time [s]; once everything handed over so
+        far is on disk, :meth:`written_up_to` reports it (a table with no part yet gets an
+        empty one, so a reader finds the table)."""
         if self._n == 0 and not allow_empty:
-            return
+            if mark is None:
+                return
+            if self.parts_written:
+                self._submit(self._mark_only, mark)
+                return
         n = self._n
         blocks = {dt: blk[:, :n].copy() for dt, blk in self._blocks.items()}
         tag = float(self._buf[self.progress_column][n - 1]) if self.progress_column and n else None
+        tag = mark if mark is not None else tag
         name = f"part-{self.parts_written:05d}.parquet"
         labels = pa.array(self.labels, type=pa.string())
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="parquet-writer")
-        for fut in [f for f in self._pending if f.done()]:
-            self._pending.remove(fut)
-            fut.result()  # a failed earlier part stops the run here, not at the end
-        self._pending.append(self._pool.submit(self._write, blocks, labels, name, tag))
+        self._submit(self._write, blocks, labels, name, tag, n)
         self.parts_written += 1
         self.rows_written += n
         self._n = 0
 
-    def _write(self, blocks, labels, name, tag) -> None:
+    def _submit(self, fn, *args) -> None:
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="parquet-writer")
+        for fut in [f for f in self._pending if f.done()]:
+            self._pending.remove(fut)
+            if fut.exception() is not None and self._failed is None:
+                self._failed = fut.exception()
+        if self._failed is not None:
+            raise self._failed  # a failed earlier part stops the run here, not at the end
+        self._pending.append(self._pool.submit(fn, *args))
+
+    def _mark_only(self, tag: float) -> None:
+        if self._broken:
+            return
+        self.last_on_disk = tag
+        self._done.append(tag)
+
+    def _write(self, blocks, labels, name, tag, n) -> None:
+        if self._broken:  # never a part after a hole: the table stays a prefix of the run
+            raise OSError(f"{self.directory.name}: {name} not written after an earlier part failed")
         arrays = []
         for c in self.columns:
             dt, j = self._where[c.name]
@@ -202,9 +236,17 @@ class ChunkedTable:
                 arrays.append(pa.array(data))
         table = pa.Table.from_arrays(arrays, schema=self._schema)
         tmp = self.directory / f".{name}.tmp"
-        pq.write_table(table, tmp, compression="zstd")
-        os.replace(tmp, self.directory / name)
+        try:
+            pq.write_table(table, tmp, compression="zstd")
+            os.replace(tmp, self.directory / name)
+        except BaseException:
+            self._broken = True
+            tmp.unlink(missing_ok=True)  # e.g. disk full: free the space, keep the parts before
+            raise
+        self.parts_on_disk += 1
+        self.rows_on_disk += n
         if tag is not None:
+            self.last_on_disk = tag
             self._done.append(tag)
 
     @property

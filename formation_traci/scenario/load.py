@@ -8,6 +8,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from .bounds import cost_problems
 from .schema import Scenario
 
 
@@ -85,7 +86,7 @@ def parse_scenario(doc: dict, source: str | Path = "<scenario>", **overrides: An
     if problems:
         raise ScenarioError(source, problems)
     try:
-        return Scenario.model_validate(doc)
+        sc = Scenario.model_validate(doc)
     except ValidationError as exc:
         problems, seen = [], set()
         for err in exc.errors():
@@ -94,6 +95,10 @@ def parse_scenario(doc: dict, source: str | Path = "<scenario>", **overrides: An
                 seen.add(item)
                 problems.append(item)
         raise ScenarioError(source, problems) from None
+    problems = cost_problems(sc)
+    if problems:
+        raise ScenarioError(source, problems)
+    return sc
 
 
 def load_scenario(path: str | Path, **overrides: Any) -> Scenario:

@@ -10,6 +10,7 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from ..comm.channel import gilbert_rates
 from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec
 
 PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -245,6 +246,54 @@ class SumoSpec(Strict):
         return self
 
 
+JITTER_DISTRIBUTIONS = Literal["exponential", "uniform"]
+LOSS_MODELS = Literal["none", "independent", "bursty"]
+
+
+class CommLinkSpec(Strict):
+    """One member's link from the virtual leader: fields left out take the [comm] value."""
+
+    delay_s: NonNegFloat | None = Field(None, description="constant part of the delay [s]")
+    jitter_s: NonNegFloat | None = Field(None, description="mean of the random extra delay [s]")
+    jitter: JITTER_DISTRIBUTIONS | None = Field(None, description="distribution of the extra delay")
+    loss: LOSS_MODELS | None = Field(None, description="loss model")
+    loss_p: Annotated[float, Field(ge=0, lt=1)] | None = Field(None, description="mean loss probability [-]")
+    loss_burst: Annotated[float, Field(ge=1, allow_inf_nan=False)] | None = Field(
+        None, description="mean burst length of the bursty model [beacons]")
+
+
+class CommSpec(CommLinkSpec):
+    """The radio between the virtual leader and the members (docs/communication.md).
+
+    Every link carries the same beacons (one broadcast); delay, jitter and loss are drawn per
+    link from the run's seed in their own random stream. The defaults are perfect
+    communication: every control instant, no delay, no loss."""
+
+    beacon_hz: PosFloat | None = Field(None, description="beacon rate [Hz]; default: every control step")
+    delay_s: NonNegFloat = Field(0.0, description="constant part of the delay [s]")
+    jitter_s: NonNegFloat = Field(0.0, description="mean of the random extra delay [s]")
+    jitter: JITTER_DISTRIBUTIONS = Field(
+        "exponential", description="extra delay: 'exponential' (std = mean) or 'uniform' on [0, 2 jitter_s]")
+    loss: LOSS_MODELS = Field("none", description="'none', 'independent' (Bernoulli) or 'bursty' (Gilbert-Elliott)")
+    loss_p: Annotated[float, Field(ge=0, lt=1)] = Field(0.0, description="mean loss probability [-]")
+    loss_burst: Annotated[float, Field(ge=1, allow_inf_nan=False)] = Field(
+        4.0, description="mean burst length of the bursty model [beacons]")
+    timeout_s: PosFloat = Field(1.0, description="a member that has heard nothing for longer falls back [s]")
+    links: dict[str, CommLinkSpec] = Field(default_factory=dict, description="per-member overrides, by member id")
+
+    @model_validator(mode="after")
+    def _bursts(self):
+        for where, spec in [("", self)] + [(f"links.{k}: ", v) for k, v in self.links.items()]:
+            p = spec.loss_p if spec.loss_p is not None else self.loss_p
+            burst = spec.loss_burst if spec.loss_burst is not None else self.loss_burst
+            if (spec.loss or self.loss) == "bursty":
+                try:
+                    gilbert_rates(p, burst)
+                except ValueError as exc:
+                    raise ValueError(f"{where}{exc}") from None
+        return self
+
+
 class Scenario(Strict):
     name: str = ""
     description: str = ""
@@ -256,8 +305,23 @@ class Scenario(Strict):
     road: RoadSpec | None = Field(None, description="SUMO road; without it the run is in free space")
     traffic: TrafficSpec = TrafficSpec()
     sumo: SumoSpec = SumoSpec()
+    comm: CommSpec | None = Field(None, description="leader-to-member radio; default: perfect")
     maneuvers: list[ManeuverSpec] = Field(default_factory=list, description="scheduled maneuvers, run one at a time in this order")
     maneuver_limits: ManeuverLimits = ManeuverLimits()
+
+    @model_validator(mode="after")
+    def _comm_rules(self):
+        c = self.comm
+        if c is None:
+            return self
+        if c.beacon_hz is not None and c.beacon_hz * self.run.control_step > 1.0 + 1e-9:
+            raise ValueError(f"comm.beacon_hz ({c.beacon_hz} Hz) must not exceed the control rate "
+                             f"(1 / run.control_step = {1.0 / self.run.control_step:g} Hz)")
+        ids = {m.id for m in self.members}
+        bad = sorted(set(c.links) - ids)
+        if bad:
+            raise ValueError(f"comm.links names members that do not exist: {bad}")
+        return self
 
     @model_validator(mode="after")
     def _maneuver_rules(self):

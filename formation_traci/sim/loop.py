@@ -24,13 +24,22 @@ from .timing import PhaseClock
 from .world import FreeSpace
 
 
+ERROR_COLUMNS = ("ex", "ey", "e_lon", "e_lat", "x_des", "y_des")
+"""Recorded against the true virtual car when a transform that says so
+(``error_against_truth = True``: comm/link.py) changed the members' copies of it: the
+formation error the member really has. Otherwise against the member's own copy."""
+
+
 class ModelRangeError(RuntimeError):
     """A vehicle state became non-finite: the model left its valid range."""
 
 
 @dataclass
 class RunParts:
-    """Everything the loop needs; ``transforms`` modify each step's Reference in order."""
+    """Everything the loop needs; ``transforms`` modify each step's Reference in order (one
+    with a ``sense(k, t, sensed, kinematics, rec)`` method is told what the world sensed, the
+    members' (pos, vel, heading) and the recorder first; one with ``error_against_truth`` has
+    the formation error recorded against the true virtual car: comm/link.py)."""
 
     world: object  # a sim.world.World
     generator: object  # FreeReference or RoadReference
@@ -66,20 +75,32 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
     step, ids = sc.run.step, list(fleet.cfg.ids)
     n_steps = int(round(sc.run.duration / step))
     sig = np.full((fleet.cfg.n, len(SIGNAL_COLUMNS)), np.nan)
+    sig_true = sig.copy()
+    err_cols = [SIGNAL_COLUMNS.index(c) for c in ERROR_COLUMNS]
+    perfect = np.zeros(fleet.cfg.n)  # leader_age_s without a channel
+    sensing = [tr for tr in parts.transforms if hasattr(tr, "sense")]
+    true_error = any(getattr(tr, "error_against_truth", False) for tr in parts.transforms)
     clock = PhaseClock({} if parts.timing is None else parts.timing)
-    world.start()
     try:
+        world.start()  # inside: a signal or a failure during SUMO's start or warm-up closes SUMO
         for k in range(n_steps + 1):
             t = k * step
             clock.start()
             sensed = world.sense(k, t, state)
+            sensed.extra.setdefault("leader_age_s", perfect)
             clock.lap("sumo_read")
-            ref = apply(gen.reference(t, sensed), parts.transforms)
+            for tr in sensing:
+                tr.sense(k, t, sensed, fleet.kinematics(state), rec)
+            ref0 = gen.reference(t, sensed)
+            ref = apply(ref0, parts.transforms)
             clock.lap("governor")
             world.observe(t, sensed, ref)
             if world.records_members:
-                rec.add_signal_rows(t, fleet.signals(state, ref, out=sig), sensed.extra,
-                                    mask=ref.active)
+                fleet.signals(state, ref, out=sig)
+                if true_error and ref.vc is not ref0.vc:  # the error against the true virtual car
+                    fleet.signals(state, ref.with_(vc=ref0.vc), out=sig_true)
+                    sig[:, err_cols] = sig_true[:, err_cols]
+                rec.add_signal_rows(t, sig, sensed.extra, mask=ref.active)
             rec.add_vc(t, ref.leader(), s=float(ref.truth[7]))
             clock.lap("record")
             yield k, t

@@ -48,11 +48,48 @@ class Recorder:
             self.background = ChunkedTable(out_dir / "background.parquet", BACKGROUND_COLUMNS,
                                            chunk_rows=50_000)
         self.event_counts: dict[str, int] = {}
+        self.ssm = None  # record.ssm.SsmConverter: set by sim/sumo_world.py when SUMO's SSM device is on
+        self._latest: dict[str, float] = {}
+        self._reported = -np.inf
+
+    def tables(self) -> dict:
+        """The run's tables by name (SSM only once SUMO has written its file)."""
+        out = {"trajectories": self.traj, "events": self.events}
+        if self.background is not None:
+            out["background"] = self.background
+        if self.ssm is not None and self.ssm.table is not None:
+            out["ssm"] = self.ssm.table
+        return out
+
+    def end_step(self, k: int, t: float) -> None:
+        """Every row of step ``k`` (time t [s]) is recorded; every STEPS_PER_CHUNK steps every
+        table is cut at t, so after a crash all of them are readable up to the same time."""
+        if (k + 1) % STEPS_PER_CHUNK == 0:
+            if self.ssm is not None:
+                self.ssm.update()
+            for table in self.tables().values():
+                table.flush(mark=t)
 
     def written_up_to(self) -> float | None:
-        """Time [s] of the last trajectory row on disk, if a part file was completed since the
-        last call (else None): progress reported from it is never ahead of the data."""
-        return self.traj.written_up_to()
+        """Time [s] up to which every table is on disk, if it moved on since the last call
+        (else None): progress reported from it is never ahead of the data."""
+        tables = self.tables()
+        for name, table in tables.items():
+            done = table.written_up_to()
+            if done is not None:
+                self._latest[name] = done
+        if len(self._latest) < len(tables) or any(n not in self._latest for n in tables):
+            return None
+        t = min(self._latest[n] for n in tables)
+        if t <= self._reported:
+            return None
+        self._reported = t
+        return t
+
+    def on_disk(self) -> dict:
+        """What each table has on disk: part files, rows and the time [s] it is complete to."""
+        return {name: {"parts": tb.parts_on_disk, "rows": tb.rows_on_disk, "complete_to_s": tb.last_on_disk}
+                for name, tb in self.tables().items()}
 
     def add_signal_rows(self, t, sig: np.ndarray, extra: dict, mask=None):
         """Record the members from the compiled path: ``sig`` is the (n, len(SIGNAL_COLUMNS))
@@ -117,8 +154,21 @@ class Recorder:
             "lane": np.array([bg.code(i) for i in nb.lane_ids], dtype=np.int32),
             "lane_index": nb.lane_index.astype(np.int32), "s": s, "d": d}, n)
 
-    def flush(self):
-        """End of the run: write what is buffered; empty tables get a zero-row part."""
-        for table in (self.traj, self.events, self.background):
-            if table is not None:
+    def flush(self, t_end: float | None = None) -> list[tuple[str, BaseException]]:
+        """End of the run: write what is buffered; empty tables get a zero-row part. Never
+        raises: returns (table, error) for each table that could not be written whole (e.g.
+        disk full); the parts written before stay readable."""
+        errors = []
+        if self.ssm is not None:
+            try:
+                self.ssm.update()
+            except Exception as exc:
+                errors.append(("ssm", exc))
+        for name, table in self.tables().items():
+            try:
+                if t_end is not None:
+                    table.flush(mark=t_end)
                 table.close()
+            except Exception as exc:
+                errors.append((name, exc))
+        return errors

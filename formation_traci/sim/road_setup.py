@@ -69,7 +69,30 @@ def resolve_net(sc: Scenario, source: Path | None) -> Path:
         raise ScenarioError(source or "<scenario>", [(
             "road.net", f"no such network {name!r}: expected a bundled name "
             f"({', '.join(NETWORK_NAMES)}) or a .net.xml path relative to the scenario file")])
+    why = not_a_sumo_file(path, "net")
+    if why is None and "," in str(path):
+        why = "SUMO splits file names at commas: move the network to a path without ','"
+    if why:
+        raise ScenarioError(source or "<scenario>", [("road.net", f"{name!r} is not usable: {why}")])
     return path
+
+
+def not_a_sumo_file(path: Path, root: str) -> str | None:
+    """Why ``path`` is not a SUMO XML file with root element ``root`` (None if it is one);
+    reads only up to the first element."""
+    import gzip
+    import xml.etree.ElementTree as ET
+
+    opener = gzip.open if path.suffix == ".gz" else open
+    try:
+        with opener(path, "rb") as f:
+            for _, el in ET.iterparse(f, events=("start",)):
+                if el.tag != root:
+                    return f"its root element is <{el.tag}>, a SUMO {root} file has <{root}>"
+                return None
+    except (ET.ParseError, OSError, EOFError, UnicodeDecodeError) as exc:
+        return f"not an XML file ({exc})"
+    return "empty file"
 
 
 def build_road(sc: Scenario, source: Path | None) -> Road:
@@ -184,6 +207,28 @@ def check_slots(sc: Scenario, road: Road, slots: np.ndarray, vehicles: list[Vehi
                     f"d = {dy - half:.2f}..{dy + half:.2f} m, the road {seg.d_min:.2f}..{seg.d_max:.2f} m "
                     f"(d relative to lane {sc.road.lane} of the first edge, left positive)")))
                 break
+    if problems:
+        raise ScenarioError(source or "<scenario>", problems)
+
+
+def check_route_ends(sc: Scenario, road: Road, along: np.ndarray, vehicles: list[VehicleParams],
+                     source) -> None:
+    """Every member (body ``vehicles[i]``) starts on the route with room to drive: its body
+    behind the route's start, or its front within end_margin of the route's end, is refused,
+    naming the member."""
+    problems = []
+    for i, m in enumerate(sc.members):
+        veh = vehicles[i]
+        rear = veh.length - veh.cog_to_front_bumper
+        s = sc.road.start + float(along[i])
+        field = f"members.{i}.{'slot' if m.slot is not None else 'offset'}"
+        if s - rear < 0.0:
+            problems.append((field, f"member {m.id!r} starts {rear - s:.1f} m behind the start of the route "
+                                    f"(road.start + along = {s:.1f} m; its rear needs {rear:.2f} m)"))
+        elif s + veh.cog_to_front_bumper + sc.road.end_margin > road.line.length:
+            problems.append((field, f"member {m.id!r} starts beyond the end of the route: road.start + along "
+                                    f"= {s:.1f} m, the route is {road.line.length:.1f} m long and the run stops "
+                                    f"{sc.road.end_margin:g} m (road.end_margin) before its end"))
     if problems:
         raise ScenarioError(source or "<scenario>", problems)
 

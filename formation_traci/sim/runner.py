@@ -8,29 +8,24 @@ at every outer step, from the first controller evaluation of the step.
 """
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
+import errno
 import importlib.metadata
+import os
 import platform
-import shutil
-import signal
-import threading
 import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
-
-
+from ..interrupt import Interrupted, stop_on_signals
+from ..record.rundir import RunDirError, RunDirExists, RUN_SCHEMA, open_out_dir  # noqa: F401
 from ..record.writer import atomic_write_json
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
+from ..comm.link import with_comm
 from .loop import ModelRangeError, check_finite, free_space_run, step_loop  # noqa: F401
 from .recorder import Recorder
 from .setup import member_vehicles, road_mu
-
-
-class RunDirExists(FileExistsError):
-    """The output directory exists and --force was not given."""
 
 
 @dataclass(frozen=True)
@@ -58,43 +53,16 @@ def versions() -> dict[str, str]:
     return out
 
 
-def prepare_out_dir(out_dir: Path, force: bool) -> Path:
-    """Create ``out_dir``; an existing non-empty one is refused unless ``force``."""
-    out_dir = Path(out_dir)
-    if out_dir.exists() and any(out_dir.iterdir()):
-        if not force:
-            raise RunDirExists(f"{out_dir} exists and is not empty; pass --force to replace it")
-        shutil.rmtree(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    return out_dir
-
-
-@contextlib.contextmanager
-def stop_on_signals():
-    """SIGINT/SIGTERM set a flag that the loop checks after every step (main thread only)."""
-    flag = threading.Event()
-    if threading.current_thread() is not threading.main_thread():
-        yield flag
-        return
-    previous = {}
-
-    def handler(signum, frame):
-        flag.set()
-        flag.signame = signal.Signals(signum).name
-
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        previous[sig] = signal.signal(sig, handler)
-    try:
-        yield flag
-    finally:
-        for sig, h in previous.items():
-            signal.signal(sig, h)
+RESERVE_BYTES = 1 << 18
+"""Space held back in the run directory (``.reserve``) from the start of a run, released to
+write the final run.json when the disk is full [B]."""
 
 
 def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
     bodies = [{"length": v.length, "width": v.width, "a": v.a, "front_overhang": v.front_overhang}
               for v in member_vehicles(sc)]  # [m], analysis footprints read it
     return {
+        "schema": RUN_SCHEMA,
         "status": "running",
         "reason": None,
         "scenario_path": scenario_path,
@@ -123,74 +91,152 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
                  step_hook=None, transforms=()) -> RunResult:
     """Run ``sc`` (free space, or on a SUMO road when it has a [road]) and record it.
 
-    Writes ``run.json`` (status ``running`` at once, updated at every trajectory part file
-    and at the end) and the tables (docs/outputs.md). Never raises for a failure inside
-    the run: the status says ``failed`` with the reason, and all rows recorded so far are
-    kept. ``scenario_path`` resolves relative paths in the scenario (the network file).
-    ``baseline`` (road scenarios): the twin run with the same traffic and seed but without
-    the formation, for ``formation-traci analyze RUN --baseline TWIN``. ``step_hook(k, t,
-    adapter)`` is called after every SUMO step (fault injection, extensions).
-    ``transforms``: callables Reference -> Reference applied to every step's reference in
-    order (maneuvers, communication channels; docs/architecture.md).
+    Writes ``run.json`` (status ``running`` at once, updated whenever every table is on disk
+    up to a later time, and at the end) and the tables (docs/outputs.md). Never raises for a
+    failure inside the run (incl. disk full): the status says ``failed`` with the reason, and
+    all rows on disk are kept and described (``run.json["tables"]``). SIGINT/SIGTERM at any
+    moment give ``interrupted``. ``scenario_path`` resolves relative paths in the scenario
+    (the network file). ``baseline`` (road scenarios): the twin run with the same traffic and
+    seed but without the formation. ``step_hook(k, t, adapter)`` is called after every SUMO
+    step (fault injection, extensions). ``transforms``: callables Reference -> Reference
+    applied to every step's reference in order (maneuvers, communication channels;
+    docs/architecture.md).
+
+    Raises ScenarioError or RunDirError (bad input; nothing created or changed), or
+    Interrupted if a signal arrives before the run directory exists. ``out_dir`` is locked
+    for the whole run (record/rundir.py); ``force`` replaces only a previous run.
     """
     if baseline and sc.road is None:
         raise ScenarioError(scenario_path or "<scenario>", [("road", "--baseline needs a road scenario")])
     src = None if scenario_path is None else Path(scenario_path)
-    plan = None
-    if sc.road is not None:  # road, route, lanes and slots are checked before anything runs
-        from .sumo_plan import prepare
-        plan = prepare(sc, src)
-    out_dir = prepare_out_dir(out_dir, force)
-    meta = run_meta(sc, None if scenario_path is None else str(scenario_path))
+    with stop_on_signals() as stop:
+        plan = None
+        protect = [src] if src is not None else []
+        if sc.road is not None:  # road, route, lanes and slots are checked before anything runs
+            from .sumo_plan import prepare
+            plan = prepare(sc, src)
+            protect.append(plan.road.net_file)
+            if "," in os.path.abspath(out_dir):
+                raise RunDirError(f"{out_dir}: SUMO splits file names at commas; choose an output "
+                                  "directory without ',' for a road scenario")
+        lock = open_out_dir(Path(out_dir), force, protect)
+        try:
+            return _run_in(sc, Path(out_dir), src, plan, baseline, step_hook, transforms, progress,
+                           stop)
+        finally:
+            lock.release()
+
+
+def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, stop) -> RunResult:
+    """The run in its locked directory (see :func:`run_scenario`)."""
+    stop.raising = False  # the record is set up whole: a signal now only sets the flag
+    meta = run_meta(sc, None if src is None else str(src))
     meta["baseline"] = baseline
     meta_path = out_dir / "run.json"
+    _reserve(out_dir)
     atomic_write_json(meta_path, meta)
     rec = Recorder(out_dir, [m.id for m in sc.members], with_sumo=sc.road is not None)
-    n_steps = int(round(sc.run.duration / sc.run.step))
-
     status, reason, t, k = "completed", None, 0.0, 0
-    bar = None
-    steps = None
+    bar = steps = None
     try:
+        stop.raising = True  # compiling, starting SUMO, warm-up: a signal ends them at once
+        if stop.is_set():
+            raise Interrupted(stop.signame)
         if sc.road is None:
-            build = lambda: free_space_run(sc)  # noqa: E731
+            build = lambda: with_comm(sc, free_space_run(sc))  # noqa: E731
         else:
             from .sumo_world import road_run
-            build = lambda: road_run(sc, plan, rec, out_dir, meta, baseline, step_hook)  # noqa: E731
+            build = lambda: with_comm(sc, road_run(sc, plan, rec, out_dir, meta, baseline,  # noqa: E731
+                                                   step_hook), baseline)
         steps = step_loop(sc, _with_transforms(build, transforms), rec, meta)
         if progress:
             from tqdm import tqdm
-            bar = tqdm(total=n_steps, unit="step", desc=sc.name or "run", mininterval=0.5)
-        with stop_on_signals() as stop:
-            for k, t in steps:
-                done = rec.written_up_to()  # a part file is on disk up to this time [s]
-                if done is not None:
-                    _progress_meta(meta_path, meta, done, int(round(done / sc.run.step)))
-                if bar is not None and k > 0:
-                    bar.update(1)
-                if stop.is_set():
-                    status = "interrupted"
-                    reason = f"{getattr(stop, 'signame', 'signal')} received"
-                    break
+            bar = tqdm(total=int(round(sc.run.duration / sc.run.step)), unit="step",
+                       desc=sc.name or "run", mininterval=0.5)
+        for k, t in steps:
+            stop.raising = False  # from the first step on, a signal ends the run after its step
+            rec.end_step(k, t)
+            done = rec.written_up_to()  # every table is on disk up to this time [s]
+            if done is not None:
+                _progress_meta(meta_path, meta, done, int(round(done / sc.run.step)))
+            if bar is not None and k > 0:
+                bar.update(1)
+            if stop.is_set():
+                break
+    except Interrupted:
+        pass  # stop.signame says which signal
     except ScenarioError:
         raise
     except Exception as exc:  # recorded, never lost: the status says what happened
-        status = "failed"
-        reason = f"{type(exc).__name__}: {exc}"
-        (out_dir / "error.txt").write_text(traceback.format_exc())
+        status, reason = "failed", describe_failure(exc)
+        _try_write(out_dir / "error.txt", traceback.format_exc())
     finally:
+        stop.raising = False
+        if stop.is_set() and status == "completed":
+            status, reason = "interrupted", f"{stop.signame} received"
         if bar is not None:
             bar.close()
-        try:
-            if steps is not None:
-                steps.close()  # a SUMO loop closes SUMO and converts its outputs here
-        finally:
-            rec.flush()
-            meta.update(status=status, reason=reason, finished=_now(), t_end=float(t),
-                        steps_done=int(k), rows_written=rec.traj.rows_written)
-            meta["event_counts"] = rec.event_counts
-            atomic_write_json(meta_path, meta)
-    return RunResult(out_dir, status, reason, float(t), int(k))
+        status, reason = _finish(meta_path, meta, rec, steps, status, reason, t, k)
+    return RunResult(out_dir, status, reason, float(meta["t_end"]), int(meta["steps_done"]))
+
+
+def _finish(meta_path, meta, rec, steps, status, reason, t, k):
+    """Close SUMO, write what is buffered and the final run.json; never raises for a write
+    that fails (disk full): the status and reason say so, the data on disk is described."""
+    problems = []
+    try:
+        if steps is not None:
+            steps.close()  # a SUMO loop closes SUMO here (SUMO completes its outputs)
+    except Exception as exc:
+        problems.append(("SUMO", exc))
+    problems += rec.flush(t_end=float(t))
+    on_disk = rec.on_disk()
+    if problems and status != "failed":
+        status, reason = "failed", "; ".join(f"{n}: {describe_failure(e)}" for n, e in problems)
+    if status == "failed":
+        done = [v["complete_to_s"] for v in on_disk.values()]
+        if any(d is None for d in done) or any(d < t for d in done):  # not everything reached the disk
+            t = min([d for d in done if d is not None], default=0.0)
+            k = int(round(t / meta["record_step"]))
+            reason += f"; the tables on disk are complete up to t = {t:.2f} s (run.json 'tables')"
+    meta.update(status=status, reason=reason, finished=_now(), t_end=float(t),
+                steps_done=int(k), rows_written=rec.traj.rows_on_disk)
+    meta["tables"] = on_disk
+    meta["event_counts"] = rec.event_counts
+    _write_final(meta_path, meta)
+    return status, reason
+
+
+def describe_failure(exc: BaseException) -> str:
+    """One line for run.json: what failed; disk full said so plainly."""
+    if isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
+        where = f" writing {exc.filename}" if exc.filename else ""
+        return f"disk full (no space left on device){where}"
+    return f"{type(exc).__name__}: {exc}"
+
+
+def _reserve(out_dir: Path) -> None:
+    try:
+        with open(out_dir / ".reserve", "wb") as f:
+            f.write(b"\0" * RESERVE_BYTES)
+    except OSError:
+        (out_dir / ".reserve").unlink(missing_ok=True)
+
+
+def _try_write(path: Path, text: str) -> None:
+    try:
+        path.write_text(text)
+    except OSError:
+        path.unlink(missing_ok=True)
+
+
+def _write_final(meta_path: Path, meta: dict) -> None:
+    reserve = meta_path.parent / ".reserve"
+    try:
+        reserve.unlink(missing_ok=True)  # the space held back is for this write
+        atomic_write_json(meta_path, meta)
+    finally:
+        reserve.unlink(missing_ok=True)
 
 
 def _with_transforms(build, transforms):
@@ -204,5 +250,3 @@ def _with_transforms(build, transforms):
 def _progress_meta(path, meta, t, k):
     meta.update(t_end=float(t), steps_done=int(k))
     atomic_write_json(path, meta)
-
-

@@ -14,11 +14,12 @@ from ..road.leader import road_leader_state
 from ..road.targets import road_targets
 from ..scenario.schema import Scenario
 from .messages import SUMO_ARGS as SUMO_QUIET
-from .road_setup import (Road, build_road, check_no_overlap, check_slots, initial_check_limit,
-                         slot_offsets)
+from .road_setup import (Road, build_road, check_no_overlap, check_route_ends, check_slots,
+                         initial_check_limit, slot_offsets)
 from .setup import member_vehicles, profile, vehicle_params
 from .ssm import ssm_args
 from .sumo_adapter import MemberType
+from .sumo_options import check_options, place_outputs
 
 MEMBER_ROUTE = "formation_route"
 ADHESION_SHARE_COMFORT = 0.5
@@ -52,9 +53,11 @@ def prepare(sc: Scenario, source: Path | None) -> RoadPlan:
     veh = vehicle_params(sc)
     slots = slot_offsets(sc, road)
     vehicles = member_vehicles(sc)
-    check_slots(sc, road, slots, vehicles, source, s_max=initial_check_limit(sc))
     is_road = np.array([m.slot is not None for m in sc.members])
     rigid = np.array([m.offset if m.offset is not None else [np.nan, np.nan] for m in sc.members], float)
+    check_route_ends(sc, road, np.where(is_road, slots[:, 0], rigid[:, 0]), vehicles, source)
+    check_slots(sc, road, slots, vehicles, source, s_max=initial_check_limit(sc))
+    check_options(list(sc.sumo.options), source)
     v0, v0_dot = profile(sc.leader.speed)(0.0)
     tg = initial_targets(road, slots, rigid, is_road, sc.road.start, v0, 0.0)
     pos0 = tg.p.copy()
@@ -99,7 +102,7 @@ def sumo_args(sc: Scenario, net: Path, routes: Path, sumo_dir: Path, t_end: floa
         args += ["--device.friction.probability", "1", "--device.friction.stdDev", "0"]
     if sc.sumo.fcd:
         args += ["--fcd-output", str(sumo_dir / "fcd.parquet")]
-    return args + list(sc.sumo.options)
+    return args + place_outputs(list(sc.sumo.options), sumo_dir)
 
 
 def member_type(sc: Scenario, veh: VehicleParams, preset: str | None = None) -> MemberType:

@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..record.ssm import SsmConverter
 from ..road.line_pack import FastLine
 from ..scenario.schema import Scenario
 from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
                      log_sumo_events)
 from .road_setup import rectangles_overlap
-from .ssm import convert_ssm
 from .sumo_adapter import SumoAdapter
 from .demand import measure_plan, traffic_meta
 from .messages import sumo_outputs_meta
@@ -56,6 +56,10 @@ class SumoWorld:
         self.mtypes = member_types(sc, plan)
         self.d_front = np.array([mt.d_front for mt in self.mtypes])  # CoG to front bumper [m]
         self.adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
+        if sc.sumo.ssm != "off":  # converted as the run goes, cut with the other tables (record/ssm.py)
+            t0 = int(round(sc.traffic.warmup / sc.run.step)) * sc.run.step
+            rec.ssm = SsmConverter(self.sumo_dir / "ssm.xml", out_dir / "ssm.parquet", t0, set(self.ids),
+                                   plan.road.line)
 
     # ------------------------------------------------------------------ start / close
     def start(self) -> None:
@@ -101,10 +105,8 @@ class SumoWorld:
         t0 = getattr(self, "t0", 0.0)
         t_sumo = self.adapter.time if self.adapter._started else t0
         try:
-            self.adapter.close()
+            self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
         finally:
-            convert_ssm(self.sumo_dir / "ssm.xml", self.out_dir / "ssm.parquet", t0, set(self.ids),
-                        self.plan.road.line)
             if hasattr(self, "flows"):
                 traffic_meta(self.meta, self.rec, self.flows, self.adapter.departed, t_sumo, t0,
                              self.measure)

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 import sys
 import time
 import traceback
@@ -18,6 +17,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict
 
+from ..record.rundir import DirLock, clear_run
 from .expand import Case
 from .row import empty_row, metric_values
 
@@ -88,9 +88,10 @@ def run_case(case_spec: dict | CaseSpec) -> dict[str, Any]:
     case = spec.case.model_dump(mode="json")
     out = Path(spec.case_dir)
     row = empty_row(case, "failed", None)
-    if out.exists():  # the case directory belongs to the sweep: a retry starts clean
-        shutil.rmtree(out)
     try:
+        if out.exists():  # the case directory belongs to the sweep: a retry starts clean
+            with DirLock(out):  # RunDirBusy if the case still runs in another process
+                clear_run(out)
         from ..scenario import ScenarioError, load_scenario
         from ..sim.runner import run_scenario
 
@@ -102,6 +103,9 @@ def run_case(case_spec: dict | CaseSpec) -> dict[str, Any]:
         res = run_scenario(sc, out, scenario_path=spec.base, force=True, progress=False)
         row.update(status=res.status, reason=res.reason, t_end_s=res.t_end)
         row.update(_analyse(out, row))
+    except KeyboardInterrupt as exc:  # SIGINT/SIGTERM before the run stepped (set-up, warm-up)
+        row.update(status="interrupted", reason=str(exc) or "SIGINT received",
+                   t_end_s=row.get("t_end_s") if row.get("t_end_s") is not None else 0.0)
     except Exception as exc:  # anything else: recorded, never lost
         row.update(status="failed", reason=f"{type(exc).__name__}: {exc}")
         traceback.print_exc()

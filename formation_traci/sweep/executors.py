@@ -53,7 +53,7 @@ def run_local(specs: list[CaseSpec], workers: int | None, timeout_s: float | Non
     stop = threading.Event()
     n = max(1, workers or os.cpu_count() or 1)
     pool = ThreadPoolExecutor(max_workers=n, thread_name_prefix="sweep-case")
-    futs = {pool.submit(launch_case, s, stop.is_set, timeout_s): s for s in specs}
+    futs: dict = {}
     done: set = set()
 
     def collect(fut) -> None:
@@ -66,6 +66,8 @@ def run_local(specs: list[CaseSpec], workers: int | None, timeout_s: float | Non
             on_row(futs[fut], row)
 
     try:
+        for s in specs:
+            futs[pool.submit(launch_case, s, stop.is_set, timeout_s)] = s
         for fut in as_completed(futs):
             collect(fut)
         return False
@@ -90,9 +92,11 @@ def _client(scheduler: str):
         if Path(scheduler).is_file():
             return Client(scheduler_file=str(scheduler))
         return Client(scheduler)
-    except (OSError, TimeoutError, ValueError) as exc:
+    except Exception as exc:  # unreachable, malformed address, or not a scheduler file
+        if isinstance(exc, KeyboardInterrupt):
+            raise
         raise SweepError(scheduler, [("scheduler", f"cannot connect to the Dask scheduler: "
-                                                   f"{type(exc).__name__}: {exc}")]) from None
+                                                   f"{type(exc).__name__}: {exc}".rstrip(": "))]) from None
 
 
 def run_dask(specs: list[CaseSpec], scheduler: str, timeout_s: float | None,

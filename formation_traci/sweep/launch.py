@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
+from ..record.rundir import is_locked
 from .case import CASE_JSON, CaseSpec, write_case_json
 from .row import empty_row
 
@@ -56,12 +57,36 @@ def _supervise(proc: subprocess.Popen, should_stop: Callable[[], bool] | None,
         now = time.monotonic()
         if kill_at is None and should_stop is not None and should_stop():
             stopped, kill_at = True, now + GRACE_S
-            proc.send_signal(signal.SIGINT)
+            signal_group(proc, signal.SIGINT)
         elif kill_at is None and timeout_s is not None and now - t0 > timeout_s:
             timed_out, kill_at = True, now + GRACE_S
-            proc.send_signal(signal.SIGTERM)
+            signal_group(proc, signal.SIGTERM)
         elif kill_at is not None and now > kill_at:
-            proc.kill()
+            signal_group(proc, signal.SIGKILL)
+
+
+def signal_group(proc: subprocess.Popen, sig: int) -> None:
+    """Send ``sig`` to the case process and everything it started (its own session and
+    process group), so no SUMO or helper outlives the case.
+
+    Parameters
+    ----------
+    proc : subprocess.Popen
+        The case process, started with ``start_new_session=True``.
+    sig : int
+        The signal.
+
+    Returns
+    -------
+    None
+    """
+    try:
+        os.killpg(proc.pid, sig)
+    except (ProcessLookupError, PermissionError):
+        try:
+            proc.send_signal(sig)
+        except ProcessLookupError:
+            pass
 
 
 def _last_line(log_path: Path) -> str:
@@ -121,6 +146,12 @@ def launch_case(case_spec: dict | CaseSpec, should_stop: Callable[[], bool] | No
     if should_stop is not None and should_stop():
         return None
     case, case_dir, log_path = spec.case.model_dump(mode="json"), Path(spec.case_dir), Path(spec.log_path)
+    holder = is_locked(case_dir)
+    if holder:  # an earlier sweep's case process still runs there: never a second one beside it
+        row = empty_row(case, "failed", f"not started: the case is still running in another process "
+                                        f"({holder}); run the sweep again once it has ended")
+        row.update(wall_s=0.0, host=socket.gethostname(), pid=None)
+        return row
     t0, pid = time.monotonic(), None
     try:
         log_path.parent.mkdir(parents=True, exist_ok=True)
@@ -135,9 +166,13 @@ def launch_case(case_spec: dict | CaseSpec, should_stop: Callable[[], bool] | No
             try:
                 rc, stopped, timed_out = _supervise(proc, should_stop, timeout_s)
             finally:
-                if proc.poll() is None:  # the supervisor itself failed: do not leave it running
-                    proc.kill()
-                    proc.wait()
+                if proc.poll() is None:  # the supervisor failed or was interrupted: stop the case
+                    signal_group(proc, signal.SIGINT)
+                    try:
+                        proc.wait(timeout=GRACE_S)
+                    except subprocess.TimeoutExpired:
+                        signal_group(proc, signal.SIGKILL)
+                        proc.wait()
     except Exception as exc:
         row = empty_row(case, "failed", f"could not run the case process: {type(exc).__name__}: {exc}")
     else:

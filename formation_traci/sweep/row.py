@@ -39,10 +39,14 @@ METRICS: dict[str, tuple[str, str]] = {
     "inserted_veh": ("-", "SUMO runs: vehicles SUMO inserted for the flows"),
     "flow_measured_veh_h": ("veh/h", "SUMO runs: flow over all lanes at traffic.measure_at during the formation's run"),
     "density_measured_veh_km": ("veh/km", "SUMO runs: density over all lanes at traffic.measure_at during the formation's run"),
+    "leader_age_mean_s": ("s", "max of each member's mean age of the virtual-car state it held ([comm])"),
+    "leader_age_p95_s": ("s", "max of each member's 95th percentile of that age"),
+    "comm_timeouts": ("-", "SUMO runs: comm_timeout events (a member fell back: no state for longer than comm.timeout_s)"),
 }
 """Metric columns of ``summary.parquet``: unit and meaning."""
 
-COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes", "requested_veh", "inserted_veh"})
+COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes", "requested_veh", "inserted_veh",
+                           "comm_timeouts"})
 
 
 def empty_row(case: dict, status: str, reason: str | None) -> dict[str, Any]:
@@ -100,8 +104,10 @@ def _sumo_metrics(run_dir: Path, member_ids: set[str], meta: dict) -> dict[str, 
     traffic = meta.get("traffic") or {}
     flows = (traffic.get("flows") or {}).values()
     measured = traffic.get("measured") or {}
+    counts = meta.get("event_counts") or {}
     return {"collisions": n_coll, "min_ttc_s": ttc,
-            "emergency_brakes": int((meta.get("event_counts") or {}).get("emergency_brake", 0)),
+            "emergency_brakes": int(counts.get("emergency_brake", 0)),
+            "comm_timeouts": int(counts.get("comm_timeout", 0)),
             "requested_veh": sum(int(f["requested"]) for f in flows) if flows else None,
             "inserted_veh": sum(int(f["inserted"]) for f in flows) if flows else None,
             "flow_measured_veh_h": measured.get("flow_veh_h"),
@@ -146,6 +152,9 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
         "collisions": None, "min_ttc_s": None, "emergency_brakes": None,
         "requested_veh": None, "inserted_veh": None, "flow_measured_veh_h": None,
         "density_measured_veh_km": None,
+        "leader_age_mean_s": _max(_col(members, "leader_age_mean_s")),
+        "leader_age_p95_s": _max(_col(members, "leader_age_p95_s")),
+        "comm_timeouts": None,
     }
     if (meta.get("scenario") or {}).get("road") is not None:
         out.update(_sumo_metrics(run_dir, set(map(str, members.index)), meta))

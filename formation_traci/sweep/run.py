@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..interrupt import raising_signals
 from .case import CASE_JSON, CaseSpec
 from .executors import run_dask, run_local
 from .expand import Sweep, load_sweep
@@ -162,8 +163,10 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     """
     sweep = load_sweep(sweep_path)
     out = Path(out_dir).resolve()
+    if out.exists() and not out.is_dir():
+        raise SweepError(out, [("(directory)", "exists and is a file, not a directory")])
     out.mkdir(parents=True, exist_ok=True)
-    with _lock(out):
+    with raising_signals(), _lock(out):  # SIGTERM stops the cases like Ctrl-C
         specs = [case_spec(sweep, i, out) for i in range(len(sweep.cases))]
         swept = swept_dtypes([c.model_dump(mode="json") for c in sweep.cases], sweep.spec.swept())
         rows: dict[str, dict] = {}

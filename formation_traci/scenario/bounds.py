@@ -1,0 +1,50 @@
+"""Bounds from cost: schema-legal values that no run could finish are refused as bad input.
+
+Each bound says what it protects: the number of sub-steps per simulated second (one step of
+1e-9 s took 200 s), SUMO's sublane count (1e-6 m lanes took 2.3 GB), the step counter (1e308 s
+overflowed), SUMO's seed range, and run.json's size (the description is copied into it).
+"""
+from __future__ import annotations
+
+from .schema import Scenario
+
+MAX_SUBSTEPS_PER_S = 10_000
+"""Control periods or RK4 sub-steps per simulated second, at most [1/s]."""
+MIN_STEP = 0.001
+"""Smallest outer step: SUMO's clock counts milliseconds [s]."""
+MIN_LATERAL_RESOLUTION = 0.1
+"""Narrowest SUMO sublane [m]."""
+MAX_STEPS = 2**31 - 1
+"""Outer steps of a run, warm-up included (SUMO's step counter, a 32-bit signed integer)."""
+MAX_SEED = 2**31 - 1
+"""SUMO's --seed is a 32-bit signed integer."""
+MAX_TEXT = 4096
+"""Longest name or description copied into run.json [characters]."""
+
+
+def cost_problems(sc: Scenario) -> list[tuple[str, str]]:
+    """(dotted field, expectation (got value)) for every value beyond a bound."""
+    run, out = sc.run, []
+    min_sub = 1.0 / MAX_SUBSTEPS_PER_S
+    if run.step < MIN_STEP:
+        out.append(("run.step", f"must be at least {MIN_STEP} s (SUMO counts milliseconds) (got {run.step!r})"))
+    for name in ("control_step", "physics_step"):
+        v = getattr(run, name)
+        if v < min_sub:
+            out.append((f"run.{name}", f"must be at least {min_sub:g} s: more than {MAX_SUBSTEPS_PER_S} "
+                                       f"sub-steps per simulated second cannot finish (got {v!r})"))
+    steps = (run.duration + sc.traffic.warmup) / max(run.step, MIN_STEP)
+    if steps > MAX_STEPS:
+        field = "run.duration" if run.duration >= sc.traffic.warmup else "traffic.warmup"
+        out.append((field, f"duration + warm-up must be at most {MAX_STEPS} steps of run.step "
+                           f"(got {steps:.3g} steps)"))
+    if run.seed > MAX_SEED:
+        out.append(("run.seed", f"must be at most {MAX_SEED} (SUMO's seed range) (got {run.seed})"))
+    if sc.sumo.lateral_resolution < MIN_LATERAL_RESOLUTION:
+        out.append(("sumo.lateral_resolution", f"must be at least {MIN_LATERAL_RESOLUTION} m "
+                                               f"(got {sc.sumo.lateral_resolution!r})"))
+    for name in ("name", "description"):
+        n = len(getattr(sc, name))
+        if n > MAX_TEXT:
+            out.append((name, f"at most {MAX_TEXT} characters (got {n})"))
+    return out

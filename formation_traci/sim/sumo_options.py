@@ -1,0 +1,134 @@
+"""``[sumo] options`` of a scenario: checked before SUMO starts, outputs kept in the run.
+
+SUMO may neither read nor write a file outside the run directory: options that read files
+(configuration, networks, routes, additionals, states, weights, ...), that redirect or prefix
+outputs, or that open ports are refused as bad input; options that the tool sets itself are
+refused with the scenario field to use instead. An output may be asked for by a bare file
+name (``--summary-output summary.xml``): SUMO writes it into the run's ``sumo/`` directory.
+The option names and types come from the SUMO binary itself (``sumo --help``).
+"""
+from __future__ import annotations
+
+import functools
+import re
+import subprocess
+from pathlib import Path
+
+from ..scenario.load import ScenarioError
+
+MANAGED = {
+    "net-file": "road.net", "route-files": "traffic.flows", "begin": "run and traffic.warmup",
+    "end": "run.duration", "step-length": "run.step", "seed": "run.seed", "random": "run.seed",
+    "lateral-resolution": "sumo.lateral_resolution", "log": "(the run's sumo/sumo.log)",
+    "collision.action": "(always 'warn': collisions are events)", "fcd-output": "sumo.fcd",
+    "device.ssm.file": "sumo.ssm", "device.ssm.probability": "sumo.ssm",
+    "device.ssm.explicit": "sumo.ssm", "device.ssm.measures": "sumo.ssm",
+    "device.ssm.thresholds": "sumo.ssm", "device.ssm.range": "sumo.ssm",
+    "device.friction.probability": "sumo.friction_device",
+}
+"""SUMO options the tool sets, and the scenario field that controls each."""
+REFUSED_SECTIONS = ("Configuration", "Input", "Communication", "TraCI Server", "GUI Only")
+"""Option sections refused whole: they load files or open connections."""
+REFUSED_STR = {"output-prefix", "output-suffix", "save-state.suffix", "device.toc.file",
+               "device.taxi.dispatch-algorithm.params", "xml-validation", "xml-validation.net",
+               "xml-validation.routes"}
+"""String options that name files or paths (or fetch schemas)."""
+OWN_FILES = {"ssm.xml", "sumo.log", "traffic.rou.xml", "fcd.parquet"}
+BARE_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")
+_LINE = re.compile(r"^\s+(?:-(\w), )?--(\S+)(?: (\S+))?")
+
+
+@functools.lru_cache(maxsize=1)
+def sumo_option_table() -> dict[str, tuple[str, str, str]]:
+    """Every option of the SUMO binary: name or abbreviation -> (name, type, section)."""
+    from .sumo_adapter import sumo_binary
+
+    text = subprocess.run([sumo_binary(), "--help"], capture_output=True, text=True, timeout=60).stdout
+    table: dict[str, tuple[str, str, str]] = {}
+    section = ""
+    for line in text.splitlines():
+        if line.endswith(" Options:") and not line.startswith(" "):
+            section = line[: -len(" Options:")]
+            continue
+        m = _LINE.match(line)
+        if m and section:
+            short, name, typ = m.groups()
+            kind = typ if typ and typ.isupper() or (typ or "").endswith("[]") else "BOOL"
+            table[name] = (name, kind, section)
+            if short:
+                table[short] = (name, kind, section)
+    return table
+
+
+def _split(options: list[str]) -> list[tuple[int, str, str | None, bool]]:
+    """(index, option name, inline value or None, is an option) for each item."""
+    out = []
+    for i, item in enumerate(options):
+        if item.startswith("--"):
+            name, eq, val = item[2:].partition("=")
+            out.append((i, name, val if eq else None, True))
+        elif item.startswith("-") and len(item) > 1 and not item[1].isdigit() and item[1] != ".":
+            out.append((i, item[1:], None, True))
+        else:
+            out.append((i, item, None, False))
+    return out
+
+
+def _problem(name: str, kind: str, section: str, value: str | None) -> str | None:
+    if name in MANAGED:
+        return f"--{name} is set by formation-traci; use {MANAGED[name]}"
+    if section in REFUSED_SECTIONS:
+        return f"--{name} ({section.lower()} option) would make SUMO read files or open connections"
+    if name in REFUSED_STR:
+        return f"--{name} names files outside the run"
+    if kind == "FILE":
+        if not (name.endswith("-output") or name.endswith(".output") or name == "netstate-dump"):
+            return f"--{name} reads or writes a file outside the run"
+        if value is None or not BARE_NAME.match(value) or value in OWN_FILES or value.startswith("."):
+            return (f"--{name} needs a bare file name (no directory; not {sorted(OWN_FILES)}); SUMO writes "
+                    f"it into the run's sumo/ directory (got {value!r})")
+    return None
+
+
+def check_options(options: list[str], source) -> None:
+    """Refuse (ScenarioError, field ``sumo.options``) any option SUMO does not know, or one
+    that reads or writes outside the run."""
+    if not options:
+        return
+    table = sumo_option_table()
+    problems = []
+    items = _split(options)
+    for j, (i, name, inline, is_opt) in enumerate(items):
+        if not is_opt:
+            continue
+        if name not in table:
+            problems.append((f"sumo.options.{i}", f"unknown SUMO option {options[i]!r}"))
+            continue
+        full, kind, section = table[name]
+        value = inline
+        if value is None and kind != "BOOL" and j + 1 < len(items) and not items[j + 1][3]:
+            value = items[j + 1][1]
+        why = _problem(full, kind, section, value)
+        if why:
+            problems.append((f"sumo.options.{i}", why))
+    if problems:
+        raise ScenarioError(source or "<scenario>", problems)
+
+
+def place_outputs(options: list[str], sumo_dir: Path) -> list[str]:
+    """The options with every output file name made a path inside ``sumo_dir`` (checked
+    by :func:`check_options` first)."""
+    if not options:
+        return []
+    table = sumo_option_table()
+    out = list(options)
+    items = _split(options)
+    for j, (i, name, inline, is_opt) in enumerate(items):
+        if not is_opt or name not in table or table[name][1] != "FILE":
+            continue
+        full = table[name][0]
+        if inline is not None:
+            out[i] = f"--{full}={sumo_dir / inline}"
+        elif j + 1 < len(items):
+            out[items[j + 1][0]] = str(sumo_dir / items[j + 1][1])
+    return out
