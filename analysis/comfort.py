@@ -23,6 +23,8 @@ __all__ = [
     "JERK_POLYORDER",
     "savgol_window_samples",
     "jerk",
+    "jerk_window_mean",
+    "emergency_mask",
     "band_times",
 ]
 
@@ -52,6 +54,16 @@ LON_ACC_COMFORT = 2.0
 
 JERK_WINDOW_S = 0.5
 """Default Savitzky-Golay window span for jerk, first to last sample [s]."""
+
+JERK_MEAN_WINDOW_S = 1.0
+"""Averaging window of the ISO 15622 jerk bound [s]."""
+
+JERK_ACC_LIMIT = 2.5
+"""ISO 15622 (ACC) bound on the jerk averaged over :data:`JERK_MEAN_WINDOW_S` [m/s^3]."""
+
+EMERGENCY_SETTLE_S = 3.0
+"""After an emergency brake ends, this long is still counted as part of it [s] (the members'
+speed loops settle)."""
 
 JERK_POLYORDER = 3
 """Default Savitzky-Golay polynomial order for jerk [-]. With the 0.5 s window, order 3
@@ -167,3 +179,67 @@ def band_times(a, dt: float, edges=LAT_BAND_EDGES, axis: int = -1) -> np.ndarray
     lo, hi = edges[:-1], edges[1:]
     inside = (mag[..., None, :] >= lo[:, None]) & (mag[..., None, :] < hi[:, None])
     return np.count_nonzero(inside, axis=-1) * dt
+
+
+def jerk_window_mean(a, dt: float, window_s: float = JERK_MEAN_WINDOW_S) -> np.ndarray:
+    """Jerk averaged over ``window_s`` [m/s^3]: (a(t + window) - a(t)) / window, ISO 15622.
+
+    Parameters
+    ----------
+    a : array_like
+        Acceleration samples [m/s^2], evenly spaced.
+    dt : float
+        Sample spacing [s].
+    window_s : float
+        Averaging window [s]; default 1 s.
+
+    Returns
+    -------
+    ndarray
+        Entry i belongs to the window starting at sample i; the last ``window_s / dt``
+        entries are NaN, and so is every window with a NaN at either end.
+
+    Examples
+    --------
+    >>> float(jerk_window_mean(np.arange(0.0, 3.0, 0.1) * 2.0, 0.1)[0])
+    2.0
+    """
+    a = np.asarray(a, dtype=float)
+    n = max(1, int(round(window_s / dt)))
+    out = np.full(a.size, np.nan)
+    if a.size > n:
+        out[:-n] = (a[n:] - a[:-n]) / (n * dt)
+    return out
+
+
+def emergency_mask(t, starts, ends, settle_s: float = EMERGENCY_SETTLE_S,
+                   window_s: float = JERK_MEAN_WINDOW_S) -> np.ndarray:
+    """True at times ``t`` [s] whose jerk window touches an emergency brake.
+
+    Parameters
+    ----------
+    t : array_like
+        Window start times [s].
+    starts : array_like
+        Times of the ``emergency_brake`` events [s].
+    ends : array_like
+        Times of the ``emergency_end`` events [s]; an emergency runs from a start to the
+        next end after it (or the end of the record).
+    settle_s : float
+        Time after an end still counted as part of the emergency [s].
+    window_s : float
+        Length of the jerk window [s].
+
+    Returns
+    -------
+    ndarray of bool
+        True where ``start - window_s < t < end + settle_s`` for some emergency.
+    """
+    t = np.asarray(t, dtype=float)
+    mask = np.zeros(t.size, dtype=bool)
+    ends = np.sort(np.asarray(ends, dtype=float))
+    for s0 in np.sort(np.asarray(starts, dtype=float)):
+        later = ends[ends >= s0]
+        e0 = later[0] if later.size else np.inf
+        mask |= (t > s0 - window_s) & (t < e0 + settle_s)
+    return mask

@@ -70,6 +70,26 @@ def _save(fig: Figure, path: Path) -> Path:
     return path
 
 
+RESOLUTION = {"m": 1e-3, "rad/s": 1e-4, "m/s^2": 1e-3, "m/s^3": 1e-2}
+"""Physical floor of the plotted signals by unit: values smaller in magnitude are drawn as
+zero and an axis never spans less than ten times this (straight-road runs otherwise show
+1e-12 m of rounding noise as an oscillation)."""
+
+
+def _fl(y, unit: str):
+    """``y`` with values below the unit's :data:`RESOLUTION` set to zero."""
+    y = np.asarray(y, dtype=float)
+    return np.where(np.abs(y) < RESOLUTION[unit], 0.0, y)
+
+
+def _floor_axis(ax, unit: str) -> None:
+    lo, hi = ax.get_ylim()
+    span = 10 * RESOLUTION[unit]
+    if hi - lo < span:
+        mid = 0.0 if lo <= 0.0 <= hi else (lo + hi) / 2
+        ax.set_ylim(mid - span / 2, mid + span / 2)
+
+
 def _colours(ids) -> dict[str, str]:
     cyc = ["C%d" % (i % 10) for i in range(len(ids))]
     return dict(zip(ids, cyc))
@@ -168,9 +188,9 @@ def _errors(a: RunAnalysis, path: Path) -> Path:
         s = a.signals.loc[a.signals["vehicle_id"] == mid]
         for ax, name in ((axes[0], "e_lon"), (axes[1], "e_lat")):
             if _has(g, name):
-                ax.plot(*_dec(g["t"], g[name]), color=col[mid], lw=1, label=mid)
+                ax.plot(*_dec(g["t"], _fl(g[name], "m")), color=col[mid], lw=1, label=mid)
         if _has(s, "e_norm"):
-            axes[2].plot(*_dec(s["t"], s["e_norm"]), color=col[mid], lw=1, label=mid)
+            axes[2].plot(*_dec(s["t"], _fl(s["e_norm"], "m")), color=col[mid], lw=1, label=mid)
         ts = a.members.loc[mid, "settling_time_s"]
         if ts is not None and np.isfinite(ts):
             axes[2].axvline(g["t"].iloc[0] + ts, color=col[mid], ls=":", lw=1)
@@ -178,9 +198,11 @@ def _errors(a: RunAnalysis, path: Path) -> Path:
     for ax, lab in zip(axes[:3], ("e_lon [m]", "e_lat [m]", "|e| [m]")):
         ax.set_ylabel(lab)
         ax.grid(alpha=0.3)
+        _floor_axis(ax, "m")
     if axes[0].get_legend_handles_labels()[0]:
         axes[0].legend(loc="upper right", fontsize=8, ncols=4)
-    axes[0].set_title("Formation error in the virtual-car frame (dotted: settling time)")
+    axes[0].set_title("Formation error in the virtual-car frame (dotted: settling time; "
+                      f"below {RESOLUTION['m'] * 1e3:g} mm drawn as 0)")
     if len(a.shape):
         axes[3].plot(*_dec(a.shape["t"], a.shape["shape_error"]), color="k", lw=1)
     else:
@@ -200,9 +222,11 @@ def _tracking(a: RunAnalysis, path: Path) -> Path:
             if _has(g, ref):
                 ax.plot(*_dec(g["t"], g[ref]), color=col[mid], ls="--", lw=0.9)
             if _has(g, act):
-                ax.plot(*_dec(g["t"], g[act]), color=col[mid], lw=1.2, label=mid)
+                y = g[act] if act == "v" else _fl(g[act], "rad/s")
+                ax.plot(*_dec(g["t"], y), color=col[mid], lw=1.2, label=mid)
     axes[0].set(ylabel="v [m/s]", title="References (dashed, eqs 2.6, 2.8) vs response (solid)")
     axes[1].set(ylabel="yaw rate [rad/s]", xlabel="t [s]")
+    _floor_axis(axes[1], "rad/s")
     for ax in axes:
         ax.grid(alpha=0.3)
     if axes[0].get_legend_handles_labels()[0]:
@@ -232,11 +256,11 @@ def _comfort(a: RunAnalysis, path: Path) -> Path:
         if _has(g, "a_lat"):
             axes[0].plot(*_dec(g["t"], g["a_lat"]), color=col[mid], lw=1, label=mid)
         if _has(g, "a_lon"):
-            axes[1].plot(*_dec(g["t"], g["a_lon"]), color=col[mid], lw=1, label=mid)
+            axes[1].plot(*_dec(g["t"], _fl(g["a_lon"], "m/s^2")), color=col[mid], lw=1, label=mid)
         if _has(s, "jerk_lat"):
-            axes[2].plot(*_dec(s["t"], s["jerk_lat"]), color=col[mid], lw=1)
+            axes[2].plot(*_dec(s["t"], _fl(s["jerk_lat"], "m/s^3")), color=col[mid], lw=1)
         if _has(s, "jerk_lon"):
-            axes[3].plot(*_dec(s["t"], s["jerk_lon"]), color=col[mid], lw=1)
+            axes[3].plot(*_dec(s["t"], _fl(s["jerk_lon"], "m/s^3")), color=col[mid], lw=1)
     lim = comfort.LON_ACC_COMFORT
     for y in (lim, -lim):
         axes[1].axhline(y, color="r", ls="--", lw=1)
@@ -246,6 +270,8 @@ def _comfort(a: RunAnalysis, path: Path) -> Path:
     axes[1].set(ylabel="a_lon [m/s^2]",
                 title=f"Longitudinal acceleration, comfort limit +/-{lim:g} m/s^2 (section 3.1.5)")
     axes[2].set(ylabel="jerk lat [m/s^3]")
+    _floor_axis(axes[2], "m/s^3")
+    _floor_axis(axes[3], "m/s^3")
     w = a.settings
     axes[3].set(ylabel="jerk lon [m/s^3]", xlabel="t [s]")
     axes[2].set_title(f"Jerk: Savitzky-Golay derivative, {w.jerk_window_s:g} s window, "
@@ -607,8 +633,53 @@ def comm_figure(a: RunAnalysis, path: Path) -> Path:
     return _save(fig, path)
 
 
-_RUN_FIGURES = (("paths", _paths), ("errors", _errors), ("tracking", _tracking),
-                ("comfort", _comfort), ("limits", _limits))
+def _propagation(a: RunAnalysis, path: Path) -> Path:
+    """Members at their slots, coloured by peak error, with the neighbour-to-neighbour peak
+    error ratios along columns (front to back) and rows (outwards from the most disturbed)."""
+    from analysis.propagation import propagation
+
+    off = {m.id: m.offset for m in a.data.members if np.isfinite(m.offset).all()
+           and m.id in a.members.index}
+    peak = {m: _num(a.members.loc[m, "e_max_m"]) for m in off}
+    rms = {m: _num(a.members.loc[m, "e_rms_m"]) for m in off}
+    fig, axes = _new(1, h=4.2, w=7.0)
+    ax = axes[0]
+    if not off:
+        _not_recorded(ax, "member offsets")
+        return _save(fig, path)
+    xy = {m: (-o[1], o[0]) for m, o in off.items()}  # across (left to the left), along up
+    vals = np.array([peak[m] for m in off])
+    sc = ax.scatter([xy[m][0] for m in off], [xy[m][1] for m in off], c=vals, cmap="viridis_r",
+                    s=400, edgecolors="k", zorder=3)
+    fig.colorbar(sc, ax=ax, label="peak formation error e_max [m]")
+    for m in off:
+        ax.annotate(f"{m}\n{peak[m]:.3g} m", xy[m], xytext=(0, -26), textcoords="offset points",
+                    ha="center", fontsize=8)
+    for r in propagation(off, peak, rms).itertuples():
+        (x0, y0), (x1, y1) = xy[r.source], xy[r.target]
+        colour = "#b42318" if r.grows else "#1a7f37"
+        ax.annotate("", (x1, y1), (x0, y0), arrowprops=dict(arrowstyle="->", color=colour,
+                                                            shrinkA=14, shrinkB=14, lw=1.5))
+        ax.text((x0 + x1) / 2, (y0 + y1) / 2, f"x{r.peak_ratio:.2f}", color=colour, fontsize=8,
+                ha="center", va="bottom", zorder=4)
+    ax.set(xlabel="right of the reference [m]  (left <- -> right)", ylabel="ahead [m]",
+           title="Disturbance propagation: peak-error ratio to the neighbour\n"
+                 "(red > 1: grows, green: decays)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.3)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+def _num(x) -> float:
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+_RUN_FIGURES = (("paths", _paths), ("errors", _errors), ("propagation", _propagation),
+                ("tracking", _tracking), ("comfort", _comfort), ("limits", _limits))
 _TRAFFIC_FIGURES = (("traffic_spacetime", spacetime_figure, ".png"),
                     ("traffic_birdseye", birdseye_animation, ".gif"))
 

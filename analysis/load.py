@@ -38,12 +38,14 @@ __all__ = [
     "read_table",
     "read_meta",
     "load_run",
+    "describe_issues",
 ]
 
 RUN_JSON = "run.json"
 TRAJECTORIES = "trajectories.parquet"
-OPTIONAL_TABLES = ("background", "events", "ssm")
-"""Tables written by SUMO runs only; their absence is reported as information."""
+OPTIONAL_TABLES = ("background", "events", "ssm", "comfort")
+"""Tables written by SUMO runs only (``comfort``: every run since it was introduced, the
+members' accelerations at the control rate); their absence is reported as information."""
 
 REQUIRED_META_KEYS = ("status", "reason", "t_end", "record_step", "model", "mu", "members",
                       "scenario")
@@ -55,7 +57,7 @@ ANALYSED_COLUMNS = frozenset({
 recording (e.g. the road/SUMO-only ``s``, ``d``, ``lane_index``) is reported as info only."""
 
 TABLE_CONTRACTS = {"background": "BACKGROUND_COLUMNS", "events": "EVENT_COLUMNS",
-                   "ssm": "SSM_COLUMNS"}
+                   "ssm": "SSM_COLUMNS", "comfort": "COMFORT_COLUMNS"}
 """Names of the column contracts of the optional tables in ``formation_traci.record.columns``
 (checked when the contract exists)."""
 
@@ -92,6 +94,24 @@ class Issue:
         """
         return {"severity": self.severity, "kind": self.kind, "what": self.what,
                 "detail": self.detail}
+
+
+def describe_issues(issues) -> str:
+    """One line counting the run's data issues by severity, the same in the CLI and the report.
+
+    Parameters
+    ----------
+    issues : iterable
+        :class:`Issue` objects or dicts with a ``severity``.
+
+    Returns
+    -------
+    str
+        e.g. ``"3 data issue(s): 0 error(s), 1 warning(s), 2 note(s)"``.
+    """
+    sev = [i["severity"] if isinstance(i, dict) else getattr(i, "severity", None) for i in issues]
+    return (f"{len(sev)} data issue(s): {sev.count('error')} error(s), {sev.count('warning')} "
+            f"warning(s), {sev.count('info')} note(s)")
 
 
 @dataclass(frozen=True, slots=True)

@@ -40,6 +40,9 @@ th{background:#f3f3f3}td.l,th.l{text-align:left}
 tr.error td{background:#fde2e2}tr.warning td{background:#fff4d6}tr.info td{background:#eef4fb}
 img{max-width:100%;border:1px solid #eee;margin:0.5em 0}
 .ok{color:#1a7f37}.bad{color:#b42318}code{background:#f5f5f5;padding:0 3px}
+#summary{border:1px solid #ccc;background:#fafafa;padding:0.4em 1em;margin:1em 0}
+#summary li{margin:0.2em 0}details{margin:0.4em 0}details>summary{cursor:pointer;
+font-weight:600;font-size:1.05em}
 """
 
 
@@ -185,67 +188,113 @@ def run_report(analysis: RunAnalysis, figures: Mapping[str, Path],
     cls = "ok" if status == "completed" and n_err == 0 else "bad"
     parts.append(f'<p class="{cls}">status: <b>{_fmt(status)}</b>'
                  + (f" &mdash; reason: {_fmt(run.get('reason'))}" if run.get("reason") else "")
-                 + f" &middot; {n_err} data problem(s)</p>")
+                 + f" &middot; {n_err} data error(s)</p>")
 
-    parts.append("<h2>Missing or damaged</h2>" + _issues_html(issues))
-
-    rows = [[k, run.get(k), RUN_METRICS.get(k, "")] for k in RUN_METRICS]
-    versions = meta.get("versions")
-    if isinstance(versions, dict):
-        rows += [[f"version {k}", v, ""] for k, v in versions.items()]
-    parts.append("<h2>Run</h2>" + _table(["metric", "value", "unit"], rows, left=1))
-
-    ids = list(a.members.index)
-    if ids:
-        rows = [[k, FORMATION_MEMBER_METRICS[k], *[a.members.loc[i, k] for i in ids]]
-                for k in FORMATION_MEMBER_METRICS]
-        parts.append("<h2>Members</h2>" + _table(["metric", "unit", *ids], rows, left=2))
-    if a.unavailable:
-        rows = [[mid, grp, why] for mid, d in a.unavailable.items() for grp, why in d.items()]
-        parts.append("<h2>Metrics not computed or recomputed</h2>"
-                     + _table(["member", "metric", "why"], rows, left=3))
-    if len(a.string_stability):
-        ss = a.string_stability
-        parts.append("<h2>String stability (columns of members, front to back)</h2>"
-                     "<p>Ratio of the error norm of a member to that of the member in front "
-                     "of it; above 1 the error grows down the column.</p>"
-                     + _table(list(ss.columns), [list(r) for r in ss.itertuples(index=False)],
-                              left=0))
-    w = a.run.get("worst") or {}
-    if w:
-        parts.append("<h2>Worst member per key metric</h2>"
-                     + _table(["metric", "worst", "unit"],
-                              [[k, v, FORMATION_MEMBER_METRICS.get(k, "")]
-                               for k, v in w.items()]))
-    parts.append(_traffic_html(a))
-    s = a.settings
-    parts.append(
-        "<h2>Settings</h2>" + _table(["setting", "value"], [
-            ["settling band [m]", s.settle_tol_m], ["jerk window [s]", s.jerk_window_s],
-            ["jerk polynomial order", s.jerk_polyorder],
-            ["same-column tolerance on dy [m]", s.column_dy_tol_m],
-            ["ISO 2631-1 weighting", "Wd (x = a_lon, y = a_lat), k = 1 (comfort)"],
-            ["ISO 2631-1 band", run.get("iso2631_note")],
-            ["interaction range [m]", s.interaction_range_m],
-            ["clearance threshold [m]", s.clearance_threshold_m],
-            ["lateral gap threshold [m]", s.lateral_gap_threshold_m],
-            ["2-D TTC threshold / horizon [s]",
-             f"{s.ttc2d_threshold_s:g} / {s.ttc2d_horizon_s:g}"],
-            ["time headway threshold [s]", s.headway_threshold_s],
-            ["SSM TTC warning / critical [s]",
-             f"{s.ssm_ttc_warning_s:g} / {s.ssm_ttc_critical_s:g}"],
-            ["SSM DRAC high [m/s^2]", s.ssm_drac_high_mps2],
-            ["baseline: shortest common section [m]", s.baseline_min_length_m],
-            ["animation: duration [s], fps, start [s]",
-             f"{s.anim_duration_s:g}, {s.anim_fps:g}, "
-             + ("auto (closest approach)" if s.anim_start_s is None else f"{s.anim_start_s:g}")]]))
+    parts.append(_summary_html(a, issues))
     if figures or figure_errors:
         parts.append("<h2>Figures</h2>")
         for name, p in figures.items():
             parts.append(f"<h3>{_e(name)}</h3>{_img(p, name, base=report_dir)}")
         for name, err in (figure_errors or {}).items():
             parts.append(f'<p class="bad">figure {_e(name)} not drawn: {_e(err)}</p>')
+    parts.append(_tables_html(a, issues, n_err))
     return _page(f"Run {a.data.run_dir.name}", "".join(parts))
+
+
+def _tables_html(a: RunAnalysis, issues, n_err: int) -> str:
+    """The report's tables, each collapsed (<details>), after the figures."""
+    run, meta = a.run, a.data.meta
+    parts = []
+    parts.append("<h2>Tables</h2>")
+    parts.append(_details("Missing or damaged data", _issues_html(issues), open_=n_err > 0))
+    ids = list(a.members.index)
+    if ids:
+        rows = [[k, FORMATION_MEMBER_METRICS[k], *[a.members.loc[i, k] for i in ids]]
+                for k in FORMATION_MEMBER_METRICS]
+        parts.append(_details("Members: every metric", _table(["metric", "unit", *ids], rows, left=2)))
+    prop = _propagation_table(a)
+    if prop:
+        parts.append(_details("Disturbance propagation across the formation", prop))
+    if len(a.string_stability):
+        ss = a.string_stability
+        parts.append(_details(
+            "String stability (columns of members, front to back)",
+            "<p>Ratio of the error norm of a member to that of the member in front "
+            "of it; above 1 the error grows down the column.</p>"
+            + _table(list(ss.columns), [list(r) for r in ss.itertuples(index=False)], left=0)))
+    w = a.run.get("worst") or {}
+    if w:
+        parts.append(_details("Worst member per key metric",
+                              _table(["metric", "worst", "unit"],
+                                     [[k, v, FORMATION_MEMBER_METRICS.get(k, "")]
+                                      for k, v in w.items()])))
+    traffic_html = _traffic_html(a)
+    if traffic_html:
+        parts.append(_details("Traffic interaction", traffic_html))
+    if a.unavailable:
+        rows = [[mid, grp, why] for mid, d in a.unavailable.items() for grp, why in d.items()]
+        parts.append(_details("Metrics not computed or recomputed",
+                              _table(["member", "metric", "why"], rows, left=3)))
+    rows = [[k, run.get(k), RUN_METRICS.get(k, "")] for k in RUN_METRICS]
+    parts.append(_details("Run", _table(["metric", "value", "unit"], rows, left=1)))
+    parts.append(_details("Settings", _settings_table(a)))
+    versions = meta.get("versions")
+    if isinstance(versions, dict):
+        parts.append(_details("Versions", _table(["package", "version"],
+                                                 [[k, v] for k, v in versions.items()], left=2)))
+    return "".join(parts)
+
+
+def _details(title: str, body: str, open_: bool = False) -> str:
+    """A collapsed section (HTML <details>): tables stay out of the way of the figures."""
+    return f"<details{' open' if open_ else ''}><summary>{_e(title)}</summary>{body}</details>"
+
+
+def _summary_html(a: RunAnalysis, issues) -> str:
+    from analysis.headline import verdicts
+
+    items = []
+    for text, ok in verdicts(a.members, a.run, issues):
+        mark = {True: '<span class="ok">&#10003;</span> ', False: '<span class="bad">&#10007;</span> ',
+                None: ""}[ok]
+        items.append(f"<li>{mark}{_e(text)}</li>")
+    return f'<div id="summary"><h2>Summary</h2><ul>{"".join(items)}</ul></div>'
+
+
+def _propagation_table(a: RunAnalysis) -> str:
+    from analysis.propagation import propagation
+
+    off = {m.id: m.offset for m in a.data.members
+           if m.id in a.members.index and all(math.isfinite(v) for v in m.offset)}
+    col = {k: pd.to_numeric(a.members[k], errors="coerce").to_dict() for k in ("e_max_m", "e_rms_m")}
+    df = propagation(off, col["e_max_m"], col["e_rms_m"])
+    if not len(df):
+        return ""
+    return ("<p>Peak and RMS formation error of a member over that of its neighbour on the "
+            "side the disturbance comes from: columns front to back, rows outwards from the "
+            "member with the largest peak error. Above 1 the disturbance grows.</p>"
+            + _table(list(df.columns), df.values.tolist(), left=4))
+
+
+def _settings_table(a: RunAnalysis) -> str:
+    s, run = a.settings, a.run
+    return _table(["setting", "value"], [
+        ["settling band [m]", s.settle_tol_m], ["jerk window [s]", s.jerk_window_s],
+        ["jerk polynomial order", s.jerk_polyorder],
+        ["same-column tolerance on dy [m]", s.column_dy_tol_m],
+        ["ISO 2631-1 weighting", "Wd (x = a_lon, y = a_lat), k = 1 (comfort)"],
+        ["ISO 2631-1 band", run.get("iso2631_note")],
+        ["interaction range [m]", s.interaction_range_m],
+        ["clearance threshold [m]", s.clearance_threshold_m],
+        ["lateral gap threshold [m]", s.lateral_gap_threshold_m],
+        ["2-D TTC threshold / horizon [s]", f"{s.ttc2d_threshold_s:g} / {s.ttc2d_horizon_s:g}"],
+        ["time headway threshold [s]", s.headway_threshold_s],
+        ["SSM TTC warning / critical [s]", f"{s.ssm_ttc_warning_s:g} / {s.ssm_ttc_critical_s:g}"],
+        ["SSM DRAC high [m/s^2]", s.ssm_drac_high_mps2],
+        ["baseline: shortest common section [m]", s.baseline_min_length_m],
+        ["animation: duration [s], fps, start [s]",
+         f"{s.anim_duration_s:g}, {s.anim_fps:g}, "
+         + ("auto (closest approach)" if s.anim_start_s is None else f"{s.anim_start_s:g}")]])
 
 
 def compare_report(table: pd.DataFrame, figures: Mapping[str, Path],

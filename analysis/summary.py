@@ -51,6 +51,7 @@ FORMATION_MEMBER_METRICS: dict[str, str] = {
     "a_lon_peak_mps2": "m/s^2", "a_lon_rms_mps2": "m/s^2", "a_lon_p95_mps2": "m/s^2",
     "a_lat_peak_mps2": "m/s^2", "a_lat_rms_mps2": "m/s^2", "a_lat_p95_mps2": "m/s^2",
     "jerk_lon_peak_mps3": "m/s^3", "jerk_lon_rms_mps3": "m/s^3", "jerk_lon_p95_mps3": "m/s^3",
+    "jerk_lon_1s_peak_mps3": "m/s^3",
     "jerk_lat_peak_mps3": "m/s^3", "jerk_lat_rms_mps3": "m/s^3", "jerk_lat_p95_mps3": "m/s^3",
     "t_lat_comfortable_s": "s", "t_lat_medium_s": "s", "t_lat_uncomfortable_s": "s",
     "t_lat_beyond_s": "s",
@@ -178,6 +179,28 @@ def _settling(e: np.ndarray, t: np.ndarray, tol: float) -> float:
     return float(np.interp(idx, np.arange(t.size), t) - t[0])
 
 
+def control_rate_dt(data: RunData) -> float:
+    """Sample spacing of ``comfort.parquet`` [s] (the control period), NaN without it."""
+    cf = data.tables.get("comfort")
+    if cf is None or not len(cf) or "t" not in cf.columns:
+        return math.nan
+    t = np.unique(cf["t"].to_numpy(dtype=float))
+    return float(np.median(np.diff(t))) if t.size > 1 else math.nan
+
+
+def _control_rate(data: RunData, member_id: str, column: str):
+    """(signal, segments, dt) of a member from ``comfort.parquet``, or None without it."""
+    dt = control_rate_dt(data)
+    cf = data.tables.get("comfort")
+    if not math.isfinite(dt) or column not in cf.columns:
+        return None
+    g = cf.loc[cf["vehicle_id"].astype(str) == member_id].sort_values("t", kind="stable")
+    if len(g) < 2:
+        return None
+    t = g["t"].to_numpy(dtype=float)
+    return g[column].to_numpy(dtype=float), contiguous_segments(t, dt, GAP_FACTOR), dt
+
+
 def _weighted(a: np.ndarray, segs: list[slice], dt: float) -> iso2631.WeightedRMS:
     results = [(s.stop - s.start, iso2631.weighted_rms(a[s], dt)) for s in segs]
     ok = [(n, r) for n, r in results if np.isfinite(r.value)]
@@ -299,7 +322,10 @@ def _member_metrics(data: RunData, member: Member, vc: pd.DataFrame,
             out[f"jerk_{axis_name}_peak_mps3"] = _f(peak_abs(j))
             out[f"jerk_{axis_name}_rms_mps3"] = _f(rms(j))
             out[f"jerk_{axis_name}_p95_mps3"] = _f(percentile_abs(j, 95.0))
-        w = _weighted(a, segs, dt)
+        if axis_name == "lon" and math.isfinite(dt):
+            out["jerk_lon_1s_peak_mps3"] = _jerk_1s_peak(data, member.id, t, a, segs, dt)
+        hr = _control_rate(data, member.id, f"a_{axis_name}")
+        w = _weighted(*hr) if hr is not None else _weighted(a, segs, dt)
         aw[axis_name] = w
         out[f"aw_{axis_name}_mps2"] = _f(w.value)
         out[f"aw_crest_{axis_name}"] = _f(w.crest_factor)
@@ -352,6 +378,22 @@ def _member_metrics(data: RunData, member: Member, vc: pd.DataFrame,
                         "e_norm": e if e is not None else np.full(t.size, np.nan),
                         "jerk_lon": jerk_series["lon"], "jerk_lat": jerk_series["lat"]})
     return out, m.unavailable, sig
+
+
+def _jerk_1s_peak(data: RunData, member_id: str, t: np.ndarray, a: np.ndarray, segs,
+                  dt: float) -> float | None:
+    """Peak |jerk averaged over 1 s| (ISO 15622) [m/s^3] outside the emergency brakes the run
+    recorded for this member or the virtual car (``emergency_brake`` .. ``emergency_end``)."""
+    ev = data.tables.get("events")
+    starts, ends = np.empty(0), np.empty(0)
+    if ev is not None and len(ev) and {"kind", "vehicle_id", "t"} <= set(ev.columns):
+        who = ev["vehicle_id"].astype(str).isin([member_id, VIRTUAL_CAR_ID])
+        kind = ev["kind"].astype(str)
+        starts = ev.loc[who & (kind == "emergency_brake"), "t"].to_numpy(dtype=float)
+        ends = ev.loc[who & (kind == "emergency_end"), "t"].to_numpy(dtype=float)
+    j = np.concatenate([comfort.jerk_window_mean(a[s], dt) for s in segs]) if segs else np.empty(0)
+    j[comfort.emergency_mask(t, starts, ends)] = np.nan
+    return _f(peak_abs(j)) if np.isfinite(j).any() else None
 
 
 def _shape(data: RunData, members: list[Member]) -> tuple[dict[str, Any], pd.DataFrame, list[Issue]]:
@@ -490,12 +532,14 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
         run.update(string_stable=bool(not ss["amplifies"].any()),
                    string_peak_ratio_max=_f(ss["peak_ratio"].max()),
                    string_rms_ratio_max=_f(ss["rms_ratio"].max()))
-    if math.isfinite(fs):
-        f_valid = iso2631.valid_upper_frequency(fs)
+    dt_iso = control_rate_dt(data) if math.isfinite(control_rate_dt(data)) else dt
+    if math.isfinite(dt_iso):  # ISO 2631 from comfort.parquet (control rate) when recorded
+        fs_iso = 1.0 / dt_iso
+        f_valid = iso2631.valid_upper_frequency(fs_iso)
         run["iso2631_band_hz"] = [iso2631.ISO_FREQ_RANGE_HZ[0],
                                   min(iso2631.ISO_FREQ_RANGE_HZ[1], f_valid)]
         run["iso2631_full_band"] = bool(f_valid >= iso2631.ISO_FREQ_RANGE_HZ[1])
-        probe = iso2631.weighted_rms(np.zeros(int(iso2631.MIN_DURATION_S * fs) + 1), dt)
+        probe = iso2631.weighted_rms(np.zeros(int(iso2631.MIN_DURATION_S * fs_iso) + 1), dt_iso)
         run["iso2631_note"] = probe.reason or "full 0.5-80 Hz band"
         if not np.isfinite(probe.value):
             issues.append(Issue("warning", "iso2631_unavailable", "aw_*", probe.reason))

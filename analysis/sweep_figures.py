@@ -59,7 +59,7 @@ def _panel(ax, df: pd.DataFrame, param: str, others: list[str], metric: str, spr
     if cats_all:
         ax.set_xticks(range(len(cats_all)))
         ax.set_xticklabels([c[:14] for c in cats_all], rotation=30, ha="right")
-    ax.set_xlabel(param)
+    ax.set_xlabel(labels.get(param, param))
     ax.grid(True, alpha=0.3)
     if len(groups) > 1 or groups[0][0]:
         ax.legend(fontsize=7)
@@ -94,31 +94,40 @@ def sweep_figures(done: pd.DataFrame, swept: list[str], grid_keys: list[str], me
     (dict, dict)
         Metric -> written PNG, and metric -> error message for figures that failed.
     """
-    from matplotlib.figure import Figure  # lazy: heavy, and only the figures need it
-
     out_dir.mkdir(parents=True, exist_ok=True)
-    params = swept or ["seed"]
     paths, errors = {}, {}
     for metric in metrics:
         try:
-            fig = Figure(figsize=(4.2 * len(params), 3.4), layout="constrained")
-            axes = fig.subplots(1, len(params), squeeze=False)[0]
-            for ax, p in zip(axes, params):
-                others = [k for k in swept if k != p]
-                _panel(ax, done, p, others, metric, spread, p in grid_keys or p == "seed",
-                       labels or {})
-            vals = pd.to_numeric(done[metric], errors="coerce").to_numpy(dtype=float)
-            vals = vals[np.isfinite(vals)]
-            if vals.size and vals.min() > 0 and vals.max() > LOG_SPAN * vals.min():
-                for ax in axes:
-                    ax.set_yscale("log")
-            unit = units.get(metric, "")
-            axes[0].set_ylabel(f"{metric} [{unit}]" if unit and unit != "-" else metric)
-            fig.suptitle(f"{metric}: mean over seeds, bars {'min-max' if spread == 'minmax' else '±1 std'}",
-                         fontsize=10)
+            fig = metric_figure(done, swept, grid_keys, metric, units.get(metric, ""), spread, labels)
             path = out_dir / f"{metric}.png"
             fig.savefig(path, dpi=100)
             paths[metric] = path
         except Exception as exc:  # one bad figure must not lose the others
             errors[metric] = f"{type(exc).__name__}: {exc}"
     return paths, errors
+
+
+def metric_figure(done: pd.DataFrame, swept: list[str], grid_keys: list[str], metric: str,
+                  unit: str, spread: str = "minmax", labels: dict[str, str] | None = None):
+    """The matplotlib Figure of one metric (one panel per swept field), not saved.
+
+    ``done``, ``swept``, ``grid_keys``, ``spread`` and ``labels`` as in :func:`sweep_figures`;
+    ``metric`` is the column to plot and ``unit`` its unit (axis label).
+    """
+    from matplotlib.figure import Figure  # lazy: heavy, and only the figures need it
+
+    params = swept or ["seed"]
+    fig = Figure(figsize=(4.2 * len(params), 3.4), layout="constrained")
+    axes = fig.subplots(1, len(params), squeeze=False)[0]
+    for ax, p in zip(axes, params):
+        others = [k for k in swept if k != p]
+        _panel(ax, done, p, others, metric, spread, p in grid_keys or p == "seed", labels or {})
+    vals = pd.to_numeric(done[metric], errors="coerce").to_numpy(dtype=float)
+    vals = vals[np.isfinite(vals)]
+    if vals.size and vals.min() > 0 and vals.max() > LOG_SPAN * vals.min():
+        for ax in axes:
+            ax.set_yscale("log")
+    axes[0].set_ylabel(f"{metric} [{unit}]" if unit and unit != "-" else metric)
+    fig.suptitle(f"{metric}: mean over seeds, bars {'min-max' if spread == 'minmax' else '±1 std'}",
+                 fontsize=10)
+    return fig

@@ -78,6 +78,23 @@ def _table(df: pd.DataFrame) -> str:
     return f"<table><tr>{head}</tr>{body}</table>"
 
 
+def swept_labels(meta: dict) -> dict[str, str]:
+    """Name of every swept field in figures: the sweep file's [labels], else its last name.
+
+    Parameters
+    ----------
+    meta : dict
+        Content of ``sweep.json`` (``swept``, ``sweep.labels``).
+
+    Returns
+    -------
+    dict
+        Swept dotted path -> name.
+    """
+    given = (meta.get("sweep") or {}).get("labels") or {}
+    return {k: given.get(k) or k.split(".")[-1] for k in meta.get("swept", [])}
+
+
 def _html(meta: dict, df: pd.DataFrame, stats: pd.DataFrame, metrics: list[str],
           figs: dict[str, Path], fig_errors: dict[str, str], notes: list[str]) -> str:
     raw = meta.get("sweep", {})
@@ -90,7 +107,8 @@ def _html(meta: dict, df: pd.DataFrame, stats: pd.DataFrame, metrics: list[str],
              + ", ".join(f"{_e(k)}: {v}" for k, v in sorted(counts.items()))
              + f"; pending: {n_cases - len(df)}.</p>",
              "<h2>Swept fields</h2><ul>"
-             + "".join(f"<li><code>{_e(k)}</code> ({'grid' if k in meta.get('grid_keys', []) else 'random'})</li>"
+             + "".join(f"<li><b>{_e(swept_labels(meta)[k])}</b>: <code>{_e(k)}</code> "
+                       f"({'grid' if k in meta.get('grid_keys', []) else 'random'})</li>"
                        for k in meta.get("swept", []))
              + f"<li>seeds: {_e(raw.get('seeds'))}</li></ul>"]
     bad = df[df["status"] != "completed"]
@@ -180,7 +198,7 @@ def analyze_sweep(sweep_dir: str | Path, metrics: list[str] | None = None,
     if len(done) and chosen:
         from analysis.sweep_figures import sweep_figures
 
-        labels = {k: k.split(".")[-1] for k in swept}
+        labels = swept_labels(meta)
         figs, fig_errors = sweep_figures(done, swept, meta.get("grid_keys", []), chosen,
                                          {k: u for k, (u, _) in METRICS.items()},
                                          out_dir / FIGURES_DIR, spread, labels)

@@ -26,8 +26,17 @@ app = typer.Typer(add_completion=False, no_args_is_help=True,
 _DEBUG = {"on": False}
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from . import __version__
+        typer.echo(f"formation-traci {__version__}")
+        raise typer.Exit(0)
+
+
 @app.callback()
-def _group(debug: bool = typer.Option(False, "--debug", help="show the traceback of an error")) -> None:
+def _group(debug: bool = typer.Option(False, "--debug", help="show the traceback of an error"),
+           version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                        help="print the version and exit")) -> None:
     """Formation control experiments: run scenarios, analyse recordings."""
     _DEBUG["on"] = debug
 
@@ -76,6 +85,7 @@ def run(
     force: bool = typer.Option(False, "--force", help="replace an existing run directory"),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="show a progress bar"),
     baseline: bool = typer.Option(False, "--baseline", help="road scenarios: the twin run with the same traffic and seed but no formation"),
+    gui: bool = typer.Option(False, "--gui", help="road scenarios: watch in sumo-gui (traci backend; the view follows the formation)"),
 ) -> None:
     """Run SCENARIO headless and record it under OUT (run.json, trajectories.parquet, ...)."""
     with _outcome():
@@ -83,7 +93,10 @@ def run(
         from .sim.runner import run_scenario
 
         sc = load_scenario(scenario, **{"run.duration": duration, "run.seed": seed,
-                                        "vehicle.model": model})
+                                        "vehicle.model": model,
+                                        **({"sumo.backend": "traci", "sumo.gui": True} if gui else {})})
+        if progress and sc.road is not None and sc.traffic.warmup > 0:
+            typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)
         res = run_scenario(sc, out, scenario_path=scenario, force=force, progress=progress, baseline=baseline)
     typer.echo(f"{res.status}: t_end={res.t_end:.2f} s, steps={res.steps_done}, out={res.out_dir}"
                + (f"\nreason: {res.reason}" if res.reason else ""))
@@ -106,7 +119,9 @@ def analyze(
     for name, path in res.files.items():
         typer.echo(f"{name}: {path}")
     if len(res.issues):
-        typer.echo(f"{len(res.issues)} issue(s) noted in metrics.json (missing or damaged data)")
+        from analysis.load import describe_issues
+
+        typer.echo(f"{describe_issues(res.issues.to_dict('records'))}; listed in metrics.json and report.html")
 
 
 @app.command()

@@ -25,7 +25,6 @@ DEBT = {
     "module analysis/summary.py",
     "module analysis/load.py",
     "function formation_traci/sweep/run.py:run_sweep",
-    "function analysis/report.py:run_report",
     "function analysis/figures.py:birdseye_animation",
     "function analysis/figures.py:compare_figures",
     "function analysis/traffic_run.py:compute_traffic",

@@ -29,7 +29,8 @@ def test_bundled_highway_scenario_runs_to_the_end(tmp_path, path):
     """Each bundled scenario, shortened (30 s warm-up, 20 s of formation), runs headless to its
     end with SUMO: no collision, every member present, SUMO's positions equal ours within 1 cm,
     and the trajectories (members and virtual car) equal the golden ones (tests/golden/highway.npz,
-    recorded before issue 14's restructuring) within 1e-6 m."""
+    recorded before issue 14's restructuring, regenerated once for issue 19's jerk-limited
+    planner) within 1e-6 m."""
     from test_golden import SUMO_TOL_M, compare, golden
     res, meta, traj, events, out = run(tmp_path, path, **golden.HIGHWAY_OVERRIDES)
     assert res.status == "completed", res.reason
@@ -45,6 +46,7 @@ def test_bundled_highway_scenario_runs_to_the_end(tmp_path, path):
     assert placed.sumo_gap.max() < 0.01  # m: bumper/angle conversion exact
     assert np.isfinite(members[["x", "y", "v", "e_lon", "e_lat"]].to_numpy()).all()
     assert any(out.joinpath("background.parquet").glob("part-*.parquet"))
+    _smooth_longitudinal(members, events)
     # length, width and type are read once per vehicle: they must be those of its vType
     from formation_traci.sim.traffic import CAR, TRUCK
     bg = pd.read_parquet(out / "background.parquet")
@@ -53,6 +55,21 @@ def test_bundled_highway_scenario_runs_to_the_end(tmp_path, path):
             rows = bg[bg["type"].str.endswith(f"_{kind}")]
             assert (rows.length == float(spec["length"])).all() and (rows.width == float(spec["width"])).all()
         assert bg["type"].str.endswith(("_car", "_truck")).all(), set(bg["type"])
+
+
+def _smooth_longitudinal(members, events):
+    """Issue 19: jerk p95 <= 1 m/s^3 (Savitzky-Golay, as in metrics.json) and the jerk averaged
+    over 1 s <= 2.5 m/s^3 (ISO 15622) for every member outside recorded emergency brakes."""
+    from analysis.comfort import emergency_mask, jerk, jerk_window_mean
+    for mid, g in members.groupby("vehicle_id", observed=True):
+        t, a = g.t.to_numpy(), g.a_lon.to_numpy()
+        j = jerk(a, 0.05)
+        assert np.nanpercentile(np.abs(j), 95) <= 1.0, (mid, np.nanpercentile(np.abs(j), 95))
+        who = events.vehicle_id.isin([mid, "vc"])
+        j1 = jerk_window_mean(a, 0.05)
+        j1[emergency_mask(t, events.t[who & (events.kind == "emergency_brake")],
+                          events.t[who & (events.kind == "emergency_end")])] = np.nan
+        assert np.nanmax(np.abs(j1), initial=0.0) <= 2.5, (mid, np.nanmax(np.abs(j1)))
 
 
 def test_members_hold_their_slots_on_straight_and_curved_roads(tmp_path):

@@ -1,5 +1,6 @@
 """Reference generator of road runs: the virtual car along the reference line with the
-traffic-aware governor's acceleration (control/governor.py), slots in road or vehicle frame.
+traffic-aware governor's acceleration (control/governor.py) made jerk-limited by the
+longitudinal planner (control/longitudinal.py), slots in road or vehicle frame.
 """
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import numpy as np
 from ..kernels import kernel
 from ..road.leader import road_leader_at
 from .governor import governor_step
+from .longitudinal import LongitudinalPlanner, PlannerParams
 from .reference import FRAME_ROAD, FRAME_VEHICLE, Reference, constant_slots, set_vc_period
 from .virtual_car import along_line_advance, knot_profile_at
 
@@ -57,6 +59,8 @@ class RoadReference:
         self.end_margin = float(end_margin)
         self.dt_c, self.n_ctrl = float(dt_c), int(n_ctrl)
         self._next = None
+        self.longitudinal = LongitudinalPlanner(len(self.frame), PlannerParams(decel_comfort=limits.decel_max))
+        self._v_prev = None  # members' speed at the previous step [m/s]
 
     def governor(self, t: float, sensed):
         """(a_vc, gap, lead index, v_cap, a_cap) from the members' and neighbours' road
@@ -73,15 +77,27 @@ class RoadReference:
 
     def reference(self, t: float, sensed) -> Reference:
         """The reference of the step starting at t [s]."""
-        a_vc, gap, lead_idx, v_cap, a_cap = self.governor(t, sensed)
+        a_request, gap, lead_idx, v_cap_req, a_cap_req = self.governor(t, sensed)
+        a_vc, v_cap, a_cap = self.smooth(sensed, a_request, v_cap_req, a_cap_req)
         vc = np.empty((self.n_ctrl, len(self.frame), 8))
         self._next = road_vc_rows(self.G, self.s, self.v, a_vc, self.dt_c, vc)
         truth = np.array([*road_leader_at(self.G, self.s, self.v, a_vc), self.s])
-        emergency = a_vc < -self.limits.decel_max - 1e-9
         return Reference(float(t), self.dt_c, vc, self.slots, self.frame, sensed.active, v_cap,
                          a_cap, line=self.G, truth=truth,
                          info={"a_vc": a_vc, "gap": gap, "lead_idx": lead_idx,
-                               "emergency": emergency})
+                               "a_request": a_request, "a_cap_request": a_cap_req,
+                               "emergency": self.longitudinal.emergency_vc,
+                               "emergency_members": self.longitudinal.emergency.copy()})
+
+    def smooth(self, sensed, a_request, v_cap, a_cap):
+        """The governor's requests through the jerk-limited planner (control/longitudinal.py):
+        (a_vc [m/s^2], v_cap [m/s] (all +inf: folded into a_cap), a_cap [m/s^2]). The members'
+        acceleration is their mean over the previous step."""
+        dt = self.dt_c * self.n_ctrl
+        v_m = np.asarray(sensed.v_m, dtype=float)
+        a_m = np.zeros(len(v_m)) if self._v_prev is None else (v_m - self._v_prev) / dt
+        self._v_prev = v_m.copy()
+        return self.longitudinal.step(a_request, v_cap, a_cap, v_m, a_m, dt)
 
     def commit(self) -> None:
         self.s, self.v = (float(q) for q in self._next)

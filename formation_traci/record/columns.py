@@ -59,6 +59,12 @@ Signals a vehicle model does not have (the kinematic unicycle has no tires, the 
 car has no controller) are NaN.
 """
 
+COMFORT_COLUMNS: tuple[Column, ...] = tuple(
+    c for c in TRAJECTORY_COLUMNS if c.name in ("t", "vehicle_id", "v", "a_lon", "a_lat"))
+"""Columns of ``comfort.parquet``: the members' accelerations at the control rate (every
+``run.control_step``, 100 Hz by default), for ISO 2631 weighting and jerk; the rows at the
+recorded steps equal those of ``trajectories.parquet``."""
+
 TRAJECTORY_FLOAT_COLUMNS: tuple[str, ...] = tuple(
     c.name for c in TRAJECTORY_COLUMNS if c.dtype == "float64"
 )
@@ -67,7 +73,7 @@ TRAJECTORY_FLOAT_COLUMNS: tuple[str, ...] = tuple(
 EVENT_COLUMNS: tuple[Column, ...] = (
     Column("t", "float64", "s", "simulated time (formation clock)"),
     Column("kind", "string", "-", "collision | teleport | member_removed | move_refused | lane_change | "
-                                  "cut_in | cleared_at_insertion | emergency_brake | end_of_road | placement_mismatch | model_range | "
+                                  "cut_in | cleared_at_insertion | emergency_brake | emergency_end | end_of_road | placement_mismatch | model_range | "
                                   "maneuver_start | maneuver_end | maneuver_postponed | maneuver_cancelled | "
                                   "comm_timeout | comm_restored"),
     Column("vehicle_id", "string", "-", "the vehicle the event is about"),

@@ -12,6 +12,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from ..comm.channel import gilbert_rates
 from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec
+from .road_traffic import FlowSpec, RoadSpec, RouteEnds, RouteValue, TrafficSpec  # noqa: F401 (re-exported)
 
 PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
@@ -158,63 +159,6 @@ class MemberSpec(Strict):
         return self
 
 
-class RouteEnds(Strict):
-    """A route by its two ends, joined by the network's shortest path (sumolib)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
-    from_: str | Pair = Field(alias="from", description="first edge id, or an [x, y] network position [m]")
-    to: str | Pair = Field(description="last edge id, or an [x, y] network position [m]")
-
-
-RouteValue = Union[Annotated[list[str], Field(min_length=1)], RouteEnds]
-
-
-class RoadSpec(Strict):
-    """The SUMO road the virtual car drives along (its presence makes the run a SUMO run)."""
-
-    net: str = Field(description="bundled network name (sumo_nets/) or a .net.xml path relative to the scenario file")
-    route: RouteValue | None = Field(None, description="edges of the main route, or {from, to} ends; default: the network's main route")
-    lane: int = Field(1, ge=0, description="reference lane index the virtual car follows (0 = rightmost)")
-    start: NonNegFloat = Field(200.0, description="virtual car's arc length along the route at t = 0 [m]")
-    end_margin: NonNegFloat = Field(150.0, description="the run stops when the formation's front is this close to the route end [m]")
-    fit_tolerance: PosFloat = Field(0.6, description="largest distance of the fitted reference line from SUMO's "
-                                    "lane centre [m]; the smoothest fit within it is used (road/smoothing.py)")
-
-
-class FlowSpec(Strict):
-    id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$")
-    route: RouteValue | None = Field(None, description="edges, or {from, to} ends; default: the main route")
-    veh_per_hour_per_lane: PosFloat | None = Field(None, description="demand per lane of the first edge [veh/h]")
-    veh_per_hour: PosFloat | None = Field(None, description="total demand [veh/h]")
-    depart_lane: Literal["best", "random", "free", "allowed", "first"] | Annotated[int, Field(ge=0)] = Field(
-        "best", description="SUMO departLane; 'best' spreads the flow over the lanes that continue")
-    depart_speed: Literal["desired", "max", "avg", "random", "speedLimit", "last"] | NonNegFloat = Field(
-        "max", description="SUMO departSpeed; 'max': the highest safe speed, so dense demand fits in")
-    depart_pos: Literal["base", "free", "random_free", "random", "last"] | NonNegFloat = Field(
-        "base", description="SUMO departPos [m from the edge start if a number]")
-    begin: NonNegFloat = Field(0.0, description="SUMO time the flow starts [s] (warm-up included)")
-    end: PosFloat | None = Field(None, description="SUMO time the flow ends [s]; default: end of the run")
-    mix: dict[Literal["car", "truck"], Annotated[float, Field(ge=0, le=1)]] = Field(
-        default_factory=lambda: {"car": 0.85, "truck": 0.15}, description="vehicle type shares, summing to 1")
-    speed_dev: NonNegFloat = Field(0.1, le=0.5, description="spread of the speed factor (normal, mean 1) [-]")
-
-    @model_validator(mode="after")
-    def _demand(self):
-        if (self.veh_per_hour is None) == (self.veh_per_hour_per_lane is None):
-            raise ValueError("give exactly one of 'veh_per_hour' or 'veh_per_hour_per_lane'")
-        if abs(sum(self.mix.values()) - 1.0) > 1e-9:
-            raise ValueError(f"mix shares must sum to 1 (got {sum(self.mix.values())})")
-        return self
-
-
-class TrafficSpec(Strict):
-    flows: list[FlowSpec] = Field(default_factory=list)
-    warmup: NonNegFloat = Field(0.0, description="SUMO time simulated before the formation is inserted [s]")
-    record_radius: PosFloat | None = Field(300.0, description="record background vehicles within this distance of a member [m]; omit for all")
-    measure_at: NonNegFloat | None = Field(1000.0, description="arc length along the main route where flow and "
-                                           "density are measured [m] (clamped to the route); None: not measured")
-
-
 class SumoSpec(Strict):
     backend: Literal["libsumo", "traci"] = "libsumo"
     gui: bool = Field(False, description="run sumo-gui (traci backend only)")
@@ -294,6 +238,38 @@ class CommSpec(CommLinkSpec):
         return self
 
 
+class OpenLoopSpec(Strict):
+    """Every member driven by input profiles or by one of its loops alone (seed 3.1.6-3.2.2).
+
+    Longitudinal: ``accel`` (desired acceleration a_r) or ``speed_ref`` (the speed loop,
+    3.32-3.34, with controller.speed_gains or a plain P gain per member). Lateral: ``steer_deg``
+    (the wheel angle set directly), ``steer_rate_deg_s`` (3.38), or ``yaw_rate_ref_deg_s`` (the
+    yaw-rate loop with controller.yaw_gains: steering rate 3.37, or angle 3.35 per member).
+    The formation controller and the virtual car are not used (members' offsets are ignored).
+    """
+
+    accel: Signal | None = Field(None, description="desired acceleration a_r [m/s^2]")
+    speed_ref: Signal | None = Field(None, description="speed reference of the speed loop [m/s]")
+    speed_p_gain: dict[str, PosFloat] = Field(default_factory=dict, description=(
+        "member id -> plain P gain K_p^lin of (3.32) [1/s]; other members use the schedule"))
+    steer_deg: Signal | None = Field(None, description="front wheel steering angle [deg]")
+    steer_rate_deg_s: Signal | None = Field(None, description="steering rate [deg/s]")
+    yaw_rate_ref_deg_s: Signal | None = Field(None, description="yaw-rate reference of the yaw loop [deg/s]")
+    yaw_input: dict[str, Literal["steer_rate", "steer_angle"]] = Field(default_factory=dict, description=(
+        "member id -> the yaw loop's output: 'steer_rate' (3.37, default) or 'steer_angle' (3.35)"))
+    linear_speed: PosFloat | None = Field(None, description=(
+        "also run the linear model (3.30) linearised at this speed [m/s] beside each member"))
+
+    @model_validator(mode="after")
+    def _one_each(self):
+        if (self.accel is None) == (self.speed_ref is None):
+            raise ValueError("give exactly one of 'accel' or 'speed_ref'")
+        lat = [self.steer_deg, self.steer_rate_deg_s, self.yaw_rate_ref_deg_s]
+        if sum(x is not None for x in lat) != 1:
+            raise ValueError("give exactly one of 'steer_deg', 'steer_rate_deg_s' or 'yaw_rate_ref_deg_s'")
+        return self
+
+
 class Scenario(Strict):
     name: str = ""
     description: str = ""
@@ -306,6 +282,7 @@ class Scenario(Strict):
     traffic: TrafficSpec = TrafficSpec()
     sumo: SumoSpec = SumoSpec()
     comm: CommSpec | None = Field(None, description="leader-to-member radio; default: perfect")
+    open_loop: OpenLoopSpec | None = Field(None, description="drive the members open loop (free space only)")
     maneuvers: list[ManeuverSpec] = Field(default_factory=list, description="scheduled maneuvers, run one at a time in this order")
     maneuver_limits: ManeuverLimits = ManeuverLimits()
 
@@ -340,6 +317,13 @@ class Scenario(Strict):
 
     @model_validator(mode="after")
     def _world_rules(self):
+        if self.open_loop is not None:
+            if self.road is not None or self.vehicle.model != "dynamic":
+                raise ValueError("open_loop needs free space (no [road]) and vehicle.model = \"dynamic\"")
+            ids = {m.id for m in self.members}
+            bad = sorted((set(self.open_loop.speed_p_gain) | set(self.open_loop.yaw_input)) - ids)
+            if bad:
+                raise ValueError(f"open_loop names members that do not exist: {bad}")
         if self.road is None:
             bad = [f"members.{i}" for i, m in enumerate(self.members) if m.slot is not None or m.position is None]
             if bad:

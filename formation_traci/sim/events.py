@@ -1,7 +1,7 @@
 """Event detectors of road runs: each watches one thing and writes rows to the recorder.
 
 Kinds (docs/outputs.md): member_removed, placement_mismatch, lane_change, cut_in,
-collision, teleport, emergency_brake, move_refused, end_of_road, cleared_at_insertion.
+collision, teleport, emergency_brake, emergency_end, move_refused, end_of_road, cleared_at_insertion.
 """
 from __future__ import annotations
 
@@ -88,15 +88,25 @@ class TrafficWatch:
 
 
 class EmergencyWatch:
-    """An emergency_brake event when the virtual car starts braking harder than comfort."""
+    """``emergency_brake`` when the virtual car or a member starts braking harder than
+    comfortable (the planner's emergency flags, control/longitudinal.py), ``emergency_end``
+    when that ends."""
 
-    def __init__(self, rec):
-        self.rec, self.on = rec, False
+    def __init__(self, rec, ids):
+        self.rec, self.ids = rec, list(ids)
+        self.on = np.zeros(len(self.ids) + 1, dtype=bool)  # members, then the virtual car
 
-    def __call__(self, t, a_vc, emergency: bool):
-        if emergency and not self.on:
-            self.rec.add_event(t, "emergency_brake", "vc", "", f"virtual car decelerates at {-a_vc:.2f} m/s^2")
-        self.on = emergency
+    def __call__(self, t, info: dict) -> None:
+        now = np.append(info["emergency_members"], info["emergency"])
+        n = len(self.ids)
+        for i in np.flatnonzero(now != self.on):
+            who = "vc" if i == n else self.ids[i]
+            a = info["a_request"] if i == n else info["a_cap_request"][i]
+            if now[i]:
+                self.rec.add_event(t, "emergency_brake", who, "", f"braking request {-a:.2f} m/s^2")
+            else:
+                self.rec.add_event(t, "emergency_end", who, "", "back within comfortable braking")
+        self.on = now
 
 
 class RefusalWatch:

@@ -101,6 +101,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
                     fleet.signals(state, ref.with_(vc=ref0.vc), out=sig_true)
                     sig[:, err_cols] = sig_true[:, err_cols]
                 rec.add_signal_rows(t, sig, sensed.extra, mask=ref.active)
+                rec.add_comfort_rows(t, sig, mask=ref.active)
             rec.add_vc(t, ref.leader(), s=float(ref.truth[7]))
             clock.lap("record")
             yield k, t
@@ -115,7 +116,10 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
                 return
             clock.start()
             v_before = fleet.speed(state)
-            state = fleet.step(state, ref)
+            if world.records_members:
+                state = step_recording(fleet, state, ref, rec, sig)
+            else:
+                state = fleet.step(state, ref)
             gen.commit()
             check_finite(state, ids, t + step)
             clock.lap("control_model")
@@ -125,3 +129,17 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             clock.lap("sumo_step")
     finally:
         world.close()
+
+
+def step_recording(fleet: Fleet, state: FleetState, ref, rec, sig: np.ndarray) -> FleetState:
+    """``fleet.step(state, ref)`` one control period at a time (the same arithmetic, so the
+    trajectories are bit-identical), recording the members' speed and accelerations at the
+    start of periods 1 .. n_ctrl - 1 into ``comfort.parquet`` (period 0 is recorded with the
+    step's trajectory row): the comfort analysis gets the control rate, 100 Hz by default."""
+    for j in range(ref.n_ctrl):
+        period = ref.with_(vc=ref.vc[j:j + 1], slots=ref.slots[j:j + 1])
+        if j:
+            rec.add_comfort_rows(ref.t + j * ref.dt, fleet.signals(state, period, out=sig),
+                                 mask=ref.active)
+        state = fleet.step(state, period)
+    return state

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..record.columns import (BACKGROUND_COLUMNS, EVENT_COLUMNS, FILLED_BY_CALLER,
+from ..record.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, EVENT_COLUMNS, FILLED_BY_CALLER,
                               SIGNAL_COLUMNS, TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID)
 from ..record.writer import ChunkedTable
 
@@ -26,8 +26,13 @@ _VC_COLUMNS = ("t", "x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "s",
 class Recorder:
     """Owns the run's tables; every ``add_*`` appends rows, :meth:`flush` writes the rest."""
 
-    def __init__(self, out_dir: Path, member_ids: list[str], with_sumo: bool):
+    def __init__(self, out_dir: Path, member_ids: list[str], with_sumo: bool,
+                 periods_per_step: int = 1):
         n = len(member_ids)
+        self.comfort = ChunkedTable(out_dir / "comfort.parquet", COMFORT_COLUMNS,
+                                    chunk_rows=n * STEPS_PER_CHUNK * max(1, periods_per_step),
+                                    labels=list(member_ids))
+        self._comfort_from = np.array([SIGNAL_COLUMNS.index(c.name) for c in COMFORT_COLUMNS[2:]])
         self.traj = ChunkedTable(out_dir / "trajectories.parquet", TRAJECTORY_COLUMNS,
                                  chunk_rows=(n + 1) * STEPS_PER_CHUNK,
                                  labels=list(member_ids) + [VIRTUAL_CAR_ID], progress_column="t")
@@ -54,7 +59,7 @@ class Recorder:
 
     def tables(self) -> dict:
         """The run's tables by name (SSM only once SUMO has written its file)."""
-        out = {"trajectories": self.traj, "events": self.events}
+        out = {"trajectories": self.traj, "comfort": self.comfort, "events": self.events}
         if self.background is not None:
             out["background"] = self.background
         if self.ssm is not None and self.ssm.table is not None:
@@ -112,6 +117,21 @@ class Recorder:
         for name in FILLED_BY_CALLER[2:]:
             tr.column(name)[sl] = extra.get(name, np.nan)
         tr.commit(n)
+
+    def add_comfort_rows(self, t, sig: np.ndarray, mask=None):
+        """The members' speed and accelerations at one control period (``sig`` as in
+        :meth:`add_signal_rows`) into ``comfort.parquet``."""
+        codes = self.codes
+        if mask is not None and not mask.all():
+            sig, codes = sig[mask], codes[mask]
+        n = len(codes)
+        cf = self.comfort
+        sl = cf.rows(n)
+        cf.column("t")[sl] = t
+        cf.column("vehicle_id")[sl] = codes
+        for name, j in zip(("v", "a_lon", "a_lat"), self._comfort_from):
+            cf.column(name)[sl] = sig[:, j]
+        cf.commit(n)
 
     def _flag_range(self, t, slip, usage, v, mask):
         bad = (slip > MAX_SLIP) | (usage > MAX_FRICTION_USAGE) | (v > MAX_SPEED)

@@ -135,31 +135,39 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
     meta_path = out_dir / "run.json"
     _reserve(out_dir)
     atomic_write_json(meta_path, meta)
-    rec = Recorder(out_dir, [m.id for m in sc.members], with_sumo=sc.road is not None)
+    rec = Recorder(out_dir, [m.id for m in sc.members], with_sumo=sc.road is not None,
+                   periods_per_step=int(round(sc.run.step / sc.run.control_step)))
+    n_steps = int(round(sc.run.duration / sc.run.step))
+
     status, reason, t, k = "completed", None, 0.0, 0
     bar = steps = None
     try:
         stop.raising = True  # compiling, starting SUMO, warm-up: a signal ends them at once
         if stop.is_set():
             raise Interrupted(stop.signame)
-        if sc.road is None:
-            build = lambda: with_comm(sc, free_space_run(sc))  # noqa: E731
+        if sc.open_loop is not None:
+            from .open_loop import open_loop_steps
+            steps = open_loop_steps(sc, rec, out_dir)
         else:
-            from .sumo_world import road_run
-            build = lambda: with_comm(sc, road_run(sc, plan, rec, out_dir, meta, baseline,  # noqa: E731
-                                                   step_hook), baseline)
-        steps = step_loop(sc, _with_transforms(build, transforms), rec, meta)
+            if sc.road is None:
+                build = lambda: with_comm(sc, free_space_run(sc))  # noqa: E731
+            else:
+                from .sumo_world import road_run
+                build = lambda: with_comm(sc, road_run(sc, plan, rec, out_dir, meta, baseline,  # noqa: E731
+                                                       step_hook), baseline)
+            steps = step_loop(sc, _with_transforms(build, transforms), rec, meta)
         if progress:
             from tqdm import tqdm
-            bar = tqdm(total=int(round(sc.run.duration / sc.run.step)), unit="step",
-                       desc=sc.name or "run", mininterval=0.5)
+            bar = tqdm(total=n_steps, unit="step", desc=sc.name or "run", mininterval=0.5)
         for k, t in steps:
             stop.raising = False  # from the first step on, a signal ends the run after its step
             rec.end_step(k, t)
             done = rec.written_up_to()  # every table is on disk up to this time [s]
             if done is not None:
                 _progress_meta(meta_path, meta, done, int(round(done / sc.run.step)))
-            if bar is not None and k > 0:
+            if bar is not None and k == 0:
+                bar.reset()  # the ETA counts steps only, not compilation or SUMO's warm-up
+            elif bar is not None:
                 bar.update(1)
             if stop.is_set():
                 break

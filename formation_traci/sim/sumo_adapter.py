@@ -107,6 +107,17 @@ def _api(backend: str):
     return api, tc
 
 
+START_TIMEOUT_S = 30
+"""A SUMO started over a socket (traci backend, sumo-gui) that does not accept the connection
+within this many seconds is killed and the run fails with what SUMO printed [s]."""
+
+GUI_VIEW = "View #0"
+"""sumo-gui's default view (the one that follows the formation)."""
+
+GUI_ZOOM = 400.0
+"""Zoom of that view while following a member [%]: about 150 m of road across the window."""
+
+
 def sumo_binary(gui: bool = False) -> str:
     """Path of the sumo (or sumo-gui) binary of the eclipse-sumo wheel."""
     import sumolib
@@ -132,17 +143,61 @@ class SumoAdapter:
         self._bodies: dict[str, tuple[float, float, str]] = {}  # vehicle -> (length, width [m], vType)
         self._started = False
         self.departed: dict[str, int] = {}  # flow id -> vehicles SUMO inserted (see count_departures)
+        self._proc = None  # the SUMO process of the traci backend
 
     # -- lifecycle -------------------------------------------------------------------
     def start(self, args: list[str]) -> str:
         """Start SUMO with command-line ``args`` (without the binary); returns SUMO's version."""
         cmd = [sumo_binary(self.gui and self.backend == "traci")] + list(args)
+        if self.backend == "traci":
+            return self._start_socket(cmd)
         try:
             _, self.version = self.api.start(cmd)
         except Exception as exc:
             raise SumoError(f"SUMO did not start: {exc}") from exc
         self._started = True
         return self.version
+
+    def _start_socket(self, cmd: list[str]) -> str:
+        """traci: start SUMO as a process and connect within START_TIMEOUT_S; a SUMO that exits
+        or never listens is killed and its own message raised (never a hang)."""
+        import contextlib
+        import io
+        import subprocess
+        import tempfile
+
+        import sumolib
+
+        port = sumolib.miscutils.getFreeSocketPort()
+        err = tempfile.TemporaryFile()
+        proc = subprocess.Popen(cmd + ["--remote-port", str(port)], stdout=err, stderr=err)
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):  # traci prints every retry
+                self.api.init(port, numRetries=START_TIMEOUT_S, proc=proc)
+            self.version = self.api.getVersion()[1]
+        except Exception as exc:
+            if proc.poll() is None:
+                proc.kill()
+            proc.wait(10)
+            err.seek(0)
+            said = err.read().decode(errors="replace").strip()
+            raise SumoError(f"SUMO did not start ({type(exc).__name__}: {exc})"
+                            + (f": {said[-2000:]}" if said else "")) from None
+        finally:
+            err.close()
+        self._proc = proc
+        self._started = True
+        return self.version
+
+    def follow(self, vehicle_id: str) -> None:
+        """sumo-gui: keep the view on ``vehicle_id`` (a member), zoomed to the formation."""
+        if not (self.gui and self.backend == "traci"):
+            return
+        try:
+            self.api.gui.trackVehicle(GUI_VIEW, vehicle_id)
+            self.api.gui.setZoom(GUI_VIEW, GUI_ZOOM)
+        except Exception:  # a view without tracking is still a view: never fail the run
+            pass
 
     def attach(self, port: int) -> str:
         """Connect (traci) to a SUMO started elsewhere with ``--remote-port port``."""
@@ -157,10 +212,17 @@ class SumoAdapter:
     def close(self) -> None:
         if self._started:
             try:
-                self.api.close()
+                self.api.close(wait=False) if self._proc is not None else self.api.close()
             except Exception:  # closing a dead connection must not hide the real error
                 pass
             self._started = False
+        if self._proc is not None:  # sumo-gui quits on --quit-on-end; never wait forever
+            try:
+                self._proc.wait(10)
+            except Exception:
+                self._proc.kill()
+                self._proc.wait(10)
+            self._proc = None
 
     @property
     def time(self) -> float:

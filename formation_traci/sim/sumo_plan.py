@@ -102,6 +102,8 @@ def sumo_args(sc: Scenario, net: Path, routes: Path, sumo_dir: Path, t_end: floa
         args += ["--device.friction.probability", "1", "--device.friction.stdDev", "0"]
     if sc.sumo.fcd:
         args += ["--fcd-output", str(sumo_dir / "fcd.parquet")]
+    if sc.sumo.gui and sc.sumo.backend == "traci":  # run at once, close at the end
+        args += [o for o in ("--start", "--quit-on-end") if o not in sc.sumo.options]
     return args + place_outputs(list(sc.sumo.options), sumo_dir)
 
 

@@ -51,7 +51,8 @@ class SumoWorld:
         lanes = LaneTracker()
         self.members = MemberWatch(rec, self.ids, lanes)
         self.traffic = TrafficWatch(rec, self.ids, lanes, sc.leader.time_gap, sc.leader.min_gap)
-        self.emergency = EmergencyWatch(rec)
+        self.emergency = EmergencyWatch(rec, self.ids)
+        self.followed = None  # the member sumo-gui's view follows
         self.refusals = RefusalWatch(rec, self.ids)
         self.mtypes = member_types(sc, plan)
         self.d_front = np.array([mt.d_front for mt in self.mtypes])  # CoG to front bumper [m]
@@ -168,7 +169,7 @@ class SumoWorld:
 
     def observe(self, t: float, sensed: Sensed, ref) -> None:
         info = ref.info
-        self.emergency(t, info["a_vc"], info["emergency"])
+        self.emergency(t, info)
         if sensed.nb is not None:
             self.traffic(t, sensed.nb, info["lead_idx"], info["gap"], sensed.v_m, self.active)
             self.rec.add_background(t, sensed.nb, sensed.nb_s, sensed.nb_d)
@@ -219,6 +220,16 @@ class SumoWorld:
         self.inserted = True
         if self.all_bg:
             ad.subscribe_departed()
+        if ad.gui and self.active.any() and (self.followed is None or not self.active[self.followed]):
+            self.followed = middle_member(self.active, self.along, self.slot_d_0)
+            ad.follow(self.ids[self.followed])
+
+
+def middle_member(active, along, across) -> int:
+    """Index of the active member nearest the middle of the formation."""
+    idx = np.flatnonzero(active)
+    centre = np.array([along[idx].mean(), across[idx].mean()])
+    return int(idx[np.argmin(np.hypot(along[idx] - centre[0], across[idx] - centre[1]))])
 
 
 def subscribe_context(adapter, ids, active, along, across, radius):
@@ -226,9 +237,7 @@ def subscribe_context(adapter, ids, active, along, across, radius):
     middle of the formation, with the radius grown by the formation's extent around it.
     Returns that member's index."""
     idx = np.flatnonzero(active)
-    centre = np.array([along[idx].mean(), across[idx].mean()])
-    dist = np.hypot(along[idx] - centre[0], across[idx] - centre[1])
-    owner = int(idx[np.argmin(dist)])
+    owner = middle_member(active, along, across)
     extent = float(np.max(np.hypot(along[idx] - along[owner], across[idx] - across[owner])))
     adapter.subscribe_neighbours(ids[owner], radius + extent)
     return owner

@@ -34,7 +34,7 @@ METRICS: dict[str, tuple[str, str]] = {
     "friction_over_s": ("s", "max time outside the friction circle"),
     "collisions": ("-", "SUMO runs: collision events involving a member (NaN in free space)"),
     "min_ttc_s": ("s", "SUMO runs: smallest SSM time to collision of a conflict involving a member"),
-    "emergency_brakes": ("-", "SUMO runs: emergency_brake events of the virtual car"),
+    "emergency_brakes": ("-", "SUMO runs: emergency_brake events (the virtual car or a member braking harder than comfortable)"),
     "requested_veh": ("-", "SUMO runs: vehicles the flows asked for up to the run's end (warm-up included)"),
     "inserted_veh": ("-", "SUMO runs: vehicles SUMO inserted for the flows"),
     "flow_measured_veh_h": ("veh/h", "SUMO runs: flow over all lanes at traffic.measure_at during the formation's run"),

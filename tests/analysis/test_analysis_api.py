@@ -57,11 +57,12 @@ def test_outputs_are_written(analysed):
     assert list(csv["id"]) == ["m1", "m2", "m3", "m4"]
     assert list(csv.columns) == ["id", *MEMBER_METRICS]
     figs = sorted(p.name for p in (run / "figures").iterdir())
-    assert figs == ["comfort.png", "errors.png", "limits.png", "paths.png", "tracking.png"]
+    assert figs == ["comfort.png", "errors.png", "limits.png", "paths.png", "propagation.png",
+                    "tracking.png"]
     for p in (run / "figures").iterdir():
         assert p.read_bytes()[:8] == PNG and p.stat().st_size > 10_000
     html = (run / "report.html").read_text()
-    assert html.count('src="data:image/png;base64,') == 5
+    assert html.count('src="data:image/png;base64,') == 6
     assert "http://" not in html and "https://" not in html
     assert "Missing or damaged" in html and "m4" in html
 

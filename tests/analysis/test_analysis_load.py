@@ -26,7 +26,8 @@ def truncate(path, keep=0.5):
 def test_complete_run_loads_cleanly(tmp_path):
     d = load_run(make_run(tmp_path / "r"))
     assert [i for i in d.issues if i.severity != "info"] == []
-    assert {i.what for i in d.issues} == {"background.parquet", "events.parquet", "ssm.parquet"}
+    assert {i.what for i in d.issues} == {"background.parquet", "events.parquet", "ssm.parquet",
+                                          "comfort.parquet"}
     assert d.dt == pytest.approx(0.01)
     assert [m.id for m in d.members] == list(OFFSETS)
     assert d.members[1].offset == (-12.0, 0.0) and d.members[1].frame == "vehicle"

@@ -140,7 +140,7 @@ def test_outputs_and_figures(analysed):
         assert im.n_frames == 11  # 2 s at 5 fps, both ends included
     html = (run / "report.html").read_text()
     assert "Traffic interaction" in html and "data:image/gif;base64," in html
-    assert html.count("data:image/png;base64,") == 6
+    assert html.count("data:image/png;base64,") == 7  # + the propagation figure
     assert res.files["figure:traffic_birdseye"] == gif
 
 

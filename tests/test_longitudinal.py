@@ -1,0 +1,73 @@
+"""Jerk-limited longitudinal references (control/longitudinal.py, issue 19 item 1)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from formation_traci.control.longitudinal import LongitudinalPlanner, PlannerParams, plan_accel
+from analysis.comfort import emergency_mask, jerk_window_mean
+
+P = PlannerParams()
+DT = 0.05
+
+
+def _run(requests, a0=0.0, p=P):
+    a, out, em = a0, [], []
+    for r in requests:
+        a, e = plan_accel(a, r, DT, p.tau, p.jerk_max, p.jerk_emergency, p.decel_comfort)
+        out.append(a)
+        em.append(e)
+    return np.array(out), np.array(em)
+
+
+def test_a_step_request_is_followed_with_bounded_jerk_then_as_a_first_order_lag():
+    a, em = _run([-2.0] * 200)
+    jerk = np.diff(np.r_[0.0, a]) / DT
+    assert np.max(np.abs(jerk)) <= P.jerk_max + 1e-12 and not em.any()
+    # the jerk bound holds while the lag would ask for more: 2/0.5 = 4 > 1 m/s^3
+    assert abs(a[9] - (-P.jerk_max * 10 * DT)) < 1e-12
+    # once the lag asks for less than the bound it is exact: a -> -2 with time constant tau
+    k = int(np.argmax(np.abs(jerk) < P.jerk_max - 1e-9))
+    w = 1 - math.exp(-DT / P.tau)
+    np.testing.assert_allclose(a[k + 1] + 2.0, (a[k] + 2.0) * (1 - w), rtol=1e-12)
+    assert abs(a[-1] + 2.0) < 1e-3
+
+
+def test_step_to_step_noise_is_attenuated_not_amplified():
+    rng = np.random.default_rng(3)
+    noise = 0.3 * rng.standard_normal(2000)  # +-0.3 m/s^2 white request noise
+    a, _ = _run(noise)
+    assert np.std(np.diff(a)) < 0.1 * np.std(np.diff(noise))
+    assert np.max(np.abs(np.diff(a))) / DT <= P.jerk_max + 1e-12
+
+
+def test_an_emergency_request_brakes_at_the_emergency_jerk_and_is_flagged():
+    a, em = _run([-6.0] * 20)
+    assert em.all()
+    assert abs(a[0] - (-P.jerk_emergency * DT)) < 1e-12  # 1 m/s^2 in the first step
+    assert abs(a[5] - (-6.0)) < 1e-12  # -6 reached after 0.3 s (6 / 20 m/s^3)
+    inf, em_inf = plan_accel(-1.0, math.inf, DT, P.tau, P.jerk_max, P.jerk_emergency, P.decel_comfort)
+    assert inf == -1.0 and not em_inf
+
+
+def test_member_caps_become_smooth_acceleration_caps_starting_from_the_member():
+    pl = LongitudinalPlanner(2, P)
+    _, v_cap, a_cap = pl.step(0.0, [np.inf, 24.0], [np.inf, -0.5], [25.0, 25.0], [0.0, 0.5], DT)
+    assert np.all(v_cap == np.inf) and a_cap[0] == np.inf  # speed caps act through a_cap
+    # request min(-0.5, (24 - 25) / tau_speed_cap) = -1; starts at the member's 0.5 m/s^2
+    assert abs(a_cap[1] - (0.5 - P.jerk_max * DT)) < 1e-12 and not pl.emergency.any()
+    _, _, a_cap = pl.step(0.0, [np.inf, 24.0], [np.inf, -5.0], [25.0, 25.0], [0.0, 0.0], DT)
+    assert pl.emergency[1] and not pl.emergency[0]
+    assert abs(a_cap[1] - (0.5 - P.jerk_max * DT - P.jerk_emergency * DT)) < 1e-12
+
+
+def test_one_second_jerk_and_emergency_windows():
+    t = np.arange(0, 10, 0.05)
+    a = np.where(t < 5, 0.0, 2.0 * (t - 5))  # 2 m/s^3 ramp from t = 5 s
+    j = jerk_window_mean(np.minimum(a, 1.0), 0.05)
+    assert abs(np.nanmax(j) - 1.0) < 1e-12  # 1 m/s^2 reached in 0.5 s: 1 m/s^3 over 1 s
+    assert np.isnan(j[-20:]).all()
+    m = emergency_mask(t, [4.0], [5.0])
+    assert not m[t <= 3.0].any() and m[(t > 3.05) & (t < 7.95)].all() and not m[t >= 8.0].any()
+    assert emergency_mask(t, [9.0], []).sum() == (t > 8.0).sum()
