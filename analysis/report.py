@@ -125,6 +125,24 @@ def _traffic_html(analysis: RunAnalysis) -> str:
     return "".join(parts)
 
 
+def _energy_html(analysis: RunAnalysis) -> str:
+    en = analysis.energy
+    if en is None or not len(en.members):
+        return ""
+    from analysis.energy import ENERGY_RUN_METRICS, energy_rows
+
+    parts = ["<h2>Energy</h2>",
+             "<p>Traction energy at the wheels per distance, and the saving against the same "
+             "member driving the same speed profile alone (docs/energy.md).</p>",
+             _table(["metric", "value", "unit"],
+                    [[k, en.run.get(k), u] for k, u in ENERGY_RUN_METRICS.items()], left=1)]
+    header, rows = energy_rows(en)
+    parts.append("<h3>Per member</h3>" + _table(header, rows, left=2))
+    if en.unavailable:
+        parts.append(_table(["member", "why"], [[k, v] for k, v in en.unavailable.items()], left=2))
+    return "".join(parts)
+
+
 def _table(header: Sequence[str], rows: Sequence[Sequence[Any]], row_class=None,
            left: int = 1) -> str:
     th = "".join(f'<th class="{"l" if i < left else ""}">{_e(h)}</th>'
@@ -231,6 +249,7 @@ def _tables_html(a: RunAnalysis, issues, n_err: int) -> str:
     traffic_html = _traffic_html(a)
     if traffic_html:
         parts.append(_details("Traffic interaction", traffic_html))
+    parts.append(_energy_html(a))  # shown open: energy per member and the formation's saving
     if a.unavailable:
         rows = [[mid, grp, why] for mid, d in a.unavailable.items() for grp, why in d.items()]
         parts.append(_details("Metrics not computed or recomputed",

@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from analysis import comfort, formation, iso2631, limits, traffic
+from analysis.energy import ENERGY_MEMBER_METRICS, ENERGY_RUN_METRICS, EnergyAnalysis, compute_energy
 from analysis.load import GAP_FACTOR, Issue, Member, RunData
 from analysis.comm import COMM_MEMBER_METRICS, comm_analysis
 from analysis.traffic_run import (TRAFFIC_MEMBER_METRICS, BaselineData, TrafficAnalysis,
@@ -65,11 +66,11 @@ FORMATION_MEMBER_METRICS: dict[str, str] = {
 }
 """Per-member formation, comfort and limit metrics with their units."""
 
-MEMBER_METRICS: dict[str, str] = {**FORMATION_MEMBER_METRICS, **COMM_MEMBER_METRICS,
-                                  **TRAFFIC_MEMBER_METRICS}
+MEMBER_METRICS: dict[str, str] = {**FORMATION_MEMBER_METRICS, **ENERGY_MEMBER_METRICS,
+                                  **COMM_MEMBER_METRICS, **TRAFFIC_MEMBER_METRICS}
 """Per-member metrics, in output order, with their units (see docs/metrics.md): the
-formation metrics, the communication ones (:data:`analysis.comm.COMM_MEMBER_METRICS`), then
-the traffic ones
+formation metrics, then energy (:data:`analysis.energy.ENERGY_MEMBER_METRICS`), the
+communication ones (:data:`analysis.comm.COMM_MEMBER_METRICS`), then the traffic ones
 (:data:`analysis.traffic_run.TRAFFIC_MEMBER_METRICS`)."""
 
 RUN_METRICS: dict[str, str] = {
@@ -81,6 +82,7 @@ RUN_METRICS: dict[str, str] = {
     "shape_source": "-", "shape_members": "-",
     "string_stable": "-", "string_peak_ratio_max": "-", "string_rms_ratio_max": "-",
     "iso2631_band_hz": "Hz", "iso2631_full_band": "-", "iso2631_note": "-",
+    **ENERGY_RUN_METRICS,
 }
 """Run-level metrics with their units."""
 
@@ -112,6 +114,7 @@ class RunAnalysis:
     shape: pd.DataFrame  # t, shape_error [m]
     issues: tuple[Issue, ...]
     traffic: TrafficAnalysis | None = None  # traffic interaction (None if not computed)
+    energy: EnergyAnalysis | None = None  # traction energy per member (analysis/energy.py)
     comm_age: pd.DataFrame | None = None  # error and comfort per leader-age bin (analysis/comm.py)
 
 
@@ -471,6 +474,29 @@ def _string_stability(members: list[Member], signals: pd.DataFrame,
     return pd.DataFrame(rows, columns=cols)
 
 
+def _iso2631_band(run: dict[str, Any], fs: float, dt: float) -> list[Issue]:
+    """Fill run's iso2631_* entries for sample rate fs [Hz]; the issue when ISO 2631
+    weighting is unavailable at that rate."""
+    f_valid = iso2631.valid_upper_frequency(fs)
+    run["iso2631_band_hz"] = [iso2631.ISO_FREQ_RANGE_HZ[0],
+                              min(iso2631.ISO_FREQ_RANGE_HZ[1], f_valid)]
+    run["iso2631_full_band"] = bool(f_valid >= iso2631.ISO_FREQ_RANGE_HZ[1])
+    probe = iso2631.weighted_rms(np.zeros(int(iso2631.MIN_DURATION_S * fs) + 1), dt)
+    run["iso2631_note"] = probe.reason or "full 0.5-80 Hz band"
+    if not np.isfinite(probe.value):
+        return [Issue("warning", "iso2631_unavailable", "aw_*", probe.reason)]
+    return []
+
+
+def _worst(mdf: pd.DataFrame) -> dict[str, float | None]:
+    """Largest value over the members of every KEY_METRICS column (None: no data)."""
+    worst = {}
+    for k in KEY_METRICS:
+        col = pd.to_numeric(mdf[k], errors="coerce")
+        worst[k] = _f(col.max()) if col.notna().any() else None
+    return worst
+
+
 def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
                 baseline: BaselineData | None = None) -> RunAnalysis:
     """Compute every metric of a loaded run.
@@ -506,11 +532,13 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
     mdf = pd.DataFrame(rows, columns=["id", *FORMATION_MEMBER_METRICS]).set_index("id")
     tra = compute_traffic(data, settings, baseline)
     issues += list(tra.issues)
+    energy = compute_energy(data)
     signals = pd.concat([s for s in sigs if len(s)], ignore_index=True) if any(
         len(s) for s in sigs) else pd.DataFrame(columns=["t", "vehicle_id", "e_norm",
                                                          "jerk_lon", "jerk_lat"])
     comm_members, comm_age = comm_analysis(traj, signals, [m.id for m in members])
-    mdf = mdf.join(tra.members, how="left").join(comm_members, how="left")[list(MEMBER_METRICS)]
+    mdf = mdf.join(energy.members, how="left").join(tra.members, how="left") \
+        .join(comm_members, how="left")[list(MEMBER_METRICS)]
     shape_res, shape_df, shape_issues = _shape(data, members)
     issues += shape_issues
     ss = _string_stability(members, signals, settings)
@@ -526,7 +554,7 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
         duration_s=_covered(np.unique(t_all), contiguous_segments(np.unique(t_all), dt, GAP_FACTOR)
                             if math.isfinite(dt) else [slice(0, np.unique(t_all).size)]),
         n_members=len(members), n_members_with_data=int(mdf["n_samples"].notna().sum()),
-        **shape_res,
+        **shape_res, **energy.run,
     )
     if len(ss):
         run.update(string_stable=bool(not ss["amplifies"].any()),
@@ -534,20 +562,9 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
                    string_rms_ratio_max=_f(ss["rms_ratio"].max()))
     dt_iso = control_rate_dt(data) if math.isfinite(control_rate_dt(data)) else dt
     if math.isfinite(dt_iso):  # ISO 2631 from comfort.parquet (control rate) when recorded
-        fs_iso = 1.0 / dt_iso
-        f_valid = iso2631.valid_upper_frequency(fs_iso)
-        run["iso2631_band_hz"] = [iso2631.ISO_FREQ_RANGE_HZ[0],
-                                  min(iso2631.ISO_FREQ_RANGE_HZ[1], f_valid)]
-        run["iso2631_full_band"] = bool(f_valid >= iso2631.ISO_FREQ_RANGE_HZ[1])
-        probe = iso2631.weighted_rms(np.zeros(int(iso2631.MIN_DURATION_S * fs_iso) + 1), dt_iso)
-        run["iso2631_note"] = probe.reason or "full 0.5-80 Hz band"
-        if not np.isfinite(probe.value):
-            issues.append(Issue("warning", "iso2631_unavailable", "aw_*", probe.reason))
-    worst = {}
-    for k in KEY_METRICS:
-        col = pd.to_numeric(mdf[k], errors="coerce")
-        worst[k] = _f(col.max()) if col.notna().any() else None
-    run["worst"] = worst
+        issues += _iso2631_band(run, 1.0 / dt_iso, dt_iso)
+    run["worst"] = _worst(mdf)
     return RunAnalysis(data=data, settings=settings, run=run, members=mdf,
                        string_stability=ss, unavailable=unavailable, signals=signals,
-                       shape=shape_df, issues=tuple(issues), traffic=tra, comm_age=comm_age)
+                       shape=shape_df, issues=tuple(issues), traffic=tra, energy=energy,
+                       comm_age=comm_age)

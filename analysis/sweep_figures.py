@@ -111,8 +111,19 @@ def metric_figure(done: pd.DataFrame, swept: list[str], grid_keys: list[str], me
                   unit: str, spread: str = "minmax", labels: dict[str, str] | None = None):
     """The matplotlib Figure of one metric (one panel per swept field), not saved.
 
-    ``done``, ``swept``, ``grid_keys``, ``spread`` and ``labels`` as in :func:`sweep_figures`;
-    ``metric`` is the column to plot and ``unit`` its unit (axis label).
+    Parameters
+    ----------
+    done : the finished cases' rows of summary.parquet
+    swept : the swept fields (one panel each; none: one panel over the seeds)
+    grid_keys : the swept fields that form a grid (drawn as lines)
+    metric : the column to plot
+    unit : its unit (axis label)
+    spread : "minmax" or "std" bars over seeds
+    labels : field -> axis label (the study's [labels])
+
+    Returns
+    -------
+    matplotlib.figure.Figure, not saved
     """
     from matplotlib.figure import Figure  # lazy: heavy, and only the figures need it
 

@@ -229,9 +229,12 @@ def test_attach_to_a_running_sumo_over_traci(tmp_path):
     routes.write_text('<routes><route id="r" edges="entry main"/>'
                       '<flow id="own" route="r" begin="0" end="500" vehsPerHour="2000" departLane="best"/></routes>')
     net = ROOT / "sumo_nets" / "straight3.net.xml"
+    user_cwd = tmp_path / "user_sumo_cwd"
+    user_cwd.mkdir()
     proc = subprocess.Popen([sumolib.checkBinary("sumo"), "-n", str(net), "-r", str(routes), "--remote-port",
                              str(port), "--step-length", "0.05", "--lateral-resolution", "0.8",
-                             "--no-step-log", "true"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                             "--no-step-log", "true"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            cwd=user_cwd)
     try:
         path = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
         res, meta, traj, events, out = run(tmp_path, path, **{
@@ -245,6 +248,8 @@ def test_attach_to_a_running_sumo_over_traci(tmp_path):
         assert bg.vehicle_id.str.startswith("own").any()  # the running SUMO's own traffic
     finally:
         proc.wait(timeout=30)
+    # the user's SUMO writes nothing for us (members carried an SSM device there: ssm_<id>.xml)
+    assert sorted(p.name for p in user_cwd.iterdir()) == []
 
 
 def test_members_carry_a_window_of_a_long_route_of_many_edges(tmp_path):

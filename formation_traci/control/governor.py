@@ -166,3 +166,41 @@ def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_v
         a_cap[i] = max(_gap_law(gap[i], v_m[i], v_lead[i], time_gap, min_gap), -decel_emergency)
     a_vc = _leader_law(v_vc, v_set, v_set_dot, acc_slot, active, accel_max, decel_emergency)
     return a_vc, gap, index, v_cap, a_cap
+
+
+@kernel(error_model="python")
+def column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap):
+    """Members in one column brake as one: each takes the tightest speed and acceleration
+    caps of the active members ahead of it whose slots overlap it sideways.
+
+    The caps of :func:`governor_step` come from each member's own gap to the vehicle ahead of
+    it, and other members are not among those vehicles. Without this, a cut-in in front of a
+    column caps its first member only: it falls behind its slot while the member behind keeps
+    its own, and at small gaps the two collide.
+
+    Parameters
+    ----------
+    slot_s, slot_d : ndarray, shape (n,)
+        Slots along and across the road [m].
+    half_w : ndarray, shape (n,)
+        Members' half widths [m].
+    active : ndarray of bool, shape (n,)
+        Members still on the road.
+    v_cap, a_cap : ndarray, shape (n,)
+        Speed caps [m/s] and acceleration caps [m/s^2] (inf: none).
+
+    Returns
+    -------
+    v_cap, a_cap : ndarray, shape (n,)
+        New arrays, never above the given ones.
+    """
+    n = slot_s.shape[0]
+    v_out = v_cap.copy()
+    a_out = a_cap.copy()
+    for i in range(n):
+        for j in range(n):
+            if active[j] and slot_s[j] > slot_s[i] and \
+                    abs(slot_d[j] - slot_d[i]) < half_w[j] + half_w[i]:
+                v_out[i] = min(v_out[i], v_cap[j])
+                a_out[i] = min(a_out[i], a_cap[j])
+    return v_out, a_out

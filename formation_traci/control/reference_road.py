@@ -10,7 +10,7 @@ import numpy as np
 
 from ..kernels import kernel
 from ..road.leader import road_leader_at
-from .governor import governor_step
+from .governor import column_caps, governor_step
 from .longitudinal import LongitudinalPlanner, PlannerParams
 from .reference import FRAME_ROAD, FRAME_VEHICLE, Reference, constant_slots, set_vc_period
 from .virtual_car import along_line_advance, knot_profile_at
@@ -64,16 +64,20 @@ class RoadReference:
 
     def governor(self, t: float, sensed):
         """(a_vc, gap, lead index, v_cap, a_cap) from the members' and neighbours' road
-        coordinates (control/governor.py)."""
+        coordinates (control/governor.py); members of one column share the tightest caps
+        ahead of them (``column_caps``)."""
         lim = self.limits
         slot_d = np.where(self.is_road, self.slot_d, sensed.m_d)
         v_set, v_set_dot = knot_profile_at(self.prof, 0, float(t))
         df = self.d_front
-        return governor_step(
-            sensed.m_s + df, sensed.m_d, self.s + self.along + df, slot_d, self.half_w,
+        slot_s = self.s + self.along
+        a_vc, gap, lead_idx, v_cap, a_cap = governor_step(
+            sensed.m_s + df, sensed.m_d, slot_s + df, slot_d, self.half_w,
             sensed.v_m, sensed.active, self.v, v_set, v_set_dot, sensed.nb_rear, sensed.nb_d,
             sensed.nb_half_w, sensed.nb_v, lim.time_gap, lim.min_gap, lim.accel_max,
             lim.decel_emergency)
+        v_cap, a_cap = column_caps(slot_s, slot_d, self.half_w, sensed.active, v_cap, a_cap)
+        return a_vc, gap, lead_idx, v_cap, a_cap
 
     def reference(self, t: float, sensed) -> Reference:
         """The reference of the step starting at t [s]."""

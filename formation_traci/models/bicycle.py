@@ -15,6 +15,11 @@ Every law is a compiled scalar kernel (``*_at``) taking one vehicle's state and 
 the per-member parameter array ``P`` (models/params.py ``pack_params``); :func:`rhs`,
 :func:`outputs` and :func:`project` are thin array wrappers over them.
 
+With the ``resistances`` parameter on, the driving resistance F_res (rolling 3.15,
+aerodynamic, grade: models/resistance.py) acts along the velocity: v dot gets -F_res / m and
+(3.13) asks for m a_r + F_res, so the traction limit (3.14) and the friction circle see it
+(docs/energy.md). Off (the default) is the seed's model, bit for bit.
+
 Deviations from the seed (see docs/model.md): beta dot uses the exact single-track form
 instead of (3.2); the traction limit (3.14) uses the static front-axle load (b, not a);
 braking is limited by mu m g; below a few m/s the model blends into the kinematic bicycle.
@@ -26,8 +31,10 @@ from enum import IntEnum
 import numpy as np
 
 from ..kernels import clip, kernel, maximum
-from .params import (_A, _B, _BF, _BR, _CF, _CR, _DF, _DR, _EF, _ER, _H, _IZZ, _LIN, _M, _MU,
-                     _SMAX, _SRMAX, _TAU, _TAUSTOP, _VHIGH, _VLOW, G, BicycleParams, pack_params)
+from .params import (_A, _AREA, _B, _BF, _BR, _CD, _CF, _CR, _DF, _DR, _DRAG, _EF, _ER, _GRADE,
+                     _H, _IZZ, _LIN, _M, _MU, _RES, _RHO, _SMAX, _SRMAX, _TAU, _TAUSTOP, _VHIGH,
+                     _VLOW, G, BicycleParams, pack_params)
+from .resistance import aero_force, road_load, rolling_coefficient
 from .tire import cornering_force
 
 
@@ -53,10 +60,8 @@ class U(IntEnum):
 N_STATES = len(S)
 
 
-@kernel
-def rolling_resistance(v):
-    """Coefficient of rolling resistance f_rl = 0.01 (1 + v / 40.8) [-], eq (3.15); v in m/s."""
-    return 0.01 * (1.0 + v / 40.8)
+rolling_resistance = rolling_coefficient
+"""Coefficient of rolling resistance f_rl(v) [-], eq (3.15) (models/resistance.py)."""
 
 
 @kernel
@@ -68,7 +73,7 @@ def traction_force_max_at(v, m, a, b, h, mu):
     carries W b / L); see docs/model.md.
     """
     L = a + b
-    return mu * (m * G) * (b + rolling_resistance(v) * h) / L / (1.0 + mu * h / L)
+    return mu * (m * G) * (b + rolling_coefficient(v) * h) / L / (1.0 + mu * h / L)
 
 
 @kernel
@@ -85,27 +90,42 @@ def slip_angles_at(v, beta, r, delta, a, b, v_low):
 
 
 @kernel
-def traction_from_acceleration_at(a_ref, beta, delta, fcf, fcr, m):
-    """Traction force F_lf [N] that gives v dot = a_ref, eq (3.13) (unclipped)."""
+def traction_from_acceleration_at(a_ref, beta, delta, fcf, fcr, m, f_res):
+    """Traction force F_lf [N] that gives v dot = a_ref, eq (3.13) (unclipped), against the
+    driving resistance f_res [N] (0: the seed's model, which drives against none)."""
     num = m * a_ref - fcf * (np.cos(delta) * np.sin(beta) - np.sin(delta) * np.cos(beta)) \
         - fcr * np.sin(beta)
+    if f_res != 0.0:
+        num = num + f_res
     den = np.cos(delta) * np.cos(beta) + np.sin(delta) * np.sin(beta)
     return num / den
 
 
 @kernel
+def resistance_at(v, P, i):
+    """Driving resistance of vehicle i along its velocity [N] (models/resistance.py
+    road_load with its drag ratio and grade), 0 with resistances off (the seed's model)."""
+    if P[i, _RES] == 0.0:
+        return 0.0
+    return road_load(v, P[i, _M], P[i, _CD], P[i, _AREA], P[i, _RHO], P[i, _DRAG], P[i, _GRADE])
+
+
+@kernel
 def forces_at(v, beta, r, delta, a_ref, P, i):
     """Slip angles, cornering forces (3.9-3.12), the clipped traction force (3.13-3.15) and
-    its upper limit of vehicle i: (alpha_f, alpha_r, F_cf, F_cr, F_lf, F_max)."""
+    its upper limit of vehicle i: (alpha_f, alpha_r, F_cf, F_cr, F_lf, F_max, F_res).
+
+    With resistances on, (3.13) asks for m a_ref + F_res (F_res: :func:`resistance_at`)."""
     m = P[i, _M]
     alpha_f, alpha_r = slip_angles_at(v, beta, r, delta, P[i, _A], P[i, _B], P[i, _VLOW])
     lin = P[i, _LIN] != 0.0
     fcf = cornering_force(alpha_f, P[i, _BF], P[i, _CF], P[i, _DF], P[i, _EF], lin)
     fcr = cornering_force(alpha_r, P[i, _BR], P[i, _CR], P[i, _DR], P[i, _ER], lin)
     f_max = traction_force_max_at(v, m, P[i, _A], P[i, _B], P[i, _H], P[i, _MU])
-    f_lf = clip(traction_from_acceleration_at(a_ref, beta, delta, fcf, fcr, m),
+    f_res = resistance_at(v, P, i)
+    f_lf = clip(traction_from_acceleration_at(a_ref, beta, delta, fcf, fcr, m, f_res),
                 -(P[i, _MU] * m * G), f_max)
-    return alpha_f, alpha_r, fcf, fcr, f_lf, f_max
+    return alpha_f, alpha_r, fcf, fcr, f_lf, f_max, f_res
 
 
 @kernel
@@ -145,7 +165,8 @@ def rhs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i):
         v dot    = [F_x cos(beta) + F_y sin(beta)] / m                    (3.1)
         beta dot = [F_y cos(beta) - F_x sin(beta)] / (m v) - psi dot       (exact form of 3.2)
         psi ddot = [(F_lf sin(delta) + F_cf cos(delta)) a - F_cr b] / Izz  (3.3)
-    with F_x = F_lf cos(delta) - F_cf sin(delta), F_y = F_lf sin(delta) + F_cf cos(delta) + F_cr.
+    with F_x = F_lf cos(delta) - F_cf sin(delta), F_y = F_lf sin(delta) + F_cf cos(delta) + F_cr;
+    with resistances on, v dot gets -F_res / m (F_lf of :func:`forces_at` includes F_res).
     Kinematic part (w = 0 below v_low): :func:`kinematic_bicycle_at`; C1 smoothstep between.
     Position (3.22)-(3.23): X dot = v cos(psi + beta), Y dot = v sin(psi + beta). Near
     standstill braking is capped at v / tau_stop (an exponential stop, no reversing).
@@ -153,7 +174,8 @@ def rhs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i):
     m = P[i, _M]
     a = P[i, _A]
     b = P[i, _B]
-    _, _, fcf, fcr, f_lf, f_max = forces_at(v, beta, r, delta, a_ref, P, i)
+    _, _, fcf, fcr, f_lf, f_max, f_res = forces_at(v, beta, r, delta, a_ref, P, i)
+    res_on = P[i, _RES] != 0.0
     sb = np.sin(beta)
     cb = np.cos(beta)
     sd = np.sin(delta)
@@ -161,10 +183,15 @@ def rhs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i):
     fx = f_lf * cd - fcf * sd
     fy = f_lf * sd + fcf * cd + fcr
     v_dot_dyn = (fx * cb + fy * sb) / m
+    if res_on:
+        v_dot_dyn = v_dot_dyn - f_res / m
     beta_dot_dyn = (fy * cb - fx * sb) / (m * maximum(v, P[i, _VLOW])) - r
     r_dot_dyn = ((f_lf * sd + fcf * cd) * a - fcr * b) / P[i, _IZZ]
     ddelta = steering_rate_at(delta, rate_in, P[i, _SMAX], P[i, _SRMAX])
-    v_dot_kin = clip(a_ref, -(P[i, _MU] * m * G) / m, f_max / m)
+    if res_on:  # the traction m a_r + F_res is clipped, the resistance always acts
+        v_dot_kin = clip(a_ref + f_res / m, -(P[i, _MU] * m * G) / m, f_max / m) - f_res / m
+    else:
+        v_dot_kin = clip(a_ref, -(P[i, _MU] * m * G) / m, f_max / m)
     beta_dot_kin, r_dot_kin = kinematic_bicycle_at(v, beta, r, delta, v_dot_kin, ddelta, a, b,
                                                    P[i, _TAU])
     s = clip((v - P[i, _VLOW]) / (P[i, _VHIGH] - P[i, _VLOW]), 0.0, 1.0)
@@ -186,19 +213,35 @@ def project_at(v, delta, steer_max):
 @kernel
 def outputs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i):
     """Recorded signals of vehicle i: (a_lon, a_lat, slip_front, slip_rear, traction_force,
-    traction_force_max, friction_usage, steer_rate).
+    traction_force_max, friction_usage, steer_rate, power, drag_force, drag_ratio).
 
     Accelerations are those of the centre of gravity in the body frame, from the kinematics
     of the state derivative: a_lon = v dot cos(beta) - v sin(beta)(beta dot + r),
     a_lat = v dot sin(beta) + v cos(beta)(beta dot + r); at steady state a_lat = v r (3.6).
+    ``power`` [W]: traction power at the front wheels, F_lf times the front axle's speed along
+    the wheel, v cos(beta) cos(delta) + (v sin(beta) + a r) sin(delta) (= F_lf v driving
+    straight); ``drag_force`` [N] and ``drag_ratio`` [-]: NaN with resistances off.
     """
-    alpha_f, alpha_r, _, _, f_lf, f_max = forces_at(v, beta, r, delta, a_ref, P, i)
+    alpha_f, alpha_r, _, _, f_lf, f_max, _ = forces_at(v, beta, r, delta, a_ref, P, i)
     d = rhs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i)
     course_rate = d[4] + r
     a_lon = d[3] * np.cos(beta) - v * np.sin(beta) * course_rate
     a_lat = d[3] * np.sin(beta) + v * np.cos(beta) * course_rate
     usage = np.hypot(a_lon, a_lat) / (P[i, _MU] * G)
-    return a_lon, a_lat, alpha_f, alpha_r, f_lf, f_max, usage, d[6]
+    power = f_lf * (v * np.cos(beta) * np.cos(delta)
+                    + (v * np.sin(beta) + P[i, _A] * r) * np.sin(delta))
+    drag, ratio = np.nan, np.nan
+    if P[i, _RES] != 0.0:
+        ratio = P[i, _DRAG]
+        drag = aero_force(v, P[i, _CD], P[i, _AREA], P[i, _RHO], ratio)
+    return a_lon, a_lat, alpha_f, alpha_r, f_lf, f_max, usage, d[6], power, drag, ratio
+
+
+OUTPUT_NAMES = ("a_lon", "a_lat", "slip_front", "slip_rear", "traction_force",
+                "traction_force_max", "friction_usage", "steer_rate", "power", "drag_force",
+                "drag_ratio")
+"""The signals :func:`outputs_at` returns, in its order."""
+N_OUTPUTS = len(OUTPUT_NAMES)
 
 
 # ------------------------------------------------------------------ array wrappers
@@ -206,11 +249,11 @@ def outputs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i):
 @kernel
 def _rows(x, u, P, what):
     n = x.shape[0]
-    out = np.empty((n, 8 if what == 1 else 7))
+    out = np.empty((n, N_OUTPUTS if what == 1 else 7))
     for i in range(n):
         if what == 1:
             res = outputs_at(x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6], u[i, 0], u[i, 1], P, i)
-            for j in range(8):
+            for j in range(N_OUTPUTS):
                 out[i, j] = res[j]
         else:
             res7 = rhs_at(x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6], u[i, 0], u[i, 1], P, i)
@@ -233,16 +276,15 @@ def rhs(x, u, p: BicycleParams) -> np.ndarray:
 def outputs(x, u, p: BicycleParams) -> dict[str, np.ndarray]:
     """Recorded signals for state x under input u (all shape (n,)): :func:`outputs_at`."""
     o = _rows(*_arrays(x, u, p), 1)
-    names = ("a_lon", "a_lat", "slip_front", "slip_rear", "traction_force",
-             "traction_force_max", "friction_usage", "steer_rate")
-    return {name: o[:, j].copy() for j, name in enumerate(names)}
+    return {name: o[:, j].copy() for j, name in enumerate(OUTPUT_NAMES)}
 
 
 def forces(x, u, p: BicycleParams):
     """(alpha_f, alpha_r, F_cf, F_cr, F_lf, F_max) of every row of x under u, each (n,)
     (:func:`forces_at`)."""
     x, u, P = _arrays(x, u, p)
-    res = [forces_at(x[i, 3], x[i, 4], x[i, 5], x[i, 6], u[i, 0], P, i) for i in range(len(x))]
+    res = [forces_at(x[i, 3], x[i, 4], x[i, 5], x[i, 6], u[i, 0], P, i)[:6]
+           for i in range(len(x))]
     return tuple(np.array(res, dtype=float).reshape(len(x), 6).T)
 
 

@@ -14,6 +14,9 @@ import numpy as np
 G = 9.81
 """Gravitational acceleration [m/s^2]."""
 
+RHO_AIR_STANDARD = 1.225
+"""Density of dry air at 15 deg C and 101.325 kPa (ISO 2533 standard atmosphere) [kg/m^3]."""
+
 
 @dataclass(frozen=True, slots=True)
 class MagicFormula:
@@ -57,6 +60,8 @@ class VehicleParams:
     front_overhang: float  # front axle to front bumper [m]
     steer_max: float  # steering angle limit [rad]
     steer_rate_max: float  # steering rate limit [rad/s]
+    c_d: float  # aerodynamic drag coefficient, alone in still air [-] (docs/energy.md)
+    frontal_area: float  # frontal area A of 0.5 rho c_d A v^2 [m^2] (docs/energy.md)
     color: tuple[int, int, int]  # RGB shown in SUMO
 
     @property
@@ -75,6 +80,7 @@ PASSENGER_CAR = VehicleParams(
     h=0.55,  # section 3.1.4
     length=4.6, width=1.8, front_overhang=0.9,  # ours: a mid-size sedan
     steer_max=np.deg2rad(35.0), steer_rate_max=np.deg2rad(30.0),  # ours, road-wheel angle
+    c_d=0.30, frontal_area=2.2,  # ours: a mid-size sedan (docs/energy.md)
     color=(30, 144, 255),
 )
 """Table 3.1 passenger car (body size, CoG height and steering limits: see docs/model.md)."""
@@ -84,6 +90,7 @@ SMALL_TRUCK = VehicleParams(
     h=1.0,  # ours: the seed gives no CoG height for the truck
     length=7.5, width=2.3, front_overhang=1.3,  # ours: a 7.5 t box truck
     steer_max=np.deg2rad(35.0), steer_rate_max=np.deg2rad(20.0),  # ours
+    c_d=0.60, frontal_area=6.5,  # ours: a 7.5 t box truck (docs/energy.md)
     color=(255, 140, 0),
 )
 """Table 3.5 small truck (CoG height, body size and steering limits: see docs/model.md)."""
@@ -177,11 +184,23 @@ class BicycleParams:
     v_high: float  # [m/s]
     tau: float  # [s]
     tau_stop: float  # [s]
+    resistances: bool  # rolling, aerodynamic and grade resistance on (False: the seed's model)
+    c_d: float | np.ndarray  # drag coefficient alone [-]
+    frontal_area: float | np.ndarray  # [m^2]
+    rho_air: float | np.ndarray  # air density [kg/m^3]
+    drag_ratio: float | np.ndarray  # c_d multiplier from the vehicles around [-] (1 alone)
+    grade: float | np.ndarray  # road grade under the vehicle [rad], positive uphill
 
 
 def bicycle_params(veh: VehicleParams, mu: float, tires: Tires,
-                   blend: LowSpeedBlend = LOW_SPEED_DEFAULT) -> BicycleParams:
-    """Flatten chassis, road, tires and low-speed blend into one :class:`BicycleParams`."""
+                   blend: LowSpeedBlend = LOW_SPEED_DEFAULT, resistances: bool = False,
+                   rho_air: float = RHO_AIR_STANDARD) -> BicycleParams:
+    """Flatten chassis, road, tires and low-speed blend into one :class:`BicycleParams`.
+
+    ``resistances=False`` (default) is the seed's model: the traction force of (3.13) moves
+    the car against no resistance. ``True`` adds rolling (3.15), aerodynamic and grade
+    resistance (models/resistance.py); drag_ratio starts at 1 (alone) and grade at 0.
+    """
     f, r = tires.front, tires.rear
     return BicycleParams(
         m=veh.m, Izz=veh.Izz, a=veh.a, b=veh.b, h=veh.h, mu=mu,
@@ -189,10 +208,12 @@ def bicycle_params(veh: VehicleParams, mu: float, tires: Tires,
         linear_tire=tires.linear,
         steer_max=veh.steer_max, steer_rate_max=veh.steer_rate_max,
         v_low=blend.v_low, v_high=blend.v_high, tau=blend.tau, tau_stop=blend.tau_stop,
+        resistances=bool(resistances), c_d=veh.c_d, frontal_area=veh.frontal_area,
+        rho_air=rho_air, drag_ratio=1.0, grade=0.0,
     )
 
 
-_SHARED = ("linear_tire", "v_low", "v_high", "tau", "tau_stop")
+_SHARED = ("linear_tire", "v_low", "v_high", "tau", "tau_stop", "resistances")
 
 
 def stack(params: list[BicycleParams]) -> BicycleParams:
@@ -221,6 +242,7 @@ PARAM_NAMES: tuple[str, ...] = (
     "Bf", "Cf", "Df", "Ef", "Br", "Cr", "Dr", "Er",
     "linear_tire", "steer_max", "steer_rate_max",
     "v_low", "v_high", "tau", "tau_stop",
+    "resistances", "c_d", "frontal_area", "rho_air", "drag_ratio", "grade",
 )
 """Column order of the packed parameter array ``P`` (one column per BicycleParams field)."""
 
@@ -248,14 +270,22 @@ _VLOW = PARAM_NAMES.index("v_low")
 _VHIGH = PARAM_NAMES.index("v_high")
 _TAU = PARAM_NAMES.index("tau")
 _TAUSTOP = PARAM_NAMES.index("tau_stop")
+_RES = PARAM_NAMES.index("resistances")
+_CD = PARAM_NAMES.index("c_d")
+_AREA = PARAM_NAMES.index("frontal_area")
+_RHO = PARAM_NAMES.index("rho_air")
+_DRAG = PARAM_NAMES.index("drag_ratio")
+_GRADE = PARAM_NAMES.index("grade")
 
 
 def pack_params(p: BicycleParams, n: int) -> np.ndarray:
     """Pack ``p`` into a C-contiguous float64 array of shape (n, N_PARAMS), columns PARAM_NAMES.
 
     Scalar fields are broadcast to all n rows; (n,) array fields (a mixed fleet from
-    ``params.stack``) are copied per row; ``linear_tire`` becomes 0.0 / 1.0. Pack once per
-    fleet and reuse: the array does not change while the parameters do not.
+    ``params.stack``) are copied per row; ``linear_tire`` and ``resistances`` become 0.0 / 1.0.
+    Pack once per fleet and reuse: the array does not change while the parameters do not
+    (``drag_ratio`` and ``grade`` are the exception: sim/fleet.py ``Fleet.set_road_load``
+    writes those two columns every step).
     """
     names = tuple(f.name for f in fields(BicycleParams))
     if set(names) != set(PARAM_NAMES):
@@ -266,10 +296,10 @@ def pack_params(p: BicycleParams, n: int) -> np.ndarray:
     P = np.empty((n, N_PARAMS), dtype=np.float64)
     for j, name in enumerate(PARAM_NAMES):
         value = getattr(p, name)
-        if name == "linear_tire":
+        if name in ("linear_tire", "resistances"):
             col = np.asarray(value)
             if col.ndim != 0:
-                raise ValueError("linear_tire must be one bool shared by the whole fleet")
+                raise ValueError(f"{name} must be one bool shared by the whole fleet")
             P[:, j] = 1.0 if bool(col) else 0.0
             continue
         col = np.asarray(value, dtype=np.float64)

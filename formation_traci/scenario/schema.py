@@ -6,41 +6,15 @@ See docs/scenarios.md for the field-by-field reference.
 """
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
-from ..comm.channel import gilbert_rates
+from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict  # noqa: F401
+from .comm_spec import CommLinkSpec, CommSpec  # noqa: F401
 from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec
 from .road_traffic import FlowSpec, RoadSpec, RouteEnds, RouteValue, TrafficSpec  # noqa: F401 (re-exported)
 
-PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-Finite = Annotated[float, Field(allow_inf_nan=False)]
-Pair = Annotated[list[Finite], Field(min_length=2, max_length=2)]
-
-
-class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=False)
-
-
-class ProfileSpec(Strict):
-    """A piecewise signal: values at knot times, linear or smoothstep between."""
-
-    t: list[NonNegFloat] = Field(min_length=1, description="knot times [s], strictly increasing")
-    values: list[Finite] = Field(min_length=1, description="signal at the knots")
-    interp: Literal["linear", "smooth"] = "linear"
-
-    @model_validator(mode="after")
-    def _knots(self):
-        if len(self.t) != len(self.values):
-            raise ValueError(f"t and values must have the same length (got {len(self.t)} and {len(self.values)})")
-        if any(b <= a for a, b in zip(self.t, self.t[1:])):
-            raise ValueError("t must be strictly increasing")
-        return self
-
-
-Signal = Union[Finite, ProfileSpec]
 
 
 class RunSpec(Strict):
@@ -75,6 +49,8 @@ class VehicleOverrides(Strict):
     front_overhang: NonNegFloat | None = Field(None, description="front axle to bumper [m]")
     steer_max_deg: PosFloat | None = Field(None, le=89, description="steering angle limit [deg]")
     steer_rate_max_deg_s: PosFloat | None = Field(None, description="steering rate limit [deg/s]")
+    c_d: PosFloat | None = Field(None, le=2.0, description="drag coefficient alone [-] (docs/energy.md)")
+    frontal_area: PosFloat | None = Field(None, le=15.0, description="frontal area [m^2] (docs/energy.md)")
 
 
 SURFACE_NAMES = Literal["good_dry", "good_wet", "poor_dry", "poor_wet", "ice"]
@@ -190,52 +166,14 @@ class SumoSpec(Strict):
         return self
 
 
-JITTER_DISTRIBUTIONS = Literal["exponential", "uniform"]
-LOSS_MODELS = Literal["none", "independent", "bursty"]
+class EnergySpec(Strict):
+    """Driving resistances and the formation's drag (docs/energy.md)."""
 
-
-class CommLinkSpec(Strict):
-    """One member's link from the virtual leader: fields left out take the [comm] value."""
-
-    delay_s: NonNegFloat | None = Field(None, description="constant part of the delay [s]")
-    jitter_s: NonNegFloat | None = Field(None, description="mean of the random extra delay [s]")
-    jitter: JITTER_DISTRIBUTIONS | None = Field(None, description="distribution of the extra delay")
-    loss: LOSS_MODELS | None = Field(None, description="loss model")
-    loss_p: Annotated[float, Field(ge=0, lt=1)] | None = Field(None, description="mean loss probability [-]")
-    loss_burst: Annotated[float, Field(ge=1, allow_inf_nan=False)] | None = Field(
-        None, description="mean burst length of the bursty model [beacons]")
-
-
-class CommSpec(CommLinkSpec):
-    """The radio between the virtual leader and the members (docs/communication.md).
-
-    Every link carries the same beacons (one broadcast); delay, jitter and loss are drawn per
-    link from the run's seed in their own random stream. The defaults are perfect
-    communication: every control instant, no delay, no loss."""
-
-    beacon_hz: PosFloat | None = Field(None, description="beacon rate [Hz]; default: every control step")
-    delay_s: NonNegFloat = Field(0.0, description="constant part of the delay [s]")
-    jitter_s: NonNegFloat = Field(0.0, description="mean of the random extra delay [s]")
-    jitter: JITTER_DISTRIBUTIONS = Field(
-        "exponential", description="extra delay: 'exponential' (std = mean) or 'uniform' on [0, 2 jitter_s]")
-    loss: LOSS_MODELS = Field("none", description="'none', 'independent' (Bernoulli) or 'bursty' (Gilbert-Elliott)")
-    loss_p: Annotated[float, Field(ge=0, lt=1)] = Field(0.0, description="mean loss probability [-]")
-    loss_burst: Annotated[float, Field(ge=1, allow_inf_nan=False)] = Field(
-        4.0, description="mean burst length of the bursty model [beacons]")
-    timeout_s: PosFloat = Field(1.0, description="a member that has heard nothing for longer falls back [s]")
-    links: dict[str, CommLinkSpec] = Field(default_factory=dict, description="per-member overrides, by member id")
-
-    @model_validator(mode="after")
-    def _bursts(self):
-        for where, spec in [("", self)] + [(f"links.{k}: ", v) for k, v in self.links.items()]:
-            p = spec.loss_p if spec.loss_p is not None else self.loss_p
-            burst = spec.loss_burst if spec.loss_burst is not None else self.loss_burst
-            if (spec.loss or self.loss) == "bursty":
-                try:
-                    gilbert_rates(p, burst)
-                except ValueError as exc:
-                    raise ValueError(f"{where}{exc}") from None
-        return self
+    resistances: bool = Field(False, description="rolling (eq 3.15), aerodynamic and grade resistance "
+                              "on; false: the seed's model, which drives against none")
+    drag_interaction: bool = Field(True, description="lower each member's drag for the vehicles "
+                                   "ahead of and behind it (needs resistances)")
+    air_density: PosFloat = Field(1.225, le=2.0, description="air density [kg/m^3] (ISO 2533 sea level)")
 
 
 class OpenLoopSpec(Strict):
@@ -281,10 +219,18 @@ class Scenario(Strict):
     road: RoadSpec | None = Field(None, description="SUMO road; without it the run is in free space")
     traffic: TrafficSpec = TrafficSpec()
     sumo: SumoSpec = SumoSpec()
+    energy: EnergySpec = EnergySpec()
     comm: CommSpec | None = Field(None, description="leader-to-member radio; default: perfect")
     open_loop: OpenLoopSpec | None = Field(None, description="drive the members open loop (free space only)")
     maneuvers: list[ManeuverSpec] = Field(default_factory=list, description="scheduled maneuvers, run one at a time in this order")
     maneuver_limits: ManeuverLimits = ManeuverLimits()
+
+    @model_validator(mode="after")
+    def _energy_needs_forces(self):
+        if self.energy.resistances and self.vehicle.model != "dynamic":
+            raise ValueError("energy.resistances needs vehicle.model = \"dynamic\" "
+                             "(the kinematic model has no forces)")
+        return self
 
     @model_validator(mode="after")
     def _comm_rules(self):

@@ -22,14 +22,14 @@ from ..control.schedule import GainSchedule, p_law
 from ..control.targets import desired_point_at
 from ..kernels import kernel, maximum, minimum, substeps
 from ..models import bicycle, kinematic
-from ..models.params import BicycleParams, N_PARAMS, pack_params
+from ..models.params import _DRAG, _GRADE, BicycleParams, N_PARAMS, pack_params
 from ..record.columns import SIGNAL_COLUMNS
 from .integrate import DYNAMIC, KINEMATIC, rk4_at
 
 _KERNEL_SIGNALS = ("x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "ex", "ey",
                    "e_lon", "e_lat", "x_des", "y_des", "v_ref", "omega_ref", "steer",
                    "steer_rate", "beta", "slip_front", "slip_rear", "traction_force",
-                   "traction_force_max", "friction_usage")
+                   "traction_force_max", "friction_usage", "power", "drag_force", "drag_ratio")
 """The signals :func:`member_signals` computes, in its internal order."""
 N_SIGNALS = len(_KERNEL_SIGNALS)
 
@@ -168,10 +168,10 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
         vals[4] = u1
         vals[5] = res[5]
         vals[6] = vk * u1
-        for q in (15, 16, 17, 18, 19, 20, 21, 22):
+        for q in range(15, N_SIGNALS):
             vals[q] = np.nan
         return
-    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate = bicycle.outputs_at(
+    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_at(
         x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6], u0, u1, P, i)
     vals[3] = x[i, 3]
     vals[4] = x[i, 5]
@@ -185,6 +185,9 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
     vals[20] = f_lf
     vals[21] = f_max
     vals[22] = usage
+    vals[23] = power
+    vals[24] = drag
+    vals[25] = ratio
 
 
 @kernel
@@ -256,6 +259,22 @@ class Fleet:
         self.gains = _f64([[a.g_min, a.g_max, a.k_min, b.g_min, b.g_max, b.k_min]
                            for a, b in zip(sg, yg, strict=True)])
         self.cols = signal_column_map()
+
+    @property
+    def resistances(self) -> bool:
+        """True when the members drive against rolling, aerodynamic and grade resistance."""
+        return self.kind == DYNAMIC and bool(self.cfg.params.resistances)
+
+    def set_road_load(self, drag_ratio, grade=None) -> None:
+        """Hold the members' drag ratio [-] (models/drag_interaction.py) and road grade [rad]
+        for the next step and its signals (arrays (n,) or scalars; None: unchanged). No-op
+        without resistances (sim/road_load.py computes them, docs/energy.md)."""
+        if not self.resistances:
+            return
+        if drag_ratio is not None:
+            self.P[:, _DRAG] = drag_ratio
+        if grade is not None:
+            self.P[:, _GRADE] = grade
 
     def n_sub(self, dt_c: float) -> int:
         return substeps(dt_c, self.cfg.physics_step)

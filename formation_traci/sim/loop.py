@@ -19,7 +19,8 @@ from ..control.reference_free import FreeReference
 from ..record.columns import SIGNAL_COLUMNS
 from ..scenario.schema import Scenario
 from .fleet import Fleet, FleetState
-from .setup import build_fleet, build_free_leader, build_initial_state, offsets
+from .road_load import road_load_part
+from .setup import build_fleet, build_free_leader, build_initial_state, member_vehicles, offsets
 from .timing import PhaseClock
 from .world import FreeSpace
 
@@ -47,6 +48,7 @@ class RunParts:
     state: FleetState
     transforms: list = field(default_factory=list)
     timing: dict | None = None  # run.json timing_s, or None: not timed
+    road_load: object = None  # sim/road_load.py: (state, sensed, ref) -> (drag ratio, grade)
 
 
 def check_finite(state: FleetState, ids, t) -> None:
@@ -63,7 +65,8 @@ def free_space_run(sc: Scenario) -> RunParts:
     leader, pose = build_free_leader(sc)
     state = build_initial_state(sc, cfg, leader.sample(0.0, pose))
     gen = FreeReference(leader, pose, offsets(sc), run.step / n_ctrl, n_ctrl)
-    return RunParts(FreeSpace(cfg.n), gen, Fleet(cfg), state)
+    return RunParts(FreeSpace(cfg.n), gen, Fleet(cfg), state,
+                    road_load=road_load_part(sc, member_vehicles(sc)))
 
 
 def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float]]:
@@ -95,6 +98,8 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             ref = apply(ref0, parts.transforms)
             clock.lap("governor")
             world.observe(t, sensed, ref)
+            if parts.road_load is not None:  # drag ratio and grade, held over the step
+                fleet.set_road_load(*parts.road_load(state, sensed, ref))
             if world.records_members:
                 fleet.signals(state, ref, out=sig)
                 if true_error and ref.vc is not ref0.vc:  # the error against the true virtual car

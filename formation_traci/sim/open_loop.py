@@ -172,8 +172,11 @@ def _record(rec, table, t, x, u, p, a_r, angle, rate, z, sig, col):
     rec.add_comfort_rows(t, sig)
     _, _, fcf, fcr, _, _ = bicycle.forces(x, u, p)
     m = np.broadcast_to(np.asarray(p.m, dtype=float), a_r.shape)
+    packed = pack_params(p, len(x))  # for the resistance (0 with resistances off, the seed's)
     request = np.array([traction_from_acceleration_at(a_r[i], x[i, S.BETA], x[i, S.DELTA], fcf[i],
-                                                      fcr[i], m[i]) for i in range(len(a_r))])
+                                                      fcr[i], m[i],
+                                                      bicycle.resistance_at(x[i, S.V], packed, i))
+                        for i in range(len(a_r))])
     zz = z if z is not None else np.full((len(a_r), 6), np.nan)
     table.append({"t": t, "vehicle_id": np.arange(len(a_r), dtype=np.int32), "a_ref": a_r,
                   "traction_force_request": request, "steer_cmd": angle, "steer_rate_cmd": rate,

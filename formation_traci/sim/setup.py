@@ -74,7 +74,8 @@ def build_fleet(sc: Scenario) -> FleetConfig:
                     for v, tires in kinds.items())
         blend = replace(LOW_SPEED_DEFAULT, v_low=v_low,
                         v_high=v_low + (LOW_SPEED_DEFAULT.v_high - LOW_SPEED_DEFAULT.v_low))
-        params = stack([bicycle_params(v, mu, kinds[v], blend) for v in vehicles])
+        params = stack([bicycle_params(v, mu, kinds[v], blend, resistances=sc.energy.resistances,
+                                       rho_air=sc.energy.air_density) for v in vehicles])
     ctl = sc.controller
     return FleetConfig(
         ids=tuple(m.id for m in sc.members),

@@ -64,6 +64,7 @@ class MemberType:
     color: tuple[int, int, int]
     vclass: str  # SUMO vehicle class
     max_speed: float = 70.0  # [m/s] above anything a member reaches, so SUMO never clamps
+    ssm_device: bool = False  # SUMO's SSM device on members of this type (sumo.ssm = "members")
 
 
 @dataclass
@@ -305,6 +306,8 @@ class SumoAdapter:
         vt.setDecel(mt.id, 10.0)
         vt.setEmergencyDecel(mt.id, 12.0)
         vt.setMaxSpeedLat(mt.id, 10.0)
+        if mt.ssm_device:  # by the type, not --device.ssm.explicit: SUMO keeps that id list
+            vt.setParameter(mt.id, "has.ssm.device", "true")  # from the first run of a process
 
     def release(self, vid: str, accel: float, decel: float) -> str:
         """Hand member ``vid`` over to SUMO's own driver model at its lane, position and

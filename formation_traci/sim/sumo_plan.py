@@ -112,7 +112,8 @@ def member_type(sc: Scenario, veh: VehicleParams, preset: str | None = None) -> 
     preset = preset or sc.vehicle.preset
     return MemberType(id=f"member_{preset}", length=veh.length, width=veh.width,
                       d_front=veh.cog_to_front_bumper, color=veh.color,
-                      vclass=MEMBER_VCLASS[preset])
+                      vclass=MEMBER_VCLASS[preset],
+                      ssm_device=sc.sumo.ssm == "members" and sc.sumo.attach_port is None)
 
 
 MEMBER_VCLASS = {"passenger_car": "custom1", "small_truck": "custom2"}

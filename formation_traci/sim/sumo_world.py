@@ -283,6 +283,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     from ..control.reference_road import GovernorLimits, RoadReference
     from .fleet import Fleet, initial_state
     from .loop import RunParts
+    from .road_load import road_load_part
     from .setup import build_fleet, profile, road_mu
     from .sumo_plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
 
@@ -307,8 +308,10 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
             sc.road.end_margin, run.step / n_ctrl, n_ctrl)
     meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
                         "governor": 0.0, "control_model": 0.0, "record": 0.0}
+    load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, line)
     if not sc.maneuvers:
-        return RunParts(world, RoadReference(*args), fleet, state, timing=meta["timing_s"])
+        return RunParts(world, RoadReference(*args), fleet, state, timing=meta["timing_s"],
+                        road_load=load)
     from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
     from ..control.maneuvers.planner import ManeuverPlanner
     from .road_setup import road_room
@@ -320,4 +323,4 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     gen = ManeuverRoadReference(*args, planner=planner, on_event=rec.add_event, length=lengths,
                                 on_release=world.release)
     return RunParts(world, gen, fleet, state, transforms=[PlanSlots(planner)],
-                    timing=meta["timing_s"])
+                    timing=meta["timing_s"], road_load=load)

@@ -39,6 +39,8 @@ METRICS: dict[str, tuple[str, str]] = {
     "inserted_veh": ("-", "SUMO runs: vehicles SUMO inserted for the flows"),
     "flow_measured_veh_h": ("veh/h", "SUMO runs: flow over all lanes at traffic.measure_at during the formation's run"),
     "density_measured_veh_km": ("veh/km", "SUMO runs: density over all lanes at traffic.measure_at during the formation's run"),
+    "energy_kwh_per_100km": ("kWh/100km", "all members' traction energy over their distance (docs/energy.md)"),
+    "energy_saving_vs_alone": ("-", "1 - members' energy / their energy alone; NaN with resistances off"),
     "leader_age_mean_s": ("s", "max of each member's mean age of the virtual-car state it held ([comm])"),
     "leader_age_p95_s": ("s", "max of each member's 95th percentile of that age"),
     "comm_timeouts": ("-", "SUMO runs: comm_timeout events (a member fell back: no state for longer than comm.timeout_s)"),
@@ -114,6 +116,19 @@ def _sumo_metrics(run_dir: Path, member_ids: set[str], meta: dict) -> dict[str, 
             "density_measured_veh_km": measured.get("density_veh_km")}
 
 
+def _energy_metrics(members: pd.DataFrame) -> dict[str, Any]:
+    """Formation energy from the members' analysis/energy.py columns (sums, not means)."""
+    e, d = _col(members, "traction_energy_kwh"), _col(members, "distance_km")
+    alone = _col(members, "energy_alone_kwh_per_100km") * d / 100.0
+    ok = np.isfinite(e) & np.isfinite(d)
+    out: dict[str, Any] = {"energy_kwh_per_100km": None, "energy_saving_vs_alone": None}
+    if ok.any() and d[ok].sum() > 0:
+        out["energy_kwh_per_100km"] = float(e[ok].sum() / d[ok].sum() * 100.0)
+        if np.isfinite(alone[ok]).all() and alone[ok].sum() > 0:
+            out["energy_saving_vs_alone"] = float(1.0 - e[ok].sum() / alone[ok].sum())
+    return out
+
+
 def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str, Any]:
     """The :data:`METRICS` of one analysed run.
 
@@ -152,6 +167,7 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
         "collisions": None, "min_ttc_s": None, "emergency_brakes": None,
         "requested_veh": None, "inserted_veh": None, "flow_measured_veh_h": None,
         "density_measured_veh_km": None,
+        **_energy_metrics(members),
         "leader_age_mean_s": _max(_col(members, "leader_age_mean_s")),
         "leader_age_p95_s": _max(_col(members, "leader_age_p95_s")),
         "comm_timeouts": None,

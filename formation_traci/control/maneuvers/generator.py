@@ -97,3 +97,10 @@ class ManeuverRoadReference(RoadReference):
                                 lim.min_gap)
             a_vc = min(a_vc, a_room)
         return a_vc, gap, lead_idx, v_cap, a_cap
+
+    def smooth(self, sensed, a_request, v_cap, a_cap):
+        """Maneuver runs take the governor's requests as they are, not through the
+        jerk-limited planner of control/longitudinal.py: with the planner's lag the
+        room-making deceleration came late and lanedrop_reshape's second reshape waited for
+        room to the end of the run (docs/maneuvers.md, 'Known limits')."""
+        return a_request, v_cap, a_cap

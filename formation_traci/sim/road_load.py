@@ -1,0 +1,128 @@
+"""Per-step inputs of the members' driving resistance: drag ratio and road grade.
+
+:class:`FreeSpaceLoad` and :class:`RoadLoad` are the ``road_load`` part of a run
+(sim/loop.py RunParts): the loop calls one once per outer step, once the step's reference is
+known and before its signals are recorded; the values are held over the step's control
+periods (sim/fleet.py ``Fleet.set_road_load``). The drag law itself is
+models/drag_interaction.py. The grade comes from the elevation (z) of the reference lane's
+shape in the SUMO network; a network without elevation (all bundled ones) and free space
+give 0 (docs/energy.md).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..models.drag_interaction import PLATOON_DRAG, along_heading, drag_ratios
+from ..models.params import VehicleParams
+from ..scenario.schema import Scenario
+
+
+def interaction_on(sc: Scenario) -> bool:
+    """True when the scenario asks for resistances with the formation-aware drag."""
+    return sc.energy.resistances and sc.energy.drag_interaction
+
+
+class FreeSpaceLoad:
+    """Drag ratios of the members among themselves in free space, resolved along the
+    virtual car's heading; no grade."""
+
+    def __init__(self, veh):
+        self.veh = veh  # one VehicleParams, or one per member
+
+    def __call__(self, state, sensed, ref):
+        """(drag ratio (n,), None) for positions state.x[:, :2] [m] and ref.truth's heading."""
+        return free_space_ratios(self.veh, state.x[:, :2], float(ref.truth[2])), None
+
+
+class RoadLoad:
+    """Drag ratios among SUMO's vehicles (or 1 without the interaction) and the grade under
+    each member (or None: the network has no elevation)."""
+
+    def __init__(self, sc: Scenario, veh, road, line):
+        self.veh, self.drag = veh, interaction_on(sc)
+        self.elevation = elevation_profile(road.net_file, road.route, sc.road.lane, line)
+
+    def __call__(self, state, sensed, ref):
+        nb, n_nb = sensed.nb, len(sensed.nb_s)
+        ratio = 1.0
+        if self.drag:
+            ratio = road_ratios(self.veh, sensed.m_s, sensed.m_d, sensed.active, sensed.nb_s,
+                                sensed.nb_d, nb.length if n_nb else sensed.nb_s,
+                                nb.width if n_nb else sensed.nb_s)
+        grade = None if self.elevation is None else grade_at(self.elevation, sensed.m_s)
+        return ratio, grade
+
+
+def road_load_part(sc: Scenario, veh, road=None, line=None):
+    """The run's ``road_load`` part for the members' chassis ``veh`` (one VehicleParams, or
+    one per member): None without resistances (nothing to compute), else
+    :class:`RoadLoad` on a road (``road``: sim/road_setup.py Road, ``line``: its reference
+    line) or :class:`FreeSpaceLoad` (None when the drag interaction is off: ratio 1)."""
+    if not sc.energy.resistances:
+        return None
+    if road is not None:
+        return RoadLoad(sc, veh, road, line)
+    return FreeSpaceLoad(veh) if interaction_on(sc) else None
+
+
+def _bodies(veh, n: int):
+    """Length, width and CoG-to-front-bumper [m] of n members, (n,) each; ``veh`` is one
+    VehicleParams for all or one per member (a mixed formation)."""
+    vehs = [veh] * n if isinstance(veh, VehicleParams) else list(veh)
+    return tuple(np.array([getattr(v, q) for v in vehs], dtype=float)
+                 for q in ("length", "width", "cog_to_front_bumper"))
+
+
+def free_space_ratios(veh, pos: np.ndarray, heading: float) -> np.ndarray:
+    """Drag ratio [-] of each member in free space (members only), positions (n, 2) [m]
+    resolved along the virtual car's heading [rad]; ``veh``: one chassis or one per member."""
+    s, d = along_heading(pos[:, 0], pos[:, 1], heading)
+    n = len(s)
+    length, width, _ = _bodies(veh, n)
+    return drag_ratios(s, d, length, width, n, PLATOON_DRAG)
+
+
+def road_ratios(veh, m_s, m_d, active, nb_s, nb_d, nb_length, nb_width) -> np.ndarray:
+    """Drag ratio [-] of each member on a road among SUMO's vehicles: members' centres of
+    gravity (m_s, m_d) [m] (``active``: still in SUMO), other vehicles' centres, lengths, widths
+    [m]; ``veh``: one chassis or one per member."""
+    n = len(m_s)
+    m_len, m_wid, d_front = _bodies(veh, n)
+    centre = np.asarray(m_s, float) + (d_front - 0.5 * m_len)  # CoG -> body centre
+    s = np.concatenate([centre, np.asarray(nb_s, float)])
+    d = np.concatenate([np.asarray(m_d, float), np.asarray(nb_d, float)])
+    length = np.concatenate([m_len, np.asarray(nb_length, float)])
+    width = np.concatenate([m_wid, np.asarray(nb_width, float)])
+    present = np.concatenate([np.asarray(active, bool), np.ones(len(s) - n, bool)])
+    return drag_ratios(s, d, length, width, n, PLATOON_DRAG, present)
+
+
+GRADE_BASE = 1.0
+"""Half the base of the central difference that gives the grade from the elevation [m]."""
+
+
+def elevation_profile(net, edges, lane_index: int, line) -> tuple[np.ndarray, np.ndarray] | None:
+    """Elevation of the reference lane against arc length: (s [m], z [m]), or None when the
+    network has no elevation. The lane's 3-D shape points (internal lanes included) are
+    projected onto the reference line ``line`` (road/geometry.py)."""
+    from ..road.geometry import load_net, route_lanes
+
+    net = load_net(net)
+    pts = [p for lid in route_lanes(net, edges, lane_index) for p in net.getLane(lid).getShape3D()]
+    xyz = np.asarray(pts, dtype=float).reshape(-1, 3)
+    if not len(xyz) or not np.any(xyz[:, 2] != 0.0):
+        return None
+    s, _ = line.to_frenet(xyz[:, :2])
+    order = np.argsort(s, kind="stable")
+    s, z = s[order], xyz[order, 2]
+    keep = np.concatenate([[True], np.diff(s) > 1e-6])  # shared points of joined lanes
+    return s[keep], z[keep]
+
+
+def grade_at(profile: tuple[np.ndarray, np.ndarray], s) -> np.ndarray:
+    """Road grade [rad] (positive uphill) at arc lengths s [m]: atan of the central difference
+    of the piecewise-linear elevation over +-GRADE_BASE."""
+    ps, pz = profile
+    s = np.asarray(s, dtype=float)
+    dz = np.interp(s + GRADE_BASE, ps, pz) - np.interp(s - GRADE_BASE, ps, pz)
+    return np.arctan(dz / (2.0 * GRADE_BASE))
