@@ -16,7 +16,8 @@ from pathlib import Path
 
 _TIME = re.compile(r"time=(-?[0-9]+(?:\.[0-9]+)?)")
 _VEHICLE = re.compile(r"[Vv]ehicle '([^']+)'")
-KINDS = (("emergency braking", "emergency_braking"), ("collision", "collision"),
+KINDS = (("no connection to the next edge", "lane_end_stop"),
+         ("emergency braking", "emergency_braking"), ("collision", "collision"),
          ("teleport", "teleport"), ("waited too long", "insertion_delay"),
          ("could not be inserted", "insertion_failed"))
 """(text in SUMO's message, kind) pairs; anything else is ``other``."""
