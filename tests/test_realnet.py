@@ -134,22 +134,29 @@ def test_sumo_messages_are_events_on_the_formation_clock(tmp_path):
     log = tmp_path / "messages.log"
     log.write_text("Warning: Vehicle 'a' performs emergency braking on lane 'x_0' with decel=9.1, "
                    "wished=4.5, severity=1.0, time=44.15.\n"
-                   "Warning: Value of 'emergencyDecel' (3.00) should be higher than 'decel'.\n")
+                   "Warning: Value of 'emergencyDecel' (3.00) should be higher than 'decel'.\n"
+                   "Warning: Vehicle 'right' performs emergency stop at the end of lane 'e_1' because "
+                   "there is no connection to the next edge (decel=204.28, offset=2.66), time=53.75.\n")
     got = []
     counts = record_messages(log, 30.0, lambda *a: got.append(a), 0.05)
     assert got[0][:4] == (pytest.approx(14.2), "sumo_message", "a", "emergency_braking")
     assert "t=14.20 s (formation clock)" in got[0][4] and "time=" not in got[0][4]
     assert got[1][0] == -30.0 and got[1][3] == "other"  # at loading: SUMO's start, before t = 0
-    assert counts == {"warnings": 2, "errors": 0, "during_warmup": 1,
-                      "by_kind": {"emergency_braking": 1, "other": 1}}
-    assert "2 warnings" in summary_line(counts)
+    assert got[2][:4] == (pytest.approx(23.8), "sumo_message", "right", "lane_end_stop")
+    assert counts == {"warnings": 3, "errors": 0, "during_warmup": 1,
+                      "by_kind": {"emergency_braking": 1, "other": 1, "lane_end_stop": 1}}
+    assert "3 warnings" in summary_line(counts)
 
 
 def test_three_abreast_through_on_ramps_and_past_exits(tmp_path, scenario, capfd):
     """120 s past three on-ramps and two exits: no collision involving a member, fewer than 5
     placement mismatches (193 before: lanes placed 3.2 m apart, 3.3 m in SUMO), SUMO's messages
     recorded on the formation's clock, and each member's peak lateral acceleration within 20 %
-    of v^2 kappa of the smoothed road at its own lateral offset."""
+    of v^2 kappa of the smoothed road at its own lateral offset. No move is refused and no member
+    dropped: at the first on-ramp a ramp car (29 m/s) appears at zero gap in front of `right`
+    (24.8 m/s); the governor's speed cap of ~2 m/s used to brake it at the friction limit until it
+    fell 60 m behind and off the road (docs/model.md, "Faster vehicles cutting in"). With all lanes
+    allowed to the members SUMO reports 2 false member-member junction collisions here."""
     sc = load_scenario(scenario)
     res = run_scenario(sc, tmp_path / "run", scenario_path=scenario, progress=False, force=True)
     assert res.status == "completed", res.reason
@@ -161,6 +168,7 @@ def test_three_abreast_through_on_ramps_and_past_exits(tmp_path, scenario, capfd
     assert coll.empty, coll
     assert (ev.kind == "placement_mismatch").sum() < 5
     assert not (ev.kind == "member_removed").any()
+    assert not ev.kind.isin(["move_refused", "emergency_brake"]).any()
     assert meta["sumo"]["route"] == ROUTE
     assert "Warning:" not in capfd.readouterr().err  # SUMO's messages are events, not terminal lines
     msgs = ev[ev.kind == "sumo_message"]
