@@ -29,8 +29,10 @@ def test_bundled_highway_scenario_runs_to_the_end(tmp_path, path):
     """Each bundled scenario, shortened (30 s warm-up, 20 s of formation), runs headless to its
     end with SUMO: no collision, every member present, SUMO's positions equal ours within 1 cm,
     and the trajectories (members and virtual car) equal the golden ones (tests/golden/highway.npz,
-    recorded before issue 14's restructuring, regenerated once for issue 19's jerk-limited
-    planner) within 1e-6 m."""
+    recorded before issue 14's restructuring, regenerated for issue 19's jerk-limited planner and
+    for issue 15's traffic) within 1e-6 m. The heavy scenarios (2,200 veh/h/lane, inserted in
+    full) join the stream at its speed: entering at 30 m/s they braked from the first step and
+    the jerk check below failed (p95 1.7 m/s^3; docs/scenarios.md, "Joining dense traffic")."""
     from test_golden import SUMO_TOL_M, compare, golden
     res, meta, traj, events, out = run(tmp_path, path, **golden.HIGHWAY_OVERRIDES)
     assert res.status == "completed", res.reason
