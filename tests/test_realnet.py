@@ -80,6 +80,26 @@ def test_reference_lane_follows_the_geometry_not_the_connection(net):
     assert [g.rsplit("_", 1)[1] for g in geo[::2]] == ["0"] * 6  # every 3-lane edge: lane 0
 
 
+def test_members_kept_off_sideways_junction_lanes_always_have_a_lane_where_they_are(net):
+    """The internal lanes closed to the members are those whose connection swerves a lane
+    (on-ramps 1 -> 1, exits 0 -> 0 where lane 0 runs on as the exit's lane 1), and every
+    one of them lies beside an open internal lane into the lane the member geometrically
+    enters, so moveToXY always has a lane for it."""
+    from formation_traci.road.lanes import geometric_successor, sideways_internal_lanes
+    closed = sideways_internal_lanes(net, ROUTE)
+    assert closed == [":-30668#2-AddedOffRampNode_0_0", ":-30668#2-AddedOnRampNode_0_1",
+                      ":-30668#4-AddedOffRampNode_0_0", ":-30668#4-AddedOnRampNode_0_1",
+                      ":-30668#6-AddedOnRampNode_0_1"]
+    for a, b in zip(ROUTE, ROUTE[1:]):
+        for lane in net.getEdge(a).getLanes():
+            for c in lane.getOutgoing():
+                if c.getViaLaneID() in closed:
+                    geo = geometric_successor(lane, net.getEdge(b))
+                    open_into = [d for x in net.getEdge(a).getLanes() for d in x.getOutgoing()
+                                 if d.getToLane() == geo and d.getViaLaneID() not in closed]
+                    assert open_into, (lane.getID(), geo.getID())
+
+
 def test_smoothed_reference_is_within_tolerance_and_gently_curved(net):
     """OSM corners (up to 7.4 deg every ~58 m): the fixed 40 m fit turns the sharpest one into a
     ~150 m radius; the tolerance-bounded fit stays within 0.6 m of SUMO's lane centre with a

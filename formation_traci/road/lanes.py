@@ -92,13 +92,19 @@ def geometric_route_lanes(net, edges: Sequence[str], lane_index: int) -> list[st
 def sideways_internal_lanes(net, edges: Sequence[str]) -> list[str]:
     """Internal lanes of the route's joints whose connection leads a lane that continues
     geometrically into another lane (e.g. LuST on-ramps: 1 -> 1 where lane 1 runs on as lane 0).
-    Members are kept off them so SUMO never sees two side-by-side members merging into one lane."""
+    Members are kept off them so SUMO never sees two side-by-side members merging into one lane.
+
+    Only where another connection of the joint leads into that geometric lane (LuST: the ramp's
+    0 -> 0), so a member crossing the junction always has an internal lane it may use where it
+    geometrically is (``moveToXY`` maps it there; docs/sumo.md, "Members on junctions")."""
     out = []
     for a, b in zip(edges, edges[1:]):
         nxt = net.getEdge(b)
+        into = {c.getToLane().getID(): c for lane in net.getEdge(a).getLanes()
+                for c in lane.getOutgoing() if c.getTo().getID() == b}
         for lane in net.getEdge(a).getLanes():
             geo = geometric_successor(lane, nxt)
-            if geo is None:
+            if geo is None or geo.getID() not in into:
                 continue
             for c in lane.getOutgoing():
                 if c.getTo().getID() == b and c.getToLane().getID() != geo.getID():
