@@ -353,12 +353,20 @@ def ramp_reference_line(step: float = SHAPE_STEP) -> list[tuple[float, float]]:
     curvature decreases linearly to zero, and it arrives tangentially (zero angle and zero
     curvature) exactly on the line of the acceleration lane (lane 0 of mw_accel).
     """
-    x_start = ONRAMP_MERGE_X - ONRAMP_RAMP_DX
-    n = math.ceil(ONRAMP_RAMP_DX / step)
+    return cubic_ramp(ONRAMP_MERGE_X - ONRAMP_RAMP_DX, ONRAMP_RAMP_DX, ONRAMP_RAMP_OFFSET, True, step)
+
+
+def cubic_ramp(x_start: float, dx: float, offset: float, joining: bool,
+               step: float = SHAPE_STEP) -> list[tuple[float, float]]:
+    """Left border of a ramp lane over x_start .. x_start + dx [m]: y = -3*3.5 - offset w^3
+    with w = 1 - u (joining: tangent to the motorway lanes' line at the end) or w = u
+    (leaving: tangent at the start), u = (x - x_start) / dx, sampled every <= step."""
+    n = math.ceil(dx / step)
     pts = []
     for i in range(n + 1):
         u = i / n
-        pts.append((x_start + u * ONRAMP_RAMP_DX, -3 * LANE_WIDTH - ONRAMP_RAMP_OFFSET * (1.0 - u) ** 3))
+        w = (1.0 - u) if joining else u
+        pts.append((x_start + u * dx, -3 * LANE_WIDTH - offset * w ** 3))
     return pts
 
 
@@ -414,11 +422,60 @@ def lanedrop() -> Network:
     )
 
 
+# off-ramp layout (x positions along the motorway, y = 0 is the left border)
+OFFRAMP_DECEL_X = 2000.0
+OFFRAMP_DECEL_LENGTH = 250.0
+OFFRAMP_END_X = 4000.0
+OFFRAMP_RAMP_DX = 400.0  # x-extent of the off-ramp edge
+OFFRAMP_RAMP_OFFSET = 15.0  # gap between motorway right border and ramp left border at the ramp end
+
+
+def offramp_reference_line(step: float = SHAPE_STEP) -> list[tuple[float, float]]:
+    """Left border of the off-ramp lane: the on-ramp's curve mirrored in x.
+
+    y(x) = -3*3.5 - D u^3 with u = (x - x_diverge) / 400 m: the ramp leaves the line of the
+    deceleration lane (lane 0 of mw_decel) tangentially (zero angle and curvature) and ends
+    D = 15 m to the right of the motorway's right border at an angle of atan(3D/400) = 6.4 deg.
+    """
+    return cubic_ramp(OFFRAMP_DECEL_X + OFFRAMP_DECEL_LENGTH, OFFRAMP_RAMP_DX, OFFRAMP_RAMP_OFFSET,
+                      False, step)
+
+
+def offramp() -> Network:
+    diverge = OFFRAMP_DECEL_X + OFFRAMP_DECEL_LENGTH
+    ramp = offramp_reference_line()
+    conns = [Connection("mw_up", "mw_decel", k, k + 1) for k in range(3)]
+    conns += [Connection("mw_decel", "mw_down", k + 1, k) for k in range(3)]
+    conns.append(Connection("mw_decel", "offramp", 0, 0))
+    return Network(
+        name="offramp",
+        description=("3-lane motorway, 4000 m along +x, with a 250 m deceleration lane on the right "
+                     "from x=2000 m (4 lanes) and a 1-lane off-ramp leaving it at x=2250 m"),
+        nodes=[
+            Node("n0", 0, 0, "dead_end"),
+            Node("n_decel", OFFRAMP_DECEL_X, 0),
+            Node("n_diverge", diverge, 0),
+            Node("n_end", OFFRAMP_END_X, 0, "dead_end"),
+            Node("n_ramp_end", ramp[-1][0], ramp[-1][1], "dead_end"),
+        ],
+        edges=[
+            Edge("mw_up", "n0", "n_decel", 3, comment="motorway upstream of the exit, x = 0 .. 2000"),
+            Edge("mw_decel", "n_decel", "n_diverge", 4,
+                 comment="x = 2000 .. 2250; lane 0 = deceleration lane (entered by a lane change), lanes 1-3 = motorway"),
+            Edge("mw_down", "n_diverge", "n_end", 3, comment="x = 2250 .. 4000, 3 lanes"),
+            Edge("offramp", "n_diverge", "n_ramp_end", 1, speed=RAMP_SPEED, priority=RAMP_PRIORITY, shape=ramp,
+                 comment="off-ramp, x = 2250 .. 2650, leaves the line of mw_decel lane 0 tangentially"),
+        ],
+        connections=conns,
+    )
+
+
 NETWORKS: dict[str, Callable[[], Network]] = {
     "straight3": straight3,
     "curved3": curved3,
     "onramp": onramp,
     "lanedrop": lanedrop,
+    "offramp": offramp,
 }
 
 # ----------------------------------------------------------------------------------------

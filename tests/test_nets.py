@@ -31,7 +31,7 @@ sumolib = pytest.importorskip("sumolib")
 
 REPO = Path(__file__).resolve().parents[1]
 NETS = REPO / "sumo_nets"
-NAMES = ("straight3", "curved3", "onramp", "lanedrop")
+NAMES = ("straight3", "curved3", "onramp", "lanedrop", "offramp")
 
 LANE_WIDTH = 3.5
 V_MOTORWAY = 36.11
@@ -43,14 +43,17 @@ ROUTES = {
     "curved3": {"main": ["entry", "main"]},
     "onramp": {"main": ["mw_up", "mw_accel", "mw_down"], "ramp": ["ramp", "mw_accel", "mw_down"]},
     "lanedrop": {"main": ["mw_up", "mw_down"]},
+    "offramp": {"main": ["mw_up", "mw_decel", "mw_down"], "exit": ["mw_up", "mw_decel", "offramp"]},
 }
 LANES = {
     "straight3": {"entry": 3, "main": 3},
     "curved3": {"entry": 3, "main": 3},
     "onramp": {"mw_up": 3, "mw_accel": 4, "mw_down": 3, "ramp": 1},
     "lanedrop": {"mw_up": 3, "mw_down": 2},
+    "offramp": {"mw_up": 3, "mw_decel": 4, "mw_down": 3, "offramp": 1},
 }
-MAIN_LENGTH = {"straight3": 6000.0, "curved3": 6000.0, "onramp": 4000.0, "lanedrop": 4000.0}
+MAIN_LENGTH = {"straight3": 6000.0, "curved3": 6000.0, "onramp": 4000.0, "lanedrop": 4000.0,
+               "offramp": 4000.0}
 
 
 _NET_CACHE: dict[str, object] = {}
@@ -175,7 +178,7 @@ def test_edges_and_lane_attributes(name):
         assert edge.getLaneNumber() == n, eid
         for lane in edge.getLanes():
             assert lane.getWidth() == pytest.approx(LANE_WIDTH, abs=1e-6)
-            assert lane.getSpeed() == pytest.approx(V_RAMP if eid == "ramp" else V_MOTORWAY, abs=1e-3)
+            assert lane.getSpeed() == pytest.approx(V_RAMP if eid in ("ramp", "offramp") else V_MOTORWAY, abs=1e-3)
             assert not lane.allows("pedestrian") and not lane.allows("bicycle")
             assert lane.allows("passenger") and lane.allows("truck")
 
@@ -383,6 +386,35 @@ def test_onramp_ramp_geometry():
 
 
 # ----------------------------------------------------------------------------------------
+# offramp
+# ----------------------------------------------------------------------------------------
+
+
+def test_offramp_deceleration_lane_and_exit():
+    net = load("offramp")
+    up, dec, down, ramp = (net.getEdge(e) for e in ("mw_up", "mw_decel", "mw_down", "offramp"))
+    for k in range(3):  # the through lanes shift up one index on mw_decel and back down after it
+        assert [c.getToLane().getID() for c in up.getLane(k).getOutgoing()] == [f"mw_decel_{k + 1}"]
+        assert [c.getToLane().getID() for c in dec.getLane(k + 1).getOutgoing()] == [f"mw_down_{k}"]
+        y = [{round(p[1], 4) for p in e.getLane(i).getShape()}
+             for e, i in ((up, k), (dec, k + 1), (down, k))]
+        assert y[0] == y[1] == y[2] == {-lane_offset(3, k)}
+    # the deceleration lane is entered by a lane change only and leads to the off-ramp only
+    assert not any(c.getToLane().getID() == "mw_decel_0" for k in range(3)
+                   for c in up.getLane(k).getOutgoing())
+    assert [c.getToLane().getID() for c in dec.getLane(0).getOutgoing()] == ["offramp_0"]
+    assert {round(p[1], 4) for p in dec.getLane(0).getShape()} == {-lane_offset(4, 0)}
+    assert dec.getLength() + net.getLane(":n_decel_0_0").getLength() == pytest.approx(250.0, abs=5.0)
+    assert ramp.getLength() == pytest.approx(400.0, abs=5.0)
+    # the off-ramp leaves tangentially, turning right only, and ends 15 m right of the motorway
+    pts, _ = joined_shape(walk(net, ["mw_decel", "offramp"], 0))
+    th = seg_headings(pts)
+    assert abs(th[0]) < 1e-6 and -math.radians(10) < th[-1] < -0.05
+    assert np.all(np.diff(th) <= 1e-6) and np.max(np.abs(np.diff(th))) < 0.01
+    assert pts[-1][1] < -3 * LANE_WIDTH - 10
+
+
+# ----------------------------------------------------------------------------------------
 # lanedrop
 # ----------------------------------------------------------------------------------------
 
@@ -481,11 +513,12 @@ def _routes_xml(name: str) -> tuple[str, dict[str, str]]:
             route_of[vid] = "main"
             lines.append(f'  <vehicle id="{vid}" type="car" route="main" depart="{t}" '
                          f'departLane="{lane}" departPos="0" departSpeed="max"/>')
-        if "ramp" in ROUTES[name]:
-            vid = f"ramp_t{t}"
-            route_of[vid] = "ramp"
-            lines.append(f'  <vehicle id="{vid}" type="car" route="ramp" depart="{t}" '
-                         f'departLane="0" departPos="0" departSpeed="max"/>')
+        for rid in ("ramp", "exit"):
+            if rid in ROUTES[name]:
+                vid = f"{rid}_t{t}"
+                route_of[vid] = rid
+                lines.append(f'  <vehicle id="{vid}" type="car" route="{rid}" depart="{t}" '
+                             f'departLane="0" departPos="0" departSpeed="max"/>')
     lines.append("</routes>")
     return "\n".join(lines) + "\n", route_of
 
@@ -520,3 +553,6 @@ def test_sumo_drives_all_routes(name, tmp_path):
     if name == "onramp":
         # every ramp vehicle left the acceleration lane
         assert changes.count("mw_accel_0") >= 12
+    if name == "offramp":
+        # every exiting vehicle changed into the deceleration lane (it has no predecessor)
+        assert changes.count("mw_decel_1") >= 12

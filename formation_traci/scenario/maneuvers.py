@@ -53,11 +53,20 @@ class SlotSpec(_Strict):
 
 
 class ManeuverSpec(_Strict):
-    kind: Literal["reshape", "lane_change", "leave"]
+    kind: Literal["reshape", "lane_change", "leave", "join"]
     at: TriggerSpec
     slots: list[SlotSpec] | None = Field(None, description="reshape: the new formation's slots (>= members)")
     lanes: int | None = Field(None, description="lane_change: shift of the whole formation in lanes (+1 = left)")
-    member: str | None = Field(None, description="leave: id of the member handed over to SUMO's driver model")
+    member: str | None = Field(None, description="leave: id of the member handed over to SUMO's driver model; "
+                               "join: id of the member that joins (its 'slot' is the free slot; it is not "
+                               "in the formation before the join)")
+    exit: str | None = Field(None, description="leave: edge id of the exit (off-ramp) SUMO routes the member to")
+    vehicle: str | None = Field(None, description="join: SUMO vehicle id to take over (default: the first of "
+                                "about the member's size that comes within reach)")
+    reach: PosFloat = Field(30.0, description="join: take a vehicle over when its centre is this close to the free slot [m]")
+    enter: SlotSpec | None = Field(None, description="join: the member's own vehicle enters the road here (relative to "
+                                   "the virtual car, at its speed) under SUMO's driver when the join is due, and is "
+                                   "taken over when it comes within reach")
     timeout: PosFloat = Field(30.0, description="give up when the gap check keeps refusing this long after the trigger [s]")
     check_gaps: bool = Field(True, description="start only when the target lanes have room (docs/maneuvers.md)")
 
@@ -71,10 +80,17 @@ class ManeuverSpec(_Strict):
             raise ValueError("a lane_change takes 'lanes', not 'slots'")
         if self.kind == "reshape" and self.lanes is not None:
             raise ValueError("a reshape takes 'slots', not 'lanes'")
-        if (self.kind == "leave") != (self.member is not None):
-            raise ValueError("'member' is given with (and only with) kind = \"leave\"")
-        if self.kind == "leave" and (self.slots is not None or self.lanes is not None):
-            raise ValueError("a leave takes 'member' only")
+        if (self.kind in ("leave", "join")) != (self.member is not None):
+            raise ValueError("'member' is given with (and only with) kind = \"leave\" or \"join\"")
+        if self.kind in ("leave", "join") and (self.slots is not None or self.lanes is not None):
+            raise ValueError(f"a {self.kind} takes 'member', not 'slots' or 'lanes'")
+        if self.exit is not None and self.kind != "leave":
+            raise ValueError("'exit' is given with kind = \"leave\" only")
+        if self.vehicle is not None and self.kind != "join":
+            raise ValueError("'vehicle' is given with kind = \"join\" only")
+        if self.enter is not None and (self.kind != "join" or self.vehicle is not None):
+            raise ValueError("'enter' is given with kind = \"join\" only, and not with 'vehicle' "
+                             "(the vehicle taken over is the member's own)")
         return self
 
 

@@ -259,6 +259,10 @@ class Scenario(Strict):
                 raise ValueError(f"maneuvers.{i}.slots: {len(mv.slots)} slots for {len(self.members)} members")
             if mv.member is not None and mv.member not in [m.id for m in self.members]:
                 raise ValueError(f"maneuvers.{i}.member: no member {mv.member!r}")
+        joins = [mv.member for mv in self.maneuvers if mv.kind == "join"]
+        if len(set(joins)) < len(joins) or len(joins) >= len(self.members):
+            raise ValueError("maneuvers: a member joins at most once, and at least one member "
+                             "must be in the formation from the start")
         return self
 
     @model_validator(mode="after")

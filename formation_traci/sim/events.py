@@ -51,13 +51,17 @@ class MemberWatch:
                 prev[ids[i]] = (lanes[j].rsplit("_", 1)[0], int(lane_idx[j]))
 
 
-def log_sumo_events(rec, t, ev, members: set[str]) -> None:
-    """Collisions and teleports SUMO reported for the last step."""
+def log_sumo_events(rec, t, ev, members: set[str], names: dict | None = None) -> None:
+    """Collisions and teleports SUMO reported for the last step (``names``: SUMO id -> member
+    id of vehicles taken over by a join)."""
+    names = names or {}
     if ev is None:
         return
     for collider, victim, lane in ev.collisions:
-        rec.add_event(t, "collision", collider, victim, f"lane {lane}")
+        rec.add_event(t, "collision", names.get(collider, collider), names.get(victim, victim),
+                      f"lane {lane}")
     for vid in ev.teleports:
+        vid = names.get(vid, vid)
         rec.add_event(t, "teleport", vid, "", "member" if vid in members else "")
 
 
@@ -112,20 +116,21 @@ class EmergencyWatch:
 class RefusalWatch:
     """Counts refused moves per member; after MAX_REFUSED in a row the member leaves."""
 
-    def __init__(self, rec, ids):
+    def __init__(self, rec, ids, sumo_ids=None):
         self.rec, self.ids = rec, ids
+        self.sumo_ids = ids if sumo_ids is None else sumo_ids  # SUMO's id of each member (join)
         self.run = np.zeros(len(ids), dtype=int)
 
     def __call__(self, t, act_idx, refused: dict, active, adapter) -> None:
         for i in act_idx:
             vid = self.ids[i]
-            if vid not in refused:
+            if self.sumo_ids[i] not in refused:
                 self.run[i] = 0
                 continue
             self.run[i] += 1
-            self.rec.add_event(t, "move_refused", vid, "", refused[vid])
+            self.rec.add_event(t, "move_refused", vid, "", refused[self.sumo_ids[i]])
             if self.run[i] >= MAX_REFUSED:
                 active[i] = False
-                adapter.remove_vehicle(vid)
+                adapter.remove_vehicle(self.sumo_ids[i])
                 self.rec.add_event(t, "member_removed", vid, "",
                                    f"dropped after {MAX_REFUSED} refused moves in a row")

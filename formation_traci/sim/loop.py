@@ -84,6 +84,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
     sensing = [tr for tr in parts.transforms if hasattr(tr, "sense")]
     true_error = any(getattr(tr, "error_against_truth", False) for tr in parts.transforms)
     clock = PhaseClock({} if parts.timing is None else parts.timing)
+    adopt = getattr(world, "adopt", None)
     try:
         world.start()  # inside: a signal or a failure during SUMO's start or warm-up closes SUMO
         for k in range(n_steps + 1):
@@ -96,6 +97,8 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
                 tr.sense(k, t, sensed, fleet.kinematics(state), rec)
             ref0 = gen.reference(t, sensed)
             ref = apply(ref0, parts.transforms)
+            if adopt is not None:  # vehicles the world handed to the formation (join)
+                state = adopt(state, ref)
             clock.lap("governor")
             world.observe(t, sensed, ref)
             if parts.road_load is not None:  # drag ratio and grade, held over the step

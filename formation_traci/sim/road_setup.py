@@ -27,6 +27,7 @@ MAIN_ROUTES = {
     "curved3": ["entry", "main"],
     "onramp": ["mw_up", "mw_accel", "mw_down"],
     "lanedrop": ["mw_up", "mw_down"],
+    "offramp": ["mw_up", "mw_decel", "mw_down"],
 }
 """Default main route of each bundled network (sumo_nets/README.md)."""
 
@@ -115,6 +116,11 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
             flow_routes[f.id] = (edges, net.getEdge(edges[0]).getLaneNumber() if net.hasEdge(edges[0]) else 0)
     if problems:
         raise ScenarioError(src, [(fld, f"{msg} ({net_file.name})") for fld, msg in problems])
+    bad_exits = [(f"maneuvers.{i}.exit", f"expected an edge of {net_file.name} off the route (an off-ramp), got {mv.exit!r}")
+                 for i, mv in enumerate(sc.maneuvers) if mv.exit is not None
+                 and (not net.hasEdge(mv.exit) or mv.exit in route)]
+    if bad_exits:
+        raise ScenarioError(src, bad_exits)
     first = net.getEdge(route[0])
     if sc.road.lane >= first.getLaneNumber():
         raise ScenarioError(src, [("road.lane", f"edge {route[0]!r} has lanes 0..{first.getLaneNumber() - 1}, "

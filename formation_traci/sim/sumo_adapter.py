@@ -309,12 +309,13 @@ class SumoAdapter:
         if mt.ssm_device:  # by the type, not --device.ssm.explicit: SUMO keeps that id list
             vt.setParameter(mt.id, "has.ssm.device", "true")  # from the first run of a process
 
-    def release(self, vid: str, accel: float, decel: float) -> str:
+    def release(self, vid: str, accel: float, decel: float, exit_edge: str = "") -> str:
         """Hand member ``vid`` over to SUMO's own driver model at its lane, position and
-        speed: its route becomes the rest of the formation's route from its edge, its
-        acceleration and deceleration ``accel`` / ``decel`` [m/s^2], SUMO's safe-speed and
-        lane-change checks are on again (their default modes), and from now on it is an
-        ordinary vehicle (a neighbour). Returns its lane id."""
+        speed: its route becomes the rest of the formation's route from its edge (or, with
+        ``exit_edge``, SUMO's route to that edge: ``changeTarget``), its acceleration and
+        deceleration ``accel`` / ``decel`` [m/s^2], SUMO's safe-speed and lane-change checks
+        are on again (their default modes), and from now on it is an ordinary vehicle (a
+        neighbour). Returns its lane id; raises SumoError when the exit cannot be reached."""
         v = self.api.vehicle
         window = self._window.pop(vid, None)
         lane = self._member_lane.pop(vid, ("", -1, 0.0))[0]
@@ -326,12 +327,46 @@ class SumoAdapter:
                     v.setRoute(vid, edges[edges.index(edge):])
                 except self.api.TraCIException:
                     pass  # keeps its window; SUMO reports it at the window's end
+        if exit_edge:
+            try:
+                v.changeTarget(vid, exit_edge)
+            except self.api.TraCIException as exc:
+                raise SumoError(f"no route from {lane or 'its lane'} to the exit {exit_edge}: {exc}") from None
         v.setAccel(vid, accel)
         v.setDecel(vid, decel)
         v.setSpeedMode(vid, SPEED_MODE_DEFAULT)
         v.setLaneChangeMode(vid, LANE_CHANGE_MODE_DEFAULT)
         self.members.pop(vid, None)
         return lane
+
+    def add_driven(self, vid: str, edges: list[str], lane: int, pos: float, speed: float,
+                   mt: MemberType, accel: float, decel: float) -> None:
+        """A vehicle of type ``mt`` that SUMO drives: on ``edges[0]`` lane ``lane``, front
+        bumper ``pos`` [m] from the edge's start, ``speed`` [m/s] (inserted as soon as SUMO
+        finds it safe), acceleration / deceleration ``accel`` / ``decel`` [m/s^2], keeping
+        its lane (lane-change mode 0). A joining member before the join takes it over."""
+        rid = f"{vid}_entry"
+        self.api.route.add(rid, list(edges))
+        self.api.vehicle.add(vid, rid, typeID=mt.id, depart="now", departLane=str(int(lane)),
+                             departPos=f"{max(pos, 0.0):.3f}", departSpeed=f"{max(speed, 0.0):.3f}")
+        self.api.vehicle.setAccel(vid, accel)
+        self.api.vehicle.setDecel(vid, decel)
+        self.api.vehicle.setLaneChangeMode(vid, 0)
+
+    def take_over(self, vid: str, mt: MemberType, route_id: str) -> None:
+        """Join: SUMO vehicle ``vid`` becomes a member where it is: vType ``mt`` (SUMO keeps
+        its front bumper where it is), no safe-speed or lane-change checks of its own, placed
+        by moveToXY from the next step on along the formation's route ``route_id`` from its
+        edge (the route window, as for an inserted member)."""
+        self.members[vid] = mt
+        self._bodies.pop(vid, None)
+        v = self.api.vehicle
+        v.setType(vid, mt.id)
+        v.setSpeedMode(vid, 0)
+        v.setLaneChangeMode(vid, 0)
+        v.subscribe(vid, self._member_vars())  # replaces a neighbour subscription
+        self._subscribed.add(vid)
+        self._window[vid] = (route_id, -1)
 
     # -- members ---------------------------------------------------------------------
     def insert_member(self, vid: str, route_id: str, mt: MemberType, x, y, psi, v) -> None:

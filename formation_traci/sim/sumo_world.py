@@ -19,9 +19,10 @@ from ..scenario.schema import Scenario
 from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
                      log_sumo_events)
 from .road_setup import rectangles_overlap
-from .sumo_adapter import SumoAdapter
 from .demand import measure_plan, traffic_meta
+from .join import adopt, enter, take_over
 from .messages import sumo_outputs_meta
+from .sumo_adapter import SumoAdapter, SumoError
 from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import CAR, flow_vehicles_per_hour, write_routes
 from .world import Sensed
@@ -40,6 +41,12 @@ class SumoWorld:
         self.line = FastLine.from_reference_line(plan.road.line)
         self.out_dir, self.sumo_dir = out_dir, out_dir / "sumo"
         self.active = np.ones(n, dtype=bool)
+        for mv in sc.maneuvers:  # a joining member enters when it takes a vehicle over
+            if mv.kind == "join":
+                self.active[self.ids.index(mv.member)] = False
+        self.sumo_ids = list(self.ids)  # SUMO's vehicle of each member (join: the one taken over)
+        self.adopting = []  # take-overs to write into the fleet state (sim/join.py)
+        self.route_id = MEMBER_ROUTE
         self.slot_index = np.arange(n, dtype=float)  # the 'slot' column; maneuvers change it
         self.inserted = False
         self.all_bg = sc.traffic.record_radius is None or baseline
@@ -53,7 +60,7 @@ class SumoWorld:
         self.traffic = TrafficWatch(rec, self.ids, lanes, sc.leader.time_gap, sc.leader.min_gap)
         self.emergency = EmergencyWatch(rec, self.ids)
         self.followed = None  # the member sumo-gui's view follows
-        self.refusals = RefusalWatch(rec, self.ids)
+        self.refusals = RefusalWatch(rec, self.ids, self.sumo_ids)
         self.mtypes = member_types(sc, plan)
         self.d_front = np.array([mt.d_front for mt in self.mtypes])  # CoG to front bumper [m]
         self.adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
@@ -127,7 +134,7 @@ class SumoWorld:
             sensed.nb = self.adapter.neighbours(True)
         elif self.inserted:
             self._read_members(t, pos, m_d, sensed.extra)
-            log_sumo_events(self.rec, t, self.ev, set(self.ids))
+            log_sumo_events(self.rec, t, self.ev, set(self.ids), self.joined_names())
             sensed.nb = self.adapter.neighbours(self.all_bg)
         nb = sensed.nb
         if nb is not None and len(nb.ids):
@@ -140,7 +147,7 @@ class SumoWorld:
         n = len(self.ids)
         idx_act = np.flatnonzero(self.active)
         xs, ys, _, lanes, lane_idx, lat, present = self.adapter.read_members(
-            [self.ids[i] for i in idx_act])
+            [self.sumo_ids[i] for i in idx_act])
         for j, i in enumerate(idx_act):
             if not present[j]:
                 self.members.removed(t, i)
@@ -155,17 +162,44 @@ class SumoWorld:
         self.members.placement(t, gap_sumo)
         self.members.lane_changes(t, idx_act, present, lanes, lane_idx)
 
-    def release(self, t: float, i: int) -> None:
+    def release(self, t: float, i: int, exit_edge: str = "") -> None:
         """Leave: hand member i over to SUMO's own driver model where it is (its lane,
         position and speed); it drives on as an ordinary vehicle with a SUMO car's
-        acceleration and deceleration (sim/traffic.py CAR) and is no longer controlled."""
-        vid = self.ids[i]
+        acceleration and deceleration (sim/traffic.py CAR), routed to ``exit_edge`` when
+        given, and is no longer controlled."""
+        vid = self.sumo_ids[i]
         if not self.active[i] or not self.inserted or self.baseline:
             return
         v = float(self.v_after[i])
-        lane = self.adapter.release(vid, float(CAR["accel"]), float(CAR["decel"]))
+        way = f", routed to the exit {exit_edge}" if exit_edge else ""
+        try:
+            lane = self.adapter.release(vid, float(CAR["accel"]), float(CAR["decel"]), exit_edge)
+        except SumoError as exc:
+            lane, way = "?", f", not routed to the exit: {exc}"
         self.active[i] = False
-        self.rec.add_event(t, "handover", vid, "", f"leave: released to SUMO at {v:.2f} m/s on lane {lane}")
+        self.rec.add_event(t, "handover", self.ids[i], vid if vid != self.ids[i] else "",
+                           f"leave: released to SUMO at {v:.2f} m/s on lane {lane}{way}")
+
+    def take_over(self, t: float, i: int, vid: str, sensed, where=None) -> None:
+        """Join: SUMO vehicle ``vid`` becomes member i where it is, or (``where`` = (s, d, v))
+        member i's own vehicle enters the road under SUMO's driver (sim/join.py); a baseline
+        twin has no formation to join."""
+        if not self.inserted or self.baseline:
+            return
+        if where is None:
+            take_over(self, t, i, vid, sensed)
+        else:
+            enter(self, t, i, *where)
+
+    def adopt(self, state, ref):
+        """The fleet state with the vehicles taken over in this step written in (sim/join.py)."""
+        if self.adopting:
+            adopt(self.fleet, state, ref, self.adopting)
+        return state
+
+    def joined_names(self) -> dict:
+        """SUMO id -> member id of the vehicles taken over by a join."""
+        return {s: m for s, m in zip(self.sumo_ids, self.ids) if s != m}
 
     def observe(self, t: float, sensed: Sensed, ref) -> None:
         info = ref.info
@@ -191,13 +225,15 @@ class SumoWorld:
         ids, ad = self.ids, self.adapter
         if not self.inserted:
             ld = self.sc.leader
-            clear_insertion_zone(ad, self.rec, t_next, pos, heading, v_after, self.plan.vehicles,
-                                 ld.min_gap + ld.time_gap * v_after)
+            a = act_idx
+            clear_insertion_zone(ad, self.rec, t_next, pos[a], heading[a], v_after[a],
+                                 [self.plan.vehicles[i] for i in a],
+                                 ld.min_gap + ld.time_gap * v_after[a])
             for i in act_idx:
                 ad.insert_member(ids[i], MEMBER_ROUTE, self.mtypes[i], pos[i, 0], pos[i, 1],
                                  heading[i], v_after[i])
             return
-        refused = dict(ad.place([ids[i] for i in act_idx], pos[act_idx, 0], pos[act_idx, 1],
+        refused = dict(ad.place([self.sumo_ids[i] for i in act_idx], pos[act_idx, 0], pos[act_idx, 1],
                                 heading[act_idx]))
         self.refusals(t_next, act_idx, refused, self.active, ad)
 
@@ -211,18 +247,18 @@ class SumoWorld:
             self.inserted = True  # reads neighbours (every vehicle) from now on
             return
         act_idx = np.flatnonzero(self.active)
-        ad.set_true_speeds([self.ids[i] for i in act_idx], self.v_after[act_idx],
+        ad.set_true_speeds([self.sumo_ids[i] for i in act_idx], self.v_after[act_idx],
                            self.a_mean[act_idx])
         if not self.all_bg and self.active.any() and (
                 not self.inserted or self.ctx_owner is None or not self.active[self.ctx_owner]):
-            self.ctx_owner = subscribe_context(ad, self.ids, self.active, self.along,
+            self.ctx_owner = subscribe_context(ad, self.sumo_ids, self.active, self.along,
                                                self.slot_d_0, self.sc.traffic.record_radius)
         self.inserted = True
         if self.all_bg:
             ad.subscribe_departed()
         if ad.gui and self.active.any() and (self.followed is None or not self.active[self.followed]):
             self.followed = middle_member(self.active, self.along, self.slot_d_0)
-            ad.follow(self.ids[self.followed])
+            ad.follow(self.sumo_ids[self.followed])
 
 
 def middle_member(active, along, across) -> int:
@@ -319,8 +355,9 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     widths = np.array([v.width for v in plan.vehicles])
     planner = ManeuverPlanner(sc.maneuvers, plan.slots, plan.road.lane_width, sc.maneuver_limits,
                               lengths, widths, list(world.ids), road_room(plan.road),
-                              (ld.time_gap, ld.min_gap))
+                              (ld.time_gap, ld.min_gap),
+                              np.array([v.cog_to_front_bumper for v in plan.vehicles]))
     gen = ManeuverRoadReference(*args, planner=planner, on_event=rec.add_event, length=lengths,
-                                on_release=world.release)
+                                on_release=world.release, on_join=world.take_over)
     return RunParts(world, gen, fleet, state, transforms=[PlanSlots(planner)],
                     timing=meta["timing_s"], road_load=load)

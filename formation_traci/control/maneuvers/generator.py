@@ -67,11 +67,14 @@ class ManeuverRoadReference(RoadReference):
     """RoadReference whose slots follow the maneuver planner (see the module docstring)."""
 
     def __init__(self, *args, planner: ManeuverPlanner, on_event, length: float,
-                 on_release=None, **kw):
+                 on_release=None, on_join=None, **kw):
         super().__init__(*args, **kw)
         self.planner, self.on_event = planner, on_event
         self.body_length = np.asarray(length, float)  # [m], one or one per member
-        self.on_release = on_release  # on_release(t, i): hand member i over to the world
+        self.on_release = on_release  # on_release(t, i, exit_edge): hand member i over to the world
+        # on_join(t, i, vehicle, sensed[, where]): the world's vehicle becomes member i, or
+        # (where = (s, d, v)) member i's own vehicle enters the road under the world's driver
+        self.on_join = on_join
 
     def governor(self, t: float, sensed):
         others = NO_OTHERS
@@ -79,9 +82,13 @@ class ManeuverRoadReference(RoadReference):
         if nb is not None and len(nb.ids):
             others = Others(tuple(nb.ids), sensed.nb_s, sensed.nb_d, nb.length, nb.width, nb.v)
         for ev in self.planner.step(Situation(float(t), self.s, sensed.m_s, sensed.m_d,
-                                              sensed.v_m, sensed.active, others)):
+                                              sensed.v_m, sensed.active, others, self.v)):
             if ev.kind == "release":
-                self.on_release(t, ev.member)
+                self.on_release(t, ev.member, ev.name)
+            elif ev.kind == "take_over":  # the world drops it from sensed.nb
+                self.on_join(t, ev.member, ev.name, sensed)
+            elif ev.kind == "enter":
+                self.on_join(t, ev.member, "", sensed, ev.where)
             else:
                 self.on_event(t, ev.kind, "vc", "", ev.detail)
         now = self.planner.slots(t)
@@ -89,7 +96,8 @@ class ManeuverRoadReference(RoadReference):
         sensed.extra["slot"] = self.planner.slot_of.astype(float)
         a_vc, gap, lead_idx, v_cap, a_cap = super().governor(t, sensed)
         goal = self.planner.goal()
-        if goal is not None and len(others.ids):
+        nb = sensed.nb
+        if goal is not None and nb is not None and len(nb.ids):
             lim = self.limits
             a_room = room_accel(goal, self.s + self.d_front, self.v, self.half_w,
                                 self.body_length, sensed.active, sensed.nb_rear, sensed.nb_d,

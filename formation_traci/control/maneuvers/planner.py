@@ -18,6 +18,7 @@ import numpy as np
 
 from .assign import assign_slots, min_clearance
 from .gap import Others, check_gaps
+from .join import describe, join_duration, path_clearance, pick_vehicle, without
 from .transition import ComfortLimits, hold_plan, slots_at, transition_duration
 from .triggers import is_due, queue_behind
 
@@ -33,13 +34,16 @@ class Situation:
     v_m: np.ndarray  # (n,) members' speed [m/s]
     active: np.ndarray  # (n,) bool
     others: Others
+    v_vc: float = 0.0  # virtual car's speed [m/s]
 
 
 @dataclass(frozen=True, slots=True)
 class PlannerEvent:
-    kind: str  # maneuver_start | maneuver_end | maneuver_postponed | maneuver_cancelled | release
+    kind: str  # maneuver_start | maneuver_end | maneuver_postponed | maneuver_cancelled | release | take_over
     detail: str  # "<maneuver>: ..." (the maneuver's name first)
-    member: int = -1  # release: the member to hand over to the world's own driver
+    member: int = -1  # release / take_over: the member handed over to or taken from the world
+    name: str = ""  # release: the exit edge ("" = stay on the route); take_over: the vehicle
+    where: tuple = ()  # enter: (s [m], d [m], v [m/s]) where and how fast the member's vehicle enters
 
 
 RoomFn = Callable[[float, float], tuple[float, float]]
@@ -57,7 +61,7 @@ class ManeuverPlanner:
 
     def __init__(self, specs, slots0: np.ndarray, lane_width: float, limits_spec,
                  lengths, widths, ids, room: RoomFn | None = None,
-                 follow: tuple[float, float] = (0.0, 0.0)):
+                 follow: tuple[float, float] = (0.0, 0.0), d_front=None):
         self.specs = list(specs)
         self.plan = hold_plan(slots0)
         self.shape = np.array(slots0, dtype=float)
@@ -70,6 +74,9 @@ class ManeuverPlanner:
         self.lengths = np.broadcast_to(np.asarray(lengths, float), (len(slots0),))
         self.widths = np.broadcast_to(np.asarray(widths, float), (len(slots0),))
         self.ids = list(ids)
+        # CoG to front bumper [m]: where a vehicle taken over has its CoG (join)
+        self.d_front = np.broadcast_to(np.asarray(self.lengths / 2 if d_front is None else d_front,
+                                                  float), (len(slots0),))
         self.room = room
         self.next = 0
         self.running: tuple[str, float] | None = None  # (name, end time [s])
@@ -77,6 +84,7 @@ class ManeuverPlanner:
         self.postponed = False
         self.intervals: list[tuple[str, float, float]] = []
         self.pending_goal: np.ndarray | None = None  # goal of the due maneuver while postponed
+        self.entered = -1  # index of the join whose member's vehicle has entered the road
 
     def goal(self) -> np.ndarray | None:
         """Slots (n, 2) the formation is moving to or waiting to move to (None: holding):
@@ -118,7 +126,11 @@ class ManeuverPlanner:
                 events += self._leave(spec, sn)
                 self._advance()
                 continue
-            ok, detail = self._try_start(spec, sn)
+            if spec.kind == "join":
+                ok, detail, take = self._try_join(spec, sn)
+            else:
+                (ok, detail), take = self._try_start(spec, sn), []
+            events += take
             if ok:
                 events.append(PlannerEvent("maneuver_start", f"{spec.kind}: {detail}"))
                 self._advance()
@@ -140,9 +152,68 @@ class ManeuverPlanner:
         if not sn.active[i]:
             return [PlannerEvent("maneuver_cancelled", f"leave: member {spec.member!r} is no longer in the run")]
         self.intervals.append(("leave", sn.t, sn.t))
-        return [PlannerEvent("maneuver_start", f"leave: member {spec.member!r}"),
-                PlannerEvent("release", f"leave: member {spec.member!r}", i),
+        way = f" by the exit {spec.exit!r}" if spec.exit else ""
+        return [PlannerEvent("maneuver_start", f"leave: member {spec.member!r}{way}"),
+                PlannerEvent("release", f"leave: member {spec.member!r}", i, spec.exit or ""),
                 PlannerEvent("maneuver_end", "leave")]
+
+    def _try_join(self, spec, sn: Situation) -> tuple[bool, str, list[PlannerEvent]]:
+        """A join: take over the vehicle join.pick_vehicle finds near the member's free slot
+        and start its slot where it is (join.py); wait while none is within reach or its path
+        into the slot has no room."""
+        i = self.ids.index(spec.member)
+        if sn.active[i]:
+            return False, f"member {spec.member!r} is already in the formation", []
+        goal = self.plan[i, 2:4].copy()
+        o = sn.others
+        if spec.enter is not None and self.entered != self.next:
+            return self._enter(spec, i, sn)
+        vehicle = spec.member if spec.enter is not None else spec.vehicle
+        j = pick_vehicle(o, sn.s_vc + goal[0], goal[1], spec.reach, self.lane_width,
+                         float(self.lengths[i]), float(self.widths[i]), vehicle)
+        if j < 0:
+            return False, f"no vehicle within {spec.reach:g} m of the free slot of {spec.member!r}", []
+        start = np.array([o.s[j] + o.length[j] / 2 - self.d_front[i] - sn.s_vc, o.d[j]])
+        r0 = float(o.v[j] - sn.v_vc)
+        T = join_duration(goal[0] - start[0], goal[1] - start[1], r0, 0.0, self.limits)
+        a = sn.active
+        rest = without(o, j)
+        if spec.check_gaps:
+            verdict = check_gaps(np.array([o.s[j]]), np.array([goal[0] - start[0]]),
+                                 np.array([o.d[j]]), np.array([goal[1]]), self.lengths[[i]],
+                                 self.widths[[i]], np.array([sn.v_vc]), rest, T, self.gap_time,
+                                 self.gap_min, [spec.member], *self.ahead)
+            if not verdict.ok:
+                return False, f"no room: {verdict.reason}", []
+        clear = path_clearance(start, goal, r0 * T, self.plan[a, 2:4], float(self.lengths[i]),
+                               float(self.widths[i]), self.lengths[a], self.widths[a])
+        if clear < 0.0:
+            return False, f"its path into the slot crosses a member ({clear:.2f} m)", []
+        self.plan[i] = [*start, *goal, sn.t, T, r0, 0.0]
+        self.running = ("join", sn.t + T)
+        self.intervals.append(("join", sn.t, sn.t + T))
+        gap = float(np.hypot(*(goal - start)))
+        return True, f"member {spec.member!r} {describe(o.ids[j], gap, T, r0)}", [
+            PlannerEvent("take_over", f"join: {o.ids[j]}", i, o.ids[j])]
+
+    def _enter(self, spec, i: int, sn: Situation) -> tuple[bool, str, list[PlannerEvent]]:
+        """The joining member's own vehicle enters the road under SUMO's driver at
+        ``spec.enter`` from the virtual car, at its speed, once no vehicle in that lane is
+        closer than the bodies plus gap_min + gap_time v."""
+        e = spec.enter
+        s, d = sn.s_vc + e.along, e.across if e.across is not None else e.lanes * self.lane_width
+        o = sn.others
+        need = ((self.lengths[i] + o.length) / 2 + self.gap_min
+                + self.gap_time * np.maximum(o.v, sn.v_vc))
+        close = (np.abs(o.d - d) < self.lane_width / 2) & (np.abs(o.s - s) < need)
+        if close.any():
+            k = int(np.flatnonzero(close)[0])
+            return False, (f"the entry of {spec.member!r} is blocked by {o.ids[k]} "
+                           f"({o.s[k] - s:+.1f} m from it)"), []
+        self.entered = self.next
+        return False, (f"{spec.member!r} entered under SUMO's driver, waiting for it to come "
+                       f"within {spec.reach:g} m of the free slot"), [
+            PlannerEvent("enter", f"join: {spec.member}", i, "", (s, d, sn.v_vc))]
 
     def _advance(self):
         self.next += 1
@@ -190,6 +261,7 @@ class ManeuverPlanner:
         self.plan[:, 2:4] = goal
         self.plan[:, 4] = sn.t
         self.plan[:, 5] = T
+        self.plan[:, 6:8] = 0.0
         self.shape, self.slot_of = shape, slot_of
         self.running = (spec.kind, sn.t + T)
         self.intervals.append((spec.kind, sn.t, sn.t + T))

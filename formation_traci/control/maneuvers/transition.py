@@ -77,20 +77,43 @@ def quintic(t, t0, T):
 
 
 @kernel
+def rate_basis(t, t0, T):
+    """g T [s], g_dot [-], g_ddot [1/s] of the quintic that starts with unit rate and ends at
+    rest: g(tau) = tau - 6 tau^3 + 8 tau^4 - 3 tau^5 (g = g'' = 0 at both ends, g'(0) = 1,
+    g'(1) = 0), so that a slot starting with rate r0 [m/s] adds r0 T g(tau) to its offset
+    (zero before t0 and from t0 + T on; at t0 the rate is r0)."""
+    if T <= 0.0 or t < t0 or t >= t0 + T:
+        return 0.0, 0.0, 0.0
+    tau = (t - t0) / T
+    t2 = tau * tau
+    g = tau + t2 * tau * (-6.0 + tau * (8.0 - 3.0 * tau))
+    g1 = 1.0 + t2 * (-18.0 + tau * (32.0 - 15.0 * tau))
+    g2 = tau * (-36.0 + tau * (96.0 - 60.0 * tau)) / T
+    return g * T, g1, g2
+
+
+@kernel
 def slot_at(plan_row, t):
     """Slot of one member at time t [s] from its plan row (PLAN_* columns):
-    (dx, dy, dx_dot, dy_dot, dx_ddot, dy_ddot) [m, m/s, m/s^2]."""
+    (dx, dy, dx_dot, dy_dot, dx_ddot, dy_ddot) [m, m/s, m/s^2]. The start rates (a joining
+    vehicle's own motion relative to the formation) add r0 T g(tau) (:func:`rate_basis`)."""
     h, h1, h2 = quintic(t, plan_row[4], plan_row[5])
     ex = plan_row[2] - plan_row[0]
     ey = plan_row[3] - plan_row[1]
-    return (plan_row[0] + h * ex, plan_row[1] + h * ey, h1 * ex, h1 * ey, h2 * ex, h2 * ey)
+    rx = plan_row[6]
+    ry = plan_row[7]
+    g, g1, g2 = rate_basis(t, plan_row[4], plan_row[5])
+    return (plan_row[0] + h * ex + rx * g, plan_row[1] + h * ey + ry * g,
+            h1 * ex + rx * g1, h1 * ey + ry * g1, h2 * ex + rx * g2, h2 * ey + ry * g2)
 
 
-PLAN_FROM_ALONG, PLAN_FROM_ACROSS, PLAN_TO_ALONG, PLAN_TO_ACROSS, PLAN_T0, PLAN_T = range(6)
-N_PLAN = 6
-"""A slot plan is an (n, 6) float array, one row per member: the transition from
-(from_along, from_across) to (to_along, to_across) [m] starting at t0 [s] lasting T [s].
-A member at rest in its slot has from == to (any t0, T)."""
+(PLAN_FROM_ALONG, PLAN_FROM_ACROSS, PLAN_TO_ALONG, PLAN_TO_ACROSS, PLAN_T0, PLAN_T,
+ PLAN_RATE_ALONG, PLAN_RATE_ACROSS) = range(8)
+N_PLAN = 8
+"""A slot plan is an (n, 8) float array, one row per member: the transition from
+(from_along, from_across) to (to_along, to_across) [m] starting at t0 [s] lasting T [s],
+with start rates (rate_along, rate_across) [m/s] (zero except for a joining vehicle). A
+member at rest in its slot has from == to and zero rates (any t0, T)."""
 
 
 def hold_plan(slots: np.ndarray) -> np.ndarray:
