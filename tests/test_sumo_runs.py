@@ -301,3 +301,30 @@ def test_members_carry_a_window_of_a_long_route_of_many_edges(tmp_path):
         for edge, route in on_edges:
             last = min(edges.index(edge) + max_window, n_edges) - 1
             assert list(route) == edges[:last + 1], (vid, edge, route)  # driven edges + window
+
+
+def test_a_released_member_drives_on_as_an_ordinary_vehicle_class():
+    """Members have their own SUMO classes (custom1 car, custom2 truck), closed on real networks
+    to the junction lanes whose connection swerves a lane (docs/sumo.md, "Members on junctions");
+    a member handed over to SUMO's driver (leave, exit leave) becomes a passenger car or truck
+    again, so SUMO may route it over those lanes (e.g. LuST's exits, entered from lane 0 by a
+    lane closed to members)."""
+    from formation_traci.sim.sumo_adapter import MemberType, SumoAdapter
+    ad = SumoAdapter("libsumo")
+    ad.start(["-n", str(ROOT / "sumo_nets" / "straight3.net.xml"), "--no-step-log", "true", "--end", "100"])
+    try:
+        main = [e for e in ad.api.edge.getIDList() if not e.startswith(":")]
+        ad.add_route("r", main[:1])
+        got = {}
+        for vid, cls in (("car", "custom1"), ("truck", "custom2")):
+            mt = MemberType(id=f"t_{vid}", length=4.6, width=1.8, d_front=2.3, color=(0, 0, 255), vclass=cls)
+            ad.add_member_type(mt)
+            x, y = ad.api.simulation.convert2D(main[0], 50.0 + 20.0 * len(got), 1)
+            ad.insert_member(vid, "r", mt, x - 2.3, y, 0.0, 20.0)
+            ad.step()
+            got[vid] = [ad.api.vehicle.getVehicleClass(vid)]
+            ad.release(vid, 2.6, 4.5)
+            got[vid].append(ad.api.vehicle.getVehicleClass(vid))
+        assert got == {"car": ["custom1", "passenger"], "truck": ["custom2", "truck"]}
+    finally:
+        ad.close()

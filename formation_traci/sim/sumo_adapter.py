@@ -38,6 +38,10 @@ LANE_CHANGE_MODE_DEFAULT = 1621
 
 REMOVED_REASONS = ("arrived", "vanished")
 
+ORDINARY_CLASS = {"custom1": "passenger", "custom2": "truck"}
+"""SUMO class a released member drives on with: the members' own classes are kept off some
+junction lanes of real networks (road/lanes.py), an ordinary vehicle is not."""
+
 
 def cog_to_sumo(x, y, psi, d_front):
     """CoG pose [m, m, rad CCW from +x] -> SUMO front bumper [m, m] and angle [deg, CW from north]."""
@@ -319,6 +323,9 @@ class SumoAdapter:
         v = self.api.vehicle
         window = self._window.pop(vid, None)
         lane = self._member_lane.pop(vid, ("", -1, 0.0))[0]
+        mt = self.members.get(vid)
+        if mt is not None and mt.vclass in ORDINARY_CLASS:  # lanes closed to members open again
+            v.setVehicleClass(vid, ORDINARY_CLASS[mt.vclass])
         if window is not None and lane and not lane.startswith(":"):
             edges = self._routes[window[0]][0]
             edge = lane.rsplit("_", 1)[0]
