@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Footprint", "MEMBER_FOOTPRINTS", "member_footprint", "body_centre", "rectangle_corners"]
+__all__ = ["Footprint", "MEMBER_FOOTPRINTS", "member_footprint", "member_footprints", "body_centre",
+           "rectangle_corners"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,6 +48,43 @@ def _num(x: Any) -> float | None:
     return v if np.isfinite(v) and v > 0 else None
 
 
+def _recorded_body(body: Any) -> Footprint | None:
+    """A member's ``body`` as run.json recorded it, or None when it is missing or damaged."""
+    if not isinstance(body, Mapping):
+        return None
+    values = {k: _num(body.get(k)) for k in ("length", "width", "a")}
+    overhang = body.get("front_overhang")
+    if None in values.values() or not isinstance(overhang, (int, float)) or overhang < 0:
+        return None
+    return Footprint(front_overhang=float(overhang), **values)
+
+
+def member_footprints(scenario: Mapping[str, Any] | None,
+                      members: Any = None) -> dict[str, Footprint]:
+    """Each member's own body outline, by member id: the ``body`` run.json recorded for that
+    member (a mixed formation's truck is a truck), else the formation's outline from
+    :func:`member_footprint`.
+
+    Parameters
+    ----------
+    scenario : mapping or None
+        The validated scenario (``run.json`` ``scenario``), for members without a body.
+    members : list of mappings or None
+        ``run.json`` ``members`` (``id`` and ``body``: length, width, a, front_overhang [m]).
+
+    Returns
+    -------
+    dict of str to Footprint
+        One outline per member id (empty when run.json lists no members).
+    """
+    default = member_footprint(scenario, members)[0]
+    out: dict[str, Footprint] = {}
+    for m in members or []:
+        if isinstance(m, Mapping) and m.get("id") is not None:
+            out[str(m["id"])] = _recorded_body(m.get("body")) or default
+    return out
+
+
 def member_footprint(scenario: Mapping[str, Any] | None,
                      members: Any = None) -> tuple[Footprint, str]:
     """Members' body outline from run.json: the ``body`` the runner recorded for the members
@@ -74,12 +112,9 @@ def member_footprint(scenario: Mapping[str, Any] | None,
     3.0
     """
     bodies = [m.get("body") for m in members or [] if isinstance(m, Mapping)]
-    body = bodies[0] if bodies and isinstance(bodies[0], Mapping) else None
-    if body is not None:
-        values = {k: _num(body.get(k)) for k in ("length", "width", "a")}
-        overhang = body.get("front_overhang")
-        if None not in values.values() and isinstance(overhang, (int, float)) and overhang >= 0:
-            return Footprint(front_overhang=float(overhang), **values), "run.json members body"
+    first = _recorded_body(bodies[0]) if bodies else None
+    if first is not None:
+        return first, "run.json members body"
     veh = scenario.get("vehicle") if isinstance(scenario, Mapping) else None
     veh = veh if isinstance(veh, Mapping) else {}
     preset = veh.get("preset")

@@ -8,7 +8,7 @@ pure functions of :mod:`analysis.traffic`. Definitions: ``docs/metrics.md``, sec
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 import pandas as pd
@@ -26,15 +26,18 @@ PAIR_CHUNK = 200_000
 """Vehicle pairs evaluated per vectorised batch (bounds memory on long runs) [-]."""
 
 
-def member_rows(data: RunData, fp: tr.Footprint, dt: float) -> pd.DataFrame:
+def member_rows(data: RunData, fp: tr.Footprint | Mapping[str, tr.Footprint],
+                dt: float) -> pd.DataFrame:
     """Members' rows as rectangles: body centre, velocity, road coordinates.
 
     Parameters
     ----------
     data : RunData
         The loaded run.
-    fp : Footprint
-        Members' body outline.
+    fp : Footprint or mapping of member id to Footprint
+        Members' body outlines: one for all, or each member's own
+        (:func:`analysis.traffic.member_footprints`; a member missing from the mapping
+        gets the first one's).
     dt : float
         Sample spacing [s] (for the time keys).
 
@@ -54,7 +57,8 @@ def member_rows(data: RunData, fp: tr.Footprint, dt: float) -> pd.DataFrame:
     t = m["t"].to_numpy(float)
     key = time_keys(t, dt)
     h = m["heading"].to_numpy(float)
-    xc, yc = tr.body_centre(m["x"], m["y"], h, fp.cog_to_front, fp.length)
+    length, width, front = _outline_columns(m["vehicle_id"], fp)
+    xc, yc = tr.body_centre(m["x"], m["y"], h, front, length)
     v = np.nan_to_num(m["v"].to_numpy(float))
     beta = np.nan_to_num(m["beta"].to_numpy(float))
     vc = traj.loc[traj["vehicle_id"] == VIRTUAL_CAR_ID, ["t", "heading"]]
@@ -62,14 +66,27 @@ def member_rows(data: RunData, fp: tr.Footprint, dt: float) -> pd.DataFrame:
     vc_head = vc_head[~vc_head.index.duplicated()]
     rel = h - np.nan_to_num(vc_head.reindex(key).to_numpy(float), nan=0.0) if len(vc) \
         else np.zeros_like(h)
-    off = fp.cog_to_front - 0.5 * fp.length
+    off = front - 0.5 * length
     return pd.DataFrame({
         "t": t, "key": key, "vehicle_id": m["vehicle_id"].to_numpy(str), "x": xc, "y": yc,
         "heading": h, "v": v, "vx": v * np.cos(h + beta), "vy": v * np.sin(h + beta),
-        "length": fp.length, "width": fp.width,
+        "length": length, "width": width,
         "s": m["s"].to_numpy(float) + off * np.cos(rel),
         "d": m["d"].to_numpy(float) + off * np.sin(rel),
         "lane_index": m["lane_index"].to_numpy(float), "is_member": True})
+
+
+def _outline_columns(vehicle_id: pd.Series, fp: tr.Footprint | Mapping[str, tr.Footprint]
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-row body length, width and CoG-to-front-bumper distance [m]."""
+    table = {} if isinstance(fp, tr.Footprint) else dict(fp)
+    default = fp if isinstance(fp, tr.Footprint) else next(iter(table.values()), None)
+    ids = vehicle_id.astype(str).to_numpy()
+    out = np.empty((3, len(ids)))
+    for mid in np.unique(ids):
+        f = table.get(mid, default)
+        out[:, ids == mid] = np.array([f.length, f.width, f.cog_to_front])[:, None]
+    return out[0], out[1], out[2]
 
 
 def _background_rows(bg: pd.DataFrame, dt: float, member_ids: set[str]) -> pd.DataFrame:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.footprint import (MEMBER_FOOTPRINTS, Footprint, body_centre, member_footprint,
+                                member_footprints,
                                 rectangle_corners)
 from analysis.pair_geometry import (TTC2D_HORIZON_S, TTC2D_THRESHOLD_S, clearance, pair_measures,
                                     same_time_pairs, ttc_2d)
@@ -43,6 +44,7 @@ __all__ = [
     "V_STANDSTILL_MPS",
     "SSM_GROUP_COLUMNS",
     "member_footprint",
+    "member_footprints",
     "body_centre",
     "rectangle_corners",
     "same_time_pairs",

@@ -230,7 +230,9 @@ def _birdseye_data(a: RunAnalysis) -> _Birdseye:
     frame_keys = frame_keys[np.isin(frame_keys, vc.index.to_numpy())]
     if frame_keys.size == 0:
         raise ValueError("no virtual-car pose in the animation window")
-    fp = traffic.member_footprint(a.data.meta.get("scenario"), a.data.meta.get("members"))[0]
+    meta = a.data.meta
+    fp = (traffic.member_footprints(meta.get("scenario"), meta.get("members"))
+          or traffic.member_footprint(meta.get("scenario"), meta.get("members"))[0])
     M = member_rows(a.data, fp, dt)
     M = M.loc[M["key"].isin(frame_keys)]
     bg = _background(a)

@@ -136,7 +136,7 @@ def compute_traffic(data: RunData, settings: AnalysisSettings,
     bg, ev = data.tables.get("background"), data.tables.get("events")
 
     # --- 2-D interaction between members and every vehicle near them -------------------
-    M = member_rows(data, fp, dt)
+    M = member_rows(data, tr.member_footprints(meta.get("scenario"), meta.get("members")) or fp, dt)
     road = bool(len(M)) and np.isfinite(M[["s", "d"]].to_numpy(float)).any()
     bg_ok = bg is not None and all(c in bg.columns for c in _BG_GEOMETRY)
     if bg is None:

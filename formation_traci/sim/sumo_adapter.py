@@ -20,10 +20,12 @@ from .sumo_connect import attach_socket, follow_view, start_socket
 from .sumo_neighbours import NeighbourReads
 from .sumo_vehicles import VehicleSetup
 from .sumo_types import (GUI_VIEW, GUI_ZOOM, KEEP_ROUTE, LANE_CHANGE_MODE_DEFAULT,  # noqa: F401
-                         MATCH_THRESHOLD, REMOVED_REASONS, ROUTE_AHEAD_M, SPEED_MODE_DEFAULT,
+                         MATCH_THRESHOLD, ORDINARY_CLASS, REMOVED_REASONS, ROUTE_AHEAD_M,
+                         SPEED_MODE_DEFAULT,
                          START_TIMEOUT_S, MemberType, Neighbours, StepEvents, SumoError,
                          cog_to_sumo, cog_to_sumo_rows, sumo_binary, sumo_to_cog,
                          sumo_to_cog_rows)
+
 
 
 def _f64(a) -> np.ndarray:
@@ -64,7 +66,9 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         self._front_ids: list[str] = []
         self._front = np.empty(0)
         self._member_get = None  # itemgetter of the members' subscription variables
+        self.lane_pos = np.empty(0)  # members' front bumper along their lane at the last read [m]
         self._started = False
+        self.departed: dict[str, int] = {}  # flow id -> vehicles SUMO inserted (see count_departures)
         self._proc = None  # the SUMO process of the traci backend
 
     # -- lifecycle -------------------------------------------------------------------
@@ -120,6 +124,20 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
     def simulation_step(self) -> None:
         """Advance SUMO by one step (no member handling; used for the warm-up)."""
         self.api.simulationStep()
+        if self.departed:
+            self._count_departed()
+
+    def count_departures(self, flow_ids) -> None:
+        """Count, from now on, the vehicles SUMO inserts for each flow (SUMO names them
+        ``<flow id>.<n>``) in :attr:`departed`."""
+        self.departed = {f: 0 for f in flow_ids}
+
+    def _count_departed(self) -> None:
+        counts = self.departed
+        for vid in self.api.simulation.getDepartedIDList():
+            flow = vid.rpartition(".")[0]
+            if flow in counts and vid not in self.members:
+                counts[flow] += 1
 
     # -- network helpers -------------------------------------------------------------
     def add_route(self, route_id: str, edges: list[str]) -> None:
@@ -169,7 +187,8 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
     def _member_vars(self):
         tc = self.tc
         self._member_get = itemgetter(tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_LANE_ID,
-                                      tc.VAR_LANE_INDEX, tc.VAR_LANEPOSITION_LAT)
+                                      tc.VAR_LANE_INDEX, tc.VAR_LANEPOSITION_LAT,
+                                      tc.VAR_LANEPOSITION)
         return [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_LANE_ID, tc.VAR_LANE_INDEX,
                 tc.VAR_LANEPOSITION, tc.VAR_LANEPOSITION_LAT]
 
@@ -250,6 +269,8 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
             ev.collisions.append((c.collider, c.victim, c.lane))
         ev.teleports = list(sim.getStartingTeleportIDList())
         ev.arrived = list(sim.getArrivedIDList())
+        if self.departed:
+            self._count_departed()
         for vid in ev.arrived:
             self._bodies.pop(vid, None)
         return ev
@@ -274,8 +295,9 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         rows = [res.get(vid) for vid in ids]
         if not all(rows):
             return self._read_some_members(ids, rows)
-        pos, ang, lanes, lane_index, lat = zip(*map(self._member_get, rows))
+        pos, ang, lanes, lane_index, lat, lane_pos = zip(*map(self._member_get, rows))
         lanes = list(lanes)
+        self.lane_pos = np.array(lane_pos, dtype=float)  # front bumper along its lane [m]
         x, y, psi = sumo_to_cog_rows(np.array(pos, dtype=float), np.array(ang, dtype=float),
                                      self._d_front(ids))
         self._track_lanes(ids, lanes, lane_index, lat)
@@ -286,7 +308,7 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         """:meth:`read_members` when SUMO no longer has some of the members (NaN, '' and -1)."""
         n = len(ids)
         here = [i for i, r in enumerate(rows) if r]
-        x, y, psi, lat = (np.full(n, np.nan) for _ in range(4))
+        x, y, psi, lat, lane_pos = (np.full(n, np.nan) for _ in range(5))
         lane_index, lanes = np.full(n, -1, dtype=int), [""] * n
         for i, vid in enumerate(ids):
             if not rows[i]:
@@ -296,8 +318,10 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
             sub = [ids[i] for i in here]
             xs, ys, ps, ls, lis, lts, _ = self.read_members(sub)
             x[here], y[here], psi[here], lane_index[here], lat[here] = xs, ys, ps, lis, lts
+            lane_pos[here] = self.lane_pos
             for j, i in enumerate(here):
                 lanes[i] = ls[j]
+        self.lane_pos = lane_pos  # front bumper along its lane [m] (NaN: not in SUMO)
         return x, y, psi, lanes, lane_index, lat, np.array([bool(r) for r in rows], dtype=bool)
 
     def _track_lanes(self, ids, lanes, lane_index, lat) -> None:

@@ -39,6 +39,10 @@ LANE_CHANGE_MODE_DEFAULT = 1621
 
 REMOVED_REASONS = ("arrived", "vanished")
 
+ORDINARY_CLASS = {"custom1": "passenger", "custom2": "truck"}
+"""SUMO class a released member drives on with: the members' own classes are kept off some
+junction lanes of real networks (road/lanes.py), an ordinary vehicle is not."""
+
 
 def cog_to_sumo(x, y, psi, d_front):
     """CoG pose [m, m, rad CCW from +x] -> SUMO front bumper [m, m] and angle [deg, CW from north]."""

@@ -8,7 +8,8 @@ no SUMO itself.
 """
 from __future__ import annotations
 
-from .sumo_types import LANE_CHANGE_MODE_DEFAULT, SPEED_MODE_DEFAULT, MemberType, SumoError
+from .sumo_types import (LANE_CHANGE_MODE_DEFAULT, ORDINARY_CLASS, SPEED_MODE_DEFAULT, MemberType,
+                         SumoError)
 
 
 class VehicleSetup:
@@ -30,6 +31,12 @@ class VehicleSetup:
         for edge in self.api.edge.getIDList():
             if not edge.startswith(":"):
                 self.api.edge.setFriction(edge, mu)
+
+    def forbid_lanes(self, lanes, vclasses) -> None:
+        """Disallow vehicle classes on lanes (added to each lane's disallowed classes)."""
+        for lane in lanes:
+            have = list(self.api.lane.getDisallowed(lane))
+            self.api.lane.setDisallowed(lane, sorted(set(have) | set(vclasses)))
 
     def add_member_type(self, mt: MemberType) -> None:
         vt = self.api.vehicletype
@@ -60,6 +67,9 @@ class VehicleSetup:
         window = self._window.pop(vid, None)
         lane = self._member_lane.pop(vid, ("", -1, 0.0))[0]
         self._overlap.pop(vid, None)
+        mt = self.members.get(vid)
+        if mt is not None and mt.vclass in ORDINARY_CLASS:  # lanes closed to members open again
+            v.setVehicleClass(vid, ORDINARY_CLASS[mt.vclass])
         if window is not None and lane and not lane.startswith(":"):
             edges = self._routes[window[0]][0]
             edge = lane.rsplit("_", 1)[0]
