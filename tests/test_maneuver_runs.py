@@ -193,7 +193,9 @@ def test_every_bundled_maneuver_scenario_runs_clean(tmp_path_factory, name):
     a real SUMO run with no collision involving a member (a vehicle taken over by a join is
     recorded under the member's id), members' lateral acceleration inside the 3.6 m/s^2
     band during maneuvers (comfort.parquet, the control rate), and a start and an end event
-    for every scheduled maneuver (none cancelled)."""
+    for every scheduled maneuver (none cancelled). Issue 19: maneuver runs go through the
+    jerk-limited longitudinal planner like every other road run, so the members' jerk meets
+    the bounds the bundled highway scenarios meet (tests/test_sumo_runs.py)."""
     assert {p.stem for p in MANEUVERS.glob("*.toml")} == set(SHORT) - set(FILE)  # none left out
     meta, ev, traj, _ = _run(tmp_path_factory, name)
     sc = _RUNS[name][0]
@@ -212,6 +214,10 @@ def test_every_bundled_maneuver_scenario_runs_clean(tmp_path_factory, name):
         assert t1 >= t0
         during = comfort[(comfort.t >= t0) & (comfort.t <= t1)]
         assert np.max(np.abs(during.a_lat.to_numpy()), initial=0.0) < MEDIUM_COMFORT
+    # issue 19's smooth longitudinal references hold in maneuver runs too: members' jerk p95
+    # <= 1 m/s^3 and the 1-s averaged jerk <= 2.5 m/s^3 outside recorded emergency brakes
+    from test_sumo_runs import _smooth_longitudinal
+    _smooth_longitudinal(traj[traj.vehicle_id.isin(ids)], ev)
 
 
 def _join_checks(ev, traj, bg, member, slot):

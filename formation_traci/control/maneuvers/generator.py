@@ -42,7 +42,7 @@ class PlanSlots:
 
 
 def room_accel(goal, s_vc_front, v_vc, half_w, length, active, o_rear, o_d, o_half_w, o_length,
-               o_v, time_gap, min_gap) -> float:
+               o_v, time_gap, min_gap, horizon: float = 0.0) -> float:
     """Acceleration [m/s^2] of the virtual car that keeps every goal slot (n, 2) a time gap
     behind the nearest vehicle in its lane that is ahead of it or beside it (front bumper
     ahead of the slot's rear; gap = its rear minus the slot's front, negative when beside),
@@ -50,6 +50,7 @@ def room_accel(goal, s_vc_front, v_vc, half_w, length, active, o_rear, o_d, o_ha
     vehicle. ``s_vc_front``: the virtual car's arc length plus the CoG-to-front distance [m]."""
     if not len(o_rear):
         return np.inf
+    o_rear = o_rear + (o_v - v_vc) * horizon  # where they will be relative to us
     front = s_vc_front + goal[:, 0]
     rear = front - length
     lane = (np.abs(o_d[None, :] - goal[:, 1][:, None])
@@ -95,20 +96,15 @@ class ManeuverRoadReference(RoadReference):
         self.along, self.slot_d = now[:, 0], now[:, 1]
         sensed.extra["slot"] = self.planner.slot_of.astype(float)
         a_vc, gap, lead_idx, v_cap, a_cap = super().governor(t, sensed)
-        goal = self.planner.goal()
+        p = self.longitudinal.p
+        lead = p.tau + ROOM_DECEL / p.jerk_max
+        goal = self.planner.goal_ahead(t, self.s, self.v, sensed.active, lead)
         nb = sensed.nb
         if goal is not None and nb is not None and len(nb.ids):
             lim = self.limits
             a_room = room_accel(goal, self.s + self.d_front, self.v, self.half_w,
                                 self.body_length, sensed.active, sensed.nb_rear, sensed.nb_d,
                                 sensed.nb_half_w, nb.length, sensed.nb_v, lim.time_gap,
-                                lim.min_gap)
+                                lim.min_gap, lead)
             a_vc = min(a_vc, a_room)
         return a_vc, gap, lead_idx, v_cap, a_cap
-
-    def smooth(self, sensed, a_request, v_cap, a_cap):
-        """Maneuver runs take the governor's requests as they are, not through the
-        jerk-limited planner of control/longitudinal.py: with the planner's lag the
-        room-making deceleration came late and lanedrop_reshape's second reshape waited for
-        room to the end of the run (docs/maneuvers.md, 'Known limits')."""
-        return a_request, v_cap, a_cap
