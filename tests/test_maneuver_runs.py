@@ -15,7 +15,7 @@ MEDIUM_COMFORT = 3.6  # m/s^2, the seed's medium-comfort lateral band
 
 
 SHORT = {  # every bundled maneuver scenario, shortened where its full run is long
-    "lanedrop_reshape": {"road.start": 1750.0, "traffic.warmup": 60.0, "run.duration": 60.0},
+    "lanedrop_reshape": {"road.start": 1750.0, "traffic.warmup": 60.0, "run.duration": 64.0},
     "lane_change": {"run.duration": 30.0, "traffic.warmup": 60.0},
     "lane_change_blocked": {},
     "leave": {},
