@@ -22,7 +22,7 @@ SHORT = {  # every bundled maneuver scenario, shortened where its full run is lo
     # 32 s: with issue 19's jerk-limited caps (control/longitudinal.py) the truck closes up
     # about 5 s later than with the raw governor caps (back within 0.1 m at t = 30 s)
     "mixed_truck": {"run.duration": 32.0},
-    "join": {"run.duration": 20.0},  # taken over at 2 s, T = 9.8 s, then 5 time constants
+    "join": {"run.duration": 20.0},  # taken over at 2 s, T = 11.3 s, then 5 time constants
     "exit_leave": {"road.start": 1650.0, "run.duration": 28.0},  # on the off-ramp from ~24 s
     # a member inserted later: its own car enters 60 m behind under SUMO's driver, then joins
     "join_entering": {"maneuvers.0.enter": {"along": -60.0, "lanes": 1}, "run.duration": 24.0,
@@ -233,6 +233,8 @@ def _join_checks(ev, traj, bg, member, slot):
     theirs = bg[bg.vehicle_id == vid].sort_values("t")
     ours = traj[traj.vehicle_id == member].sort_values("t")
     assert theirs.t.max() < t0 and ours.t.min() == pytest.approx(t0)  # one or the other
+    # not in the run before the take-over: no caps, so no emergency brake of the member
+    assert not ((ev.kind == "emergency_brake") & (ev.vehicle_id == member) & (ev.t < t0)).any()
     last, first = theirs.iloc[-1], ours.iloc[0]
     dt = first.t - last.t
     assert abs(first.v - last.v) <= 0.5
