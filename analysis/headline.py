@@ -11,7 +11,7 @@ import pandas as pd
 
 from analysis import comfort
 from analysis.load import describe_issues
-from analysis.summary import _f as _num
+from analysis.member_columns import _f as _num
 
 FALLING_BACK_FACTOR = 3.0
 """A member whose peak error is this many times the formation's median peak is named as

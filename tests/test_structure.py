@@ -17,19 +17,6 @@ MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 80
 DEBT = {
     "module formation_traci/sim/sumo_adapter.py",
-    "module formation_traci/road/geometry.py",
-    "module analysis/iso2631.py",
-    "module analysis/traffic.py",
-    "module analysis/figures.py",
-    "module analysis/traffic_run.py",
-    "module analysis/summary.py",
-    "module analysis/load.py",
-    "function formation_traci/sweep/run.py:run_sweep",
-    "function analysis/figures.py:birdseye_animation",
-    "function analysis/figures.py:compare_figures",
-    "function analysis/traffic_run.py:compute_traffic",
-    "function analysis/summary.py:_member_metrics",
-    "function analysis/load.py:load_run",
 }
 
 

@@ -2,7 +2,8 @@
 
 * :mod:`.geometry`: :class:`ReferenceLine`, a smooth arc-length-parametrised curve fitted to
   a SUMO lane polyline (heading, curvature, curvature rate, Frenet projection), and the
-  sumolib helpers that walk a route's lanes and give lane offsets.
+  sumolib helpers that walk a route's lanes and give lane offsets; :mod:`.line_fit` fits the
+  polyline, :mod:`.line_pack` and :mod:`.fast_line` evaluate the line (compiled, once).
 * :mod:`.leader`: the virtual car on the line, eq (2.3) with omega = v kappa.
 * :mod:`.targets`: formation slots in road coordinates and their exact derivatives, used in
   place of eq (2.4).

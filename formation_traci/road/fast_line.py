@@ -18,9 +18,9 @@ kernels here evaluate:
   exactly whatever the guess; a good guess only makes it cheaper (a short walk and a
   certificate instead of the tree search).
 
-:func:`frame_at` and :func:`to_frenet_many` evaluate ``ReferenceLine.frame`` / ``to_frenet``
-with the same formulas (straight past the ends, same Newton seed, step clip, tolerance);
-they agree to rounding (tests/test_fast_line.py). One buffer, because numba
+:func:`frame_many` and :func:`to_frenet_many` are ``ReferenceLine.frame`` / ``to_frenet``
+(the one implementation; straight past the ends); tests/test_fast_line.py checks them against
+scipy's own evaluation of the fitted pieces. One buffer, because numba
 reference-counts every array passed between compiled functions; offsets are in G's header.
 """
 from __future__ import annotations

@@ -35,47 +35,21 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Sequence, Union
 
 import numpy as np
-import scipy.sparse as sparse
-import scipy.sparse.linalg as sparse_linalg
 from scipy.interpolate import BPoly, BSpline
 from scipy.spatial import cKDTree
+
+from .fast_line import frame_many, to_frenet_many
+from .line_fit import (_DEGREE, _GAUSS_NODES, _GAUSS_WEIGHTS, LINE_FIT_DEFAULT, LineFit,
+                       _fit_pspline, clean_polyline)
+from .line_pack import packed
 
 if TYPE_CHECKING:  # pragma: no cover
     import sumolib.net
 
 NetLike = Union[str, "os.PathLike[str]", "sumolib.net.Net"]
 
-_DEGREE = 5
-"""Degree of the B-spline of x(u), y(u) (quintic: curvature rate is C2)."""
-_PENALTY_ORDER = 5
-"""Order of the coefficient difference penalty (null space: polynomials of degree <= 4)."""
-_GAUSS_NODES, _GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(8)
-_NEWTON_ITERATIONS = 50
-_NEWTON_TOL = 1e-10  # [m]
 _GAP_TOL = 0.05
 """Largest allowed gap between consecutive lane shapes of a route [m]."""
-
-
-@dataclass(frozen=True, slots=True)
-class LineFit:
-    """Settings of the polyline smoothing in :meth:`ReferenceLine.from_points`."""
-
-    smoothing_length: float  # wavelength where the fit's response is 1/2 [m]
-    knot_spacing: float  # target spacing of the uniform spline knots [m]
-    max_segment: float  # longer polyline segments are split into equal pieces [m]
-    min_segment: float  # points closer than this to the previous point are dropped [m]
-
-
-LINE_FIT_DEFAULT = LineFit(smoothing_length=40.0, knot_spacing=4.0, max_segment=5.0,
-                           min_segment=1e-3)
-"""Fit for SUMO shapes sampled every 4 m and rounded to 0.1 mm (``--precision 4``).
-
-With it (measured in ``tests/test_road.py``), the curvature of R = 150..1000 m arcs is
-recovered within 0.12 % (ends included), the heading within 2e-5 rad, positions within
-0.2 mm, and the curvature rate 1/A^2 of an A = 400 m clothoid within 1 % (3 % in the 40 m
-at either end of the line). Curvature changes sharper than about 40 m (the kinks of
-kappa' at clothoid ends) are rounded over about that length.
-"""
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,81 +64,8 @@ class LinePoint:
     curvature_rate: np.ndarray  # d kappa / ds [1/m^2]
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-
-
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]
-
-
-def _wrap(a: np.ndarray) -> np.ndarray:
-    """Wrap to (-pi, pi] [rad]."""
-    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
-
-
-def clean_polyline(xy, min_segment: float, max_segment: float) -> np.ndarray:
-    """Drop near-duplicate points and split long segments of a polyline.
-
-    Parameters
-    ----------
-    xy : array_like, shape (n, 2)
-        Polyline vertices [m].
-    min_segment : float
-        A point closer than this to the previous kept point is dropped [m].
-    max_segment : float
-        A segment longer than this is split into ``ceil(length / max_segment)`` equal
-        pieces [m]. SUMO drives polyline segments straight, so this adds no error.
-
-    Returns
-    -------
-    ndarray, shape (m, 2)
-        Cleaned polyline [m].
-    """
-    pts = np.asarray(xy, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 2:
-        raise ValueError(f"xy must have shape (n, 2), got {pts.shape}")
-    if not np.all(np.isfinite(pts)):
-        raise ValueError("xy contains non-finite values")
-    if not (0.0 < min_segment < max_segment):
-        raise ValueError("need 0 < min_segment < max_segment")
-    kept = [pts[0]]
-    for p in pts[1:]:
-        if math.dist(p, kept[-1]) > min_segment:
-            kept.append(p)
-    if len(kept) < 2:
-        raise ValueError("xy needs at least two distinct points")
-    out = [kept[0][None, :]]
-    for a, b in zip(kept[:-1], kept[1:]):
-        n = max(1, math.ceil(math.dist(a, b) / max_segment))
-        f = np.arange(1, n + 1)[:, None] / n
-        out.append(a + f * (b - a))
-    return np.concatenate(out)
-
-
-def _difference_matrix(n: int, order: int) -> sparse.csr_matrix:
-    d = sparse.identity(n, format="csr")
-    for _ in range(order):
-        d = d[1:] - d[:-1]
-    return d
-
-
-def _fit_pspline(u: np.ndarray, pts: np.ndarray, fit: LineFit) -> BSpline:
-    """Penalised quintic regression spline of pts (n, 2) over parameter u [m]."""
-    total = float(u[-1])
-    m = max(math.ceil(total / fit.knot_spacing), 1)
-    h = total / m
-    knots = np.arange(-_DEGREE, m + _DEGREE + 1) * h  # uniform, extended past both ends
-    knots[_DEGREE] = 0.0
-    knots[m + _DEGREE] = total
-    basis = BSpline.design_matrix(np.clip(u, 0.0, total), knots, _DEGREE)
-    n_coef = m + _DEGREE
-    pen = _difference_matrix(n_coef, _PENALTY_ORDER)
-    density = len(u) / m  # data points per knot interval
-    lam = density * (fit.smoothing_length / (2.0 * np.pi * h)) ** (2 * _PENALTY_ORDER)
-    lhs = (basis.T @ basis + lam * (pen.T @ pen)).tocsc()
-    coef = sparse_linalg.spsolve(lhs, basis.T @ pts)
-    return BSpline(knots, np.asarray(coef).reshape(n_coef, 2), _DEGREE, extrapolate=True)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -230,27 +131,15 @@ class ReferenceLine:
         ----------
         s : float or array_like
             Arc length [m]; values outside [0, length] use the straight extension.
+
+        Evaluated by the compiled kernel :func:`.fast_line.frame_at` (one implementation;
+        the JIT-off run of the tests is its Python reference).
         """
         s = np.asarray(s, dtype=float)
-        sc = np.clip(s, 0.0, self.length)
-        u = np.asarray(self.u_of_s(sc.reshape(-1))).reshape(s.shape)
-        c1, c2, c3 = self.curve_d1(u), self.curve_d2(u), self.curve_d3(u)
-        g = np.hypot(c1[..., 0], c1[..., 1])
-        t = c1 / g[..., None]
-        cr12 = _cross(c1, c2)
-        kappa = cr12 / g ** 3
-        dkappa_du = _cross(c1, c3) / g ** 3 - 3.0 * cr12 * _dot(c1, c2) / g ** 5
-        kappa_rate = dkappa_du / g
-        # unwrapped heading: nearest knot's heading plus the wrapped difference
-        idx = np.clip(np.searchsorted(self.s_nodes, sc), 0, len(self.s_nodes) - 1)
-        ref = self.heading_nodes[idx]
-        heading = ref + _wrap(np.arctan2(t[..., 1], t[..., 0]) - ref)
-        pos = self.curve(u) + (s - sc)[..., None] * t  # straight past the ends
-        outside = s != sc
-        kappa = np.where(outside, 0.0, kappa)
-        kappa_rate = np.where(outside, 0.0, kappa_rate)
+        F = frame_many(packed(self), np.array(s.reshape(-1), order="C")).reshape(s.shape + (7,))
+        t = F[..., 2:4]
         normal = np.stack([-t[..., 1], t[..., 0]], axis=-1)
-        return LinePoint(pos, t, normal, heading, kappa, kappa_rate)
+        return LinePoint(F[..., 0:2], t, normal, F[..., 4], F[..., 5], F[..., 6])
 
     def position(self, s) -> np.ndarray:
         """c(s) [m], shape ``s.shape + (2,)``; s is arc length [m]."""
@@ -282,7 +171,8 @@ class ReferenceLine:
 
         d is positive to the left. The nearest of 1 m-spaced samples seeds a Newton
         iteration on ``(p - c(s)) . t(s) = 0``; points past the ends project onto the
-        straight extension (s < 0 or s > length).
+        straight extension (s < 0 or s > length). Each point iterates until its own step
+        is below the tolerance (the compiled :func:`.fast_line.to_frenet_many`).
 
         Parameters
         ----------
@@ -297,21 +187,8 @@ class ReferenceLine:
         if p.shape[-1] != 2:
             raise ValueError(f"xy must have a trailing axis of 2, got {p.shape}")
         shape = p.shape[:-1]
-        p = p.reshape(-1, 2)
-        _, i = self.tree.query(p)
-        s = self.tree_s[i].astype(float)
-        max_step = 2.0 * (self.tree_s[1] - self.tree_s[0])
-        for _ in range(_NEWTON_ITERATIONS):
-            f = self.frame(s)
-            r = p - f.position
-            along, d = _dot(r, f.tangent), _dot(r, f.normal)
-            denom = 1.0 - f.curvature * d
-            step = np.clip(along / np.where(denom > 0.1, denom, 1.0), -max_step, max_step)
-            s = s + step
-            if np.max(np.abs(step), initial=0.0) < _NEWTON_TOL:
-                break
-        f = self.frame(s)
-        d = _dot(p - f.position, f.normal)
+        p = np.array(p.reshape(-1, 2), order="C")
+        s, d = to_frenet_many(packed(self), p, np.full(p.shape[0], np.nan))
         return s.reshape(shape), d.reshape(shape)
 
 

@@ -1,5 +1,8 @@
 """A ReferenceLine packed into the float64 buffer ``G`` the kernels of road/fast_line.py
-evaluate (layout: fast_line's header ``_H_*``), and the per-line cache :func:`packed`."""
+evaluate (layout: fast_line's header ``_H_*``), and the per-line cache :func:`packed`.
+
+``ReferenceLine.frame`` / ``to_frenet`` evaluate through this buffer, so this module reads
+the line's fitted pieces by attribute and does not import road/geometry.py."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -7,10 +10,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import BPoly, BSpline, PPoly
 
-from .fast_line import (_H_N_SAMP, _H_OFF_CC, _H_OFF_CLR, _H_OFF_HN, _H_OFF_SN, _H_OFF_SS,
-                        _H_OFF_SXY, _H_OFF_TREE, _H_OFF_UC, _H_OFF_UK, _H_SIZE, LEAF_SIZE,
-                        WINDOW, frame_at, to_frenet_many)
-from .geometry import _DEGREE, _NEWTON_ITERATIONS, _NEWTON_TOL, ReferenceLine
+from .fast_line import (_H_KAPPA, _H_N_SAMP, _H_OFF_CC, _H_OFF_CLR, _H_OFF_HN, _H_OFF_SN,
+                        _H_OFF_SS, _H_OFF_SXY, _H_OFF_TREE, _H_OFF_UC, _H_OFF_UK, _H_SIZE,
+                        LEAF_SIZE, WINDOW, frame_at, frame_many, to_frenet_many)
+from .line_fit import _DEGREE
+
+_NEWTON_ITERATIONS = 50
+"""Newton steps of the Frenet projection at most."""
+_NEWTON_TOL = 1e-10
+"""The projection stops when a Newton step is below this [m]."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -21,7 +29,8 @@ class FastLine:
     G: np.ndarray
 
     @classmethod
-    def from_reference_line(cls, line: ReferenceLine) -> "FastLine":
+    def from_reference_line(cls, line) -> "FastLine":
+        """Pack a :class:`~.geometry.ReferenceLine` (its fitted spline, u(s), nodes, samples)."""
         curve: BSpline = line.curve
         k = curve.k
         if k != _DEGREE or np.asarray(curve.c).ndim != 2 or curve.c.shape[1] != 2:
@@ -48,8 +57,6 @@ class FastLine:
         samp_xy = np.asarray(line.tree.data, dtype=float)
         samp_s = np.asarray(line.tree_s, dtype=float)
         ds = float(samp_s[1] - samp_s[0])
-        kappa_bound = 1.25 * float(np.max(np.abs(line.curvature(
-            np.linspace(0.0, line.length, 4 * len(samp_s) + 1))))) + 1e-9
         tree = _build_tree(samp_xy)
         parts = [
             (_H_OFF_UK, u_knots), (_H_OFF_CC, coef), (_H_OFF_SN, s_nodes), (_H_OFF_UC, uc.T),
@@ -59,7 +66,7 @@ class FastLine:
         ]
         G = np.zeros(_H_SIZE + sum(np.size(a) for _, a in parts))
         G[:_H_N_SAMP + 1] = [line.length, 2.0 * ds, ds, _NEWTON_TOL, float(_NEWTON_ITERATIONS),
-                             kappa_bound, float(WINDOW),
+                             0.0, float(WINDOW),
                              (len(s_nodes) - 1) / (s_nodes[-1] - s_nodes[0]),
                              (len(u_knots) - 1) / (u_knots[-1] - u_knots[0]),
                              len(u_knots), len(s_nodes), len(samp_s)]
@@ -68,6 +75,9 @@ class FastLine:
             G[h] = off
             G[off:off + np.size(a)] = np.ascontiguousarray(a, dtype=float).ravel()
             off += np.size(a)
+        # bound on |kappa| for the projection's certificate, from the packed line itself
+        kappa = frame_many(G, np.linspace(0.0, line.length, 4 * len(samp_s) + 1))[:, 5]
+        G[_H_KAPPA] = 1.25 * float(np.max(np.abs(kappa))) + 1e-9
         return cls(float(line.length), G)
 
     # Python-level conveniences ------------------------------------------------------------

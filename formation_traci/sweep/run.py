@@ -169,48 +169,16 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     with raising_signals(), _lock(out):  # SIGTERM stops the cases like Ctrl-C
         specs = [case_spec(sweep, i, out) for i in range(len(sweep.cases))]
         swept = swept_dtypes([c.model_dump(mode="json") for c in sweep.cases], sweep.spec.swept())
-        rows: dict[str, dict] = {}
-        todo = []
-        for s in specs:
-            row, done = _previous(s)
-            if row is not None:
-                rows[s.case.id] = row
-            if not done:
-                todo.append(s)
+        rows, todo = _resume(specs)
         n_skipped = len(specs) - len(todo)
-        meta = {"schema": SCHEMA, "status": "running", "sweep_file": str(sweep.path),
-                "sweep_text": sweep.path.read_text(encoding="utf-8"), "sweep": sweep.raw,
-                "base": str(sweep.base), "swept": sweep.spec.swept(), "grid_keys": list(sweep.spec.grid),
-                "random_keys": list(sweep.random_keys), "dtypes": swept,
-                "metrics": {k: {"unit": u, "meaning": m} for k, (u, m) in METRICS.items()},
-                "executor": {"kind": "dask" if scheduler else "local", "scheduler": scheduler,
-                             "workers": None if scheduler else (workers or os.cpu_count())},
-                "cases": [c.model_dump(mode="json") for c in sweep.cases],
-                "versions": _versions(), "started": _now(), "finished": None,
-                "counts": {"cases": len(specs), "skipped": n_skipped, "to_run": len(todo)}}
+        meta = _sweep_meta(sweep, swept, scheduler, workers, len(specs), n_skipped, len(todo))
         from ..record.writer import atomic_write_json
 
         atomic_write_json(out / SWEEP_JSON, meta)
         summary_path = out / SUMMARY
         _write_summary(summary_path, rows, swept)
-        bar = None
-        if progress:
-            from tqdm import tqdm
-
-            bar = tqdm(total=len(specs), initial=n_skipped, unit="case",
-                       desc=sweep.spec.name or sweep.path.stem)
-        state = {"ok": 0, "failed": 0, "written": time.monotonic()}
-
-        def on_row(spec: CaseSpec, row: dict) -> None:
-            rows[spec.case.id] = row
-            state["ok" if row["status"] == "completed" else "failed"] += 1
-            if bar is not None:
-                bar.update(1)
-                bar.set_postfix(done=state["ok"], failed=state["failed"],
-                                remaining=len(todo) - state["ok"] - state["failed"])
-            if time.monotonic() - state["written"] >= WRITE_EVERY_S:
-                _write_summary(summary_path, rows, swept)
-                state["written"] = time.monotonic()
+        bar = _progress_bar(sweep, len(specs), n_skipped) if progress else None
+        on_row = _RowSink(rows, len(todo), bar, summary_path, swept)
 
         interrupted = None  # stays None if the executor raised (e.g. no scheduler there)
         try:
@@ -223,15 +191,83 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
                 bar.close()
             df = _write_summary(summary_path, rows, swept)
             n_ok = int((df["status"] == "completed").sum())
-            meta.update(status={True: "interrupted", False: "completed"}.get(interrupted, "error"),
-                        finished=_now())
-            meta["counts"].update(run=state["ok"] + state["failed"], pending=len(specs) - len(df),
-                                  **{s: int((df["status"] == s).sum())
-                                     for s in ("completed", "failed", "interrupted")})
+            _finish_meta(meta, df, interrupted, on_row.ok + on_row.failed, len(specs))
             atomic_write_json(out / SWEEP_JSON, meta)
     if interrupted:
         raise KeyboardInterrupt(f"sweep interrupted; {summary_path} holds the {len(df)} cases with a result")
     return SweepResult(out_dir=out, summary=df, n_cases=len(specs), n_completed=n_ok,
                        n_failed=len(df) - n_ok, n_skipped=n_skipped,
-                       n_run=state["ok"] + state["failed"],
+                       n_run=on_row.ok + on_row.failed,
                        files={"sweep_json": out / SWEEP_JSON, "summary": summary_path})
+
+
+def _resume(specs: list[CaseSpec]) -> tuple[dict[str, dict], list[CaseSpec]]:
+    """Rows stored by earlier invocations (by case id), and the cases still to run."""
+    rows: dict[str, dict] = {}
+    todo = []
+    for s in specs:
+        row, done = _previous(s)
+        if row is not None:
+            rows[s.case.id] = row
+        if not done:
+            todo.append(s)
+    return rows, todo
+
+
+def _sweep_meta(sweep: Sweep, swept: dict[str, str], scheduler: str | None, workers: int | None,
+                n_cases: int, n_skipped: int, n_todo: int) -> dict:
+    """The content of ``sweep.json`` when the sweep starts (status running)."""
+    return {"schema": SCHEMA, "status": "running", "sweep_file": str(sweep.path),
+            "sweep_text": sweep.path.read_text(encoding="utf-8"), "sweep": sweep.raw,
+            "base": str(sweep.base), "swept": sweep.spec.swept(), "grid_keys": list(sweep.spec.grid),
+            "random_keys": list(sweep.random_keys), "dtypes": swept,
+            "metrics": {k: {"unit": u, "meaning": m} for k, (u, m) in METRICS.items()},
+            "executor": {"kind": "dask" if scheduler else "local", "scheduler": scheduler,
+                         "workers": None if scheduler else (workers or os.cpu_count())},
+            "cases": [c.model_dump(mode="json") for c in sweep.cases],
+            "versions": _versions(), "started": _now(), "finished": None,
+            "counts": {"cases": n_cases, "skipped": n_skipped, "to_run": n_todo}}
+
+
+def _progress_bar(sweep: Sweep, n_cases: int, n_skipped: int):
+    from tqdm import tqdm
+
+    return tqdm(total=n_cases, initial=n_skipped, unit="case",
+                desc=sweep.spec.name or sweep.path.stem)
+
+
+def _finish_meta(meta: dict, df: pd.DataFrame, interrupted: bool | None, n_run: int,
+                 n_cases: int) -> None:
+    """``sweep.json`` at the end: final status (error when the executor raised), finish
+    time and counts per status."""
+    meta.update(status={True: "interrupted", False: "completed"}.get(interrupted, "error"),
+                finished=_now())
+    meta["counts"].update(run=n_run, pending=n_cases - len(df),
+                          **{s: int((df["status"] == s).sum())
+                             for s in ("completed", "failed", "interrupted")})
+
+
+class _RowSink:
+    """Takes each finished case's row: keeps it, counts it, moves the progress bar and
+    rewrites the summary at most every :data:`WRITE_EVERY_S`."""
+
+    def __init__(self, rows: dict[str, dict], n_todo: int, bar, summary_path: Path,
+                 swept: dict[str, str]):
+        self.rows, self.n_todo, self.bar = rows, n_todo, bar
+        self.summary_path, self.swept = summary_path, swept
+        self.ok = self.failed = 0
+        self.written = time.monotonic()
+
+    def __call__(self, spec: CaseSpec, row: dict) -> None:
+        self.rows[spec.case.id] = row
+        if row["status"] == "completed":
+            self.ok += 1
+        else:
+            self.failed += 1
+        if self.bar is not None:
+            self.bar.update(1)
+            self.bar.set_postfix(done=self.ok, failed=self.failed,
+                                 remaining=self.n_todo - self.ok - self.failed)
+        if time.monotonic() - self.written >= WRITE_EVERY_S:
+            _write_summary(self.summary_path, self.rows, self.swept)
+            self.written = time.monotonic()

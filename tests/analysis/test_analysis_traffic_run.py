@@ -287,3 +287,29 @@ def long_run_with_traffic(run, t_end=600.0, n_vehicles=50):
     S.write_traffic(run, background_df=S.background(S.time_vector(DT, t_end), vehicles),
                     n_parts=4)
     return run
+
+
+def test_a_mixed_formation_gets_each_members_own_body(tmp_path):
+    """run.json records every member's body; a truck among cars is a truck in the analysis
+    (each member's clearance uses its own outline, not the first member's)."""
+    from analysis.interaction_run import member_rows
+    from analysis.traffic import member_footprints
+
+    car = {"length": 4.6, "width": 1.8, "a": 1.421, "front_overhang": 0.9}
+    truck = {"length": 7.5, "width": 2.3, "a": 1.7, "front_overhang": 1.3}
+    members = [{"id": mid, "offset": list(off), "frame": "vehicle", "body": body}
+               for (mid, off), body in zip(OFFSETS.items(), (car, truck, car))]
+    run = road_run(tmp_path / "run", meta={"members": members})
+    data = load_run(run)
+    fps = member_footprints(data.meta.get("scenario"), data.meta.get("members"))
+    rows = member_rows(data, fps, data.dt)
+    got = rows.groupby("vehicle_id")[["length", "width"]].first()
+    for m in members:
+        assert tuple(got.loc[m["id"]]) == (m["body"]["length"], m["body"]["width"])
+    # the body centre sits (a + overhang - L/2) ahead of the CoG: 0.07 m for the car, -0.75 m for the truck
+    traj = data.trajectories.set_index(["vehicle_id", "t"])
+    first = rows.groupby("vehicle_id").first()
+    for m in members:
+        b = m["body"]
+        x_cog = traj.loc[(m["id"], first.loc[m["id"], "t"]), "x"]
+        assert first.loc[m["id"], "x"] - x_cog == pytest.approx(b["a"] + b["front_overhang"] - b["length"] / 2, abs=1e-9)

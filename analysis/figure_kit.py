@@ -1,0 +1,125 @@
+"""Shared drawing helpers of the analysis figures: new Agg figures, decimation, the
+physical floor of plotted signals, member colours, maneuver shading, the virtual-car frame.
+
+Figures are built with :class:`matplotlib.figure.Figure` directly (Agg canvas, no pyplot,
+no global backend switch), saved as PNG and closed by dropping the reference. Used by
+:mod:`analysis.figures`, :mod:`analysis.traffic_figures` and
+:mod:`analysis.compare_figures`.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from analysis.maneuvers import maneuver_intervals
+from analysis.summary import RunAnalysis
+from formation_traci.record.columns import VIRTUAL_CAR_ID
+
+MAX_POINTS = 20000
+"""Lines with more samples are decimated (every k-th sample) before plotting."""
+
+
+_BAND_COLOURS = ("#d9f2d9", "#fff2b3", "#ffd9b3", "#ffb3b3")
+_LINESTYLES = ("-", "--", ":", "-.")
+
+
+def _new(nrows: int, ncols: int = 1, h: float = 2.6, w: float = 10.0, sharex: bool = True):
+    fig = Figure(figsize=(w, 0.6 + h * nrows), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(nrows, ncols, sharex=sharex, squeeze=False)
+    return fig, axes[:, 0] if ncols == 1 else axes
+
+
+def _dec(*arrays):
+    n = len(arrays[0])
+    k = max(1, math.ceil(n / MAX_POINTS))
+    return [np.asarray(a)[::k] for a in arrays]
+
+
+def _has(df: pd.DataFrame, *cols: str) -> bool:
+    return all(c in df.columns and df[c].notna().any() for c in cols)
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    fig.savefig(path, dpi=110)
+    return path
+
+
+RESOLUTION = {"m": 1e-3, "rad/s": 1e-4, "m/s^2": 1e-3, "m/s^3": 1e-2}
+"""Physical floor of the plotted signals by unit: values smaller in magnitude are drawn as
+zero and an axis never spans less than ten times this (straight-road runs otherwise show
+1e-12 m of rounding noise as an oscillation)."""
+
+
+def _fl(y, unit: str):
+    """``y`` with values below the unit's :data:`RESOLUTION` set to zero."""
+    y = np.asarray(y, dtype=float)
+    return np.where(np.abs(y) < RESOLUTION[unit], 0.0, y)
+
+
+def _floor_axis(ax, unit: str) -> None:
+    lo, hi = ax.get_ylim()
+    span = 10 * RESOLUTION[unit]
+    if hi - lo < span:
+        mid = 0.0 if lo <= 0.0 <= hi else (lo + hi) / 2
+        ax.set_ylim(mid - span / 2, mid + span / 2)
+
+
+def _colours(ids) -> dict[str, str]:
+    cyc = ["C%d" % (i % 10) for i in range(len(ids))]
+    return dict(zip(ids, cyc))
+
+
+def _member_groups(a: RunAnalysis):
+    traj = a.data.trajectories
+    ids = [m.id for m in a.data.members if (traj["vehicle_id"] == m.id).any()]
+    return traj, ids, _colours(ids)
+
+
+_MANEUVER_COLOURS = {"reshape": "#c6dbef", "lane_change": "#e5d8f0"}
+
+
+def _mark_maneuvers(a: RunAnalysis, axes) -> None:
+    """Shade every maneuver interval (events.parquet) on time plots, labelled once."""
+    traj = a.data.trajectories
+    t_end = float(traj["t"].max()) if len(traj) else 0.0
+    iv = maneuver_intervals(a.data.tables.get("events"), t_end)
+    seen = set()
+    for name, t0, t1 in zip(iv["name"], iv["start_s"], iv["end_s"]):
+        for ax in axes:
+            ax.axvspan(t0, t1, color=_MANEUVER_COLOURS.get(name, "#eeeeee"), alpha=0.6, zorder=0,
+                       label=None if name in seen or ax is not axes[-1] else f"maneuver: {name}")
+        seen.add(name)
+    if seen:
+        axes[-1].legend(loc="upper right", fontsize=7)
+
+
+def _not_recorded(ax, what: str) -> None:
+    ax.text(0.5, 0.5, f"{what}: not recorded", transform=ax.transAxes, ha="center",
+            va="center", color="0.4")
+
+
+def _vc_frame(traj: pd.DataFrame, mid: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """Member position in the virtual-car frame (along, left of its heading) [m]."""
+    vc = traj.loc[traj["vehicle_id"] == VIRTUAL_CAR_ID, ["t", "x", "y", "heading"]]
+    if not _has(vc, "x", "y", "heading"):
+        return None
+    vc = vc.rename(columns={"x": "x_vc", "y": "y_vc"})
+    g = traj.loc[traj["vehicle_id"] == mid, ["t", "x", "y"]].merge(vc, on="t").dropna()
+    if g.empty:
+        return None
+    c, s = np.cos(g["heading"].to_numpy()), np.sin(g["heading"].to_numpy())
+    dx, dy = (g["x"] - g["x_vc"]).to_numpy(), (g["y"] - g["y_vc"]).to_numpy()
+    return c * dx + s * dy, -s * dx + c * dy
+
+
+def _num(x) -> float:
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return math.nan
