@@ -16,6 +16,8 @@ from formation_traci.sim.runner import run_scenario
 
 # A slow formation (12 m/s) inserted into 1800 veh/h/lane: the vehicles coming from behind at
 # ~30 m/s meet it with TTC < 3 s (SUMO's threshold), and one is caught by the member's insertion.
+# The flow departs at its desired speed (not traffic.flows' default "max", the highest safe
+# speed), so vehicles close in on the formation as designed.
 SCENARIO = """
 name = "conflict-oracle"
 [run]
@@ -39,6 +41,7 @@ warmup = 20.0
 [[traffic.flows]]
 id = "main"
 veh_per_hour_per_lane = 1800
+depart_speed = "desired"
 [sumo]
 ssm = "%s"
 """

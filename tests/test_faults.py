@@ -68,11 +68,14 @@ def test_refused_moves_are_recorded_and_the_member_dropped(tmp_path):
     lane, at the largest lateral offset the sublane model allows (2.25 m from the lane centre,
     so 1.25 m from where the model put it): a placement_mismatch event. The right member
     carries on."""
+    from formation_traci.sim.sumo_plan import MEMBER_VCLASS
+    member_class = MEMBER_VCLASS["passenger_car"]  # members have their own class (docs/sumo.md)
+
     def hook(k, t, adapter):
         if k == 20:
             for i in range(3):
-                adapter.api.lane.setDisallowed(f"main_{i}", ["passenger"])
-            adapter.api.lane.setAllowed("main_0", ["passenger"])  # only the right lane stays open
+                adapter.api.lane.setDisallowed(f"main_{i}", [member_class])
+            adapter.api.lane.setAllowed("main_0", [member_class])  # only the right lane stays open
 
     res, _, traj, ev = run(tmp_path, hook)
     assert res.status == "completed"

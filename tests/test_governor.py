@@ -81,9 +81,29 @@ def test_member_speed_cap_equals_the_leaders_speed_at_the_desired_gap():
     T, g0 = 1.5, 5.0
     v_lead = np.array([20.0, 20.0, 0.0])
     gap = np.array([g0 + T * 20.0, g0 + T * 20.0 + 15.0, 1.0])
-    cap = member_speed_cap(gap, v_lead, T, g0)
+    cap = member_speed_cap(gap, v_lead, T, g0, np.array([25.0, 25.0, 10.0]))
     np.testing.assert_allclose(cap, [20.0, 30.0, 0.0])  # +15 m of gap removed over 1.5 s; never < 0
-    assert member_speed_cap(np.array([np.inf]), np.array([np.nan]), T, g0)[0] == np.inf
+    assert member_speed_cap(np.array([np.inf]), np.array([np.nan]), T, g0, np.array([25.0]))[0] == np.inf
+
+
+def test_a_faster_car_cutting_in_close_asks_only_comfortable_braking():
+    """LuST on-ramp (tests/test_realnet.py): a ramp car at 29 m/s appears with zero gap in front
+    of a member at 24.8 m/s. The gap opens by itself at 4.2 m/s. Before, the speed cap was
+    max(29 + (0 - 2 - 1.5 * 29) / 1.5, 0) = 0 m/s: the planner turned it into braking at the
+    friction limit and the member fell 60 m behind its slot and off the road; the slot's gap
+    law asked 0.2 (0 - 2 - 1.5 * 24.8) + 0.7 * 4.2 = -4.9 m/s^2, an emergency for the virtual
+    car. Now the cap is the member's own speed and the law at most B_COMFORT of braking."""
+    T, g0, v, v_lead = 1.5, 2.0, 24.8, 29.0
+    assert member_speed_cap(np.array([0.0]), np.array([v_lead]), T, g0, np.array([v]))[0] == pytest.approx(v)
+    assert time_gap_accel(np.array([0.0]), np.array([v]), np.array([v_lead]), T, g0)[0] == pytest.approx(-B_COMFORT)
+    # far enough ahead, the linear law is milder and unchanged
+    far = g0 + T * v + 5.0
+    assert time_gap_accel(np.array([far]), np.array([v]), np.array([v_lead]), T, g0)[0] == pytest.approx(
+        K_GAP * 5.0 + K_REL * (v_lead - v))
+    # a slower car at the same gap still gets all the braking it needs, and the old cap
+    assert time_gap_accel(np.array([3.0]), np.array([v]), np.array([20.0]), T, g0)[0] < -B_COMFORT
+    assert member_speed_cap(np.array([3.0]), np.array([20.0]), T, g0, np.array([v]))[0] == pytest.approx(
+        max(20.0 + (3.0 - g0 - T * 20.0) / T, 0.0))
 
 
 def test_leader_accel_free_road_law_limits_and_no_reversing():
@@ -117,7 +137,7 @@ def test_governor_step_is_the_composition_of_the_laws(k_others):
     assert a_vc == leader_accel(v_vc, v_set, v_set_dot, acc_slot[active], a_max, d_em)
     np.testing.assert_array_equal(gap, g_ref)
     np.testing.assert_array_equal(idx, idx_ref)
-    np.testing.assert_array_equal(v_cap, member_speed_cap(g_ref, vl_ref, tg, mg))
+    np.testing.assert_array_equal(v_cap, member_speed_cap(g_ref, vl_ref, tg, mg, v_m))
     np.testing.assert_array_equal(a_cap, np.maximum(time_gap_accel(g_ref, v_m, vl_ref, tg, mg), -d_em))
     if k_others == 12:
         assert np.isfinite(gap).sum() >= 2 and a_vc < K_SPEED * (v_set - v_vc) + v_set_dot  # traffic binds

@@ -192,7 +192,7 @@ class CommChannel:
             gap, v_lead, _ = vehicles_ahead(np.full(1, d_front), np.zeros(1), np.full(1, veh.width / 2),
                                             along[i, o] - (veh.length - d_front), across[i, o],
                                             np.full(int(o.sum()), veh.width / 2), v_m[o])
-            v_cap[i] = min(v_cap[i], member_speed_cap(gap, v_lead, ld.time_gap, ld.min_gap)[0])
+            v_cap[i] = min(v_cap[i], member_speed_cap(gap, v_lead, ld.time_gap, ld.min_gap, v_m[i])[0])
             a_law = time_gap_accel(gap, v_m[i:i + 1], v_lead, ld.time_gap, ld.min_gap)[0]
             a_cap[i] = min(a_cap[i], max(a_law, -ld.decel_emergency))
         return v_cap, a_cap

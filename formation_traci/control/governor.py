@@ -71,7 +71,10 @@ def time_gap_accel(gap, v, v_lead, time_gap, min_gap):
     Constant-time-gap law a = K_GAP (gap - g*) + K_REL (v_lead - v). When matching the
     leader's speed within the free gap needs more than B_COMFORT of braking,
     b = (v^2 - v_lead^2) / (2 (gap - min_gap)), the law is bounded above by -b (a far, slower
-    vehicle needs no braking yet; a near one gets all it needs). +inf where there is no leader.
+    vehicle needs no braking yet; a near one gets all it needs). A leader at least as fast as
+    the member (a faster car cutting in close) opens the gap by itself: the law is then bounded
+    below by -B_COMFORT (the gap error is removed comfortably, never as an emergency).
+    +inf where there is no leader.
     """
     gap, v, v_lead = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (gap, v, v_lead)))
     out = np.empty(gap.shape)
@@ -85,7 +88,9 @@ def _gap_law(gap, v, v_lead, time_gap, min_gap):
     if not np.isfinite(gap):
         return np.inf
     law = K_GAP * (gap - min_gap - time_gap * v) + K_REL * (v_lead - v)
-    b_need = max(v * v - v_lead * v_lead, 0.0) / (2.0 * max(gap - min_gap, 0.1))
+    if v_lead >= v:  # the gap opens by itself: never more than comfortable braking
+        return max(law, -B_COMFORT)
+    b_need = (v * v - v_lead * v_lead) / (2.0 * max(gap - min_gap, 0.1))
     if b_need > B_COMFORT:
         law = min(law, -b_need)
     return law
@@ -116,30 +121,38 @@ def _leader_law(v_vc, v_set, v_set_dot, member_accels, use, accel_max, decel_eme
     return a
 
 
-def member_speed_cap(gap, v_lead, time_gap, min_gap):
-    """Largest speed reference [m/s] for a member with a vehicle ``gap`` [m] ahead.
+def member_speed_cap(gap, v_lead, time_gap, min_gap, v):
+    """Largest speed reference [m/s] for a member at speed ``v`` [m/s] with a vehicle ``gap``
+    [m] ahead.
 
     The member may close in on the vehicle until the gap is min_gap + time_gap v_lead, with
-    the gap error removed over ``time_gap``; inf where nobody is ahead.
+    the gap error removed over ``time_gap``; inf where nobody is ahead. A vehicle at least as
+    fast as the member (the gap opens by itself) never caps below the member's own speed: a
+    close cut-in by a faster car would otherwise ask a near stop (cap ~0 for a zero gap),
+    which the jerk-limited planner turns into braking at the friction limit; its acceleration
+    cap (:func:`time_gap_accel`) opens the gap comfortably instead.
     """
-    gap, v_lead = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (gap, v_lead)))
+    gap, v_lead, v = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (gap, v_lead, v)))
     out = np.empty(gap.shape)
-    _speed_caps(gap.ravel(), v_lead.ravel(), float(time_gap), float(min_gap), out.reshape(-1))
+    _speed_caps(gap.ravel(), v_lead.ravel(), float(time_gap), float(min_gap), v.ravel(), out.reshape(-1))
     return out
 
 
 @kernel(error_model="python")
-def _speed_cap(gap, v_lead, time_gap, min_gap):
+def _speed_cap(gap, v_lead, time_gap, min_gap, v):
     """:func:`member_speed_cap` for one member."""
     if not np.isfinite(gap):
         return np.inf
-    return max(v_lead + (gap - min_gap - time_gap * v_lead) / time_gap, 0.0)
+    cap = max(v_lead + (gap - min_gap - time_gap * v_lead) / time_gap, 0.0)
+    if v_lead >= v:
+        cap = max(cap, v)
+    return cap
 
 
 @kernel(error_model="python")
-def _speed_caps(gap, v_lead, time_gap, min_gap, out):
+def _speed_caps(gap, v_lead, time_gap, min_gap, v, out):
     for i in range(gap.shape[0]):
-        out[i] = _speed_cap(gap[i], v_lead[i], time_gap, min_gap)
+        out[i] = _speed_cap(gap[i], v_lead[i], time_gap, min_gap, v[i])
 
 
 @kernel(error_model="python")
@@ -162,7 +175,7 @@ def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_v
     a_cap = np.empty(n)
     for i in range(n):
         acc_slot[i] = _gap_law(gap_slot[i], v_vc, v_lead_slot[i], time_gap, min_gap)
-        v_cap[i] = _speed_cap(gap[i], v_lead[i], time_gap, min_gap)
+        v_cap[i] = _speed_cap(gap[i], v_lead[i], time_gap, min_gap, v_m[i])
         a_cap[i] = max(_gap_law(gap[i], v_m[i], v_lead[i], time_gap, min_gap), -decel_emergency)
     a_vc = _leader_law(v_vc, v_set, v_set_dot, acc_slot, active, accel_max, decel_emergency)
     return a_vc, gap, index, v_cap, a_cap

@@ -13,6 +13,7 @@ from pydantic import Field, field_validator, model_validator
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict  # noqa: F401
 from .comm_spec import CommLinkSpec, CommSpec  # noqa: F401
 from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec
+from .road_traffic import FlowSpec, RoadSpec, RouteEnds, RouteValue, TrafficSpec  # noqa: F401 (re-exported)
 
 
 
@@ -134,44 +135,6 @@ class MemberSpec(Strict):
         return self
 
 
-class RoadSpec(Strict):
-    """The SUMO road the virtual car drives along (its presence makes the run a SUMO run)."""
-
-    net: str = Field(description="bundled network name (sumo_nets/) or a .net.xml path relative to the scenario file")
-    route: list[str] | None = Field(None, min_length=1, description="edges of the main route; default: the network's main route")
-    lane: int = Field(1, ge=0, description="reference lane index the virtual car follows (0 = rightmost)")
-    start: NonNegFloat = Field(200.0, description="virtual car's arc length along the route at t = 0 [m]")
-    end_margin: NonNegFloat = Field(150.0, description="the run stops when the formation's front is this close to the route end [m]")
-
-
-class FlowSpec(Strict):
-    id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$")
-    route: list[str] | None = Field(None, min_length=1, description="edges; default: the main route")
-    veh_per_hour_per_lane: PosFloat | None = Field(None, description="demand per lane of the first edge [veh/h]")
-    veh_per_hour: PosFloat | None = Field(None, description="total demand [veh/h]")
-    depart_lane: Literal["best", "random", "free", "allowed"] | Annotated[int, Field(ge=0)] = "best"
-    depart_speed: Literal["desired", "max", "avg", "random"] | NonNegFloat = "desired"
-    begin: NonNegFloat = Field(0.0, description="SUMO time the flow starts [s] (warm-up included)")
-    end: PosFloat | None = Field(None, description="SUMO time the flow ends [s]; default: end of the run")
-    mix: dict[Literal["car", "truck"], Annotated[float, Field(ge=0, le=1)]] = Field(
-        default_factory=lambda: {"car": 0.85, "truck": 0.15}, description="vehicle type shares, summing to 1")
-    speed_dev: NonNegFloat = Field(0.1, le=0.5, description="spread of the speed factor (normal, mean 1) [-]")
-
-    @model_validator(mode="after")
-    def _demand(self):
-        if (self.veh_per_hour is None) == (self.veh_per_hour_per_lane is None):
-            raise ValueError("give exactly one of 'veh_per_hour' or 'veh_per_hour_per_lane'")
-        if abs(sum(self.mix.values()) - 1.0) > 1e-9:
-            raise ValueError(f"mix shares must sum to 1 (got {sum(self.mix.values())})")
-        return self
-
-
-class TrafficSpec(Strict):
-    flows: list[FlowSpec] = Field(default_factory=list)
-    warmup: NonNegFloat = Field(0.0, description="SUMO time simulated before the formation is inserted [s]")
-    record_radius: PosFloat | None = Field(300.0, description="record background vehicles within this distance of a member [m]; omit for all")
-
-
 class SumoSpec(Strict):
     backend: Literal["libsumo", "traci"] = "libsumo"
     gui: bool = Field(False, description="run sumo-gui (traci backend only)")
@@ -181,6 +144,9 @@ class SumoSpec(Strict):
         "(default; background pairs are measured from the recording by the analysis), on every "
         "vehicle (about 10x the cost of the run), or off; true/false mean \"all\"/\"off\"")
     fcd: bool = Field(False, description="also write SUMO's FCD output (Parquet)")
+    fcd_frame: Literal["sumo", "formation"] = Field(
+        "sumo", description="FCD in SUMO's frame (SUMO time, front bumper, deg CW from north) or the "
+                            "formation's (t = SUMO time - warm-up, centre of gravity, rad CCW from +x)")
     friction_device: bool = Field(True, description="SUMO's cars slow down on low-friction lanes (device.friction)")
     options: list[str] = Field(default_factory=list, description="extra SUMO command-line options")
     attach_port: int | None = Field(None, ge=1, le=65535, description="attach (traci) to a SUMO already "

@@ -6,6 +6,7 @@ road anywhere along the route, members that would be inserted on top of each oth
 """
 from __future__ import annotations
 
+import os
 import itertools
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,9 +14,13 @@ from pathlib import Path
 import numpy as np
 
 from ..models.params import VehicleParams
-from ..road.geometry import ReferenceLine, lane_offsets, load_net, reference_line_from_net, route_lanes
+from ..road.geometry import ReferenceLine, load_net
+from ..road.lanes import (LaneShapes, geometric_route_lanes, geometric_route_shape, lane_centre_offsets,
+                          sideways_internal_lanes)
+from ..road.smoothing import fit_within
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
+from .routes import resolve_route
 
 MAIN_ROUTES = {
     "straight3": ["entry", "main"],
@@ -47,6 +52,11 @@ class Road:
     lane_width: float  # width of the reference lane on the first edge [m]
     edge_lanes: dict[str, int]  # lane count per route edge
     lane_d: dict[str, np.ndarray]  # per route edge: lateral offset of each lane centre from the reference line [m]
+    edge_length: dict[str, float] = None  # length of lane 0 of each route edge [m]
+    flow_routes: dict[str, tuple[list[str], int]] = None  # flow id -> (edges, lanes of its first edge)
+    fit: dict = None  # smoothing of the reference line: length used, largest deviation, tolerance [m]
+    shapes: LaneShapes = None  # SUMO's lane shapes: (lane, position, lateral offset) -> x, y
+    member_forbidden: tuple[str, ...] = ()  # internal lanes members are kept off (road/lanes.py)
 
 
 def resolve_net(sc: Scenario, source: Path | None) -> Path:
@@ -90,13 +100,22 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
     src = source or "<scenario>"
     net_file = resolve_net(sc, source)
     net = load_net(net_file)
-    route = list(sc.road.route or MAIN_ROUTES.get(sc.road.net) or [])
-    if not route:
+    spec = sc.road.route or MAIN_ROUTES.get(sc.road.net)
+    if not spec:
         raise ScenarioError(src, [("road.route", "required for a network that is not bundled "
-                                                 "(list of edge ids in driving order)")])
-    missing = [e for e in route if not net.hasEdge(e)]
-    if missing:
-        raise ScenarioError(src, [("road.route", f"edges not in {net_file.name}: {missing}")])
+                                                 "(list of edge ids in driving order, or {from, to})")])
+    route, problems = resolve_route(net, spec, "road.route")
+    flow_routes = {}
+    for i, f in enumerate(sc.traffic.flows):
+        if f.route is None:
+            edges = route
+        else:
+            edges, more = resolve_route(net, f.route, f"traffic.flows.{i}.route")
+            problems += more
+        if edges:
+            flow_routes[f.id] = (edges, net.getEdge(edges[0]).getLaneNumber() if net.hasEdge(edges[0]) else 0)
+    if problems:
+        raise ScenarioError(src, [(fld, f"{msg} ({net_file.name})") for fld, msg in problems])
     bad_exits = [(f"maneuvers.{i}.exit", f"expected an edge of {net_file.name} off the route (an off-ramp), got {mv.exit!r}")
                  for i, mv in enumerate(sc.maneuvers) if mv.exit is not None
                  and (not net.hasEdge(mv.exit) or mv.exit in route)]
@@ -107,8 +126,7 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
         raise ScenarioError(src, [("road.lane", f"edge {route[0]!r} has lanes 0..{first.getLaneNumber() - 1}, "
                                                 f"got {sc.road.lane}")])
     try:
-        lanes = route_lanes(net, route, sc.road.lane)
-        line = reference_line_from_net(net, route, sc.road.lane)
+        lanes, line, fit = _reference(str(net_file), tuple(route), sc.road.lane, sc.road.fit_tolerance, net)
     except ValueError as exc:
         raise ScenarioError(src, [("road.route", f"lane {sc.road.lane} cannot be followed along the route: {exc}")]) from None
     segments = []
@@ -120,7 +138,7 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
         edge = lane.getEdge()
         shape = np.asarray([p[:2] for p in lane.getShape()], dtype=float)
         s_ends, _ = line.to_frenet(shape[[0, -1]])
-        offs = lane_offsets(net, edge.getID(), lane.getIndex())
+        offs = lane_centre_offsets(net, edge.getID(), line)  # from SUMO's shapes (gaps included)
         widths = np.array([ln.getWidth() for ln in edge.getLanes()])
         lane_d[edge.getID()] = offs
         segments.append(RoadSegment(edge.getID(), float(s_ends[0]), float(s_ends[1]),
@@ -129,7 +147,27 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
         raise ScenarioError(src, [("road.start", f"must be less than the route length minus end_margin "
                                                  f"({line.length - sc.road.end_margin:.1f} m)")])
     return Road(net_file, route, line, tuple(segments), first.getLane(sc.road.lane).getWidth(),
-                {e: net.getEdge(e).getLaneNumber() for e in route}, lane_d)
+                {e: net.getEdge(e).getLaneNumber() for e in route}, lane_d,
+                {e: net.getEdge(e).getLane(0).getLength() for e in route}, flow_routes, fit, LaneShapes(net),
+                tuple(sideways_internal_lanes(net, route)))
+
+
+_REFERENCE_CACHE: dict = {}
+
+
+def _reference(net_file: str, route: tuple, lane: int, tolerance: float, net):
+    """Geometric lanes of the reference lane along the route, and the line fitted to them
+    within ``tolerance`` [m] (road/smoothing.py); cached per network file (and its mtime),
+    route, lane and tolerance."""
+    key = (net_file, os.stat(net_file).st_mtime_ns, route, lane, tolerance)
+    if key not in _REFERENCE_CACHE:
+        lanes = geometric_route_lanes(net, route, lane)
+        line, length, dev = fit_within(geometric_route_shape(net, route, lane), tolerance)
+        if len(_REFERENCE_CACHE) > 8:
+            _REFERENCE_CACHE.clear()
+        _REFERENCE_CACHE[key] = (lanes, line, {"smoothing_length_m": length, "max_deviation_m": dev,
+                                               "tolerance_m": tolerance})
+    return _REFERENCE_CACHE[key]
 
 
 def slot_offsets(sc: Scenario, road: Road) -> np.ndarray:
@@ -139,9 +177,19 @@ def slot_offsets(sc: Scenario, road: Road) -> np.ndarray:
         if m.slot is None:
             out.append([np.nan, np.nan])
         else:
-            across = m.slot.across if m.slot.across is not None else m.slot.lanes * road.lane_width
+            across = m.slot.across if m.slot.across is not None else _lane_across(sc, road, m.slot.lanes)
             out.append([m.slot.along, across])
     return np.array(out, dtype=float)
+
+
+def _lane_across(sc: Scenario, road: Road, lanes: int) -> float:
+    """Offset [m] of the lane ``lanes`` to the left of the reference lane on the first edge,
+    from SUMO's lane shapes; beyond the edge's lanes, the reference lane's width per lane."""
+    offs = road.lane_d.get(road.route[0])
+    k = sc.road.lane + lanes
+    if offs is not None and 0 <= k < len(offs):
+        return float(offs[k] - offs[sc.road.lane])
+    return lanes * road.lane_width
 
 
 def check_slots(sc: Scenario, road: Road, slots: np.ndarray, vehicles: list[VehicleParams], source,

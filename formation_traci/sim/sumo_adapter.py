@@ -38,6 +38,10 @@ LANE_CHANGE_MODE_DEFAULT = 1621
 
 REMOVED_REASONS = ("arrived", "vanished")
 
+ORDINARY_CLASS = {"custom1": "passenger", "custom2": "truck"}
+"""SUMO class a released member drives on with: the members' own classes are kept off some
+junction lanes of real networks (road/lanes.py), an ordinary vehicle is not."""
+
 
 def cog_to_sumo(x, y, psi, d_front):
     """CoG pose [m, m, rad CCW from +x] -> SUMO front bumper [m, m] and angle [deg, CW from north]."""
@@ -143,6 +147,7 @@ class SumoAdapter:
         self._lane_geometry: dict[str, tuple[float, int]] = {}  # lane -> (width [m], lanes of its edge)
         self._bodies: dict[str, tuple[float, float, str]] = {}  # vehicle -> (length, width [m], vType)
         self._started = False
+        self.departed: dict[str, int] = {}  # flow id -> vehicles SUMO inserted (see count_departures)
         self._proc = None  # the SUMO process of the traci backend
 
     # -- lifecycle -------------------------------------------------------------------
@@ -232,6 +237,20 @@ class SumoAdapter:
     def simulation_step(self) -> None:
         """Advance SUMO by one step (no member handling; used for the warm-up)."""
         self.api.simulationStep()
+        if self.departed:
+            self._count_departed()
+
+    def count_departures(self, flow_ids) -> None:
+        """Count, from now on, the vehicles SUMO inserts for each flow (SUMO names them
+        ``<flow id>.<n>``) in :attr:`departed`."""
+        self.departed = {f: 0 for f in flow_ids}
+
+    def _count_departed(self) -> None:
+        counts = self.departed
+        for vid in self.api.simulation.getDepartedIDList():
+            flow = vid.rpartition(".")[0]
+            if flow in counts and vid not in self.members:
+                counts[flow] += 1
 
     # -- network helpers -------------------------------------------------------------
     def set_friction(self, mu: float) -> None:
@@ -270,6 +289,12 @@ class SumoAdapter:
             return  # e.g. on a junction: the next edge tries again
         self._window[vid] = (route_id, i)
 
+    def forbid_lanes(self, lanes, vclasses) -> None:
+        """Disallow vehicle classes on lanes (added to each lane's disallowed classes)."""
+        for lane in lanes:
+            have = list(self.api.lane.getDisallowed(lane))
+            self.api.lane.setDisallowed(lane, sorted(set(have) | set(vclasses)))
+
     def add_member_type(self, mt: MemberType) -> None:
         vt = self.api.vehicletype
         vt.copy("DEFAULT_VEHTYPE", mt.id)
@@ -298,6 +323,9 @@ class SumoAdapter:
         v = self.api.vehicle
         window = self._window.pop(vid, None)
         lane = self._member_lane.pop(vid, ("", -1, 0.0))[0]
+        mt = self.members.get(vid)
+        if mt is not None and mt.vclass in ORDINARY_CLASS:  # lanes closed to members open again
+            v.setVehicleClass(vid, ORDINARY_CLASS[mt.vclass])
         if window is not None and lane and not lane.startswith(":"):
             edges = self._routes[window[0]][0]
             edge = lane.rsplit("_", 1)[0]
@@ -434,6 +462,8 @@ class SumoAdapter:
             ev.collisions.append((c.collider, c.victim, c.lane))
         ev.teleports = list(sim.getStartingTeleportIDList())
         ev.arrived = list(sim.getArrivedIDList())
+        if self.departed:
+            self._count_departed()
         for vid in ev.arrived:
             self._bodies.pop(vid, None)
         return ev
@@ -472,6 +502,8 @@ class SumoAdapter:
             self._advance_route_window(vid, lane)
         x, y, psi = sumo_to_cog(np.array(xf), np.array(yf), np.array(ang), np.array(d_front))
         lane_index, lat, present = np.array(lane_index, dtype=int), np.array(lat), np.array(present, dtype=bool)
+        self.lane_pos = np.array([res[vid][tc.VAR_LANEPOSITION] if present[i] else math.nan
+                                  for i, vid in enumerate(ids)])  # front bumper along its lane [m]
         return x, y, psi, lanes, lane_index, lat, present
 
     # -- neighbours ------------------------------------------------------------------

@@ -13,6 +13,7 @@ from ..models.params import VehicleParams
 from ..road.leader import road_leader_state
 from ..road.targets import road_targets
 from ..scenario.schema import Scenario
+from .messages import SUMO_ARGS as SUMO_QUIET
 from .road_setup import (Road, build_road, check_no_overlap, check_route_ends, check_slots,
                          initial_check_limit, slot_offsets)
 from .setup import member_vehicles, profile, vehicle_params
@@ -94,6 +95,7 @@ def sumo_args(sc: Scenario, net: Path, routes: Path, sumo_dir: Path, t_end: floa
             "--collision.action", "warn", "--collision.mingap-factor", "0",
             "--collision.check-junctions", "true",
             "--no-step-log", "true", "--log", str(sumo_dir / "sumo.log"),
+            "--error-log", str(sumo_dir / "messages.log"), *SUMO_QUIET,
             "--duration-log.disable", "true"]
     args += ssm_args(sc.sumo.ssm, [m.id for m in sc.members], sumo_dir / "ssm.xml")
     if sc.sumo.friction_device:
@@ -110,8 +112,13 @@ def member_type(sc: Scenario, veh: VehicleParams, preset: str | None = None) -> 
     preset = preset or sc.vehicle.preset
     return MemberType(id=f"member_{preset}", length=veh.length, width=veh.width,
                       d_front=veh.cog_to_front_bumper, color=veh.color,
-                      vclass="truck" if preset == "small_truck" else "passenger",
+                      vclass=MEMBER_VCLASS[preset],
                       ssm_device=sc.sumo.ssm == "members" and sc.sumo.attach_port is None)
+
+
+MEMBER_VCLASS = {"passenger_car": "custom1", "small_truck": "custom2"}
+"""Members' own SUMO vehicle classes: lane permissions can keep them (only) off the internal
+lanes where the network's connections cross its lane geometry (road/lanes.py)."""
 
 
 def member_types(sc: Scenario, plan: RoadPlan) -> list[MemberType]:

@@ -19,9 +19,11 @@ from ..scenario.schema import Scenario
 from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
                      log_sumo_events)
 from .road_setup import rectangles_overlap
+from .demand import measure_plan, traffic_meta
 from .join import adopt, enter, take_over
+from .messages import sumo_outputs_meta
 from .sumo_adapter import SumoAdapter, SumoError
-from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, RoadPlan, member_types, sumo_args
+from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import CAR, flow_vehicles_per_hour, write_routes
 from .world import Sensed
 
@@ -60,6 +62,7 @@ class SumoWorld:
         self.followed = None  # the member sumo-gui's view follows
         self.refusals = RefusalWatch(rec, self.ids, self.sumo_ids)
         self.mtypes = member_types(sc, plan)
+        self.d_front = np.array([mt.d_front for mt in self.mtypes])  # CoG to front bumper [m]
         self.adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
         if sc.sumo.ssm != "off":  # converted as the run goes, cut with the other tables (record/ssm.py)
             t0 = int(round(sc.traffic.warmup / sc.run.step)) * sc.run.step
@@ -75,11 +78,14 @@ class SumoWorld:
         t_sumo_end = self.t0 + run.duration + 2 * run.step
         flows = []
         for f in sc.traffic.flows:
-            edges = list(f.route or road.route)
-            lanes = road.edge_lanes.get(edges[0]) or 3
+            edges, lanes = road.flow_routes[f.id]
             flows.append((f, edges, flow_vehicles_per_hour(f, lanes)))
         routes = write_routes(self.sumo_dir / "traffic.rou.xml", flows, t_sumo_end)
+        self.flows = [(f, e, vph, f.end if f.end is not None else t_sumo_end) for f, e, vph in flows]
+        self.measure = measure_plan(sc, road, self.sumo_dir)
         args = sumo_args(sc, road.net_file, routes, self.sumo_dir, t_sumo_end)
+        if self.measure is not None:
+            args += ["-a", str(self.measure["file"])]
         meta, plan = self.meta, self.plan
         meta["sumo"] = {"args": args, "warmup": self.t0, "net": str(road.net_file),
                         "route": road.route, "reference_lane": sc.road.lane}
@@ -94,19 +100,31 @@ class SumoWorld:
         else:
             meta["sumo"]["version"] = ad.start(args)
         meta["versions"]["sumo"] = meta["sumo"]["version"]
+        ad.count_departures([f.id for f in sc.traffic.flows])
         ad.set_friction(meta["mu"])
         ad.add_route(MEMBER_ROUTE, road.route)
         for mt in {mt.id: mt for mt in self.mtypes}.values():
             ad.add_member_type(mt)
+        ad.forbid_lanes(road.member_forbidden, MEMBER_VCLASS.values())
         for _ in range(warm_steps):
             ad.simulation_step()
 
     def close(self) -> None:
-        self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
+        t0 = getattr(self, "t0", 0.0)
+        t_sumo = self.adapter.time if self.adapter._started else t0
+        try:
+            self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
+        finally:
+            if hasattr(self, "flows"):
+                traffic_meta(self.meta, self.rec, self.flows, self.adapter.departed, t_sumo, t0,
+                             self.measure)
+                sumo_outputs_meta(self.meta, self.sc, self.rec, self.sumo_dir, t0,
+                                  {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)})
 
     # ------------------------------------------------------------------------- sense
     def sense(self, k: int, t: float, state) -> Sensed:
         pos, vel, heading = self.fleet.kinematics(state)
+        self._heading = heading
         v_m = np.hypot(vel[:, 0], vel[:, 1])
         m_s, m_d = self.line.to_frenet(pos, self.m_s)
         self.m_s = m_s
@@ -136,8 +154,9 @@ class SumoWorld:
                 self.active[i] = False
         gap_sumo = np.full(n, np.nan)
         lane_index = np.full(n, np.nan)
-        gap_sumo[idx_act] = sumo_gap(self.plan.road, pos[idx_act], m_d[idx_act], xs, ys, lanes,
-                                     lane_idx, lat)
+        heading = self._heading[idx_act]
+        gap_sumo[idx_act] = sumo_gap(self.plan.road, pos[idx_act], heading, self.d_front[idx_act],
+                                     xs, ys, lanes, self.adapter.lane_pos, lat)
         lane_index[idx_act] = np.where(present, lane_idx, np.nan)
         extra.update(sumo_gap=gap_sumo, lane_index=lane_index)
         self.members.placement(t, gap_sumo)
@@ -260,15 +279,18 @@ def subscribe_context(adapter, ids, active, along, across, radius):
     return owner
 
 
-def sumo_gap(road, pos, d, xs, ys, lanes, lane_idx, lat):
+def sumo_gap(road, pos, heading, d_front, xs, ys, lanes, lane_pos, lat):
     """How far SUMO has each member from our pose [m]: the larger of the position gap and the
-    lateral gap implied by SUMO's lane and lateral lane position. (In the step of a move SUMO
+    distance between our front bumper (``d_front`` [m] ahead of the CoG, per member) and the point SUMO's lane, lane position and lateral
+    lane position give (SUMO's lane shapes, road/lanes.py). (In the step of a move SUMO
     echoes the commanded x, y even where it put the vehicle on another lane.)"""
     gap = np.hypot(xs - pos[:, 0], ys - pos[:, 1])
+    fx = pos[:, 0] + d_front * np.cos(heading)
+    fy = pos[:, 1] + d_front * np.sin(heading)
     for j, lane in enumerate(lanes):
-        offs = road.lane_d.get(lane.rsplit("_", 1)[0]) if lane else None
-        if offs is not None and 0 <= lane_idx[j] < len(offs) and np.isfinite(lat[j]):
-            gap[j] = max(gap[j], abs(offs[lane_idx[j]] + lat[j] - d[j]))
+        if lane and np.isfinite(lat[j]) and np.isfinite(lane_pos[j]):
+            sx, sy = road.shapes.xy(lane, lane_pos[j], lat[j])
+            gap[j] = max(gap[j], math.hypot(sx - fx[j], sy - fy[j]))
     return gap
 
 

@@ -1,6 +1,7 @@
 """Background traffic as a SUMO route file: vehicle types, routes and seeded flows."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -26,6 +27,17 @@ def flow_vehicles_per_hour(flow: FlowSpec, lanes_of_first_edge: int) -> float:
     return flow.veh_per_hour_per_lane * lanes_of_first_edge
 
 
+def requested_vehicles(vph: float, begin: float, end: float, t_end: float) -> int:
+    """Vehicles a flow of ``vph`` [veh/h] asks SUMO for before ``min(end, t_end)`` [s]: SUMO
+    departs them every 3600 / vph seconds from ``begin`` on (the first at ``begin``).
+    SUMO rounds departure times to its millisecond clock, so where a departure falls on
+    ``t_end`` itself SUMO may insert one vehicle more than this count."""
+    window = min(end, t_end) - begin
+    if vph <= 0 or window <= 0:
+        return 0
+    return int(math.ceil(window * vph / 3600.0 - 1e-9))
+
+
 def write_routes(path: Path, flows: list[tuple[FlowSpec, list[str], float]], end: float) -> Path:
     """Write vTypes, routes and flows. ``flows`` holds (spec, edges, veh/h); ``end`` [s] is
     the default end of every flow. Each flow draws its types from its own distribution."""
@@ -46,7 +58,7 @@ def write_routes(path: Path, flows: list[tuple[FlowSpec, list[str], float]], end
         lines.append(
             f'  <flow id="{spec.id}" type="{spec.id}_types" route="{spec.id}_route" '
             f'begin="{spec.begin}" end="{f_end}" vehsPerHour="{vph:.3f}" '
-            f'departLane="{spec.depart_lane}" departSpeed="{spec.depart_speed}" departPos="base"/>')
+            f'departLane="{spec.depart_lane}" departSpeed="{spec.depart_speed}" departPos="{spec.depart_pos}"/>')
     lines.append("</routes>")
     path.write_text("\n".join(lines) + "\n")
     return path

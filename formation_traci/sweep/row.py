@@ -35,6 +35,10 @@ METRICS: dict[str, tuple[str, str]] = {
     "collisions": ("-", "SUMO runs: collision events involving a member (NaN in free space)"),
     "min_ttc_s": ("s", "SUMO runs: smallest SSM time to collision of a conflict involving a member"),
     "emergency_brakes": ("-", "SUMO runs: emergency_brake events (the virtual car or a member braking harder than comfortable)"),
+    "requested_veh": ("-", "SUMO runs: vehicles the flows asked for up to the run's end (warm-up included)"),
+    "inserted_veh": ("-", "SUMO runs: vehicles SUMO inserted for the flows"),
+    "flow_measured_veh_h": ("veh/h", "SUMO runs: flow over all lanes at traffic.measure_at during the formation's run"),
+    "density_measured_veh_km": ("veh/km", "SUMO runs: density over all lanes at traffic.measure_at during the formation's run"),
     "energy_kwh_per_100km": ("kWh/100km", "all members' traction energy over their distance (docs/energy.md)"),
     "energy_saving_vs_alone": ("-", "1 - members' energy / their energy alone; NaN with resistances off"),
     "leader_age_mean_s": ("s", "max of each member's mean age of the virtual-car state it held ([comm])"),
@@ -43,7 +47,8 @@ METRICS: dict[str, tuple[str, str]] = {
 }
 """Metric columns of ``summary.parquet``: unit and meaning."""
 
-COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes", "comm_timeouts"})
+COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes", "requested_veh", "inserted_veh",
+                           "comm_timeouts"})
 
 
 def empty_row(case: dict, status: str, reason: str | None) -> dict[str, Any]:
@@ -98,10 +103,17 @@ def _sumo_metrics(run_dir: Path, member_ids: set[str], meta: dict) -> dict[str, 
     if ssm is not None and len(ssm):
         x = pd.to_numeric(ssm.loc[ssm["member_involved"].astype(bool), "min_ttc"], errors="coerce")
         ttc = float(x.min()) if x.notna().any() else None
+    traffic = meta.get("traffic") or {}
+    flows = (traffic.get("flows") or {}).values()
+    measured = traffic.get("measured") or {}
     counts = meta.get("event_counts") or {}
     return {"collisions": n_coll, "min_ttc_s": ttc,
             "emergency_brakes": int(counts.get("emergency_brake", 0)),
-            "comm_timeouts": int(counts.get("comm_timeout", 0))}
+            "comm_timeouts": int(counts.get("comm_timeout", 0)),
+            "requested_veh": sum(int(f["requested"]) for f in flows) if flows else None,
+            "inserted_veh": sum(int(f["inserted"]) for f in flows) if flows else None,
+            "flow_measured_veh_h": measured.get("flow_veh_h"),
+            "density_measured_veh_km": measured.get("density_veh_km")}
 
 
 def _energy_metrics(members: pd.DataFrame) -> dict[str, Any]:
@@ -153,6 +165,8 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
         "traction_over_s": _max(_col(members, "traction_over_s")),
         "friction_over_s": _max(_col(members, "friction_over_s")),
         "collisions": None, "min_ttc_s": None, "emergency_brakes": None,
+        "requested_veh": None, "inserted_veh": None, "flow_measured_veh_h": None,
+        "density_measured_veh_km": None,
         **_energy_metrics(members),
         "leader_age_mean_s": _max(_col(members, "leader_age_mean_s")),
         "leader_age_p95_s": _max(_col(members, "leader_age_p95_s")),

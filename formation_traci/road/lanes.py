@@ -1,0 +1,164 @@
+"""Lanes as SUMO has them: the geometric lane a vehicle keeps, lane centres from SUMO's shapes.
+
+Real (OSM-derived) networks do not always connect lanes the way they lie: at the LuST
+motorway's on-ramps the four-lane merge edge connects lanes 1 -> 1 and 2 -> 1 into the
+three-lane edge while its lane 1 geometrically continues as lane 0 and lane 2 as lane 1
+(docs/sumo.md, "Real networks"). Here a lane is followed by its geometry:
+
+* :func:`geometric_route_lanes`: at each joint the next lane is the lane of the next edge
+  whose start lies across from the end of the current one (within half a lane width); the
+  connection SUMO's routing would choose is used only where it leads there (its internal
+  lanes are then kept) or where no lane lies across (a lane that ends);
+* :func:`lane_centre_offsets`: each lane's centre offset from the reference line, measured
+  on SUMO's lane shapes (so lane widths, gaps between lanes and shape offsets are SUMO's);
+* :class:`LaneShapes`: SUMO's (lane, position, lateral offset) -> x, y, to check where SUMO
+  has a vehicle.
+
+Only sumolib is used (never libsumo or traci).
+"""
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+
+JOINT_REACH = 30.0
+"""The next lane's start must lie within this distance ahead of the current lane's end [m]."""
+
+
+def _end_frame(shape) -> tuple[np.ndarray, np.ndarray]:
+    """End point [m] and unit direction of a lane shape's last segment."""
+    pts = np.asarray([p[:2] for p in shape], dtype=float)
+    for k in range(len(pts) - 1, 0, -1):
+        d = pts[k] - pts[k - 1]
+        n = math.hypot(*d)
+        if n > 1e-6:
+            return pts[-1], d / n
+    return pts[-1], np.array([1.0, 0.0])
+
+
+def geometric_successor(lane, next_edge):
+    """The lane of ``next_edge`` that starts across from the end of ``lane`` (within half its
+    width, at most :data:`JOINT_REACH` ahead), or None."""
+    end, t = _end_frame(lane.getShape())
+    n = np.array([-t[1], t[0]])
+    best, best_lat = None, math.inf
+    for cand in next_edge.getLanes():
+        start = np.asarray(cand.getShape()[0][:2], dtype=float)
+        along, lat = float((start - end) @ t), abs(float((start - end) @ n))
+        if -2.0 <= along <= JOINT_REACH and lat < best_lat:
+            best, best_lat = cand, lat
+    if best is None or best_lat > 0.5 * min(lane.getWidth(), best.getWidth()):
+        return None
+    return best
+
+
+def _via_lanes(net, conn) -> list[str]:
+    ids, via = [], conn.getViaLaneID()
+    while via:  # internal lanes, possibly split at internal junctions
+        ids.append(via)
+        nxt = [c for c in net.getLane(via).getOutgoing() if c.getToLane().getID().startswith(":")]
+        via = nxt[0].getToLane().getID() if nxt else ""
+    return ids
+
+
+def geometric_route_lanes(net, edges: Sequence[str], lane_index: int) -> list[str]:
+    """Lane ids along a route keeping the geometric lane (internal lanes where the connection
+    leads to it). Raises ValueError where a lane neither continues nor connects."""
+    first = net.getEdge(edges[0])
+    if not 0 <= lane_index < first.getLaneNumber():
+        raise ValueError(f"lane_index {lane_index} not on edge {edges[0]!r} ({first.getLaneNumber()} lanes)")
+    lane = first.getLane(lane_index)
+    ids = [lane.getID()]
+    for nxt in edges[1:]:
+        geo = geometric_successor(lane, net.getEdge(nxt))
+        conns = [c for c in lane.getOutgoing() if c.getTo().getID() == nxt]
+        to_geo = [c for c in conns if geo is not None and c.getToLane().getID() == geo.getID()]
+        if to_geo:
+            ids += _via_lanes(net, to_geo[0])
+        elif geo is None:
+            if not conns:
+                raise ValueError(f"lane {lane.getID()!r} has no connection to edge {nxt!r}")
+            end = lane.getShape()[-1]
+            conn = min(conns, key=lambda c: math.dist(end, c.getToLane().getShape()[0]))
+            ids += _via_lanes(net, conn)
+            geo = conn.getToLane()
+        lane = geo
+        ids.append(lane.getID())
+    return ids
+
+
+def sideways_internal_lanes(net, edges: Sequence[str]) -> list[str]:
+    """Internal lanes of the route's joints whose connection leads a lane that continues
+    geometrically into another lane (e.g. LuST on-ramps: 1 -> 1 where lane 1 runs on as lane 0).
+    Members are kept off them so SUMO never sees two side-by-side members merging into one lane.
+
+    Only where another connection of the joint leads into that geometric lane (LuST: the ramp's
+    0 -> 0), so a member crossing the junction always has an internal lane it may use where it
+    geometrically is (``moveToXY`` maps it there; docs/sumo.md, "Members on junctions")."""
+    out = []
+    for a, b in zip(edges, edges[1:]):
+        nxt = net.getEdge(b)
+        into = {c.getToLane().getID(): c for lane in net.getEdge(a).getLanes()
+                for c in lane.getOutgoing() if c.getTo().getID() == b}
+        for lane in net.getEdge(a).getLanes():
+            geo = geometric_successor(lane, nxt)
+            if geo is None or geo.getID() not in into:
+                continue
+            for c in lane.getOutgoing():
+                if c.getTo().getID() == b and c.getToLane().getID() != geo.getID():
+                    out += _via_lanes(net, c)
+    return sorted(set(out))
+
+
+def geometric_route_shape(net, edges: Sequence[str], lane_index: int) -> np.ndarray:
+    """Concatenated SUMO shapes of :func:`geometric_route_lanes` (n, 2) [m]; where the line
+    leaves SUMO's connection it joins the two lanes' ends straight across the junction."""
+    pts = []
+    for lane_id in geometric_route_lanes(net, edges, lane_index):
+        pts.extend(tuple(p[:2]) for p in net.getLane(lane_id).getShape())
+    return np.asarray(pts, dtype=float)
+
+
+def lane_centre_offsets(net, edge_id: str, line) -> np.ndarray:
+    """Offset of every lane centre of an edge from the reference line [m], left positive:
+    the median over the lane's SUMO shape points (and segment midpoints) projected on the line."""
+    out = []
+    for lane in net.getEdge(edge_id).getLanes():
+        p = np.asarray([q[:2] for q in lane.getShape()], dtype=float)
+        pts = np.concatenate([p, 0.5 * (p[1:] + p[:-1])])
+        _, d = line.to_frenet(pts)
+        out.append(float(np.median(d)))
+    return np.asarray(out)
+
+
+class LaneShapes:
+    """SUMO lane shapes of a network, to turn SUMO's (lane, lane position, lateral offset) into
+    x, y [m]. SUMO's lane position runs over the lane's nominal length; it is scaled to the
+    shape's geometric length as SUMO does."""
+
+    def __init__(self, net):
+        self._net = net
+        self._cache: dict[str, tuple[np.ndarray, np.ndarray, float]] = {}
+
+    def _lane(self, lane_id: str):
+        got = self._cache.get(lane_id)
+        if got is None:
+            lane = self._net.getLane(lane_id)
+            pts = np.asarray([p[:2] for p in lane.getShape()], dtype=float)
+            cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+            scale = cum[-1] / lane.getLength() if lane.getLength() > 0 else 1.0
+            got = self._cache[lane_id] = (pts, cum, scale)
+        return got
+
+    def xy(self, lane_id: str, pos: float, lat: float) -> tuple[float, float]:
+        """Point at lane position ``pos`` [m] and ``lat`` [m] left of the lane's centre line."""
+        pts, cum, scale = self._lane(lane_id)
+        g = min(max(pos * scale, 0.0), cum[-1])
+        k = int(min(max(np.searchsorted(cum, g, side="right") - 1, 0), len(pts) - 2))
+        seg = pts[k + 1] - pts[k]
+        length = math.hypot(*seg) or 1.0
+        t = seg / length
+        p = pts[k] + t * (g - cum[k])
+        return float(p[0] - lat * t[1]), float(p[1] + lat * t[0])

@@ -1,0 +1,66 @@
+"""Scenario schema of the SUMO road (``[road]``) and the background traffic (``[traffic]``,
+``[[traffic.flows]]``), routes given as edge lists or by their two ends. See docs/scenarios.md."""
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import ConfigDict, Field, model_validator
+
+from .base import NonNegFloat, Pair, PosFloat, Strict
+
+
+class RouteEnds(Strict):
+    """A route by its two ends, joined by the network's shortest path (sumolib)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    from_: str | Pair = Field(alias="from", description="first edge id, or an [x, y] network position [m]")
+    to: str | Pair = Field(description="last edge id, or an [x, y] network position [m]")
+
+
+RouteValue = Union[Annotated[list[str], Field(min_length=1)], RouteEnds]
+
+
+class RoadSpec(Strict):
+    """The SUMO road the virtual car drives along (its presence makes the run a SUMO run)."""
+
+    net: str = Field(description="bundled network name (sumo_nets/) or a .net.xml path relative to the scenario file")
+    route: RouteValue | None = Field(None, description="edges of the main route, or {from, to} ends; default: the network's main route")
+    lane: int = Field(1, ge=0, description="reference lane index the virtual car follows (0 = rightmost)")
+    start: NonNegFloat = Field(200.0, description="virtual car's arc length along the route at t = 0 [m]")
+    end_margin: NonNegFloat = Field(150.0, description="the run stops when the formation's front is this close to the route end [m]")
+    fit_tolerance: PosFloat = Field(0.6, description="largest distance of the fitted reference line from SUMO's "
+                                    "lane centre [m]; the smoothest fit within it is used (road/smoothing.py)")
+
+
+class FlowSpec(Strict):
+    id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$")
+    route: RouteValue | None = Field(None, description="edges, or {from, to} ends; default: the main route")
+    veh_per_hour_per_lane: PosFloat | None = Field(None, description="demand per lane of the first edge [veh/h]")
+    veh_per_hour: PosFloat | None = Field(None, description="total demand [veh/h]")
+    depart_lane: Literal["best", "random", "free", "allowed", "first"] | Annotated[int, Field(ge=0)] = Field(
+        "best", description="SUMO departLane; 'best' spreads the flow over the lanes that continue")
+    depart_speed: Literal["desired", "max", "avg", "random", "speedLimit", "last"] | NonNegFloat = Field(
+        "max", description="SUMO departSpeed; 'max': the highest safe speed, so dense demand fits in")
+    depart_pos: Literal["base", "free", "random_free", "random", "last"] | NonNegFloat = Field(
+        "base", description="SUMO departPos [m from the edge start if a number]")
+    begin: NonNegFloat = Field(0.0, description="SUMO time the flow starts [s] (warm-up included)")
+    end: PosFloat | None = Field(None, description="SUMO time the flow ends [s]; default: end of the run")
+    mix: dict[Literal["car", "truck"], Annotated[float, Field(ge=0, le=1)]] = Field(
+        default_factory=lambda: {"car": 0.85, "truck": 0.15}, description="vehicle type shares, summing to 1")
+    speed_dev: NonNegFloat = Field(0.1, le=0.5, description="spread of the speed factor (normal, mean 1) [-]")
+
+    @model_validator(mode="after")
+    def _demand(self):
+        if (self.veh_per_hour is None) == (self.veh_per_hour_per_lane is None):
+            raise ValueError("give exactly one of 'veh_per_hour' or 'veh_per_hour_per_lane'")
+        if abs(sum(self.mix.values()) - 1.0) > 1e-9:
+            raise ValueError(f"mix shares must sum to 1 (got {sum(self.mix.values())})")
+        return self
+
+
+class TrafficSpec(Strict):
+    flows: list[FlowSpec] = Field(default_factory=list)
+    warmup: NonNegFloat = Field(0.0, description="SUMO time simulated before the formation is inserted [s]")
+    record_radius: PosFloat | None = Field(300.0, description="record background vehicles within this distance of a member [m]; omit for all")
+    measure_at: NonNegFloat | None = Field(1000.0, description="arc length along the main route where flow and "
+                                           "density are measured [m] (clamped to the route); None: not measured")

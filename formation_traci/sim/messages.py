@@ -1,0 +1,100 @@
+"""SUMO's messages on the formation's clock (docs/sumo.md, "One clock").
+
+SUMO is started with ``--no-warnings --error-log sumo/messages.log``: nothing of SUMO's reaches
+the terminal. After the run every warning and error of that file becomes a ``sumo_message``
+event at formation time ``t = SUMO time + step - warm-up`` (SUMO stamps a message with the time the
+step began; our events of the same step, e.g. collisions, are at the time it ends), negative
+during the warm-up; messages without a time, e.g. at loading, get ``-warm-up``; with SUMO's text
+where ``time=...`` is rewritten on the formation's clock. run.json ``sumo.messages`` counts
+them by kind, and one summary line goes to stderr.
+"""
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+_TIME = re.compile(r"time=(-?[0-9]+(?:\.[0-9]+)?)")
+_VEHICLE = re.compile(r"[Vv]ehicle '([^']+)'")
+KINDS = (("no connection to the next edge", "lane_end_stop"),
+         ("emergency braking", "emergency_braking"), ("collision", "collision"),
+         ("teleport", "teleport"), ("waited too long", "insertion_delay"),
+         ("could not be inserted", "insertion_failed"))
+"""(text in SUMO's message, kind) pairs; anything else is ``other``."""
+SUMO_ARGS = ["--no-warnings", "true"]
+"""SUMO options that keep warnings off the terminal (they still reach ``--error-log``)."""
+
+
+def message_kind(text: str) -> str:
+    low = text.lower()
+    for needle, kind in KINDS:
+        if needle in low:
+            return kind
+    return "other"
+
+
+def record_messages(path: Path, t0: float, add_event, step: float = 0.0) -> dict:
+    """Turn SUMO's error log into events; returns the counts for run.json.
+
+    Parameters
+    ----------
+    path : Path
+        SUMO's ``--error-log`` file.
+    t0 : float
+        Warm-up [s]: formation time = SUMO time - t0.
+    add_event : callable
+        ``add_event(t, kind, vehicle_id, other_id, detail)``.
+    step : float
+        SUMO's step length [s], added to SUMO's stamp (the start of the step).
+    """
+    counts = {"warnings": 0, "errors": 0, "during_warmup": 0, "by_kind": {}}
+    if not path.exists():
+        return counts
+    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+        level, _, text = line.partition(": ")
+        if level not in ("Warning", "Error") or not text:
+            continue
+        counts["warnings" if level == "Warning" else "errors"] += 1
+        m = _TIME.search(text)
+        t = float(m.group(1)) + step - t0 if m else -t0
+        if t < 0:
+            counts["during_warmup"] += 1
+        kind = message_kind(text)
+        counts["by_kind"][kind] = counts["by_kind"].get(kind, 0) + 1
+        if m:
+            text = text[:m.start()] + f"t={t:.2f} s (formation clock)" + text[m.end():]
+        v = _VEHICLE.search(text)
+        add_event(round(t, 6), "sumo_message", v.group(1) if v else "", kind, f"{level}: {text}")
+    return counts
+
+
+def summary_line(counts: dict) -> str | None:
+    """One line for stderr, or None when SUMO said nothing."""
+    n = counts["warnings"] + counts["errors"]
+    if n == 0:
+        return None
+    kinds = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in sorted(counts["by_kind"].items()))
+    return (f"SUMO: {counts['warnings']} warnings, {counts['errors']} errors ({kinds}; "
+            f"{counts['during_warmup']} in the warm-up), recorded as sumo_message events on the "
+            f"formation's clock (events.parquet)")
+
+
+def report(path: Path, t0: float, add_event, step: float) -> dict:
+    """:func:`record_messages` and the summary line on stderr."""
+    counts = record_messages(path, t0, add_event, step)
+    line = summary_line(counts)
+    if line:
+        print(line, file=sys.stderr)
+    return counts
+
+
+def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_front: dict) -> None:
+    """After the run: SUMO's messages as events (run.json ``sumo.messages``), the FCD in the
+    formation's frame if asked for, and which clock and frame each output uses."""
+    meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, rec.add_event, sc.run.step)
+    if sc.sumo.fcd and sc.sumo.fcd_frame == "formation":
+        from .fcd import to_formation_frame
+        to_formation_frame(sumo_dir / "fcd.parquet", t0, member_d_front, sc.run.step)
+    meta["sumo"]["clock"] = ("trajectories, background, events, ssm: formation time t = SUMO time - warmup, "
+                             "centre of gravity; sumo/*.log, sumo/*.xml: SUMO time; sumo/fcd.parquet: "
+                             f"{'formation' if sc.sumo.fcd_frame == 'formation' else 'SUMO'} frame")
