@@ -15,14 +15,14 @@ MEDIUM_COMFORT = 3.6  # m/s^2, the seed's medium-comfort lateral band
 
 
 SHORT = {  # every bundled maneuver scenario, shortened where its full run is long
-    "lanedrop_reshape": {"road.start": 1750.0, "traffic.warmup": 60.0, "run.duration": 60.0},
+    "lanedrop_reshape": {"road.start": 1750.0, "traffic.warmup": 60.0, "run.duration": 64.0},
     "lane_change": {"run.duration": 30.0, "traffic.warmup": 60.0},
     "lane_change_blocked": {},
     "leave": {},
     # 32 s: with issue 19's jerk-limited caps (control/longitudinal.py) the truck closes up
     # about 5 s later than with the raw governor caps (back within 0.1 m at t = 30 s)
     "mixed_truck": {"run.duration": 32.0},
-    "join": {"run.duration": 20.0},  # taken over at 2 s, T = 9.8 s, then 5 time constants
+    "join": {"run.duration": 20.0},  # taken over at 2 s, T = 11.3 s, then 5 time constants
     "exit_leave": {"road.start": 1650.0, "run.duration": 28.0},  # on the off-ramp from ~24 s
     # a member inserted later: its own car enters 60 m behind under SUMO's driver, then joins
     "join_entering": {"maneuvers.0.enter": {"along": -60.0, "lanes": 1}, "run.duration": 24.0,
@@ -193,7 +193,9 @@ def test_every_bundled_maneuver_scenario_runs_clean(tmp_path_factory, name):
     a real SUMO run with no collision involving a member (a vehicle taken over by a join is
     recorded under the member's id), members' lateral acceleration inside the 3.6 m/s^2
     band during maneuvers (comfort.parquet, the control rate), and a start and an end event
-    for every scheduled maneuver (none cancelled)."""
+    for every scheduled maneuver (none cancelled). Issue 19: maneuver runs go through the
+    jerk-limited longitudinal planner like every other road run, so the members' jerk meets
+    the bounds the bundled highway scenarios meet (tests/test_sumo_runs.py)."""
     assert {p.stem for p in MANEUVERS.glob("*.toml")} == set(SHORT) - set(FILE)  # none left out
     meta, ev, traj, _ = _run(tmp_path_factory, name)
     sc = _RUNS[name][0]
@@ -212,6 +214,10 @@ def test_every_bundled_maneuver_scenario_runs_clean(tmp_path_factory, name):
         assert t1 >= t0
         during = comfort[(comfort.t >= t0) & (comfort.t <= t1)]
         assert np.max(np.abs(during.a_lat.to_numpy()), initial=0.0) < MEDIUM_COMFORT
+    # issue 19's smooth longitudinal references hold in maneuver runs too: members' jerk p95
+    # <= 1 m/s^3 and the 1-s averaged jerk <= 2.5 m/s^3 outside recorded emergency brakes
+    from test_sumo_runs import _smooth_longitudinal
+    _smooth_longitudinal(traj[traj.vehicle_id.isin(ids)], ev)
 
 
 def _join_checks(ev, traj, bg, member, slot):
@@ -227,6 +233,8 @@ def _join_checks(ev, traj, bg, member, slot):
     theirs = bg[bg.vehicle_id == vid].sort_values("t")
     ours = traj[traj.vehicle_id == member].sort_values("t")
     assert theirs.t.max() < t0 and ours.t.min() == pytest.approx(t0)  # one or the other
+    # not in the run before the take-over: no caps, so no emergency brake of the member
+    assert not ((ev.kind == "emergency_brake") & (ev.vehicle_id == member) & (ev.t < t0)).any()
     last, first = theirs.iloc[-1], ours.iloc[0]
     dt = first.t - last.t
     assert abs(first.v - last.v) <= 0.5

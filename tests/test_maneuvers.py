@@ -260,3 +260,46 @@ def test_plan_slots_give_exact_target_derivatives_on_a_curved_line():
     np.testing.assert_allclose((Tp[:, 0:2] - Tm[:, 0:2]) / (2 * h), T0[:, 2:4], atol=1e-5)
     np.testing.assert_allclose((Tp[:, 2:4] - Tm[:, 2:4]) / (2 * h), T0[:, 4:6], atol=1e-4)
     assert np.abs(T0[:, 2:4] - at(0.0)[:, 2:4]).max() > 1.0  # the slots really move
+
+
+def test_room_making_is_planned_ahead_of_the_trigger():
+    """The goal the virtual car makes room for is known one look-ahead before a time or
+    position trigger fires (the jerk-limited planner's rise time), not only once the
+    maneuver is due; a queue trigger is not foreseen."""
+    sc = parse_scenario(_doc([{"kind": "lane_change", "lanes": -1, "at": {"s": 600.0}}]))
+    p = _planner(sc.maneuvers, [[0.0, 0.0], [-20.0, 0.0]])
+    on = np.ones(2, bool)
+    lead = 1.75  # s: 43.75 m at 25 m/s
+    assert p.goal_ahead(0.0, 556.0, 25.0, on, lead) is None
+    np.testing.assert_allclose(p.goal_ahead(0.0, 557.0, 25.0, on, lead), [[0.0, -3.5], [-20.0, -3.5]])
+    assert p.goal() is None and p.next == 0  # looking ahead changes nothing in the plan
+    sc = parse_scenario(_doc([{"kind": "reshape", "at": {"time": 10.0},
+                               "slots": [{"along": 0.0, "lanes": 0}, {"along": -30.0, "lanes": 0}]}]))
+    p = _planner(sc.maneuvers, [[0.0, 0.0], [-20.0, 0.0]])
+    assert p.goal_ahead(8.2, 0.0, 25.0, on, lead) is None
+    np.testing.assert_allclose(p.goal_ahead(8.3, 0.0, 25.0, on, lead), [[0.0, 0.0], [-30.0, 0.0]])
+    sc = parse_scenario(_doc([{"kind": "lane_change", "lanes": -1, "at": {"queue_behind": 3}}]))
+    p = _planner(sc.maneuvers, [[0.0, 0.0], [-20.0, 0.0]])
+    assert p.goal_ahead(0.0, 0.0, 25.0, on, 1e6) is None
+
+
+def test_room_law_acts_on_the_gaps_one_look_ahead_later():
+    """room_accel with a horizon h evaluates the governor's time-gap law on the gaps predicted
+    h seconds on at constant speeds: a faster car coming up beside the goal slot is braked for
+    before it arrives, a slower car ahead counts K_GAP (v_vc - v_o) h earlier."""
+    from formation_traci.control.governor import K_GAP
+    from formation_traci.control.maneuvers.generator import ROOM_DECEL, room_accel
+    goal = np.array([[0.0, -3.5]])
+    one = lambda x: np.array([x], dtype=float)
+    front, v = 500.0, 25.0  # the slot's front bumper [m] (the virtual car's front), speed [m/s]
+    args = dict(half_w=one(0.9), length=one(4.6), active=np.ones(1, bool), o_d=one(-3.5),
+                o_half_w=one(0.9), o_length=one(4.5), time_gap=1.5, min_gap=2.0)
+    # 30 m/s, its front 5 m behind the slot's rear: not there yet, there within 1.75 s
+    rear = one(front - 4.6 - 5.0 - 4.5)
+    assert room_accel(goal, front, v, o_rear=rear, o_v=one(30.0), **args) == np.inf
+    assert room_accel(goal, front, v, o_rear=rear, o_v=one(30.0), horizon=1.75, **args) == -ROOM_DECEL
+    # 20 m/s, 100 m ahead: predicted 8.75 m closer
+    far = dict(o_rear=one(front + 100.0), o_v=one(20.0))
+    a0 = room_accel(goal, front, v, **far, **args)
+    a1 = room_accel(goal, front, v, horizon=1.75, **far, **args)
+    assert a0 - a1 == pytest.approx(K_GAP * 5.0 * 1.75)

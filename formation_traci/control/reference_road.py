@@ -96,8 +96,12 @@ class RoadReference:
     def smooth(self, sensed, a_request, v_cap, a_cap):
         """The governor's requests through the jerk-limited planner (control/longitudinal.py):
         (a_vc [m/s^2], v_cap [m/s] (all +inf: folded into a_cap), a_cap [m/s^2]). The members'
-        acceleration is their mean over the previous step."""
+        acceleration is their mean over the previous step. Members not (or no longer) in the
+        run get no caps (and so no emergency)."""
         dt = self.dt_c * self.n_ctrl
+        off = ~np.asarray(sensed.active, dtype=bool)
+        if off.any():
+            v_cap, a_cap = np.where(off, np.inf, v_cap), np.where(off, np.inf, a_cap)
         v_m = np.asarray(sensed.v_m, dtype=float)
         a_m = np.zeros(len(v_m)) if self._v_prev is None else (v_m - self._v_prev) / dt
         self._v_prev = v_m.copy()

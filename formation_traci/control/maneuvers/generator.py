@@ -6,7 +6,8 @@ into the step's Reference.
   governor runs it hands the planner what the world sensed (members and the vehicles around
   them in road coordinates), records the planner's events, gives the governor the slots of
   this instant, and limits the virtual car's acceleration by :func:`room_accel` while a
-  maneuver is due or running;
+  maneuver is running, due, or about to become due (look-ahead below); the request then
+  passes the jerk-limited planner (control/longitudinal.py) like every road run's;
 * :class:`PlanSlots` (a Reference transform): every member's slot and its exact rates at
   each control period of the step, from the plan (transition.py). The kernels are untouched:
   road/targets.py ``road_target_at`` takes the slot's rates.
@@ -25,6 +26,16 @@ from .transition import plan_slots_into
 ROOM_DECEL = 1.0
 """Largest deceleration of the virtual car to open room ahead of goal slots [m/s^2]."""
 
+
+def room_lookahead(tau: float, jerk_max: float) -> float:
+    """Look-ahead of the room-making law [s]: the time the jerk-limited planner
+    (control/longitudinal.py: lag ``tau`` [s], jerk bound ``jerk_max`` [m/s^3]) takes to bring
+    the virtual car from cruising to ROOM_DECEL, tau + ROOM_DECEL / jerk_max (1.75 s with the
+    defaults). The law starts this long before a time or position trigger fires and acts on
+    the gaps predicted this far ahead, so the planned deceleration is there when the gap
+    check needs it (docs/maneuvers.md, 'Gap check')."""
+    return tau + ROOM_DECEL / jerk_max
+
 _NONE = np.empty(0)
 NO_OTHERS = Others((), _NONE, _NONE, _NONE, _NONE, _NONE)
 
@@ -42,14 +53,17 @@ class PlanSlots:
 
 
 def room_accel(goal, s_vc_front, v_vc, half_w, length, active, o_rear, o_d, o_half_w, o_length,
-               o_v, time_gap, min_gap) -> float:
+               o_v, time_gap, min_gap, horizon: float = 0.0) -> float:
     """Acceleration [m/s^2] of the virtual car that keeps every goal slot (n, 2) a time gap
     behind the nearest vehicle in its lane that is ahead of it or beside it (front bumper
     ahead of the slot's rear; gap = its rear minus the slot's front, negative when beside),
     by the governor's constant-time-gap law, bounded below by -ROOM_DECEL; +inf: no such
-    vehicle. ``s_vc_front``: the virtual car's arc length plus the CoG-to-front distance [m]."""
+    vehicle. ``s_vc_front``: the virtual car's arc length plus the CoG-to-front distance [m].
+    With ``horizon`` h [s] > 0 the law acts on the situation predicted h on at constant speeds:
+    every other vehicle's rear moves by (o_v - v_vc) h relative to the goal slots."""
     if not len(o_rear):
         return np.inf
+    o_rear = o_rear + (o_v - v_vc) * horizon  # where they will be relative to us
     front = s_vc_front + goal[:, 0]
     rear = front - length
     lane = (np.abs(o_d[None, :] - goal[:, 1][:, None])
@@ -95,20 +109,15 @@ class ManeuverRoadReference(RoadReference):
         self.along, self.slot_d = now[:, 0], now[:, 1]
         sensed.extra["slot"] = self.planner.slot_of.astype(float)
         a_vc, gap, lead_idx, v_cap, a_cap = super().governor(t, sensed)
-        goal = self.planner.goal()
+        p = self.longitudinal.p
+        lead = room_lookahead(p.tau, p.jerk_max)
+        goal = self.planner.goal_ahead(t, self.s, self.v, sensed.active, lead)
         nb = sensed.nb
         if goal is not None and nb is not None and len(nb.ids):
             lim = self.limits
             a_room = room_accel(goal, self.s + self.d_front, self.v, self.half_w,
                                 self.body_length, sensed.active, sensed.nb_rear, sensed.nb_d,
                                 sensed.nb_half_w, nb.length, sensed.nb_v, lim.time_gap,
-                                lim.min_gap)
+                                lim.min_gap, lead)
             a_vc = min(a_vc, a_room)
         return a_vc, gap, lead_idx, v_cap, a_cap
-
-    def smooth(self, sensed, a_request, v_cap, a_cap):
-        """Maneuver runs take the governor's requests as they are, not through the
-        jerk-limited planner of control/longitudinal.py: with the planner's lag the
-        room-making deceleration came late and lanedrop_reshape's second reshape waited for
-        room to the end of the run (docs/maneuvers.md, 'Known limits')."""
-        return a_request, v_cap, a_cap

@@ -95,6 +95,26 @@ class ManeuverPlanner:
             return self.pending_goal
         return None
 
+    def goal_ahead(self, t: float, s_vc: float, v_vc: float, active, lead: float) -> np.ndarray | None:
+        """:meth:`goal`, or the goal slots (n, 2) of the next reshape or lane change when its
+        time or position trigger is predicted to fire within ``lead`` [s] (the virtual car at
+        s_vc [m] driving on at v_vc [m/s]; ``active`` (n,) members); None otherwise (a queue
+        trigger is not foreseen)."""
+        goal = self.goal()
+        if goal is not None or self.running is not None or self.next >= len(self.specs):
+            return goal
+        spec = self.specs[self.next]
+        at = spec.at
+        soon = ((at.time is not None and at.time - t <= lead)
+                or (at.s is not None and at.s - s_vc <= max(v_vc, 0.0) * lead))
+        if not soon or spec.kind not in ("reshape", "lane_change"):
+            return None
+        active = np.asarray(active, dtype=bool)
+        shape, slot_of = self._target(spec, active)
+        goal = self.plan[:, 2:4].copy()
+        goal[active] = shape[slot_of[active]]
+        return goal
+
     @property
     def idle(self) -> bool:
         return self.running is None and self.next >= len(self.specs)
