@@ -5,6 +5,7 @@ samples, Parquet columns built from buffers. And a run no longer imports pandas 
 was ~1 s of every run's start). No timing here: benchmarks/ measures the speed."""
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -20,6 +21,7 @@ from formation_traci.record.writer import _arrow, _arrow_strings
 from formation_traci.road.bernstein import ball_tree, clearance, hermite_bpoly
 from formation_traci.road.fast_line import LEAF_SIZE, WINDOW
 from formation_traci.road.geometry import ReferenceLine
+from formation_traci.road.lanes import LaneShapes
 from formation_traci.sim.sumo_types import cog_to_sumo, cog_to_sumo_rows, sumo_to_cog, sumo_to_cog_rows
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -104,6 +106,38 @@ def test_compiled_ball_tree_and_clearance_equal_the_python_ones():
     # the self-approaching spiral has finite clearances below the window's length
     xy = np.asarray(lines()[0].tree.data, dtype=float)
     assert np.isfinite(clearance(xy, WINDOW, 4.0 * WINDOW)).all()
+
+
+def reference_lane_xy(lane, pos, lat):
+    """SUMO's (lane, position, lateral offset) -> x, y on numpy arrays, as LaneShapes.xy was."""
+    pts = np.asarray([p[:2] for p in lane.getShape()], dtype=float)
+    cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    scale = cum[-1] / lane.getLength() if lane.getLength() > 0 else 1.0
+    g = min(max(pos * scale, 0.0), cum[-1])
+    k = int(min(max(np.searchsorted(cum, g, side="right") - 1, 0), len(pts) - 2))
+    seg = pts[k + 1] - pts[k]
+    length = math.hypot(*seg) or 1.0
+    t = seg / length
+    p = pts[k] + t * (g - cum[k])
+    return float(p[0] - lat * t[1]), float(p[1] + lat * t[0])
+
+
+def test_lane_shape_points_equal_the_numpy_ones_bit_for_bit():
+    """The per-member lane point of sim/sumo_world.py sumo_gap, on curved and real lanes
+    (positions before, on, between and past the shape points; lateral offsets both ways)."""
+    import sumolib
+    rng = np.random.default_rng(3)
+    nets = [ROOT / "sumo_nets" / "curved3.net.xml", ROOT / "sumo_nets" / "lanedrop.net.xml"]
+    for net_file in nets:
+        net = sumolib.net.readNet(str(net_file), withInternal=True)
+        shapes = LaneShapes(net)
+        for edge in net.getEdges(withInternal=True):
+            for lane in edge.getLanes():
+                length = lane.getLength()
+                pos = np.concatenate([[-1.0, 0.0, length, length + 3.0],
+                                      rng.uniform(0.0, length, 12)])
+                for p, lat in zip(pos, rng.uniform(-2.5, 2.5, len(pos))):
+                    assert shapes.xy(lane.getID(), p, lat) == reference_lane_xy(lane, p, lat)
 
 
 def test_parquet_columns_from_buffers_equal_pa_array():

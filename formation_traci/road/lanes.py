@@ -19,6 +19,7 @@ Only sumolib is used (never libsumo or traci).
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from typing import Sequence
 
 import numpy as np
@@ -143,22 +144,29 @@ class LaneShapes:
         self._cache: dict[str, tuple[np.ndarray, np.ndarray, float]] = {}
 
     def _lane(self, lane_id: str):
+        """The lane's shape points (as lists of floats x, y [m]), their cumulative length
+        along the shape [m] and the scale from SUMO's lane position to that length."""
         got = self._cache.get(lane_id)
         if got is None:
             lane = self._net.getLane(lane_id)
             pts = np.asarray([p[:2] for p in lane.getShape()], dtype=float)
             cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
             scale = cum[-1] / lane.getLength() if lane.getLength() > 0 else 1.0
-            got = self._cache[lane_id] = (pts, cum, scale)
+            got = self._cache[lane_id] = (pts[:, 0].tolist(), pts[:, 1].tolist(), cum.tolist(),
+                                          float(scale))
         return got
 
     def xy(self, lane_id: str, pos: float, lat: float) -> tuple[float, float]:
-        """Point at lane position ``pos`` [m] and ``lat`` [m] left of the lane's centre line."""
-        pts, cum, scale = self._lane(lane_id)
+        """Point at lane position ``pos`` [m] and ``lat`` [m] left of the lane's centre line.
+        (Python floats: called per member and step; the arithmetic of the numpy form, bit
+        for bit, tests/test_fast_paths.py.)"""
+        px, py, cum, scale = self._lane(lane_id)
+        pos, lat = float(pos), float(lat)
         g = min(max(pos * scale, 0.0), cum[-1])
-        k = int(min(max(np.searchsorted(cum, g, side="right") - 1, 0), len(pts) - 2))
-        seg = pts[k + 1] - pts[k]
-        length = math.hypot(*seg) or 1.0
-        t = seg / length
-        p = pts[k] + t * (g - cum[k])
-        return float(p[0] - lat * t[1]), float(p[1] + lat * t[0])
+        k = min(max(bisect_right(cum, g) - 1, 0), len(px) - 2)
+        sx, sy = px[k + 1] - px[k], py[k + 1] - py[k]
+        length = math.hypot(sx, sy) or 1.0
+        tx, ty = sx / length, sy / length
+        along = g - cum[k]
+        x, y = px[k] + tx * along, py[k] + ty * along
+        return x - lat * ty, y + lat * tx

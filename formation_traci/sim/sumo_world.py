@@ -294,11 +294,12 @@ def sumo_gap(road, pos, heading, d_front, xs, ys, lanes, lane_pos, lat):
     lane position give (SUMO's lane shapes, road/lanes.py). (In the step of a move SUMO
     echoes the commanded x, y even where it put the vehicle on another lane.)"""
     gap = np.hypot(xs - pos[:, 0], ys - pos[:, 1])
-    fx = pos[:, 0] + d_front * np.cos(heading)
-    fy = pos[:, 1] + d_front * np.sin(heading)
-    for j, lane in enumerate(lanes):
-        if lane and np.isfinite(lat[j]) and np.isfinite(lane_pos[j]):
-            sx, sy = road.shapes.xy(lane, lane_pos[j], lat[j])
+    fx = (pos[:, 0] + d_front * np.cos(heading)).tolist()
+    fy = (pos[:, 1] + d_front * np.sin(heading)).tolist()
+    xy, isfinite = road.shapes.xy, math.isfinite
+    for j, (lane, lt, lp) in enumerate(zip(lanes, lat.tolist(), lane_pos.tolist())):
+        if lane and isfinite(lt) and isfinite(lp):
+            sx, sy = xy(lane, lp, lt)
             gap[j] = max(gap[j], math.hypot(sx - fx[j], sy - fy[j]))
     return gap
 
