@@ -85,7 +85,7 @@ class RoadReference:
         a_vc, v_cap, a_cap = self.smooth(sensed, a_request, v_cap_req, a_cap_req)
         vc = np.empty((self.n_ctrl, len(self.frame), 8))
         self._next = road_vc_rows(self.G, self.s, self.v, a_vc, self.dt_c, vc)
-        truth = np.array([*road_leader_at(self.G, self.s, self.v, a_vc), self.s])
+        truth = vc[0, 0].copy()  # period 0: road_leader_at(G, s, v, a_vc) and s
         return Reference(float(t), self.dt_c, vc, self.slots, self.frame, sensed.active, v_cap,
                          a_cap, line=self.G, truth=truth,
                          info={"a_vc": a_vc, "gap": gap, "lead_idx": lead_idx,

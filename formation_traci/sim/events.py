@@ -36,7 +36,8 @@ class MemberWatch:
 
     def placement(self, t, gap_sumo):
         off = gap_sumo > PLACEMENT_TOLERANCE
-        for i in np.flatnonzero(off & ~self.mismatch):
+        new = off & ~self.mismatch
+        for i in (np.flatnonzero(new) if new.any() else ()):
             self.rec.add_event(t, "placement_mismatch", self.ids[i], "",
                                f"SUMO has the member {gap_sumo[i]:.2f} m from where the model put it")
         self.mismatch = off

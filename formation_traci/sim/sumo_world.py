@@ -54,6 +54,7 @@ class SumoWorld:
         self.ctx_owner = None
         self.m_s = None
         self.ev = None
+        self._kin = None  # (state, pos, vel, heading) of the state last placed
         self.along = np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])
         self.slot_d_0 = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
         lanes = LaneTracker()
@@ -123,8 +124,17 @@ class SumoWorld:
                                   {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)})
 
     # ------------------------------------------------------------------------- sense
+    def _kinematics(self, state):
+        """fleet.kinematics(state), computed once per state: actuate's is the next sense's
+        (the loop hands sense the state it placed; a join's adopt writes into it only after)."""
+        kin = self._kin
+        if kin is None or kin[0] is not state:
+            kin = self._kin = (state, *self.fleet.kinematics(state))
+        return kin[1:]
+
     def sense(self, k: int, t: float, state) -> Sensed:
-        pos, vel, heading = self.fleet.kinematics(state)
+        pos, vel, heading = self._kinematics(state)
+        self._kin = None  # adopt may write into this state after sense
         self._heading = heading
         v_m = np.hypot(vel[:, 0], vel[:, 1])
         m_s, m_d = self.line.to_frenet(pos, self.m_s)
@@ -224,7 +234,7 @@ class SumoWorld:
 
     # ------------------------------------------------------------------ actuate / step
     def actuate(self, t_next: float, state, v_before) -> None:
-        pos, vel, heading = self.fleet.kinematics(state)
+        pos, vel, heading = self._kinematics(state)
         v_after = self.fleet.speed(state)
         self.a_mean = (v_after - v_before) / self.sc.run.step
         self.v_after = v_after
