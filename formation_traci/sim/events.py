@@ -134,6 +134,9 @@ class RefusalWatch:
         self.run = np.zeros(len(ids), dtype=int)
 
     def __call__(self, t, act_idx, refused: dict, active, adapter) -> None:
+        if not refused:  # every move taken (the usual step)
+            self.run[act_idx] = 0
+            return
         for i in act_idx:
             vid = self.ids[i]
             if self.sumo_ids[i] not in refused:

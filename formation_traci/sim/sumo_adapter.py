@@ -66,6 +66,7 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         self._front_ids: list[str] = []
         self._front = np.empty(0)
         self._member_get = None  # itemgetter of the members' subscription variables
+        self._all_here = np.ones(0, dtype=bool)  # read_members' 'present' when SUMO has them all
         self.lane_pos = np.empty(0)  # members' front bumper along their lane at the last read [m]
         self._started = False
         self.departed: dict[str, int] = {}  # flow id -> vehicles SUMO inserted (see count_departures)
@@ -301,8 +302,11 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         x, y, psi = sumo_to_cog_rows(np.array(pos, dtype=float), np.array(ang, dtype=float),
                                      self._d_front(ids))
         self._track_lanes(ids, lanes, lane_index, lat)
-        return (x, y, psi, lanes, np.array(lane_index, dtype=int), np.array(lat, dtype=float),
-                np.ones(len(ids), dtype=bool))
+        here = self._all_here
+        if len(here) != len(ids):
+            here = self._all_here = np.ones(len(ids), dtype=bool)
+            here.flags.writeable = False  # shared between steps
+        return (x, y, psi, lanes, np.array(lane_index, dtype=int), np.array(lat, dtype=float), here)
 
     def _read_some_members(self, ids, rows):
         """:meth:`read_members` when SUMO no longer has some of the members (NaN, '' and -1)."""

@@ -13,6 +13,16 @@ import numpy as np
 from .sumo_types import Neighbours, sumo_to_cog, sumo_to_cog_rows
 
 
+def _nobody() -> Neighbours:
+    """No neighbour (read-only empty arrays, shared between steps)."""
+    e, i = np.empty(0), np.empty(0, dtype=int)
+    e.flags.writeable = i.flags.writeable = False
+    return Neighbours([], [], e, e, e, e, e, e, e, [], i)
+
+
+_NOBODY = _nobody()
+
+
 class NeighbourReads:
     """Context subscription of the formation, subscriptions of every vehicle ('all'), and
     the rows they return as :class:`Neighbours` (one read per step, no per-vehicle call
@@ -72,6 +82,8 @@ class NeighbourReads:
                 for part in ctx.values():
                     rows.update(part)
         ids = sorted(rows.keys() - self.members.keys())
+        if not ids:  # nobody near the formation (often, ahead of the traffic)
+            return _NOBODY
         tc = self.tc
         get = itemgetter(tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION,
                          tc.VAR_LANE_INDEX, tc.VAR_LANE_ID)

@@ -23,6 +23,7 @@ from .demand import measure_plan, traffic_meta
 from .join import adopt, enter, take_over
 from .messages import sumo_outputs_meta
 from .sumo_adapter import SumoAdapter, SumoError
+from .sumo_types import cog_to_sumo_rows
 from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import CAR, flow_vehicles_per_hour, write_routes
 from .world import Sensed
@@ -303,9 +304,10 @@ def sumo_gap(road, pos, heading, d_front, xs, ys, lanes, lane_pos, lat):
     distance between our front bumper (``d_front`` [m] ahead of the CoG, per member) and the point SUMO's lane, lane position and lateral
     lane position give (SUMO's lane shapes, road/lanes.py). (In the step of a move SUMO
     echoes the commanded x, y even where it put the vehicle on another lane.)"""
-    gap = np.hypot(xs - pos[:, 0], ys - pos[:, 1])
-    fx = (pos[:, 0] + d_front * np.cos(heading)).tolist()
-    fy = (pos[:, 1] + d_front * np.sin(heading)).tolist()
+    px, py = np.ascontiguousarray(pos[:, 0]), np.ascontiguousarray(pos[:, 1])
+    gap = np.hypot(xs - px, ys - py)
+    fx, fy, _ = (a.tolist() for a in cog_to_sumo_rows(px, py, np.ascontiguousarray(heading, dtype=float),
+                                                      np.ascontiguousarray(d_front, dtype=float)))
     xy, isfinite = road.shapes.xy, math.isfinite
     for j, (lane, lt, lp) in enumerate(zip(lanes, lat.tolist(), lane_pos.tolist())):
         if lane and isfinite(lt) and isfinite(lp):
