@@ -253,8 +253,11 @@ class SumoWorld:
                 ad.insert_member(ids[i], MEMBER_ROUTE, self.mtypes[i], pos[i, 0], pos[i, 1],
                                  heading[i], v_after[i])
             return
-        refused = dict(ad.place([self.sumo_ids[i] for i in act_idx], pos[act_idx, 0], pos[act_idx, 1],
-                                heading[act_idx]))
+        if len(act_idx) == len(ids):  # every member in the run: no copies
+            refused = dict(ad.place(self.sumo_ids, pos[:, 0], pos[:, 1], heading))
+        else:
+            refused = dict(ad.place([self.sumo_ids[i] for i in act_idx], pos[act_idx, 0],
+                                    pos[act_idx, 1], heading[act_idx]))
         self.refusals(t_next, act_idx, refused, self.active, ad)
 
     def step(self, k: int, t_next: float) -> None:
@@ -266,9 +269,12 @@ class SumoWorld:
             ad.subscribe_departed()
             self.inserted = True  # reads neighbours (every vehicle) from now on
             return
-        act_idx = np.flatnonzero(self.active)
-        ad.set_true_speeds([self.sumo_ids[i] for i in act_idx], self.v_after[act_idx],
-                           self.a_mean[act_idx])
+        if self.active.all():
+            ad.set_true_speeds(self.sumo_ids, self.v_after, self.a_mean)
+        else:
+            act_idx = np.flatnonzero(self.active)
+            ad.set_true_speeds([self.sumo_ids[i] for i in act_idx], self.v_after[act_idx],
+                               self.a_mean[act_idx])
         if not self.all_bg and self.active.any() and (
                 not self.inserted or self.ctx_owner is None or not self.active[self.ctx_owner]):
             self.ctx_owner = subscribe_context(ad, self.sumo_ids, self.active, self.along,
