@@ -118,3 +118,67 @@ def test_reshape_goals_in_lanes_are_sumos_lane_centres(gap_run):
     np.testing.assert_allclose(front.y, lane_y("e2", 2), atol=0.05)
     np.testing.assert_allclose(rear.y, lane_y("e2", 0), atol=0.05)
     assert (front.lane_index == 2).all() and (rear.lane_index == 0).all()
+
+
+@pytest.fixture(scope="module")
+def gap_road(gap_net, tmp_path_factory):
+    from formation_traci.sim.road_setup import build_road
+    path = tmp_path_factory.mktemp("gaproad") / "gap.toml"
+    path.write_text(SCENARIO.format(net=gap_net))
+    sc = load_scenario(path)
+    return sc, build_road(sc, path)
+
+
+def test_lane_centres_are_sumos_on_the_edge_at_an_arc_length(gap_road):
+    """One mapping (road/lanes.py LaneCentres) for the initial slots and the maneuvers: lane k
+    of the edge at s, relative to the reference lane; a shift keeps the place in the lane."""
+    from formation_traci.sim.road_setup import slot_offsets
+    sc, road = gap_road
+    lanes = road.lanes
+    np.testing.assert_allclose(lanes.across([-1, 0, 1, 2], 1000.0), [-3.2, 0.0, 3.3, 6.6], atol=1e-9)
+    np.testing.assert_allclose(lanes.across([0, 1, 2, 3], 2000.0), [0.0, 3.6, 7.2, 10.4], atol=1e-9)
+    np.testing.assert_allclose(lanes.shift(2000.0, [0.0, 0.2, 3.6], 1), [3.6, 3.8, 7.2], atol=1e-9)
+    np.testing.assert_allclose(lanes.shift(1000.0, 6.6, -2), 0.0, atol=1e-9)
+    # the initial slots use the same function: lanes = 0 -> on the reference line
+    np.testing.assert_allclose(slot_offsets(sc, road)[:, 1], 0.0, atol=1e-9)
+    np.testing.assert_allclose(lanes.off_centre(2000.0, [3.6, 3.9, 5.2]), [0.0, 0.3, 1.6], atol=1e-4)  # the fitted line: microns
+
+
+def test_join_takes_a_car_centred_in_sumos_lane_and_enters_on_its_centre(gap_road):
+    """On the second edge (centres 3.6 m apart) a car on lane 1's centre is centred in its
+    lane (with the nominal 3.2 m width it looked 0.4 m off: 'changing lanes'); a car between
+    the lanes is not taken; a member entering one lane left enters on SUMO's lane centre."""
+    from formation_traci.control.maneuvers.gap import Others
+    from formation_traci.control.maneuvers.join import pick_vehicle
+    from formation_traci.control.maneuvers.planner import ManeuverPlanner, Situation
+    from formation_traci.scenario.load import parse_scenario
+    from formation_traci.scenario.maneuvers import ManeuverLimits
+    _, road = gap_road
+    o = Others(("between", "centred"), np.array([2010.0, 2015.0]), np.array([1.9, 3.6]),
+               np.full(2, 4.5), np.full(2, 1.8), np.full(2, 25.0))
+    assert pick_vehicle(o, 2000.0, 3.6, 30.0, road.lanes, 4.6, 1.8, None) == 1
+    assert pick_vehicle(o, 2000.0, 0.0, 30.0, road.lanes, 4.6, 1.8, None) == -1
+    doc = {"run": {"duration": 10.0}, "road": {"net": "straight3"}, "leader": {"speed": 25.0},
+           "members": [{"id": "a", "slot": {"along": 0.0, "lanes": 0}},
+                       {"id": "j", "slot": {"along": -10.0, "lanes": 1}}],
+           "maneuvers": [{"kind": "join", "member": "j", "at": {"time": 0.0},
+                          "enter": {"along": -60.0, "lanes": 1}}]}
+    sc = parse_scenario(doc)
+    p = ManeuverPlanner(sc.maneuvers, np.array([[0.0, 0.0], [-10.0, 3.6]]), road.lanes,
+                        ManeuverLimits(), 4.6, 1.8, ["a", "j"])
+    none = Others((), *(np.empty(0),) * 5)
+    ev = p.step(Situation(0.0, 2000.0, np.array([2000.0, np.nan]), np.array([0.0, np.nan]),
+                          np.full(2, 25.0), np.array([True, False]), none, 25.0))
+    enter = [e for e in ev if e.kind == "enter"]
+    assert len(enter) == 1 and enter[0].where[:2] == pytest.approx((1940.0, 3.6))
+
+
+def test_queue_behind_counts_by_sumos_lanes(gap_road):
+    """Queued vehicles are those in a lane a member is in, by SUMO's lane centres."""
+    from formation_traci.control.maneuvers.gap import Others
+    from formation_traci.control.maneuvers.triggers import queue_behind
+    _, road = gap_road
+    o = Others(("q1", "q2", "right", "ahead"), np.array([1960.0, 1930.0, 1960.0, 2050.0]),
+               np.array([3.6, 4.9, 0.3, 3.6]), np.full(4, 4.5), np.full(4, 1.8), np.full(4, 25.0))
+    assert queue_behind(np.array([2000.0, 1980.0]), np.array([3.6, 3.6]), np.full(2, 4.6),
+                        road.lanes, o, 100.0) == 2
