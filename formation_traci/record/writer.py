@@ -21,6 +21,26 @@ import pyarrow.parquet as pq
 from .columns import Column
 
 
+def _arrow(data: np.ndarray) -> pa.Array:
+    """A 1-D numpy array (numbers or bool) as a pyarrow array without nulls, the values
+    ``pa.array(data)`` gives. Built from its buffers: ``pa.array`` imports pandas on its first
+    call (about 1 s), which a run does not otherwise need."""
+    n = len(data)
+    if data.dtype == np.bool_:
+        return pa.Array.from_buffers(pa.bool_(), n, [None, pa.py_buffer(np.packbits(data, bitorder="little"))])
+    return pa.Array.from_buffers(pa.from_numpy_dtype(data.dtype), n,
+                                 [None, pa.py_buffer(np.ascontiguousarray(data))])
+
+
+def _arrow_strings(labels: Sequence[str]) -> pa.Array:
+    """A list of str as a pyarrow string array (from its buffers, as :func:`_arrow`)."""
+    enc = [s.encode("utf-8") for s in labels]
+    offsets = np.zeros(len(enc) + 1, dtype=np.int32)
+    np.cumsum([len(b) for b in enc], out=offsets[1:])
+    return pa.Array.from_buffers(pa.string(), len(enc), [None, pa.py_buffer(offsets),
+                                                          pa.py_buffer(b"".join(enc))])
+
+
 def atomic_write_text(path: Path, text: str) -> None:
     """Write text to ``path`` via a temporary file and a rename (never half-written)."""
     tmp = path.with_name(f".{path.name}.tmp")
@@ -99,7 +119,6 @@ class ChunkedTable:
                      metadata={"unit": c.unit, "doc": c.doc})
             for c in self.columns
         ])
-        pa.array(np.zeros(0))  # pyarrow imports pandas on its first array: here, not mid-run
 
     def code(self, label: str) -> int:
         """Integer code of a string value (added on first use)."""
@@ -108,6 +127,14 @@ class ChunkedTable:
             i = self._label_index[label] = len(self.labels)
             self.labels.append(label)
         return i
+
+    def codes(self, labels: Sequence[str]) -> np.ndarray:
+        """Integer codes (int32) of string values, as :meth:`code` gives them one by one."""
+        get = self._label_index.get
+        out = [get(label) for label in labels]
+        if None in out:
+            out = [self.code(label) for label in labels]
+        return np.array(out, dtype=np.int32)
 
     def append(self, block: dict[str, np.ndarray | float | int], n: int) -> None:
         """Append ``n`` rows; scalars broadcast, string columns take integer codes."""
@@ -200,7 +227,7 @@ class ChunkedTable:
         tag = float(self._buf[self.progress_column][n - 1]) if self.progress_column and n else None
         tag = mark if mark is not None else tag
         name = f"part-{self.parts_written:05d}.parquet"
-        labels = pa.array(self.labels, type=pa.string())
+        labels = _arrow_strings(self.labels)
         self._submit(self._write, blocks, labels, name, tag, n)
         self.parts_written += 1
         self.rows_written += n
@@ -231,9 +258,9 @@ class ChunkedTable:
             dt, j = self._where[c.name]
             data = blocks[dt][j]
             if c.dtype == "string":
-                arrays.append(pa.DictionaryArray.from_arrays(pa.array(data), labels).dictionary_decode())
+                arrays.append(pa.DictionaryArray.from_arrays(_arrow(data), labels).dictionary_decode())
             else:
-                arrays.append(pa.array(data))
+                arrays.append(_arrow(data))
         table = pa.Table.from_arrays(arrays, schema=self._schema)
         tmp = self.directory / f".{name}.tmp"
         try:

@@ -38,6 +38,7 @@ import numpy as np
 from scipy.interpolate import BPoly, BSpline
 from scipy.spatial import cKDTree
 
+from .bernstein import hermite_bpoly
 from .fast_line import frame_many, to_frenet_many
 from .line_fit import (_DEGREE, _GAUSS_NODES, _GAUSS_WEIGHTS, LINE_FIT_DEFAULT, LineFit,
                        _fit_pspline, clean_polyline)
@@ -114,7 +115,7 @@ class ReferenceLine:
         c1, c2 = d1(u_nodes), d2(u_nodes)
         g = np.hypot(c1[:, 0], c1[:, 1])
         derivs = np.stack([u_nodes, 1.0 / g, -_dot(c1, c2) / g ** 4], axis=1)  # u, u', u''
-        u_of_s = BPoly.from_derivatives(s_nodes, derivs, extrapolate=True)
+        u_of_s = hermite_bpoly(s_nodes, derivs, extrapolate=True)  # BPoly.from_derivatives
         heading_nodes = np.unwrap(np.arctan2(c1[:, 1], c1[:, 0]))
         length = float(s_nodes[-1])
         n_tree = max(math.ceil(length / 1.0), 2) + 1

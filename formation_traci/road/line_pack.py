@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import BPoly, BSpline, PPoly
 
+from .bernstein import ball_tree, clearance
 from .fast_line import (_H_KAPPA, _H_N_SAMP, _H_OFF_CC, _H_OFF_CLR, _H_OFF_HN, _H_OFF_SN,
                         _H_OFF_SS, _H_OFF_SXY, _H_OFF_TREE, _H_OFF_UC, _H_OFF_UK, _H_SIZE,
                         LEAF_SIZE, WINDOW, frame_at, frame_many, to_frenet_many)
@@ -57,11 +58,11 @@ class FastLine:
         samp_xy = np.asarray(line.tree.data, dtype=float)
         samp_s = np.asarray(line.tree_s, dtype=float)
         ds = float(samp_s[1] - samp_s[0])
-        tree = _build_tree(samp_xy)
+        tree = ball_tree(samp_xy, LEAF_SIZE)
         parts = [
             (_H_OFF_UK, u_knots), (_H_OFF_CC, coef), (_H_OFF_SN, s_nodes), (_H_OFF_UC, uc.T),
             (_H_OFF_HN, np.asarray(line.heading_nodes, dtype=float)), (_H_OFF_SXY, samp_xy),
-            (_H_OFF_SS, samp_s), (_H_OFF_CLR, _clearance(line.tree, samp_xy, WINDOW)),
+            (_H_OFF_SS, samp_s), (_H_OFF_CLR, _clearance(samp_xy, WINDOW)),
             (_H_OFF_TREE, tree),
         ]
         G = np.zeros(_H_SIZE + sum(np.size(a) for _, a in parts))
@@ -97,41 +98,12 @@ class FastLine:
         return to_frenet_many(self.G, xy, g)
 
 
-def _clearance(tree, xy: np.ndarray, window: int) -> np.ndarray:
+def _clearance(xy: np.ndarray, window: int) -> np.ndarray:
     """Distance from every sample to the nearest sample more than ``window`` samples away
-    (inf if none is within 4 window spacings: then only the tree search is used)."""
-    n = len(xy)
-    k = min(2 * window + 2, n)
-    ds = float(np.hypot(*(xy[1] - xy[0]))) if n > 1 else 1.0
-    dist, idx = tree.query(xy, k=k, distance_upper_bound=4.0 * window * max(ds, 1e-9))
-    dist = np.asarray(dist).reshape(n, -1)
-    idx = np.asarray(idx).reshape(n, -1)
-    outside = (np.abs(idx - np.arange(n)[:, None]) > window) & np.isfinite(dist)
-    out = np.where(outside, dist, np.inf).min(axis=1)
-    if k < 2 * window + 2:  # fewer samples than a window: no certificate
-        out[:] = 0.0
-    return out
-
-
-def _build_tree(xy: np.ndarray) -> np.ndarray:
-    """Ball tree over contiguous runs of samples: rows (lo, hi, left, right, cx, cy, r)."""
-    nodes: list[list[float]] = []
-
-    def build(lo: int, hi: int) -> int:
-        idx = len(nodes)
-        pts = xy[lo:hi]
-        c = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
-        r = float(np.max(np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1])))
-        nodes.append([lo, hi, -1, -1, float(c[0]), float(c[1]), r * (1.0 + 1e-12) + 1e-9])
-        if hi - lo > LEAF_SIZE:
-            mid = (lo + hi) // 2
-            left = build(lo, mid)
-            right = build(mid, hi)
-            nodes[idx][2], nodes[idx][3] = left, right
-        return idx
-
-    build(0, len(xy))
-    return np.array(nodes, dtype=float)
+    (inf if none is within 4 window spacings: then only the tree search is used; compiled,
+    road/bernstein.py)."""
+    ds = float(np.hypot(*(xy[1] - xy[0]))) if len(xy) > 1 else 1.0
+    return clearance(np.ascontiguousarray(xy, dtype=float), window, 4.0 * window * max(ds, 1e-9))
 
 
 def packed(line) -> np.ndarray:

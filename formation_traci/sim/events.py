@@ -19,6 +19,7 @@ class LaneTracker:
 
     def __init__(self):
         self.prev: dict[str, tuple[str, int]] = {}
+        self.lane: dict[str, str] = {}  # lane id last seen: the same lane means nothing to do
 
 
 class MemberWatch:
@@ -41,8 +42,12 @@ class MemberWatch:
         self.mismatch = off
 
     def lane_changes(self, t, idx_act, present, lanes, lane_idx):
-        prev, ids = self.lanes.prev, self.ids
+        prev, ids, seen = self.lanes.prev, self.ids, self.lanes.lane
         for j, i in enumerate(idx_act):
+            if present[j] and seen.get(ids[i]) == lanes[j] and self.lane_prev[i] == lane_idx[j]:
+                continue  # on the lane it was on: nothing changes
+            if present[j]:
+                seen[ids[i]] = lanes[j]
             if present[j] and self.lane_prev[i] >= 0 and lane_idx[j] != self.lane_prev[i] \
                     and lanes[j].rsplit("_", 1)[0] == prev.get(ids[i], ("", -1))[0]:
                 self.rec.add_event(t, "lane_change", ids[i], "", f"{self.lane_prev[i]} -> {lane_idx[j]}")
@@ -75,9 +80,12 @@ class TrafficWatch:
 
     def __call__(self, t, nb, lead_idx, gap, v_m, active):
         changed = set()
-        prev = self.lanes.prev
-        for j, vid in enumerate(nb.ids):
-            edge = nb.lane_ids[j].rsplit("_", 1)[0]
+        prev, seen = self.lanes.prev, self.lanes.lane
+        for j, (vid, lane) in enumerate(zip(nb.ids, nb.lane_ids)):
+            if seen.get(vid) == lane:
+                continue  # on the lane it was on: nothing changes
+            seen[vid] = lane
+            edge = lane.rsplit("_", 1)[0]
             li = int(nb.lane_index[j])
             old = prev.get(vid)
             if old is not None and old[0] == edge and old[1] != li and not edge.startswith(":"):
@@ -101,7 +109,10 @@ class EmergencyWatch:
         self.on = np.zeros(len(self.ids) + 1, dtype=bool)  # members, then the virtual car
 
     def __call__(self, t, info: dict) -> None:
-        now = np.append(info["emergency_members"], info["emergency"])
+        members, vc = info["emergency_members"], info["emergency"]
+        if not (vc or self.on[-1] or members.any() or self.on.any()):
+            return  # nobody braking hard, before or now
+        now = np.append(members, vc)
         n = len(self.ids)
         for i in np.flatnonzero(now != self.on):
             who = "vc" if i == n else self.ids[i]

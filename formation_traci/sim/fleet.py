@@ -110,10 +110,13 @@ def member_input_at(kind, x, i, theta_star_i, speed_in_i, k_i, k_theta_i, gains,
 
 @kernel
 def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, vc, slots,
-                 v_cap, a_cap, dt_c, n_sub):
+                 v_cap, a_cap, dt_c, n_sub, comfort):
     """One step: for each of the vc.shape[0] control periods of dt_c [s], every member's
     input from the reference, held over RK4 in n_sub sub-steps. Inputs are not modified;
-    returns (x, theta_star, speed_in) after the step."""
+    returns (x, theta_star, speed_in) after the step. When ``comfort`` has a row per
+    period ((n_ctrl, n, 3); else pass an empty array), member i's speed [m/s], a_lon and
+    a_lat [m/s^2] at the start of period j go to comfort[j, i] (the values
+    :func:`member_signals` records for that period)."""
     n = x.shape[0]
     m = x.shape[1]
     x = x.copy()
@@ -131,6 +134,8 @@ def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, 
             U0[i] = res[0]
             U1[i] = res[1]
             tsd[i] = res[4]
+            if comfort.shape[0] == vc.shape[0]:
+                _comfort_values(kind, x, i, P, res, comfort, j)
         for i in range(n):
             theta_star[i] = theta_star[i] + tsd[i] * dt_c
             if kind == KINEMATIC:
@@ -143,6 +148,23 @@ def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, 
             for q in range(m):
                 x[i, q] = s[q]
     return x, theta_star, speed_in
+
+
+@kernel
+def _comfort_values(kind, x, i, P, res, out, j):
+    """Speed [m/s], a_lon and a_lat [m/s^2] of member i into out[j, i] (as
+    :func:`_signal_values` computes them from the same inputs)."""
+    if kind == KINEMATIC:
+        vk = maximum(res[0], 0.0)
+        out[j, i, 0] = vk
+        out[j, i, 1] = res[5]
+        out[j, i, 2] = vk * res[1]
+        return
+    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_at(
+        x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6], res[0], res[1], P, i)
+    out[j, i, 0] = x[i, 3]
+    out[j, i, 1] = a_lon
+    out[j, i, 2] = a_lat
 
 
 @kernel
@@ -227,6 +249,8 @@ def kinematics_rows(x, speed_in, kind):
 
 # ------------------------------------------------------------------------ the wrapper
 
+_NO_COMFORT = np.empty((0, 0, 3))
+
 def _f64(a) -> np.ndarray:
     """a as a C-contiguous, writeable float64 array (no copy when it already is one)."""
     if (type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous
@@ -279,12 +303,15 @@ class Fleet:
     def n_sub(self, dt_c: float) -> int:
         return substeps(dt_c, self.cfg.physics_step)
 
-    def step(self, state: FleetState, ref: Reference) -> FleetState:
-        """The members over one step of ``ref.n_ctrl`` control periods of ``ref.dt``."""
+    def step(self, state: FleetState, ref: Reference, comfort: np.ndarray | None = None) -> FleetState:
+        """The members over one step of ``ref.n_ctrl`` control periods of ``ref.dt``;
+        ``comfort`` (n_ctrl, n, 3), if given, receives every period's speed [m/s], a_lon and
+        a_lat [m/s^2] at its start (:func:`step_members`)."""
         x, ts, sp = step_members(
             _f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self.kind, self.P,
             self.k, self.k_theta, self.gains, ref.line, ref.frame, ref.vc, ref.slots,
-            _f64(ref.v_cap), _f64(ref.a_cap), float(ref.dt), self.n_sub(ref.dt))
+            _f64(ref.v_cap), _f64(ref.a_cap), float(ref.dt), self.n_sub(ref.dt),
+            _NO_COMFORT if comfort is None else comfort)
         return FleetState(x, ts, sp)
 
     def signals(self, state: FleetState, ref: Reference, out: np.ndarray | None = None):

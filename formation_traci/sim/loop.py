@@ -140,14 +140,14 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
 
 
 def step_recording(fleet: Fleet, state: FleetState, ref, rec, sig: np.ndarray) -> FleetState:
-    """``fleet.step(state, ref)`` one control period at a time (the same arithmetic, so the
-    trajectories are bit-identical), recording the members' speed and accelerations at the
+    """``fleet.step(state, ref)``, recording the members' speed and accelerations at the
     start of periods 1 .. n_ctrl - 1 into ``comfort.parquet`` (period 0 is recorded with the
-    step's trajectory row): the comfort analysis gets the control rate, 100 Hz by default."""
-    for j in range(ref.n_ctrl):
-        period = ref.with_(vc=ref.vc[j:j + 1], slots=ref.slots[j:j + 1])
-        if j:
-            rec.add_comfort_rows(ref.t + j * ref.dt, fleet.signals(state, period, out=sig),
-                                 mask=ref.active)
-        state = fleet.step(state, period)
+    step's trajectory row): the comfort analysis gets the control rate, 100 Hz by default.
+    One compiled call for the whole step (sim/fleet.py step_members), the values those of
+    ``fleet.signals`` at each period, bit for bit."""
+    comfort = np.empty((ref.n_ctrl, fleet.cfg.n, 3))
+    state = fleet.step(state, ref, comfort)
+    if ref.n_ctrl > 1:
+        rec.add_comfort_periods([ref.t + j * ref.dt for j in range(1, ref.n_ctrl)], comfort[1:],
+                                mask=ref.active)
     return state

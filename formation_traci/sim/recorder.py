@@ -133,6 +133,30 @@ class Recorder:
             cf.column(name)[sl] = sig[:, j]
         cf.commit(n)
 
+    def add_comfort_periods(self, ts, vals: np.ndarray, mask=None):
+        """The members' speed and accelerations at several control periods: ``vals``
+        (len(ts), n, 3) holds v, a_lon, a_lat at times ``ts`` [s]; rows in the order of
+        :meth:`add_comfort_rows` called once per period."""
+        codes = self.codes
+        if mask is not None and not mask.all():
+            vals, codes = vals[:, mask], codes[mask]
+        m, n = len(ts), len(codes)
+        cf = self.comfort
+        if cf.rows_buffered + m * n > cf.chunk_rows:  # a part ends inside: one period at a time
+            for j, t in enumerate(ts):
+                self._comfort_block(cf, [t], vals[j:j + 1], codes)
+            return
+        self._comfort_block(cf, ts, vals, codes)
+
+    def _comfort_block(self, cf, ts, vals, codes):
+        m, n = vals.shape[0], vals.shape[1]
+        sl = cf.rows(m * n)
+        cf.column("t")[sl].reshape(m, n)[:] = np.array(ts)[:, None]
+        cf.column("vehicle_id")[sl].reshape(m, n)[:] = codes
+        for q, name in enumerate(("v", "a_lon", "a_lat")):
+            cf.column(name)[sl].reshape(m, n)[:] = vals[:, :, q]
+        cf.commit(m * n)
+
     def _flag_range(self, t, slip, usage, v, mask):
         bad = (slip > MAX_SLIP) | (usage > MAX_FRICTION_USAGE) | (v > MAX_SPEED)
         if mask is not None:
@@ -167,11 +191,9 @@ class Recorder:
             return
         bg = self.background
         self.background.append({
-            "t": t, "vehicle_id": np.array([bg.code(i) for i in nb.ids], dtype=np.int32),
-            "type": np.array([bg.code(i) for i in nb.types], dtype=np.int32),
+            "t": t, "vehicle_id": bg.codes(nb.ids), "type": bg.codes(nb.types),
             "x": nb.x, "y": nb.y, "heading": nb.heading, "v": nb.v, "a": nb.a,
-            "length": nb.length, "width": nb.width,
-            "lane": np.array([bg.code(i) for i in nb.lane_ids], dtype=np.int32),
+            "length": nb.length, "width": nb.width, "lane": bg.codes(nb.lane_ids),
             "lane_index": nb.lane_index.astype(np.int32), "s": s, "d": d}, n)
 
     def flush(self, t_end: float | None = None) -> list[tuple[str, BaseException]]:

@@ -1,104 +1,36 @@
 """The only module that talks to SUMO (libsumo in-process, or traci over a socket).
 
 It owns starting/stepping/closing SUMO, inserting and placing the formation members with
-``vehicle.moveToXY``, batched reads through subscriptions, and every frame conversion:
-SUMO's vehicle position is the front bumper and its angle is degrees clockwise from north;
-ours is the centre of gravity (CoG) and radians counter-clockwise from +x
-(:func:`cog_to_sumo`, :func:`sumo_to_cog`). Outside this module code sees only numpy
-arrays and the small dataclasses below. SUMO behaviours relied on here are documented in
-docs/sumo.md (each with the test that shows it).
+``vehicle.moveToXY``, batched reads through subscriptions. The frame conversions (SUMO's
+front bumper and degrees clockwise from north against our CoG and radians counter-clockwise
+from +x), the constants and the result dataclasses are in sim/sumo_types.py; the neighbour
+reads in sim/sumo_neighbours.py and the socket connection in sim/sumo_connect.py work on the
+module object this adapter imports (``self.api``) and import no SUMO themselves. Outside
+these modules code sees only numpy arrays and the small dataclasses. Friction, member types and
+the release of a member are in sim/sumo_vehicles.py (the same way). SUMO behaviours relied
+on here are documented in docs/sumo.md (each with the test that shows it).
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
 from operator import itemgetter
 
 import numpy as np
 
-KEEP_ROUTE = 1
-"""moveToXY keepRoute bits: 1 = map only onto edges of the member's route (never off the road,
-never a different carriageway); sublane mode keeps the exact lateral position."""
-
-MATCH_THRESHOLD = 5.0
-"""moveToXY raises instead of silently snapping a pose farther than this from the road [m]."""
-
-ROUTE_AHEAD_M = 1000.0
-"""A member's route in SUMO reaches at least this far past the end of its current edge [m].
-``moveToXY`` with keepRoute=1 searches every edge of the vehicle's route (ahead of it and
-behind it) for the nearest lane, so on a route of many edges a member carries only the part of
-the formation's route up to here, moved on whenever it enters the next edge (SUMO keeps the
-edges already driven in the route; docs/sumo.md)."""
-
-SPEED_MODE_DEFAULT = 31
-"""SUMO's default speed mode: all safe-speed, acceleration and right-of-way checks on
-(https://sumo.dlr.de/docs/TraCI/Change_Vehicle_State.html#speed_mode_0xb3)."""
-LANE_CHANGE_MODE_DEFAULT = 1621
-"""SUMO's default lane change mode (TraCI/Change_Vehicle_State.html#lane_change_mode_0xb6)."""
-
-REMOVED_REASONS = ("arrived", "vanished")
-
-ORDINARY_CLASS = {"custom1": "passenger", "custom2": "truck"}
-"""SUMO class a released member drives on with: the members' own classes are kept off some
-junction lanes of real networks (road/lanes.py), an ordinary vehicle is not."""
+from .sumo_connect import attach_socket, follow_view, start_socket
+from .sumo_neighbours import NeighbourReads
+from .sumo_vehicles import VehicleSetup
+from .sumo_types import (GUI_VIEW, GUI_ZOOM, KEEP_ROUTE, LANE_CHANGE_MODE_DEFAULT,  # noqa: F401
+                         MATCH_THRESHOLD, ORDINARY_CLASS, REMOVED_REASONS, ROUTE_AHEAD_M,
+                         SPEED_MODE_DEFAULT,
+                         START_TIMEOUT_S, MemberType, Neighbours, StepEvents, SumoError,
+                         cog_to_sumo, cog_to_sumo_rows, sumo_binary, sumo_to_cog,
+                         sumo_to_cog_rows)
 
 
-def cog_to_sumo(x, y, psi, d_front):
-    """CoG pose [m, m, rad CCW from +x] -> SUMO front bumper [m, m] and angle [deg, CW from north]."""
-    xf = x + d_front * np.cos(psi)
-    yf = y + d_front * np.sin(psi)
-    angle = np.mod(90.0 - np.degrees(psi), 360.0)
-    return xf, yf, angle
 
-
-def sumo_to_cog(xf, yf, angle_deg, d_front):
-    """SUMO front bumper [m] and angle [deg, CW from north] -> CoG [m] and heading [rad CCW from +x]."""
-    psi = np.radians(90.0 - np.asarray(angle_deg, dtype=float))
-    return xf - d_front * np.cos(psi), yf - d_front * np.sin(psi), psi
-
-
-@dataclass(frozen=True)
-class MemberType:
-    """SUMO vType of a formation member."""
-
-    id: str
-    length: float  # [m]
-    width: float  # [m]
-    d_front: float  # CoG to front bumper [m]
-    color: tuple[int, int, int]
-    vclass: str  # SUMO vehicle class
-    max_speed: float = 70.0  # [m/s] above anything a member reaches, so SUMO never clamps
-    ssm_device: bool = False  # SUMO's SSM device on members of this type (sumo.ssm = "members")
-
-
-@dataclass
-class StepEvents:
-    """What SUMO reported during one step (ids are SUMO vehicle ids)."""
-
-    collisions: list[tuple[str, str, str]] = field(default_factory=list)  # (collider, victim, lane)
-    teleports: list[str] = field(default_factory=list)
-    arrived: list[str] = field(default_factory=list)
-
-
-@dataclass(frozen=True)
-class Neighbours:
-    """Vehicles near the members after a step (one entry per vehicle), CoG frame."""
-
-    ids: list[str]
-    types: list[str]
-    x: np.ndarray  # centre of the vehicle [m]
-    y: np.ndarray
-    heading: np.ndarray  # [rad]
-    v: np.ndarray  # [m/s]
-    a: np.ndarray  # [m/s^2]
-    length: np.ndarray  # [m]
-    width: np.ndarray  # [m]
-    lane_ids: list[str]
-    lane_index: np.ndarray
-
-
-class SumoError(RuntimeError):
-    """SUMO refused a command or raised during a step."""
+def _f64(a) -> np.ndarray:
+    """a as a contiguous float64 array (no copy when it already is one)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def _api(backend: str):
@@ -112,24 +44,7 @@ def _api(backend: str):
     return api, tc
 
 
-START_TIMEOUT_S = 30
-"""A SUMO started over a socket (traci backend, sumo-gui) that does not accept the connection
-within this many seconds is killed and the run fails with what SUMO printed [s]."""
-
-GUI_VIEW = "View #0"
-"""sumo-gui's default view (the one that follows the formation)."""
-
-GUI_ZOOM = 400.0
-"""Zoom of that view while following a member [%]: about 150 m of road across the window."""
-
-
-def sumo_binary(gui: bool = False) -> str:
-    """Path of the sumo (or sumo-gui) binary of the eclipse-sumo wheel."""
-    import sumolib
-    return sumolib.checkBinary("sumo-gui" if gui else "sumo")
-
-
-class SumoAdapter:
+class SumoAdapter(NeighbourReads, VehicleSetup):
     """One SUMO simulation. Call :meth:`start`, then per step :meth:`place` -> :meth:`step`
     -> :meth:`after_step`, and :meth:`close` at the end (also after errors)."""
 
@@ -146,6 +61,12 @@ class SumoAdapter:
         self._window: dict[str, tuple[str, int]] = {}  # member -> (route id, first edge index)
         self._lane_geometry: dict[str, tuple[float, int]] = {}  # lane -> (width [m], lanes of its edge)
         self._bodies: dict[str, tuple[float, float, str]] = {}  # vehicle -> (length, width [m], vType)
+        self._overlap: dict[str, str] = {}  # member -> the neighbour lane its body reaches into
+        self._window_lane: dict[str, str] = {}  # member -> lane its route window was last checked on
+        self._front_ids: list[str] = []
+        self._front = np.empty(0)
+        self._member_get = None  # itemgetter of the members' subscription variables
+        self.lane_pos = np.empty(0)  # members' front bumper along their lane at the last read [m]
         self._started = False
         self.departed: dict[str, int] = {}  # flow id -> vehicles SUMO inserted (see count_departures)
         self._proc = None  # the SUMO process of the traci backend
@@ -164,53 +85,19 @@ class SumoAdapter:
         return self.version
 
     def _start_socket(self, cmd: list[str]) -> str:
-        """traci: start SUMO as a process and connect within START_TIMEOUT_S; a SUMO that exits
-        or never listens is killed and its own message raised (never a hang)."""
-        import contextlib
-        import io
-        import subprocess
-        import tempfile
-
-        import sumolib
-
-        port = sumolib.miscutils.getFreeSocketPort()
-        err = tempfile.TemporaryFile()
-        proc = subprocess.Popen(cmd + ["--remote-port", str(port)], stdout=err, stderr=err)
-        try:
-            with contextlib.redirect_stdout(io.StringIO()):  # traci prints every retry
-                self.api.init(port, numRetries=START_TIMEOUT_S, proc=proc)
-            self.version = self.api.getVersion()[1]
-        except Exception as exc:
-            if proc.poll() is None:
-                proc.kill()
-            proc.wait(10)
-            err.seek(0)
-            said = err.read().decode(errors="replace").strip()
-            raise SumoError(f"SUMO did not start ({type(exc).__name__}: {exc})"
-                            + (f": {said[-2000:]}" if said else "")) from None
-        finally:
-            err.close()
-        self._proc = proc
+        """traci: SUMO as a process, connected within START_TIMEOUT_S (sim/sumo_connect.py)."""
+        self.version, self._proc = start_socket(self.api, cmd)
         self._started = True
         return self.version
 
     def follow(self, vehicle_id: str) -> None:
         """sumo-gui: keep the view on ``vehicle_id`` (a member), zoomed to the formation."""
-        if not (self.gui and self.backend == "traci"):
-            return
-        try:
-            self.api.gui.trackVehicle(GUI_VIEW, vehicle_id)
-            self.api.gui.setZoom(GUI_VIEW, GUI_ZOOM)
-        except Exception:  # a view without tracking is still a view: never fail the run
-            pass
+        if self.gui and self.backend == "traci":
+            follow_view(self.api, vehicle_id)
 
     def attach(self, port: int) -> str:
         """Connect (traci) to a SUMO started elsewhere with ``--remote-port port``."""
-        try:
-            self.api.init(port)
-            self.version = self.api.getVersion()[1]
-        except Exception as exc:
-            raise SumoError(f"could not attach to SUMO on port {port}: {exc}") from exc
+        self.version = attach_socket(self.api, port)
         self._started = True
         return self.version
 
@@ -253,14 +140,6 @@ class SumoAdapter:
                 counts[flow] += 1
 
     # -- network helpers -------------------------------------------------------------
-    def set_friction(self, mu: float) -> None:
-        """Set the friction of every edge of the network [-] (SUMO's cars with the friction
-        device slow down on slippery lanes). ``edge.setFriction``: the traci server rejects
-        ``lane.setFriction`` in SUMO 1.28."""
-        for edge in self.api.edge.getIDList():
-            if not edge.startswith(":"):
-                self.api.edge.setFriction(edge, mu)
-
     def add_route(self, route_id: str, edges: list[str]) -> None:
         self.api.route.add(route_id, edges)
         lengths = np.array([self.api.lane.getLength(f"{e}_0") for e in edges])
@@ -276,6 +155,7 @@ class SumoAdapter:
         edges, lengths = self._routes[route_id]
         edge = lane_id.rsplit("_", 1)[0]
         if start >= 0 and edges[start] == edge:
+            self._window_lane[vid] = lane_id  # nothing to do until the lane changes
             return
         try:
             i = edges.index(edge, max(start, 0))
@@ -288,92 +168,7 @@ class SumoAdapter:
         except self.api.TraCIException:
             return  # e.g. on a junction: the next edge tries again
         self._window[vid] = (route_id, i)
-
-    def forbid_lanes(self, lanes, vclasses) -> None:
-        """Disallow vehicle classes on lanes (added to each lane's disallowed classes)."""
-        for lane in lanes:
-            have = list(self.api.lane.getDisallowed(lane))
-            self.api.lane.setDisallowed(lane, sorted(set(have) | set(vclasses)))
-
-    def add_member_type(self, mt: MemberType) -> None:
-        vt = self.api.vehicletype
-        vt.copy("DEFAULT_VEHTYPE", mt.id)
-        vt.setLength(mt.id, mt.length)
-        vt.setWidth(mt.id, mt.width)
-        vt.setColor(mt.id, (*mt.color, 255))
-        vt.setVehicleClass(mt.id, mt.vclass)
-        vt.setMaxSpeed(mt.id, mt.max_speed)
-        vt.setMinGap(mt.id, 0.5)
-        vt.setImperfection(mt.id, 0.0)
-        vt.setSpeedDeviation(mt.id, 0.0)
-        vt.setAccel(mt.id, 10.0)
-        vt.setDecel(mt.id, 10.0)
-        vt.setEmergencyDecel(mt.id, 12.0)
-        vt.setMaxSpeedLat(mt.id, 10.0)
-        if mt.ssm_device:  # by the type, not --device.ssm.explicit: SUMO keeps that id list
-            vt.setParameter(mt.id, "has.ssm.device", "true")  # from the first run of a process
-
-    def release(self, vid: str, accel: float, decel: float, exit_edge: str = "") -> str:
-        """Hand member ``vid`` over to SUMO's own driver model at its lane, position and
-        speed: its route becomes the rest of the formation's route from its edge (or, with
-        ``exit_edge``, SUMO's route to that edge: ``changeTarget``), its acceleration and
-        deceleration ``accel`` / ``decel`` [m/s^2], SUMO's safe-speed and lane-change checks
-        are on again (their default modes), and from now on it is an ordinary vehicle (a
-        neighbour). Returns its lane id; raises SumoError when the exit cannot be reached."""
-        v = self.api.vehicle
-        window = self._window.pop(vid, None)
-        lane = self._member_lane.pop(vid, ("", -1, 0.0))[0]
-        mt = self.members.get(vid)
-        if mt is not None and mt.vclass in ORDINARY_CLASS:  # lanes closed to members open again
-            v.setVehicleClass(vid, ORDINARY_CLASS[mt.vclass])
-        if window is not None and lane and not lane.startswith(":"):
-            edges = self._routes[window[0]][0]
-            edge = lane.rsplit("_", 1)[0]
-            if edge in edges:
-                try:
-                    v.setRoute(vid, edges[edges.index(edge):])
-                except self.api.TraCIException:
-                    pass  # keeps its window; SUMO reports it at the window's end
-        if exit_edge:
-            try:
-                v.changeTarget(vid, exit_edge)
-            except self.api.TraCIException as exc:
-                raise SumoError(f"no route from {lane or 'its lane'} to the exit {exit_edge}: {exc}") from None
-        v.setAccel(vid, accel)
-        v.setDecel(vid, decel)
-        v.setSpeedMode(vid, SPEED_MODE_DEFAULT)
-        v.setLaneChangeMode(vid, LANE_CHANGE_MODE_DEFAULT)
-        self.members.pop(vid, None)
-        return lane
-
-    def add_driven(self, vid: str, edges: list[str], lane: int, pos: float, speed: float,
-                   mt: MemberType, accel: float, decel: float) -> None:
-        """A vehicle of type ``mt`` that SUMO drives: on ``edges[0]`` lane ``lane``, front
-        bumper ``pos`` [m] from the edge's start, ``speed`` [m/s] (inserted as soon as SUMO
-        finds it safe), acceleration / deceleration ``accel`` / ``decel`` [m/s^2], keeping
-        its lane (lane-change mode 0). A joining member before the join takes it over."""
-        rid = f"{vid}_entry"
-        self.api.route.add(rid, list(edges))
-        self.api.vehicle.add(vid, rid, typeID=mt.id, depart="now", departLane=str(int(lane)),
-                             departPos=f"{max(pos, 0.0):.3f}", departSpeed=f"{max(speed, 0.0):.3f}")
-        self.api.vehicle.setAccel(vid, accel)
-        self.api.vehicle.setDecel(vid, decel)
-        self.api.vehicle.setLaneChangeMode(vid, 0)
-
-    def take_over(self, vid: str, mt: MemberType, route_id: str) -> None:
-        """Join: SUMO vehicle ``vid`` becomes a member where it is: vType ``mt`` (SUMO keeps
-        its front bumper where it is), no safe-speed or lane-change checks of its own, placed
-        by moveToXY from the next step on along the formation's route ``route_id`` from its
-        edge (the route window, as for an inserted member)."""
-        self.members[vid] = mt
-        self._bodies.pop(vid, None)
-        v = self.api.vehicle
-        v.setType(vid, mt.id)
-        v.setSpeedMode(vid, 0)
-        v.setLaneChangeMode(vid, 0)
-        v.subscribe(vid, self._member_vars())  # replaces a neighbour subscription
-        self._subscribed.add(vid)
-        self._window[vid] = (route_id, -1)
+        self._window_lane[vid] = lane_id
 
     # -- members ---------------------------------------------------------------------
     def insert_member(self, vid: str, route_id: str, mt: MemberType, x, y, psi, v) -> None:
@@ -391,8 +186,11 @@ class SumoAdapter:
 
     def _member_vars(self):
         tc = self.tc
+        self._member_get = itemgetter(tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_LANE_ID,
+                                      tc.VAR_LANE_INDEX, tc.VAR_LANEPOSITION_LAT,
+                                      tc.VAR_LANEPOSITION)
         return [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_LANE_ID, tc.VAR_LANE_INDEX,
-                tc.VAR_LANEPOSITION, tc.VAR_LANEPOSITION_LAT, tc.VAR_SPEED]
+                tc.VAR_LANEPOSITION, tc.VAR_LANEPOSITION_LAT]
 
     def _move(self, vid, x, y, psi):
         xf, yf, ang = cog_to_sumo(x, y, psi, self.members[vid].d_front)
@@ -408,41 +206,50 @@ class SumoAdapter:
     def place(self, ids: list[str], x, y, psi) -> list[tuple[str, str]]:
         """Pin members to CoG poses for the coming step. Returns (id, message) of moves SUMO refused.
 
-        A member whose body overlaps a neighbour lane is first put on that lane (``moveTo``)
-        so that the ``moveToXY`` is a lane change: SUMO then registers the member on both
-        lanes (its "shadow lane") and followers in the other lane see it (docs/sumo.md).
+        A member whose body overlaps a neighbour lane (as last read, :meth:`read_members`) is
+        first put on that lane (``moveTo``) so that the ``moveToXY`` is a lane change: SUMO
+        then registers the member on both lanes (its "shadow lane") and followers in the
+        other lane see it (docs/sumo.md).
         """
         refused = []
-        d_front = np.array([self.members[vid].d_front for vid in ids])
-        xf, yf, ang = (a.tolist() for a in cog_to_sumo(np.asarray(x), np.asarray(y), np.asarray(psi), d_front))
+        xf, yf, ang = (a.tolist() for a in cog_to_sumo_rows(
+            _f64(x), _f64(y), _f64(psi), self._d_front(ids)))
+        move, overlap = self.api.vehicle.moveToXY, self._overlap
         for i, vid in enumerate(ids):
-            mt = self.members[vid]
-            info = self._member_lane.get(vid)
-            if info is not None:
-                lane_id, lane_index, lat = info
-                other = self._overlapped_lane(lane_id, lane_index, lat, mt.width)
-                if other is not None:
-                    try:
-                        pos = min(self.api.vehicle.getLanePosition(vid),
-                                  self.api.lane.getLength(other) - 0.1)
-                        self.api.vehicle.moveTo(vid, other, max(pos, 0.0))
-                    except self.api.TraCIException:
-                        pass  # only a hint for SUMO's lane bookkeeping
+            if overlap and vid in overlap:
+                self._hint_lane(vid, overlap[vid])
             try:
-                self._move_front(vid, xf[i], yf[i], ang[i], x[i], y[i])
-            except SumoError as exc:
-                refused.append((vid, str(exc)))
+                move(vid, "", -1, xf[i], yf[i], ang[i], KEEP_ROUTE, MATCH_THRESHOLD)
+            except self.api.TraCIException as exc:
+                refused.append((vid, f"moveToXY refused for {vid} at ({x[i]:.2f}, {y[i]:.2f}): {exc}"))
         return refused
 
+    def _hint_lane(self, vid: str, other: str) -> None:
+        """Put member ``vid`` on lane ``other`` at its lane position (``moveTo``)."""
+        try:
+            pos = min(self.api.vehicle.getLanePosition(vid), self.api.lane.getLength(other) - 0.1)
+            self.api.vehicle.moveTo(vid, other, max(pos, 0.0))
+        except self.api.TraCIException:
+            pass  # only a hint for SUMO's lane bookkeeping
+
+    def _d_front(self, ids: list[str]) -> np.ndarray:
+        """CoG to front bumper of members ``ids`` [m] (kept while the list stays the same)."""
+        if ids != self._front_ids:
+            self._front_ids = list(ids)
+            self._front = np.array([self.members[vid].d_front for vid in ids], dtype=float)
+        return self._front
+
     def _overlapped_lane(self, lane_id: str, lane_index: int, lat: float, width: float):
+        """The neighbour lane a member's body reaches into (lateral position ``lat`` [m] on
+        lane ``lane_id``, body ``width`` [m]), or None."""
         if not lane_id or lane_id.startswith(":"):
             return None
-        edge = lane_id.rsplit("_", 1)[0]
         geo = self._lane_geometry.get(lane_id)
         if geo is None:
+            edge = lane_id.rsplit("_", 1)[0]
             geo = self._lane_geometry[lane_id] = (self.api.lane.getWidth(lane_id),
-                                                  self.api.edge.getLaneNumber(edge))
-        lane_w, n_lanes = geo
+                                                  self.api.edge.getLaneNumber(edge), edge)
+        lane_w, n_lanes, edge = geo
         if abs(lat) + width / 2 <= lane_w / 2:
             return None
         other = lane_index + (1 if lat > 0 else -1)
@@ -471,113 +278,65 @@ class SumoAdapter:
     def set_true_speeds(self, ids: list[str], v, a) -> None:
         """Tell SUMO each member's true speed [m/s] and acceleration [m/s^2] (it would infer
         a half-step-late mean speed clamped to the lane limit from the distance moved)."""
-        for i, vid in enumerate(ids):
+        set_speed = self.api.vehicle.setPreviousSpeed
+        for vid, vi, ai in zip(ids, np.maximum(v, 0.0).tolist(), _f64(a).tolist()):
             try:
-                self.api.vehicle.setPreviousSpeed(vid, float(max(v[i], 0.0)), float(a[i]))
+                set_speed(vid, vi, ai)
             except self.api.TraCIException:
                 pass  # removed during the step: the next read_members reports it
 
     def read_members(self, ids: list[str]):
         """Where SUMO put each member: CoG x, y [m], heading [rad], lane id, lane index,
-        lateral position in the lane [m]; ``present`` is False for members SUMO no longer has."""
-        tc = self.tc
+        lateral position in the lane [m]; ``present`` is False for members SUMO no longer has.
+        One subscription read; per member only what changed (its lane) costs more."""
+        if not ids:
+            return self._read_some_members(ids, [])
         res = self.api.vehicle.getAllSubscriptionResults()
+        rows = [res.get(vid) for vid in ids]
+        if not all(rows):
+            return self._read_some_members(ids, rows)
+        pos, ang, lanes, lane_index, lat, lane_pos = zip(*map(self._member_get, rows))
+        lanes = list(lanes)
+        self.lane_pos = np.array(lane_pos, dtype=float)  # front bumper along its lane [m]
+        x, y, psi = sumo_to_cog_rows(np.array(pos, dtype=float), np.array(ang, dtype=float),
+                                     self._d_front(ids))
+        self._track_lanes(ids, lanes, lane_index, lat)
+        return (x, y, psi, lanes, np.array(lane_index, dtype=int), np.array(lat, dtype=float),
+                np.ones(len(ids), dtype=bool))
+
+    def _read_some_members(self, ids, rows):
+        """:meth:`read_members` when SUMO no longer has some of the members (NaN, '' and -1)."""
         n = len(ids)
-        xf, yf, ang, lat, d_front = ([math.nan] * n for _ in range(5))
-        lane_index = [-1] * n
-        lanes = [""] * n
-        present = [False] * n
+        here = [i for i, r in enumerate(rows) if r]
+        x, y, psi, lat, lane_pos = (np.full(n, np.nan) for _ in range(5))
+        lane_index, lanes = np.full(n, -1, dtype=int), [""] * n
         for i, vid in enumerate(ids):
-            r = res.get(vid)
-            if not r:
+            if not rows[i]:
                 self._member_lane.pop(vid, None)
-                continue
-            present[i] = True
-            xf[i], yf[i] = r[tc.VAR_POSITION]
-            ang[i], d_front[i] = r[tc.VAR_ANGLE], self.members[vid].d_front
-            lanes[i] = lane = r[tc.VAR_LANE_ID]
-            lane_index[i] = li = r[tc.VAR_LANE_INDEX]
-            lat[i] = r[tc.VAR_LANEPOSITION_LAT]
-            self._member_lane[vid] = (lane, li, lat[i])
-            self._advance_route_window(vid, lane)
-        x, y, psi = sumo_to_cog(np.array(xf), np.array(yf), np.array(ang), np.array(d_front))
-        lane_index, lat, present = np.array(lane_index, dtype=int), np.array(lat), np.array(present, dtype=bool)
-        self.lane_pos = np.array([res[vid][tc.VAR_LANEPOSITION] if present[i] else math.nan
-                                  for i, vid in enumerate(ids)])  # front bumper along its lane [m]
-        return x, y, psi, lanes, lane_index, lat, present
+                self._overlap.pop(vid, None)
+        if here:
+            sub = [ids[i] for i in here]
+            xs, ys, ps, ls, lis, lts, _ = self.read_members(sub)
+            x[here], y[here], psi[here], lane_index[here], lat[here] = xs, ys, ps, lis, lts
+            lane_pos[here] = self.lane_pos
+            for j, i in enumerate(here):
+                lanes[i] = ls[j]
+        self.lane_pos = lane_pos  # front bumper along its lane [m] (NaN: not in SUMO)
+        return x, y, psi, lanes, lane_index, lat, np.array([bool(r) for r in rows], dtype=bool)
 
-    # -- neighbours ------------------------------------------------------------------
-    def subscribe_neighbours(self, vid: str, radius: float) -> None:
-        """Context subscription: every vehicle within ``radius`` [m] of member ``vid`` (one per
-        formation: overlapping subscriptions would return the same vehicles several times)."""
-        tc = self.tc
-        self.api.vehicle.subscribeContext(vid, tc.CMD_GET_VEHICLE_VARIABLE, radius, self._neighbour_vars())
-        self._context[vid] = radius
-
-    def _neighbour_vars(self):
-        """Variables that change every step; length, width and type are read once per vehicle."""
-        tc = self.tc
-        return [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VAR_LANE_ID,
-                tc.VAR_LANE_INDEX]
-
-    def _body(self, vid: str) -> tuple[float, float, str]:
-        """Length [m], width [m] and vType of a vehicle (read on first sight, then cached)."""
-        body = self._bodies.get(vid)
-        if body is None:
-            v = self.api.vehicle
-            body = self._bodies[vid] = (v.getLength(vid), v.getWidth(vid), v.getTypeID(vid))
-        return body
-
-    def subscribe_departed(self) -> None:
-        """Subscribe every vehicle that entered in the last step (recording 'all' vehicles);
-        the first call also subscribes the vehicles already on the road."""
-        if not getattr(self, "_subscribed_all", False):
-            self._subscribed_all = True
-            fresh = self.api.vehicle.getIDList()
-        else:
-            fresh = self.api.simulation.getDepartedIDList()
-        for vid in fresh:
-            if vid not in self.members:
-                self.api.vehicle.subscribe(vid, self._neighbour_vars())
-                self._subscribed.add(vid)
-
-    def neighbours(self, all_vehicles: bool) -> Neighbours:
-        """Non-member vehicles from the context subscriptions (or from all subscriptions)."""
-        tc = self.tc
-        rows: dict[str, dict] = {}
-        if all_vehicles:
-            for vid, r in self.api.vehicle.getAllSubscriptionResults().items():
-                if vid not in self.members and r:
-                    rows[vid] = r
-        else:
-            for ego, ctx in self.api.vehicle.getAllContextSubscriptionResults().items():
-                for vid, r in ctx.items():
-                    if vid not in self.members:
-                        rows[vid] = r
-        ids = sorted(rows)
-        get = itemgetter(tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION,
-                         tc.VAR_LANE_INDEX, tc.VAR_LANE_ID)
-        cols = list(zip(*(get(rows[vid]) for vid in ids))) or [()] * 6
-        body = list(zip(*(self._body(vid) for vid in ids))) or [()] * 3
-        xy = np.array(cols[0], dtype=float).reshape(-1, 2)
-        ang, v, a = (np.array(c, dtype=float) for c in cols[1:4])
-        li, lanes = np.array(cols[4], dtype=int), list(cols[5])
-        length, width, types = np.array(body[0], dtype=float), np.array(body[1], dtype=float), list(body[2])
-        x, y, psi = sumo_to_cog(xy[:, 0], xy[:, 1], ang, length / 2.0)  # centre of the body
-        return Neighbours(ids, types, x, y, psi, v, a, length, width, lanes, li)
-
-    def vehicle_bodies(self):
-        """Every vehicle in SUMO: ids, body centre x, y [m], heading [rad], length, width [m]
-        (direct getters: used once, at insertion)."""
-        v = self.api.vehicle
-        ids = list(v.getIDList())
-        n = len(ids)
-        xf, yf, ang, length, width = (np.empty(n) for _ in range(5))
-        for i, vid in enumerate(ids):
-            xf[i], yf[i] = v.getPosition(vid)
-            ang[i], length[i], width[i] = v.getAngle(vid), v.getLength(vid), v.getWidth(vid)
-        x, y, psi = sumo_to_cog(xf, yf, ang, length / 2.0)
-        return ids, x, y, psi, length, width
+    def _track_lanes(self, ids, lanes, lane_index, lat) -> None:
+        """Per member: its lane as read, the neighbour lane its body reaches into (for
+        :meth:`place`) and its route window, which moves on when it entered a new edge."""
+        member_lane, overlap, window_lane = self._member_lane, self._overlap, self._window_lane
+        for vid, lane, li, lt in zip(ids, lanes, lane_index, lat):
+            member_lane[vid] = (lane, li, lt)
+            other = self._overlapped_lane(lane, li, lt, self.members[vid].width)
+            if other is not None:
+                overlap[vid] = other
+            elif overlap:
+                overlap.pop(vid, None)
+            if window_lane.get(vid) != lane:
+                self._advance_route_window(vid, lane)
 
     def remove_vehicle(self, vid: str) -> None:
         """Take a vehicle out of SUMO. Its subscriptions are dropped first: libsumo 1.28 raises
@@ -590,6 +349,7 @@ class SumoAdapter:
             self._subscribed.discard(vid)
             self.api.vehicle.unsubscribe(vid)
         self._window.pop(vid, None)
+        self._overlap.pop(vid, None)
         self._bodies.pop(vid, None)
         self.api.vehicle.remove(vid, self.tc.REMOVE_VAPORIZED)
 

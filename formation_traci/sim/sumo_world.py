@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..record.ssm import SsmConverter
-from ..road.line_pack import FastLine
+from ..road.line_pack import FastLine, packed
 from ..scenario.schema import Scenario
 from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
                      log_sumo_events)
@@ -38,9 +38,10 @@ class SumoWorld:
         self.records_members = not baseline
         self.ids = [m.id for m in sc.members]
         n = len(self.ids)
-        self.line = FastLine.from_reference_line(plan.road.line)
+        self.line = FastLine(float(plan.road.line.length), packed(plan.road.line))  # packed once per line
         self.out_dir, self.sumo_dir = out_dir, out_dir / "sumo"
         self.active = np.ones(n, dtype=bool)
+        self._every = np.arange(n)
         for mv in sc.maneuvers:  # a joining member enters when it takes a vehicle over
             if mv.kind == "join":
                 self.active[self.ids.index(mv.member)] = False
@@ -145,19 +146,27 @@ class SumoWorld:
 
     def _read_members(self, t, pos, m_d, extra) -> None:
         n = len(self.ids)
-        idx_act = np.flatnonzero(self.active)
+        every = self.active.all()
+        idx_act = self._every if every else np.flatnonzero(self.active)
         xs, ys, _, lanes, lane_idx, lat, present = self.adapter.read_members(
-            [self.sumo_ids[i] for i in idx_act])
-        for j, i in enumerate(idx_act):
-            if not present[j]:
-                self.members.removed(t, i)
-                self.active[i] = False
-        gap_sumo = np.full(n, np.nan)
-        lane_index = np.full(n, np.nan)
-        heading = self._heading[idx_act]
-        gap_sumo[idx_act] = sumo_gap(self.plan.road, pos[idx_act], heading, self.d_front[idx_act],
-                                     xs, ys, lanes, self.adapter.lane_pos, lat)
-        lane_index[idx_act] = np.where(present, lane_idx, np.nan)
+            self.sumo_ids if every else [self.sumo_ids[i] for i in idx_act])
+        here = present.all()
+        if not here:
+            for j, i in enumerate(idx_act):
+                if not present[j]:
+                    self.members.removed(t, i)
+                    self.active[i] = False
+        if every and here:  # every member in the run and in SUMO (no copies, no masks)
+            gap_sumo = sumo_gap(self.plan.road, pos, self._heading, self.d_front, xs, ys, lanes,
+                                self.adapter.lane_pos, lat)
+            lane_index = lane_idx.astype(float)
+        else:
+            gap_sumo = np.full(n, np.nan)
+            lane_index = np.full(n, np.nan)
+            heading = self._heading[idx_act]
+            gap_sumo[idx_act] = sumo_gap(self.plan.road, pos[idx_act], heading, self.d_front[idx_act],
+                                         xs, ys, lanes, self.adapter.lane_pos, lat)
+            lane_index[idx_act] = np.where(present, lane_idx, np.nan)
         extra.update(sumo_gap=gap_sumo, lane_index=lane_index)
         self.members.placement(t, gap_sumo)
         self.members.lane_changes(t, idx_act, present, lanes, lane_idx)
