@@ -8,6 +8,7 @@ from formation_traci.control.maneuvers.gap import Others
 from formation_traci.control.maneuvers.join import join_duration, join_peaks, pick_vehicle
 from formation_traci.control.maneuvers.planner import ManeuverPlanner, Situation
 from formation_traci.control.maneuvers.transition import ComfortLimits, hold_plan, slots_at
+from formation_traci.road.lanes import LaneCentres
 from formation_traci.scenario import ScenarioError
 from formation_traci.scenario.load import parse_scenario
 from formation_traci.scenario.maneuvers import ManeuverLimits
@@ -65,15 +66,18 @@ def test_join_duration_keeps_the_slot_within_the_comfort_limits(d, r0):
     assert np.abs(np.diff(acc) / np.diff(t)).max() <= LIM.lon_jerk * 1.01
 
 
+LANES = LaneCentres.uniform(3.5)  # m apart
+
+
 def test_pick_vehicle_takes_the_nearest_car_in_the_slots_lane_within_reach():
     o = _others([("far", 560.0, 3.5, 4.5, 1.8, 27.0), ("truck", 492.0, 3.5, 12.0, 2.5, 27.0),
                  ("centre_lane", 490.0, 0.0, 4.5, 1.8, 27.0), ("changing", 491.0, 2.3, 4.5, 1.8, 27.0),
                  ("car", 475.0, 3.45, 4.5, 1.8, 30.0), ("car2", 470.0, 3.5, 4.5, 1.8, 30.0)])
-    j = pick_vehicle(o, 488.0, 3.5, 30.0, 3.5, 4.6, 1.8, None)
+    j = pick_vehicle(o, 488.0, 3.5, 30.0, LANES, 4.6, 1.8, None)
     assert o.ids[j] == "car"
-    assert o.ids[pick_vehicle(o, 488.0, 3.5, 30.0, 3.5, 4.6, 1.8, "truck")] == "truck"
-    assert pick_vehicle(o, 488.0, 3.5, 30.0, 3.5, 4.6, 1.8, "far") == -1
-    assert pick_vehicle(o, 488.0, -3.5, 30.0, 3.5, 4.6, 1.8, None) == -1
+    assert o.ids[pick_vehicle(o, 488.0, 3.5, 30.0, LANES, 4.6, 1.8, "truck")] == "truck"
+    assert pick_vehicle(o, 488.0, 3.5, 30.0, LANES, 4.6, 1.8, "far") == -1
+    assert pick_vehicle(o, 488.0, -3.5, 30.0, LANES, 4.6, 1.8, None) == -1
 
 
 def _doc(maneuvers, members=None):

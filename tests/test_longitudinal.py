@@ -71,3 +71,30 @@ def test_one_second_jerk_and_emergency_windows():
     m = emergency_mask(t, [4.0], [5.0])
     assert not m[t <= 3.0].any() and m[(t > 3.05) & (t < 7.95)].all() and not m[t >= 8.0].any()
     assert emergency_mask(t, [9.0], []).sum() == (t > 8.0).sum()
+
+
+def test_a_lifted_cap_is_eased_out_at_the_jerk_limit_not_dropped():
+    """docs/maneuvers.md, Known limits (issue 16, after a cut-in): a member's cap that lifts
+    (the car ahead changes lanes again) while it binds rises at the planner's jerk bound until
+    the member's own law no longer reaches it, then goes; the requested acceleration
+    min(law, cap) never jumps (before: from the cap to the law in one step). A member whose
+    law sits below the cap loses the cap at once (nothing to ease)."""
+    law = np.array([1.5, -1.0])  # the formation law's acceleration request [m/s^2]
+    pl = LongitudinalPlanner(2, P)
+    a_m, asked = np.zeros(2), []
+    for k in range(400):
+        lifted = k >= 100
+        a_cap_req = np.full(2, np.inf if lifted else -0.5)
+        _, _, a_cap = pl.step(0.0, np.full(2, np.inf), a_cap_req, np.full(2, 25.0), a_m, DT)
+        a_r = np.minimum(law, a_cap)
+        asked.append(a_r)
+        if k == 101:
+            assert a_cap[1] == np.inf  # not binding when lifted: dropped at once
+        a_m = a_r  # ideal tracking of the request
+    asked = np.array(asked)
+    rate = np.abs(np.diff(asked[:, 0])) / DT
+    assert rate[95:].max() <= P.jerk_max * (1 + 1e-9)
+    assert asked[-1, 0] == law[0] and pl.a_cap[0] == np.inf  # eased out, then gone
+    # it really rose at the jerk bound: from -0.5 to 1.5 in 2 / jerk_max seconds
+    k_law = int(np.argmax(asked[:, 0] >= law[0]))
+    assert abs((k_law - 100) * DT - 2.0 / P.jerk_max) <= 2 * DT

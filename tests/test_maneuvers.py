@@ -11,6 +11,7 @@ from formation_traci.control.maneuvers.planner import ManeuverPlanner, Situation
 from formation_traci.control.maneuvers.transition import (ComfortLimits, hold_plan, quintic,
                                                           slots_at, transition_duration)
 from formation_traci.control.maneuvers.triggers import queue_behind
+from formation_traci.road.lanes import LaneCentres
 from formation_traci.scenario import ScenarioError
 from formation_traci.scenario.load import parse_scenario
 from formation_traci.scenario.maneuvers import ManeuverLimits
@@ -130,7 +131,7 @@ def test_queue_behind_counts_vehicles_in_the_formations_lanes():
                       ("far", -50.0, 0.0, 4.5, 1.8, 20), ("other_lane", 80.0, 7.0, 4.5, 1.8, 20),
                       ("ahead", 120.0, 0.0, 4.5, 1.8, 20)])
     m_s, m_d = np.array([100.0, 100.0]), np.array([0.0, 3.5])
-    assert queue_behind(m_s, m_d, np.array([4.6, 4.6]), 3.5, others, 100.0) == 2
+    assert queue_behind(m_s, m_d, np.array([4.6, 4.6]), LaneCentres.uniform(3.5), others, 100.0) == 2
 
 
 def _planner(specs, slots0):

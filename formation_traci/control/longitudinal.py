@@ -18,7 +18,13 @@ Here every longitudinal request passes a planner with bounded jerk:
   (a hard cap on the speed reference would stop an accelerating member within a couple of
   steps: the speed loop's gain is 8 1/s), joins its acceleration cap, and passes the same
   planner, starting from the member's acceleration when a cap appears; the speed reference
-  itself is then left uncapped.
+  itself is then left uncapped;
+* a cap that lifts (no constraint any more: the vehicle ahead changed lanes) while it still
+  binds the member is eased out, not dropped: it rises at ``jerk_max`` (the planner's step
+  towards an unbounded request) until it is ``lift_margin`` above the member's acceleration,
+  i.e. the member's own law no longer reaches it, and only then goes. The member's requested
+  acceleration min(law, cap) so never jumps from the cap to the law; a cap that does not bind
+  when it lifts goes at once.
 
 Pure functions of (state, input, params); :class:`LongitudinalPlanner` holds the state of
 one run (the virtual car and every member) for the road reference generator
@@ -48,6 +54,9 @@ class PlannerParams:
     """Largest jerk while braking harder than comfortable [m/s^3]."""
     decel_comfort: float = 3.0
     """A request below minus this is an emergency [m/s^2]."""
+    lift_margin: float = 0.3
+    """A lifted cap this far above the member's acceleration no longer binds: it goes [m/s^2]
+    (above the speed loop's lag behind a cap rising at jerk_max, ~0.1 m/s^2)."""
 
 
 @kernel
@@ -71,17 +80,21 @@ def plan_accel(a_prev, a_request, dt, tau, jerk_max, jerk_emergency, decel_comfo
 
 @kernel
 def plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, tau, jerk_max, jerk_emergency,
-              decel_comfort, tau_speed_cap, a_out, emergency):
+              decel_comfort, tau_speed_cap, lift_margin, a_out, emergency):
     """Smoothed acceleration caps [m/s^2] of every member, in place.
 
     The request is ``min(a_cap, (v_cap - v_member) / tau_speed_cap)`` (inf: no cap). A cap
     that appears (previous value inf) starts from the member's acceleration ``a_member`` (or
     the request if that is higher); ``emergency[i]`` is set where the request asks for more
-    than ``decel_comfort`` of braking."""
+    than ``decel_comfort`` of braking. A cap whose request lifts rises by ``jerk_max dt`` per
+    step while it is less than ``lift_margin`` above ``a_member`` (it still binds), and is
+    dropped (inf) after that."""
     for i in range(v_cap.shape[0]):
         req = min(a_cap[i], (v_cap[i] - v_member[i]) / tau_speed_cap)
         if not math.isfinite(req):
-            a_out[i], emergency[i] = np.inf, False
+            prev = a_cap_prev[i]
+            binds = math.isfinite(prev) and prev < a_member[i] + lift_margin
+            a_out[i], emergency[i] = (prev + jerk_max * dt) if binds else np.inf, False
         else:
             start = a_cap_prev[i] if math.isfinite(a_cap_prev[i]) else max(req, a_member[i])
             a_out[i], emergency[i] = plan_accel(start, req, dt, tau, jerk_max, jerk_emergency,
@@ -108,7 +121,7 @@ class LongitudinalPlanner:
         a_out = np.empty_like(self.a_cap)
         plan_caps(self.a_cap, np.asarray(v_cap, np.float64), np.asarray(a_cap, np.float64),
                   np.asarray(v_member, np.float64), np.asarray(a_member, np.float64), float(dt),
-                  p.tau, p.jerk_max, p.jerk_emergency, p.decel_comfort, p.tau_speed_cap, a_out,
-                  self.emergency)
+                  p.tau, p.jerk_max, p.jerk_emergency, p.decel_comfort, p.tau_speed_cap,
+                  p.lift_margin, a_out, self.emergency)
         self.a_cap = a_out
         return self.a_vc, self.v_cap, a_out

@@ -105,7 +105,10 @@ class RoadReference:
         v_m = np.asarray(sensed.v_m, dtype=float)
         a_m = np.zeros(len(v_m)) if self._v_prev is None else (v_m - self._v_prev) / dt
         self._v_prev = v_m.copy()
-        return self.longitudinal.step(a_request, v_cap, a_cap, v_m, a_m, dt)
+        a_vc, v_cap, a_cap = self.longitudinal.step(a_request, v_cap, a_cap, v_m, a_m, dt)
+        if off.any():  # a cap being eased out goes with its member
+            a_cap[off] = np.inf
+        return a_vc, v_cap, a_cap
 
     def commit(self) -> None:
         self.s, self.v = (float(q) for q in self._next)

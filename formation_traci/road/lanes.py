@@ -12,7 +12,10 @@ three-lane edge while its lane 1 geometrically continues as lane 0 and lane 2 as
 * :func:`lane_centre_offsets`: each lane's centre offset from the reference line, measured
   on SUMO's lane shapes (so lane widths, gaps between lanes and shape offsets are SUMO's);
 * :class:`LaneShapes`: SUMO's (lane, position, lateral offset) -> x, y, to check where SUMO
-  has a vehicle.
+  has a vehicle;
+* :class:`LaneCentres`: the lane mapping everything lane-based uses (initial slots, maneuver
+  lane shifts, reshape goals and entries given in lanes, in-lane tests): per route edge the
+  measured lane centres, looked up at an arc length along the reference line (pure numpy).
 
 Only sumolib is used (never libsumo or traci).
 """
@@ -141,7 +144,7 @@ class LaneShapes:
 
     def __init__(self, net):
         self._net = net
-        self._cache: dict[str, tuple[np.ndarray, np.ndarray, float]] = {}
+        self._cache: dict[str, tuple[list, list, list, float]] = {}
 
     def _lane(self, lane_id: str):
         """The lane's shape points (as lists of floats x, y [m]), their cumulative length
@@ -170,3 +173,77 @@ class LaneShapes:
         along = g - cum[k]
         x, y = px[k] + tx * along, py[k] + ty * along
         return x - lat * ty, y + lat * tx
+
+
+class LaneCentres:
+    """Lane centres along a route as SUMO has them (or uniform lanes without a network).
+
+    Per route edge, in driving order: the arc length where it starts on the reference line
+    ``s0`` [m], the offset of each lane centre from the reference line ``offsets`` [m], left
+    positive (:func:`lane_centre_offsets`), and the index of the reference lane on it ``ref``
+    (the geometric lane, :func:`geometric_route_lanes`). At an arc length s the edge is the
+    last one starting at or before s (the first before the route starts). Lanes beyond an
+    edge's outermost lane continue ``lane_width`` [m] apart.
+
+    A slot ``k`` lanes left of the reference lane lies at ``centre(r + k) - centre(r)`` on the
+    edge where it is (:meth:`across`; issue 15: on the first edge for the initial slots, 0 for
+    the reference lane itself), so lane-based offsets share the reference line's frame.
+    """
+
+    def __init__(self, s0, offsets, ref, lane_width: float):
+        self.s0 = np.asarray(s0, dtype=float)
+        self.lane_width = float(lane_width)
+        m = max(len(o) for o in offsets)
+        self.n = np.array([len(o) for o in offsets])
+        self.table = np.full((len(offsets), m), np.inf)  # padded: no lane there
+        for e, o in enumerate(offsets):
+            self.table[e, :len(o)] = o
+        self.ref = np.asarray(ref, dtype=int)
+
+    @classmethod
+    def uniform(cls, lane_width: float, lanes: int = 41) -> "LaneCentres":
+        """Lanes ``lane_width`` [m] apart everywhere, the reference lane at offset 0."""
+        k = np.arange(lanes) - lanes // 2
+        return cls([-np.inf], [k * float(lane_width)], [lanes // 2], lane_width)
+
+    def edge_at(self, s):
+        """Index of the route edge at arc length(s) s [m] (array or scalar)."""
+        return np.clip(np.searchsorted(self.s0, s, side="right") - 1, 0, len(self.s0) - 1)
+
+    def centre(self, e, k):
+        """Offset [m] of lane k (SUMO's index; extrapolated beyond the edge's lanes) of edge e."""
+        e, k = np.asarray(e), np.asarray(k)
+        last = self.n[e] - 1
+        inside = self.table[e, np.clip(k, 0, last)]
+        return np.where(k < 0, self.table[e, 0] + k * self.lane_width,
+                        np.where(k > last, inside + (k - last) * self.lane_width, inside))
+
+    def lane(self, s, d):
+        """(edge, lane) indices of the lane whose centre is nearest to lateral offset d [m] at
+        arc length s [m]; s and d broadcast."""
+        s, d = np.broadcast_arrays(np.asarray(s, float), np.asarray(d, float))
+        e = self.edge_at(s)
+        return e, np.argmin(np.abs(self.table[e] - d[..., None]), axis=-1)
+
+    def across(self, lanes, s):
+        """Lateral offset [m] of the slot ``lanes`` lanes left of the reference lane at arc
+        length s [m] (module docstring of this class)."""
+        e = self.edge_at(s)
+        r = self.ref[e]
+        return self.centre(e, r + np.asarray(lanes)) - self.centre(e, r)
+
+    def shift(self, s, d, lanes):
+        """Lateral offset [m] after moving ``lanes`` lanes to the left from d [m] at arc
+        length s [m]: from the centre of d's lane to the centre of the target lane, keeping
+        d's place within its lane."""
+        e, k = self.lane(s, d)
+        return d + self.centre(e, k + np.asarray(lanes)) - self.centre(e, k)
+
+    def same_lane(self, s, d, d_ref):
+        """Is each offset d [m] in the lane of d_ref [m] (nearest lane centres at arc length s)?"""
+        return self.lane(s, d)[1] == self.lane(s, d_ref)[1]
+
+    def off_centre(self, s, d):
+        """Distance [m] of each offset d from its nearest lane centre at arc length s [m]."""
+        e, k = self.lane(s, d)
+        return np.abs(np.asarray(d, float) - self.table[e, k])

@@ -15,8 +15,8 @@ import numpy as np
 
 from ..models.params import VehicleParams
 from ..road.geometry import ReferenceLine, load_net
-from ..road.lanes import (LaneShapes, geometric_route_lanes, geometric_route_shape, lane_centre_offsets,
-                          sideways_internal_lanes)
+from ..road.lanes import (LaneCentres, LaneShapes, geometric_route_lanes, geometric_route_shape,
+                          lane_centre_offsets, sideways_internal_lanes)
 from ..road.smoothing import fit_within
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
@@ -57,6 +57,7 @@ class Road:
     fit: dict = None  # smoothing of the reference line: length used, largest deviation, tolerance [m]
     shapes: LaneShapes = None  # SUMO's lane shapes: (lane, position, lateral offset) -> x, y
     member_forbidden: tuple[str, ...] = ()  # internal lanes members are kept off (road/lanes.py)
+    lanes: LaneCentres = None  # lane_d with the reference lane per edge, looked up by arc length
 
 
 def resolve_net(sc: Scenario, source: Path | None) -> Path:
@@ -131,6 +132,7 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
         raise ScenarioError(src, [("road.route", f"lane {sc.road.lane} cannot be followed along the route: {exc}")]) from None
     segments = []
     lane_d = {}
+    ref = []  # the reference lane's index on each route edge (its geometric lane)
     for lane_id in lanes:
         if lane_id.startswith(":"):
             continue
@@ -141,15 +143,19 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
         offs = lane_centre_offsets(net, edge.getID(), line)  # from SUMO's shapes (gaps included)
         widths = np.array([ln.getWidth() for ln in edge.getLanes()])
         lane_d[edge.getID()] = offs
+        ref.append(lane.getIndex())
         segments.append(RoadSegment(edge.getID(), float(s_ends[0]), float(s_ends[1]),
                                     float(np.min(offs - widths / 2)), float(np.max(offs + widths / 2))))
     if sc.road.start >= line.length - sc.road.end_margin:
         raise ScenarioError(src, [("road.start", f"must be less than the route length minus end_margin "
                                                  f"({line.length - sc.road.end_margin:.1f} m)")])
-    return Road(net_file, route, line, tuple(segments), first.getLane(sc.road.lane).getWidth(),
+    width = first.getLane(sc.road.lane).getWidth()
+    centres = LaneCentres(np.maximum.accumulate([seg.s0 for seg in segments]),
+                          [lane_d[seg.edge] for seg in segments], ref, width)
+    return Road(net_file, route, line, tuple(segments), width,
                 {e: net.getEdge(e).getLaneNumber() for e in route}, lane_d,
                 {e: net.getEdge(e).getLane(0).getLength() for e in route}, flow_routes, fit, LaneShapes(net),
-                tuple(sideways_internal_lanes(net, route)))
+                tuple(sideways_internal_lanes(net, route)), centres)
 
 
 _REFERENCE_CACHE: dict = {}
@@ -171,25 +177,18 @@ def _reference(net_file: str, route: tuple, lane: int, tolerance: float, net):
 
 
 def slot_offsets(sc: Scenario, road: Road) -> np.ndarray:
-    """(n, 2) road-frame slots (along, across) [m]; lane units times the reference lane width."""
+    """(n, 2) road-frame slots (along, across) [m]; a slot given in lanes lies on SUMO's lane
+    centre relative to the reference lane's, on the edge where the slot starts
+    (road/lanes.py ``LaneCentres.across``, the mapping the maneuvers use too)."""
     out = []
     for m in sc.members:
         if m.slot is None:
             out.append([np.nan, np.nan])
         else:
-            across = m.slot.across if m.slot.across is not None else _lane_across(sc, road, m.slot.lanes)
+            across = (m.slot.across if m.slot.across is not None
+                      else float(road.lanes.across(m.slot.lanes, sc.road.start + m.slot.along)))
             out.append([m.slot.along, across])
     return np.array(out, dtype=float)
-
-
-def _lane_across(sc: Scenario, road: Road, lanes: int) -> float:
-    """Offset [m] of the lane ``lanes`` to the left of the reference lane on the first edge,
-    from SUMO's lane shapes; beyond the edge's lanes, the reference lane's width per lane."""
-    offs = road.lane_d.get(road.route[0])
-    k = sc.road.lane + lanes
-    if offs is not None and 0 <= k < len(offs):
-        return float(offs[k] - offs[sc.road.lane])
-    return lanes * road.lane_width
 
 
 def check_slots(sc: Scenario, road: Road, slots: np.ndarray, vehicles: list[VehicleParams], source,

@@ -381,7 +381,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     from .road_setup import road_room
     lengths = np.array([v.length for v in plan.vehicles])
     widths = np.array([v.width for v in plan.vehicles])
-    planner = ManeuverPlanner(sc.maneuvers, plan.slots, plan.road.lane_width, sc.maneuver_limits,
+    planner = ManeuverPlanner(sc.maneuvers, plan.slots, plan.road.lanes, sc.maneuver_limits,
                               lengths, widths, list(world.ids), road_room(plan.road),
                               (ld.time_gap, ld.min_gap),
                               np.array([v.cog_to_front_bumper for v in plan.vehicles]))

@@ -2,11 +2,12 @@
 
 A join is due by its trigger; from then on, every step, the vehicles around the formation
 are searched for one within ``reach`` [m] of the free slot (the joining member's slot) in
-the slot's lane (its centre within half a lane width of the slot's lateral offset, so that its
-path into the slot crosses no member's lane): the named SUMO vehicle, or else the first of
-about the member's size (body length within SIZE_TOLERANCE_LENGTH, width within
-SIZE_TOLERANCE_WIDTH of the member's) that drives centred in the lane (within
-LANE_CENTRE_TOLERANCE of a lane centre: not in the middle of a lane change). The one taken over starts its slot transition where it is, with its own rate
+the slot's lane (its centre nearest to the centre of the slot's lane, SUMO's lane centres at
+the slot, so that its path into the slot crosses no member's lane): the named SUMO vehicle,
+or else the first of about the member's size (body length within SIZE_TOLERANCE_LENGTH, width
+within SIZE_TOLERANCE_WIDTH of the member's) that drives centred in the lane (within
+LANE_CENTRE_TOLERANCE of SUMO's lane centre: not in the middle of a lane change). The one
+taken over starts its slot transition where it is, with its own rate
 relative to the virtual car: the slot's offset is
 
     offset(t) = A + h(tau) (B - A) + r0 T g(tau),   g(tau) = tau - 6 tau^3 + 8 tau^4 - 3 tau^5,
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...road.lanes import LaneCentres
 from .gap import Others
 from .transition import ComfortLimits
 
@@ -84,22 +86,22 @@ def path_clearance(start, goal, shift: float, held, length: float, width: float,
     return float(np.min(np.maximum(da, dc)))
 
 
-def pick_vehicle(others: Others, s_slot: float, d_slot: float, reach: float, lane_width: float,
+def pick_vehicle(others: Others, s_slot: float, d_slot: float, reach: float, lanes: LaneCentres,
                  length: float, width: float, vehicle: str | None) -> int:
     """Index in ``others`` of the vehicle to take over into the slot at (s_slot, d_slot)
     [m] (centre arc length, lateral offset), or -1: none within ``reach`` [m] yet (see the
-    module docstring). The nearest one wins when several qualify."""
+    module docstring; ``lanes``: SUMO's lane centres). The nearest one wins when several
+    qualify."""
     if len(others.ids) == 0:
         return -1
     dist = np.hypot(others.s - s_slot, others.d - d_slot)
-    ok = (dist <= reach) & (np.abs(others.d - d_slot) < lane_width / 2)
+    ok = (dist <= reach) & lanes.same_lane(s_slot, others.d, d_slot)
     if vehicle is not None:
         ok &= np.array([vid == vehicle for vid in others.ids])
     else:
         ok &= np.abs(others.length - length) <= SIZE_TOLERANCE_LENGTH
         ok &= np.abs(others.width - width) <= SIZE_TOLERANCE_WIDTH
-        off = others.d / lane_width
-        ok &= np.abs(off - np.round(off)) * lane_width <= LANE_CENTRE_TOLERANCE
+        ok &= lanes.off_centre(s_slot, others.d) <= LANE_CENTRE_TOLERANCE
     if not ok.any():
         return -1
     return int(np.flatnonzero(ok)[np.argmin(dist[ok])])

@@ -16,6 +16,7 @@ from typing import Callable
 
 import numpy as np
 
+from ...road.lanes import LaneCentres
 from .assign import assign_slots, min_clearance
 from .gap import Others, check_gaps
 from .join import describe, join_duration, path_clearance, pick_vehicle, without
@@ -59,14 +60,16 @@ def limits_from_spec(spec) -> ComfortLimits:
 class ManeuverPlanner:
     """Holds the slot plan (n, 6), the formation's shape (m, 2) and who holds which slot."""
 
-    def __init__(self, specs, slots0: np.ndarray, lane_width: float, limits_spec,
+    def __init__(self, specs, slots0: np.ndarray, lanes: LaneCentres | float, limits_spec,
                  lengths, widths, ids, room: RoomFn | None = None,
                  follow: tuple[float, float] = (0.0, 0.0), d_front=None):
+        """``lanes``: the road's lane centres (sim/road_setup.py Road.lanes), or a lane width
+        [m] for uniform lanes (no network)."""
         self.specs = list(specs)
         self.plan = hold_plan(slots0)
         self.shape = np.array(slots0, dtype=float)
         self.slot_of = np.arange(len(slots0))
-        self.lane_width = float(lane_width)
+        self.lanes = lanes if isinstance(lanes, LaneCentres) else LaneCentres.uniform(lanes)
         self.limits = limits_from_spec(limits_spec)
         self.gap_time, self.gap_min = limits_spec.gap_time, limits_spec.gap_min
         # towards vehicles ahead: at least the governor's (time gap [s], standstill gap [m])
@@ -110,7 +113,7 @@ class ManeuverPlanner:
         if not soon or spec.kind not in ("reshape", "lane_change"):
             return None
         active = np.asarray(active, dtype=bool)
-        shape, slot_of = self._target(spec, active)
+        shape, slot_of = self._target(spec, active, s_vc)
         goal = self.plan[:, 2:4].copy()
         goal[active] = shape[slot_of[active]]
         return goal
@@ -137,7 +140,7 @@ class ManeuverPlanner:
                 q = 0
                 if spec.at.queue_behind is not None:
                     a = sn.active
-                    q = queue_behind(sn.m_s[a], sn.m_d[a], self.lengths[a], self.lane_width,
+                    q = queue_behind(sn.m_s[a], sn.m_d[a], self.lengths[a], self.lanes,
                                      sn.others, spec.at.queue_reach)
                 if not is_due(spec.at, sn.t, sn.s_vc, q):
                     break
@@ -189,7 +192,7 @@ class ManeuverPlanner:
         if spec.enter is not None and self.entered != self.next:
             return self._enter(spec, i, sn)
         vehicle = spec.member if spec.enter is not None else spec.vehicle
-        j = pick_vehicle(o, sn.s_vc + goal[0], goal[1], spec.reach, self.lane_width,
+        j = pick_vehicle(o, sn.s_vc + goal[0], goal[1], spec.reach, self.lanes,
                          float(self.lengths[i]), float(self.widths[i]), vehicle)
         if j < 0:
             return False, f"no vehicle within {spec.reach:g} m of the free slot of {spec.member!r}", []
@@ -221,11 +224,12 @@ class ManeuverPlanner:
         ``spec.enter`` from the virtual car, at its speed, once no vehicle in that lane is
         closer than the bodies plus gap_min + gap_time v."""
         e = spec.enter
-        s, d = sn.s_vc + e.along, e.across if e.across is not None else e.lanes * self.lane_width
+        s = sn.s_vc + e.along
+        d = e.across if e.across is not None else float(self.lanes.across(e.lanes, s))
         o = sn.others
         need = ((self.lengths[i] + o.length) / 2 + self.gap_min
                 + self.gap_time * np.maximum(o.v, sn.v_vc))
-        close = (np.abs(o.d - d) < self.lane_width / 2) & (np.abs(o.s - s) < need)
+        close = self.lanes.same_lane(s, o.d, d) & (np.abs(o.s - s) < need)
         if close.any():
             k = int(np.flatnonzero(close)[0])
             return False, (f"the entry of {spec.member!r} is blocked by {o.ids[k]} "
@@ -241,13 +245,17 @@ class ManeuverPlanner:
         self.postponed = False
         self.pending_goal = None
 
-    def _target(self, spec, active):
-        """New shape (m, 2), and each active member's slot index in it."""
+    def _target(self, spec, active, s_vc: float):
+        """New shape (m, 2), and each active member's slot index in it, the virtual car at
+        arc length s_vc [m]: lanes are SUMO's lane centres on the edge where each slot is
+        (road/lanes.py LaneCentres)."""
         held = self.plan[:, 2:4]
         if spec.kind == "lane_change":
-            shape = self.shape + np.array([0.0, spec.lanes * self.lane_width])
+            shape = self.shape.copy()
+            shape[:, 1] = self.lanes.shift(s_vc + shape[:, 0], shape[:, 1], spec.lanes)
             return shape, self.slot_of.copy()
-        shape = np.array([[s.along, s.across if s.across is not None else s.lanes * self.lane_width]
+        shape = np.array([[s.along, s.across if s.across is not None
+                           else float(self.lanes.across(s.lanes, s_vc + s.along))]
                           for s in spec.slots], dtype=float)
         slot_of = self.slot_of.copy()
         idx = np.flatnonzero(active)
@@ -256,7 +264,7 @@ class ManeuverPlanner:
 
     def _try_start(self, spec, sn: Situation) -> tuple[bool, str]:
         a = sn.active
-        shape, slot_of = self._target(spec, a)
+        shape, slot_of = self._target(spec, a, sn.s_vc)
         start = self.plan[:, 2:4].copy()
         goal = start.copy()
         goal[a] = shape[slot_of[a]]

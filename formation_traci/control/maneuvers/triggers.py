@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...road.lanes import LaneCentres
 from .gap import Others
 
 
-def queue_behind(m_s, m_d, m_length, lane_width: float, others: Others, reach: float) -> int:
+def queue_behind(m_s, m_d, m_length, lanes: LaneCentres, others: Others, reach: float) -> int:
     """Vehicles queued behind the formation [-].
 
     A vehicle counts when its front bumper is behind the rearmost member's rear bumper by at
-    most ``reach`` [m] and its centre is within half a lane width of some member's lateral
-    offset (it drives in a lane the formation occupies).
+    most ``reach`` [m] and it drives in a lane the formation occupies: its centre is nearest to
+    the centre of some member's lane (SUMO's lane centres ``lanes`` at the formation's rear).
 
     Parameters
     ----------
@@ -24,7 +25,7 @@ def queue_behind(m_s, m_d, m_length, lane_width: float, others: Others, reach: f
     rear = float(np.min(np.asarray(m_s) - np.asarray(m_length) / 2))
     front = others.s + others.length / 2
     behind = (front <= rear) & (front >= rear - reach)
-    in_lane = np.any(np.abs(others.d[:, None] - np.asarray(m_d)[None, :]) < lane_width / 2, axis=1)
+    in_lane = np.any(lanes.same_lane(rear, others.d[:, None], np.asarray(m_d)[None, :]), axis=1)
     return int(np.count_nonzero(behind & in_lane))
 
 
