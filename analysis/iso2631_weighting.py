@@ -149,6 +149,11 @@ def analog_response(f, p: WeightingParams = WD) -> np.ndarray:
     return h
 
 
+def _check_fs(fs: float) -> None:
+    if not (np.isfinite(fs) and fs > 0):
+        raise ValueError(f"fs must be a positive sample rate [Hz], got {fs!r}")
+
+
 @functools.lru_cache(maxsize=64)
 def _sos_cached(fs: float, p: WeightingParams) -> np.ndarray:
     zs, ps, k = [], [], p.k
@@ -176,8 +181,7 @@ def digital_sos(fs: float, p: WeightingParams = WD) -> np.ndarray:
     ndarray
         ``(n_sections, 6)`` array for :func:`scipy.signal.sosfilt`.
     """
-    if not (np.isfinite(fs) and fs > 0):
-        raise ValueError(f"fs must be a positive sample rate [Hz], got {fs!r}")
+    _check_fs(fs)
     return _sos_cached(float(fs), p).copy()
 
 
@@ -235,8 +239,7 @@ def valid_upper_frequency(fs: float, p: WeightingParams = WD,
         Largest ``f`` [Hz] such that ``|Hd/Ha - 1| <= tol`` on all of ``[0.5 Hz, f]``
         (checked on a 4000-point log grid); 0 if it fails already at 0.5 Hz.
     """
-    if not (np.isfinite(fs) and fs > 0):
-        raise ValueError(f"fs must be a positive sample rate [Hz], got {fs!r}")
+    _check_fs(fs)
     return _valid_upper_cached(float(fs), p, float(tol))
 
 
