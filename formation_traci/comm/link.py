@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from ..control.governor import member_speed_cap, time_gap_accel, vehicles_ahead
+from ..control.governor import member_caps, vehicles_ahead
 from ..control.reference import Reference
 from ..control.virtual_car import along_line_advance
 from ..kernels import kernel
@@ -192,9 +192,9 @@ class CommChannel:
             gap, v_lead, _ = vehicles_ahead(np.full(1, d_front), np.zeros(1), np.full(1, veh.width / 2),
                                             along[i, o] - (veh.length - d_front), across[i, o],
                                             np.full(int(o.sum()), veh.width / 2), v_m[o])
-            v_cap[i] = min(v_cap[i], member_speed_cap(gap, v_lead, ld.time_gap, ld.min_gap, v_m[i])[0])
-            a_law = time_gap_accel(gap, v_m[i:i + 1], v_lead, ld.time_gap, ld.min_gap)[0]
-            a_cap[i] = min(a_cap[i], max(a_law, -ld.decel_emergency))
+            vc_i, ac_i = member_caps(float(gap[0]), float(v_lead[0]), float(v_m[i]), float(ld.time_gap),
+                                     float(ld.min_gap), float(ld.decel_emergency))
+            v_cap[i], a_cap[i] = min(v_cap[i], vc_i), min(a_cap[i], ac_i)
         return v_cap, a_cap
 
 

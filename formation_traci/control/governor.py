@@ -156,6 +156,16 @@ def _speed_caps(gap, v_lead, time_gap, min_gap, v, out):
 
 
 @kernel(error_model="python")
+def member_caps(gap, v_lead, v, time_gap, min_gap, decel_emergency):
+    """Caps of one member at speed ``v`` [m/s] with a vehicle ``gap`` [m] ahead at
+    ``v_lead`` [m/s]: (speed cap [m/s] (:func:`member_speed_cap`), acceleration cap [m/s^2]
+    (its own gap law, :func:`time_gap_accel`, not below -decel_emergency)); inf, inf where
+    nobody is ahead."""
+    return (_speed_cap(gap, v_lead, time_gap, min_gap, v),
+            max(_gap_law(gap, v, v_lead, time_gap, min_gap), -decel_emergency))
+
+
+@kernel(error_model="python")
 def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
                   o_s_rear, o_d, o_half_w, o_v, time_gap, min_gap, accel_max, decel_emergency):
     """One step of the governor over all members (compiled; the laws are the functions above).
@@ -164,9 +174,8 @@ def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_v
     (``slot_s_front``, ``slot_d``), half widths [m], speeds ``v_m`` [m/s], ``active`` mask;
     the other vehicles as in :func:`vehicles_ahead`. Returns the virtual car's acceleration
     [m/s^2] (:func:`leader_accel` over the slots' :func:`time_gap_accel` at the virtual car's
-    speed ``v_vc``), each member's gap [m], leader index (-1: none), speed cap [m/s]
-    (:func:`member_speed_cap`) and acceleration cap [m/s^2] (its own gap law, not below
-    -decel_emergency)."""
+    speed ``v_vc``), each member's gap [m], leader index (-1: none), speed cap [m/s] and
+    acceleration cap [m/s^2] (:func:`member_caps`)."""
     n = m_s_front.shape[0]
     gap, v_lead, index = _vehicles_ahead(m_s_front, m_d, half_w, o_s_rear, o_d, o_half_w, o_v)
     gap_slot, v_lead_slot, _ = _vehicles_ahead(slot_s_front, slot_d, half_w, o_s_rear, o_d, o_half_w, o_v)
@@ -175,8 +184,7 @@ def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_v
     a_cap = np.empty(n)
     for i in range(n):
         acc_slot[i] = _gap_law(gap_slot[i], v_vc, v_lead_slot[i], time_gap, min_gap)
-        v_cap[i] = _speed_cap(gap[i], v_lead[i], time_gap, min_gap, v_m[i])
-        a_cap[i] = max(_gap_law(gap[i], v_m[i], v_lead[i], time_gap, min_gap), -decel_emergency)
+        v_cap[i], a_cap[i] = member_caps(gap[i], v_lead[i], v_m[i], time_gap, min_gap, decel_emergency)
     a_vc = _leader_law(v_vc, v_set, v_set_dot, acc_slot, active, accel_max, decel_emergency)
     return a_vc, gap, index, v_cap, a_cap
 

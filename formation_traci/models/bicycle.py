@@ -60,10 +60,6 @@ class U(IntEnum):
 N_STATES = len(S)
 
 
-rolling_resistance = rolling_coefficient
-"""Coefficient of rolling resistance f_rl(v) [-], eq (3.15) (models/resistance.py)."""
-
-
 @kernel
 def traction_force_max_at(v, m, a, b, h, mu):
     """Adhesion limit of the driven front axle [N], eq (3.14) with the front static load.
@@ -298,11 +294,6 @@ def steering_rate(x, u, p: BicycleParams) -> np.ndarray:
 def traction_force_max(v, p: BicycleParams):
     """:func:`traction_force_max_at` for parameters p (v [m/s], float or array)."""
     return traction_force_max_at(v, p.m, p.a, p.b, p.h, p.mu)
-
-
-def braking_force_max(p: BicycleParams):
-    """Largest braking force [N]: mu m g (all four wheels, ideal brake balance; ours)."""
-    return p.mu * p.m * G
 
 
 def project(x, p: BicycleParams):

@@ -25,7 +25,7 @@ import numpy as np
 
 from ...road.lanes import LaneCentres
 from .gap import Others
-from .transition import ComfortLimits
+from .transition import ComfortLimits, quintic, rate_basis
 
 SIZE_TOLERANCE_LENGTH = 1.0
 """A vehicle taken over without being named may be this much longer or shorter [m]."""
@@ -34,9 +34,9 @@ SIZE_TOLERANCE_WIDTH = 0.5
 LANE_CENTRE_TOLERANCE = 0.3
 """A vehicle farther than this from every lane centre is changing lanes: not taken [m]."""
 _TAU = np.linspace(0.0, 1.0, 401)
-_H2 = 60.0 * _TAU * (1 - _TAU) * (1 - 2 * _TAU)  # h''(tau)
+_H, _H2 = np.array([quintic(x, 0.0, 1.0) for x in _TAU])[:, [0, 2]].T  # h(tau), h''(tau)
+_G, _G2 = np.array([rate_basis(x, 0.0, 1.0) for x in _TAU])[:, [0, 2]].T  # g(tau), g''(tau)
 _H3 = 60.0 * (1 - 6 * _TAU + 6 * _TAU ** 2)  # h'''(tau)
-_G2 = _TAU * (-36.0 + _TAU * (96.0 - 60.0 * _TAU))  # g''(tau)
 _G3 = -36.0 + _TAU * (192.0 - 180.0 * _TAU)  # g'''(tau)
 T_STEP = 1.02
 """Search factor of :func:`join_duration` (the duration is at most 2 % above the shortest)."""
@@ -77,10 +77,8 @@ def path_clearance(start, goal, shift: float, held, length: float, width: float,
     held = np.asarray(held, float).reshape(-1, 2)
     if not len(held):
         return np.inf
-    h = _TAU ** 3 * (10 - 15 * _TAU + 6 * _TAU ** 2)
-    g = _TAU - 6 * _TAU ** 3 + 8 * _TAU ** 4 - 3 * _TAU ** 5
-    a = start[0] + h * (goal[0] - start[0]) + shift * g
-    c = start[1] + h * (goal[1] - start[1])
+    a = start[0] + _H * (goal[0] - start[0]) + shift * _G
+    c = start[1] + _H * (goal[1] - start[1])
     da = np.abs(a[:, None] - held[None, :, 0]) - (length + np.asarray(lengths)[None, :]) / 2
     dc = np.abs(c[:, None] - held[None, :, 1]) - (width + np.asarray(widths)[None, :]) / 2
     return float(np.min(np.maximum(da, dc)))
