@@ -271,3 +271,16 @@ def test_planar_prediction_with_acceleration_matches_the_integrated_spiral():
     xs, ys, _, vs = predict_planar(x0, y0, th0, 3.0, w, a, 4.0)  # stops after 1.5 s
     xm, ym, _, _ = predict_planar(x0, y0, th0, 3.0, w, a, 1.5)
     assert vs == 0.0 and math.hypot(xs - xm, ys - ym) < 1e-12
+
+
+@pytest.mark.jit_off
+def test_planar_prediction_of_a_car_that_stops_stops_turning_too():
+    """A braking, turning leader that comes to rest within the prediction horizon stands still
+    from then on: its heading stops at theta + w v/|a| (the heading kept turning over the whole
+    horizon while the position had stopped)."""
+    v, w, a, tau = 10.0, 0.1, -5.0, 5.0  # stops after 2 s
+    x, y, th, v1 = predict_planar(0.0, 0.0, 0.3, v, w, a, tau)
+    xs, ys, ths, _ = predict_planar(0.0, 0.0, 0.3, v, w, a, 2.0)
+    assert v1 == 0.0
+    assert (x, y) == pytest.approx((xs, ys), abs=1e-12)
+    assert th == pytest.approx(0.3 + w * 2.0, abs=1e-12) and th == pytest.approx(ths, abs=1e-12)

@@ -67,4 +67,4 @@ def predict_planar(x, y, th, v, w, a, tau):
         c1, s1 = math.cos(th1), math.sin(th1)
         dx = (v1 * s1 - v * s) / w + a * (c1 - c) / (w * w)
         dy = (-v1 * c1 + v * c) / w + a * (s1 - s) / (w * w)
-    return x + dx, y + dy, th + w * tau, max(v1, 0.0)
+    return x + dx, y + dy, th1, max(v1, 0.0)
