@@ -102,6 +102,7 @@ def test_iso2631_is_there_by_default_from_the_control_rate_table(analysed):
 
     out, _ = analysed
     doc = json.loads((out / "metrics.json").read_text())
+    assert len(doc["members"]) == 3  # the loop below checks every member, not none
     for m in doc["members"]:
         assert m["aw_lat_mps2"] is not None and m["aw_lon_mps2"] is not None, m["id"]
     assert doc["tables"]["comfort"]["rows"] == 3 * (1200 + 1)  # 3 members, 100 Hz, 12 s

@@ -109,8 +109,9 @@ def test_smoothed_reference_is_within_tolerance_and_gently_curved(net):
     assert dev <= 0.6 and deviation(line, xy) == pytest.approx(dev)
     s = np.linspace(300, line.length - 300, 20000)
     assert 1 / np.abs(line.curvature(s)).max() > 280
-    tight, _, tight_dev = fit_within(xy, 0.2)
-    assert tight_dev <= 0.2 or _ == 40.0
+    tight, tight_length, tight_dev = fit_within(xy, 0.2)
+    # even the base 40 m fit is 0.25 m off this route: fit_within falls back to it
+    assert tight_length == 40.0 and tight_dev > 0.2
     assert 1 / np.abs(tight.curvature(s)).max() < 200  # the corner kept sharp
 
 

@@ -5,8 +5,6 @@ import json
 import os
 import signal
 import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +16,7 @@ from hypothesis import strategies as st
 from formation_traci.scenario import ScenarioError, load_scenario, parse_scenario
 from formation_traci.scenario.schema import Scenario
 from formation_traci.sim.runner import run_scenario
+from run_helpers import free_toml, spawn, wait_for
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = {
@@ -108,25 +107,11 @@ def test_a_valid_scenario_never_crashes_the_simulator(tmp_path_factory, doc):
 def test_sigkill_leaves_the_chunks_readable(tmp_path):
     """A process killed with SIGKILL keeps every part file written so far; the analysis reads them."""
     sc = tmp_path / "long.toml"
-    sc.write_text("""
-[run]
-duration = 5000.0
-[vehicle]
-model = "kinematic"
-[leader]
-speed = 20.0
-[[members]]
-id = "a"
-offset = [0.0, 3.5]
-position = [-2.0, 2.0]
-""")
+    sc.write_text(free_toml(5000.0))
     out = tmp_path / "run"
-    proc = subprocess.Popen([sys.executable, "-m", "formation_traci.cli", "run", str(sc), "--out", str(out),
-                             "--no-progress"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = spawn("run", sc, "--out", out, "--no-progress", stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     parts = out / "trajectories.parquet"
-    deadline = time.time() + 120
-    while time.time() < deadline and len(list(parts.glob("part-*.parquet"))) < 2:
-        time.sleep(0.1)
+    wait_for(lambda: len(list(parts.glob("part-*.parquet"))) >= 2, every=0.1)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait(timeout=30)
     assert len(list(parts.glob("part-*.parquet"))) >= 2

@@ -3,7 +3,6 @@ the run, never hang. Each test reproduces one finding of the adversarial probe (
 the code before the fix) with real SUMO and real processes; docs/reliability.md maps them."""
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -12,25 +11,12 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from typer.testing import CliRunner
 
-from formation_traci.cli import app
 from formation_traci.scenario import ScenarioError, load_scenario
 from formation_traci.sim.runner import run_scenario
+from run_helpers import cli, free_toml, meta_of, spawn, wait_for
 
 ROOT = Path(__file__).resolve().parents[1]
-FREE = """name = "free"
-[run]
-duration = {duration}
-[vehicle]
-model = "kinematic"
-[leader]
-speed = 20.0
-[[members]]
-id = "a"
-offset = [0.0, 3.5]
-position = [-2.0, 2.0]
-"""
 ROAD = """name = "road"
 [run]
 duration = {duration}
@@ -59,7 +45,7 @@ options = {options}
 
 def free(tmp_path, duration=2.0, name="free.toml") -> Path:
     p = tmp_path / name
-    p.write_text(FREE.format(duration=duration))
+    p.write_text(free_toml(duration, name="free"))
     return p
 
 
@@ -69,42 +55,6 @@ def road(tmp_path, duration=1.0, warmup=0.0, along=0.0, vph=800, options="[]", n
     p.write_text(ROAD.format(duration=duration, warmup=warmup, along=along, vph=vph,
                              options=options, net=net))
     return p
-
-
-def cli(*args, cwd=None):
-    """The real command line in this process: (exit code, stdout + stderr)."""
-    old = os.getcwd()
-    try:
-        if cwd is not None:
-            os.chdir(cwd)
-        res = CliRunner().invoke(app, [str(a) for a in args])
-    finally:
-        os.chdir(old)
-    text = res.output + (res.stderr if res.stderr_bytes is not None else "")
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        text += f"\nTraceback: {type(res.exception).__name__}: {res.exception}"
-    return res.exit_code, text
-
-
-def spawn(*args, **kw) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "formation_traci.cli", *map(str, args)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
-
-
-def meta_of(out: Path) -> dict:
-    try:
-        return json.loads((out / "run.json").read_text())
-    except (OSError, ValueError):
-        return {}
-
-
-def wait_for(cond, timeout=120.0, every=0.05) -> bool:
-    end = time.time() + timeout
-    while time.time() < end:
-        if cond():
-            return True
-        time.sleep(every)
-    return False
 
 
 def previous_run(tmp_path, name="prev") -> Path:

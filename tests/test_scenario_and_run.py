@@ -11,22 +11,10 @@ import pytest
 from formation_traci.record.columns import TRAJECTORY_COLUMNS
 from formation_traci.scenario import ScenarioError, load_scenario
 from formation_traci.sim.runner import RunDirExists, run_scenario
+from run_helpers import free_toml
 
 ROOT = Path(__file__).resolve().parents[1]
-GOOD = """
-name = "tiny"
-[run]
-duration = 2.0
-step = 0.05
-[vehicle]
-model = "dynamic"
-[leader]
-speed = 20.0
-[[members]]
-id = "a"
-offset = [0.0, 3.5]
-position = [-2.0, 2.0]
-"""
+GOOD = free_toml(2.0, name="tiny", step=0.05, model="dynamic")
 
 
 def write(tmp_path, text, name="s.toml"):

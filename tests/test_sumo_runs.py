@@ -178,7 +178,8 @@ def test_fcd_output_as_parquet(tmp_path):
     _, meta, traj, _, out = run(tmp_path, path, **{"run.duration": 3.0, "traffic.warmup": 10.0, "sumo.fcd": True})
     fcd = pd.read_parquet(out / "sumo" / "fcd.parquet")
     assert {"timestep_time", "vehicle_id", "vehicle_x", "vehicle_y"} <= set(fcd.columns)
-    assert set(meta and [m["id"] for m in meta["members"]]) <= set(fcd.vehicle_id)
+    ids = {m["id"] for m in meta["members"]}
+    assert ids and ids <= set(fcd.vehicle_id)
 
 
 def test_fcd_on_the_formation_clock_and_centre_of_gravity(tmp_path):

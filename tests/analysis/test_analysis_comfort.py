@@ -75,3 +75,32 @@ def test_band_times_along_rows_and_constants_cite_the_seed():
     np.testing.assert_allclose(comfort.band_times(a, 0.5), [[0.5, 0.5, 0.5, 0.5], [2, 0, 0, 0]])
     assert comfort.LAT_BAND_EDGES[1:4] == (1.8, 3.6, 5.0)
     assert comfort.LON_ACC_COMFORT == 2.0
+
+
+def test_jerk_1s_peak_metric_is_the_ramp_rate_and_leaves_out_emergencies(tmp_path):
+    """``jerk_lon_1s_peak_mps3`` (issue 19): member a ramps its acceleration at 1.5 m/s^3 for
+    2 s, so every 1-s window inside the ramp averages exactly 1.5; member b steps by 6 m/s^2 in
+    0.5 s (12 m/s^3, a 1-s mean of 6) inside a recorded emergency brake, which is left out (and
+    counts again when the events are not recorded)."""
+    import analysis_synth as S
+    from analysis.load import load_run
+    from analysis.summary import DEFAULT_SETTINGS, compute_run
+
+    def a_lon(mid, t):
+        if mid == "a":
+            return 1.5 * np.clip(t - 2.0, 0.0, 2.0)
+        return -12.0 * np.clip(t - 10.0, 0.0, 0.5)
+
+    offsets = {"a": (0.0, 0.0), "b": (-10.0, 0.0)}
+    peaks = {}
+    for events in (True, False):
+        run = S.make_run(tmp_path / f"run{events}", dt=0.05, t_end=20.0, offsets=offsets,
+                         columns={"a_lon": a_lon}, n_parts=1)
+        if events:
+            S.write_traffic(run, events_df=S.events([(9.8, "emergency_brake", "b", "", ""),
+                                                     (11.0, "emergency_end", "b", "", "")]))
+        m = compute_run(load_run(run), DEFAULT_SETTINGS).members
+        peaks[events] = m["jerk_lon_1s_peak_mps3"]
+    assert peaks[True]["a"] == pytest.approx(1.5, abs=1e-9)
+    assert peaks[True]["b"] < 1e-9  # only the step, inside the emergency (+3 s to settle)
+    assert peaks[False]["b"] == pytest.approx(6.0, abs=1e-9)

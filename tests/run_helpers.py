@@ -1,0 +1,67 @@
+"""Scaffolding shared by the tests that run the tool: the free-space scenario text, the command
+line (in this process or as a real process), run.json and polling. Importable because pytest puts
+tests/ on sys.path (tests/conftest.py makes that explicit)."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from formation_traci.cli import app
+
+CLI = [sys.executable, "-m", "formation_traci.cli"]
+
+
+def free_toml(duration, *, name: str | None = None, step: float | None = None,
+              model: str = "kinematic") -> str:
+    """One member 'a' behind a 20 m/s leader in free space (no SUMO); duration and step in s."""
+    head = f'name = "{name}"\n' if name else ""
+    step_line = f"step = {step}\n" if step is not None else ""
+    return (f"{head}[run]\nduration = {duration}\n{step_line}[vehicle]\nmodel = \"{model}\"\n"
+            "[leader]\nspeed = 20.0\n[[members]]\nid = \"a\"\noffset = [0.0, 3.5]\n"
+            "position = [-2.0, 2.0]\n")
+
+
+def cli(*args, cwd=None):
+    """The real command line in this process: (exit code, stdout + stderr)."""
+    old = os.getcwd()
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        res = CliRunner().invoke(app, [str(a) for a in args])
+    finally:
+        os.chdir(old)
+    text = res.output + (res.stderr if res.stderr_bytes is not None else "")
+    if res.exception is not None and not isinstance(res.exception, SystemExit):
+        text += f"\nTraceback: {type(res.exception).__name__}: {res.exception}"
+    return res.exit_code, text
+
+
+def spawn(*args, **kw) -> subprocess.Popen:
+    """The command line as a real process, stdout and stderr as text pipes unless given."""
+    kw.setdefault("stdout", subprocess.PIPE)
+    kw.setdefault("stderr", subprocess.PIPE)
+    return subprocess.Popen([*CLI, *map(str, args)], text=True, **kw)
+
+
+def meta_of(out: Path) -> dict:
+    """run.json of the run in out, {} while it is missing or half-written."""
+    try:
+        return json.loads((out / "run.json").read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def wait_for(cond, timeout=120.0, every=0.05) -> bool:
+    """Poll cond every `every` s until it holds (True) or timeout s pass (False)."""
+    end = time.time() + timeout
+    while time.time() < end:
+        if cond():
+            return True
+        time.sleep(every)
+    return False
