@@ -93,8 +93,10 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             sensed = world.sense(k, t, state)
             sensed.extra.setdefault("leader_age_s", perfect)
             clock.lap("sumo_read")
-            for tr in sensing:
-                tr.sense(k, t, sensed, fleet.kinematics(state), rec)
+            if sensing:
+                kin = fleet.kinematics(state)  # once for every sensing transform
+                for tr in sensing:
+                    tr.sense(k, t, sensed, kin, rec)
             ref0 = gen.reference(t, sensed)
             ref = apply(ref0, parts.transforms)
             if adopt is not None:  # vehicles the world handed to the formation (join)

@@ -45,8 +45,9 @@ def _api(backend: str):
 
 
 class SumoAdapter(NeighbourReads, VehicleSetup):
-    """One SUMO simulation. Call :meth:`start`, then per step :meth:`place` -> :meth:`step`
-    -> :meth:`after_step`, and :meth:`close` at the end (also after errors)."""
+    """One SUMO simulation. Call :meth:`start`, then per step :meth:`read_members` ->
+    :meth:`place` -> :meth:`step` -> :meth:`set_true_speeds`, and :meth:`close` at the end
+    (also after errors)."""
 
     def __init__(self, backend: str = "libsumo", gui: bool = False):
         self.api, self.tc = _api(backend)
@@ -59,7 +60,7 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         self._subscribed: set[str] = set()  # vehicles with a variable subscription
         self._routes: dict[str, tuple[list[str], np.ndarray]] = {}  # id -> edges, edge lengths [m]
         self._window: dict[str, tuple[str, int]] = {}  # member -> (route id, first edge index)
-        self._lane_geometry: dict[str, tuple[float, int]] = {}  # lane -> (width [m], lanes of its edge)
+        self._lane_geometry: dict[str, tuple[float, int, str]] = {}  # lane -> (width [m], lanes of its edge, edge)
         self._bodies: dict[str, tuple[float, float, str]] = {}  # vehicle -> (length, width [m], vType)
         self._overlap: dict[str, str] = {}  # member -> the neighbour lane its body reaches into
         self._window_lane: dict[str, str] = {}  # member -> lane its route window was last checked on
@@ -356,6 +357,3 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         self._overlap.pop(vid, None)
         self._bodies.pop(vid, None)
         self.api.vehicle.remove(vid, self.tc.REMOVE_VAPORIZED)
-
-    def vehicle_ids(self) -> list[str]:
-        return list(self.api.vehicle.getIDList())

@@ -38,6 +38,7 @@ class SumoWorld:
         self.baseline, self.step_hook = baseline, step_hook
         self.records_members = not baseline
         self.ids = [m.id for m in sc.members]
+        self._id_set = set(self.ids)
         n = len(self.ids)
         self.line = FastLine(float(plan.road.line.length), packed(plan.road.line))  # packed once per line
         self.out_dir, self.sumo_dir = out_dir, out_dir / "sumo"
@@ -141,13 +142,13 @@ class SumoWorld:
         m_s, m_d = self.line.to_frenet(pos, self.m_s)
         self.m_s = m_s
         sensed = Sensed(self.active, {"s": m_s, "d": m_d, "slot": self.slot_index}, v_m, m_s, m_d)
-        if self.inserted and self.baseline:
-            log_sumo_events(self.rec, t, self.ev, set(self.ids))
-            sensed.nb = self.adapter.neighbours(True)
-        elif self.inserted:
-            self._read_members(t, pos, m_d, sensed.extra)
-            log_sumo_events(self.rec, t, self.ev, set(self.ids), self.joined_names())
-            sensed.nb = self.adapter.neighbours(self.all_bg)
+        if self.inserted:
+            if not self.baseline:  # a baseline twin has no member in SUMO
+                self._read_members(t, pos, sensed.extra)
+            ev = self.ev
+            if ev is not None and (ev.collisions or ev.teleports):
+                log_sumo_events(self.rec, t, ev, self._id_set, self.joined_names())
+            sensed.nb = self.adapter.neighbours(self.all_bg)  # every vehicle in a baseline twin
         nb = sensed.nb
         if nb is not None and len(nb.ids):
             sensed.nb_s, sensed.nb_d = self.line.to_frenet(np.column_stack([nb.x, nb.y]))
@@ -155,7 +156,7 @@ class SumoWorld:
                                                              nb.width / 2, nb.v)
         return sensed
 
-    def _read_members(self, t, pos, m_d, extra) -> None:
+    def _read_members(self, t, pos, extra) -> None:
         n = len(self.ids)
         every = self.active.all()
         idx_act = self._every if every else np.flatnonzero(self.active)
@@ -239,9 +240,9 @@ class SumoWorld:
         v_after = self.fleet.speed(state)
         self.a_mean = (v_after - v_before) / self.sc.run.step
         self.v_after = v_after
-        act_idx = np.flatnonzero(self.active)
         if self.baseline:
             return  # the formation stays out of SUMO
+        act_idx = np.flatnonzero(self.active)
         ids, ad = self.ids, self.adapter
         if not self.inserted:
             ld = self.sc.leader
