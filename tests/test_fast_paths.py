@@ -168,3 +168,109 @@ def test_a_run_does_not_import_pandas(tmp_path):
                          cwd=tmp_path, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().splitlines()[-1] == "False"
+
+
+def test_py_hypot_is_pythons_math_hypot_bit_for_bit():
+    """The compiled lane-point distance uses CPython's hypot, not the C library's (they
+    differ in the last bit for about 1 input in 1000)."""
+    from formation_traci.kernels import py_hypot
+    rng = np.random.default_rng(11)
+    n = 200_000
+    a = rng.uniform(-5, 5, n) * 10.0 ** rng.integers(-12, 6, n)
+    b = rng.uniform(-5, 5, n) * 10.0 ** rng.integers(-12, 6, n)
+    special = [(0.0, 0.0), (-0.0, 0.0), (np.inf, np.nan), (-np.inf, 1.0), (np.nan, np.inf),
+               (np.nan, 1.0), (1e-310, 1e-311), (5e-324, 0.0), (1e308, 1e308), (3.0, 4.0)]
+    pairs = special + list(zip(a.tolist(), b.tolist()))
+    got = np.array([py_hypot(x, y) for x, y in pairs])
+    ref = np.array([math.hypot(x, y) for x, y in pairs])
+    assert np.array_equal(got, ref, equal_nan=True)
+    assert np.count_nonzero(np.hypot(a, b) != ref[len(special):]) > 0  # the C library's differs
+
+
+def reference_sumo_gap(shapes, pos, heading, d_front, front, angle, lanes, lane_pos, lat):
+    """sim/sumo_world.py sumo_gap as it was (Python loop over LaneShapes.xy), with SUMO's
+    front bumper converted to the CoG as sumo_adapter.read_members did."""
+    px, py = np.ascontiguousarray(pos[:, 0]), np.ascontiguousarray(pos[:, 1])
+    xs, ys, _ = sumo_to_cog_rows(front, angle, d_front)
+    gap = np.hypot(xs - px, ys - py)
+    fx, fy, _ = (a.tolist() for a in cog_to_sumo_rows(px, py, heading, d_front))
+    for j, (lane, lt, lp) in enumerate(zip(lanes, lat.tolist(), lane_pos.tolist())):
+        if lane and math.isfinite(lt) and math.isfinite(lp):
+            sx, sy = shapes.xy(lane, lp, lt)
+            gap[j] = max(gap[j], math.hypot(sx - fx[j], sy - fy[j]))
+    return gap
+
+
+def test_compiled_member_sense_equals_the_python_sumo_gap_and_projection():
+    """sim/sumo_sense.py sense_members: the members' s, d, speed and sumo_gap in one compiled
+    call, bit for bit the Python loop over LaneShapes.xy, FastLine.to_frenet and np.hypot it
+    replaces (curved and real lanes, members off their lane, out of SUMO, no lane)."""
+    import sumolib
+    from formation_traci.road.line_pack import FastLine, packed
+    from formation_traci.sim.sumo_sense import PackedLanes, sense_members
+    rng = np.random.default_rng(5)
+    line = lines()[2]
+    fast = FastLine(float(line.length), packed(line))
+    for net_file in (ROOT / "sumo_nets" / "curved3.net.xml", ROOT / "sumo_nets" / "lanedrop.net.xml"):
+        net = sumolib.net.readNet(str(net_file), withInternal=True)
+        shapes = LaneShapes(net)
+        packed_lanes = PackedLanes(shapes)
+        all_lanes = [lane for edge in net.getEdges(withInternal=True) for lane in edge.getLanes()]
+        for _ in range(300):
+            n = int(rng.integers(1, 8))
+            pick = [all_lanes[i] for i in rng.integers(0, len(all_lanes), n)]
+            lanes = [lane.getID() for lane in pick]
+            lane_pos = np.array([rng.uniform(-2.0, lane.getLength() + 2.0) for lane in pick])
+            lat = rng.uniform(-2.5, 2.5, n)
+            front = np.array([shapes.xy(lid, p, q) for lid, p, q in zip(lanes, lane_pos, lat)])
+            front += rng.normal(0.0, rng.choice([1e-9, 0.05, 3.0]), (n, 2))
+            angle, heading = rng.uniform(0.0, 360.0, n), rng.uniform(-4.0, 4.0, n)
+            d_front = rng.uniform(1.0, 4.0, n)
+            pos = front + rng.normal(0.0, 2.0, (n, 2))
+            vel = rng.normal(0.0, 20.0, (n, 2))
+            if n > 2:  # out of SUMO, no lane, a non-finite lane position
+                front[0], angle[0], lanes[0] = np.nan, np.nan, ""
+                lanes[1] = ""
+                lane_pos[2] = np.nan
+            li = packed_lanes.indices(lanes).copy()
+            guess = np.where(rng.random(n) < 0.5, np.nan, rng.uniform(0.0, line.length, n))
+            s, d, v, gap = sense_members(fast.G, pos, vel, guess, heading, d_front, front, angle,
+                                         lane_pos, lat, li, packed_lanes.table, packed_lanes.points)
+            ref = reference_sumo_gap(shapes, pos, heading, d_front, front, angle, lanes, lane_pos, lat)
+            assert np.array_equal(gap, ref, equal_nan=True)
+            s_ref, d_ref = fast.to_frenet(pos)
+            assert np.array_equal(s, s_ref) and np.array_equal(d, d_ref)
+            assert np.array_equal(v, np.hypot(vel[:, 0], vel[:, 1]))
+            empty = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0, dtype=np.int64))
+            out = sense_members(fast.G, pos, vel, guess, heading, d_front, *empty,
+                                packed_lanes.table, packed_lanes.points)
+            assert np.array_equal(out[0], s) and np.isnan(out[3]).all()
+
+
+def test_compiled_neighbour_sense_equals_the_numpy_one_whatever_the_guess():
+    """sim/sumo_sense.py sense_neighbours (one compiled call, last step's s as the guess)
+    gives what FastLine.to_frenet without a guess and the numpy arithmetic gave."""
+    from formation_traci.road.line_pack import FastLine, packed
+    from formation_traci.sim.sumo_sense import NeighbourGuess, sense_neighbours
+    rng = np.random.default_rng(9)
+    for line in lines():
+        fast = FastLine(float(line.length), packed(line))
+        guess = NeighbourGuess()
+        s_true = rng.uniform(-20.0, line.length + 20.0, 12)
+        for step in range(6):
+            n = int(rng.integers(1, 12))
+            ids = sorted(f"v{i}" for i in rng.choice(12, n, replace=False))
+            k = [int(v[1:]) for v in ids]
+            s_true[k] += rng.uniform(0.0, 2.0, n)
+            fr = np.array([fast.frame(s) for s in s_true[k]])
+            off = rng.uniform(-6.0, 6.0, n)
+            x, y = fr[:, 0] - off * fr[:, 3], fr[:, 1] + off * fr[:, 2]
+            length, width = rng.uniform(3.0, 18.0, n), rng.uniform(1.6, 2.6, n)
+            g = guess(ids)
+            s, d, rear, half_w = sense_neighbours(fast.G, x, y, length, width, g)
+            guess.keep(ids, s)
+            s_ref, d_ref = fast.to_frenet(np.column_stack([x, y]))
+            assert np.array_equal(s, s_ref) and np.array_equal(d, d_ref)
+            assert np.array_equal(rear, s_ref - length / 2) and np.array_equal(half_w, width / 2)
+            if step:
+                assert np.isfinite(g).any()  # guesses were used
