@@ -274,3 +274,95 @@ def test_compiled_neighbour_sense_equals_the_numpy_one_whatever_the_guess():
             assert np.array_equal(rear, s_ref - length / 2) and np.array_equal(half_w, width / 2)
             if step:
                 assert np.isfinite(g).any()  # guesses were used
+
+
+def _full_track_lanes(self, ids, lanes, lane_index, lat):
+    """sim/sumo_adapter.py _track_lanes as it was: the loop over every member each step."""
+    member_lane, overlap, window_lane = self._member_lane, self._overlap, self._window_lane
+    for vid, lane, li, lt in zip(ids, lanes, lane_index, lat):
+        member_lane[vid] = (lane, li, lt)
+        other = self._overlapped_lane(lane, li, lt, self.members[vid].width)
+        if other is not None:
+            overlap[vid] = other
+        elif overlap:
+            overlap.pop(vid, None)
+        if window_lane.get(vid) != lane:
+            self._advance_route_window(vid, lane)
+
+
+def _full_placement(self, t, gap_sumo):
+    """sim/events.py MemberWatch.placement as it was."""
+    off = gap_sumo > 0.1
+    new = off & ~self.mismatch
+    for i in (np.flatnonzero(new) if new.any() else ()):
+        self.rec.add_event(t, "placement_mismatch", self.ids[i], "",
+                           f"SUMO has the member {gap_sumo[i]:.2f} m from where the model put it")
+    self.mismatch = off
+
+
+def _full_lane_changes(self, t, idx_act, present, lanes, lane_idx):
+    """sim/events.py MemberWatch.lane_changes as it was."""
+    prev, ids, seen = self.lanes.prev, self.ids, self.lanes.lane
+    for j, i in enumerate(idx_act):
+        if present[j] and seen.get(ids[i]) == lanes[j] and self.lane_prev[i] == lane_idx[j]:
+            continue
+        if present[j]:
+            seen[ids[i]] = lanes[j]
+        if present[j] and self.lane_prev[i] >= 0 and lane_idx[j] != self.lane_prev[i] \
+                and lanes[j].rsplit("_", 1)[0] == prev.get(ids[i], ("", -1))[0]:
+            self.rec.add_event(t, "lane_change", ids[i], "", f"{self.lane_prev[i]} -> {lane_idx[j]}")
+        if present[j]:
+            self.lane_prev[i] = lane_idx[j]
+            prev[ids[i]] = (lanes[j].rsplit("_", 1)[0], int(lane_idx[j]))
+
+
+def test_member_read_shortcuts_record_what_the_full_loops_record(tmp_path, monkeypatch):
+    """Real SUMO: a reshape at a lane drop (members change lanes and reach into the
+    neighbour lane) recorded once with the per-step shortcuts of the member read (lane
+    tracking, placement and lane-change checks skip a step where nothing changed) and once
+    with the full loops they replace: every table is the same, bit for bit, and both the
+    shortcut and the full loop were taken."""
+    import pyarrow.parquet as pq
+    from formation_traci.scenario import load_scenario
+    from formation_traci.sim import events, sumo_adapter
+    from formation_traci.sim.runner import run_scenario
+    path = ROOT / "scenarios" / "maneuvers" / "lanedrop_reshape.toml"
+    calls = {"full": 0, "reads": 0}
+    fast_track = sumo_adapter.SumoAdapter._track_lanes
+    overlapped = sumo_adapter.SumoAdapter._overlapped_lane
+
+    def counted_track(self, *a):
+        calls["reads"] += 1
+        return fast_track(self, *a)
+
+    def counted_overlap(self, lane_id, *a):
+        calls["full"] += 1
+        return overlapped(self, lane_id, *a)
+
+    def run(name):
+        sc = load_scenario(path, **{"run.duration": 60.0})
+        res = run_scenario(sc, tmp_path / name, scenario_path=path, progress=False, force=True)
+        assert res.status == "completed", res.reason
+        return {p.relative_to(tmp_path / name): pq.read_table(p) for p in (tmp_path / name).rglob("*.parquet")
+                if p.is_file()}
+
+    with monkeypatch.context() as m:
+        m.setattr(sumo_adapter.SumoAdapter, "_track_lanes", counted_track)
+        m.setattr(sumo_adapter.SumoAdapter, "_overlapped_lane", counted_overlap)
+        fast = run("fast")
+    assert 0 < calls["full"] < calls["reads"] * 3  # 3 members: most reads took the shortcut
+    with monkeypatch.context() as m:
+        m.setattr(sumo_adapter.SumoAdapter, "_track_lanes", _full_track_lanes)
+        m.setattr(events.MemberWatch, "placement", _full_placement)
+        m.setattr(events.MemberWatch, "lane_changes", _full_lane_changes)
+        full = run("full")
+    assert fast.keys() == full.keys() and len(fast) >= 4
+    for name, table in fast.items():  # NaN included, bit for bit
+        other = full[name]
+        assert table.column_names == other.column_names and table.num_rows == other.num_rows, name
+        for a, b in zip(table.columns, other.columns):
+            a, b = a.to_numpy(zero_copy_only=False), b.to_numpy(zero_copy_only=False)
+            assert (a.tobytes() == b.tobytes()) if a.dtype.kind == "f" else list(a) == list(b), name
+    ev = full[Path("events.parquet") if Path("events.parquet") in full else next(
+        k for k in full if k.parts[0] == "events.parquet")].to_pandas()
+    assert (ev.kind == "lane_change").sum() >= 2  # the full loops had lane changes to report
