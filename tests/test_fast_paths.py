@@ -201,13 +201,16 @@ def reference_sumo_gap(shapes, pos, heading, d_front, front, angle, lanes, lane_
     return gap
 
 
+NO_NEIGHBOUR = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0))
+
+
 def test_compiled_member_sense_equals_the_python_sumo_gap_and_projection():
-    """sim/sumo_sense.py sense_members: the members' s, d, speed and sumo_gap in one compiled
+    """sim/sumo_sense.py sense_step: the members' s, d, speed and sumo_gap in one compiled
     call, bit for bit the Python loop over LaneShapes.xy, FastLine.to_frenet and np.hypot it
     replaces (curved and real lanes, members off their lane, out of SUMO, no lane)."""
     import sumolib
     from formation_traci.road.line_pack import FastLine, packed
-    from formation_traci.sim.sumo_sense import PackedLanes, sense_members
+    from formation_traci.sim.sumo_sense import PackedLanes, sense_step
     rng = np.random.default_rng(5)
     line = lines()[2]
     fast = FastLine(float(line.length), packed(line))
@@ -234,25 +237,30 @@ def test_compiled_member_sense_equals_the_python_sumo_gap_and_projection():
                 lane_pos[2] = np.nan
             li = packed_lanes.indices(lanes).copy()
             guess = np.where(rng.random(n) < 0.5, np.nan, rng.uniform(0.0, line.length, n))
-            s, d, v, gap = sense_members(fast.G, pos, vel, guess, heading, d_front, front, angle,
-                                         lane_pos, lat, li, packed_lanes.table, packed_lanes.points)
+            s, d, v, gap, n_off, *nb = sense_step(
+                fast.G, pos, vel, guess, heading, d_front, front, angle, lane_pos, lat, li,
+                packed_lanes.table, packed_lanes.points, 0.1, *NO_NEIGHBOUR)
             ref = reference_sumo_gap(shapes, pos, heading, d_front, front, angle, lanes, lane_pos, lat)
             assert np.array_equal(gap, ref, equal_nan=True)
+            assert n_off == np.count_nonzero(ref > 0.1) and all(len(a) == 0 for a in nb)
             s_ref, d_ref = fast.to_frenet(pos)
             assert np.array_equal(s, s_ref) and np.array_equal(d, d_ref)
             assert np.array_equal(v, np.hypot(vel[:, 0], vel[:, 1]))
             empty = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0, dtype=np.int64))
-            out = sense_members(fast.G, pos, vel, guess, heading, d_front, *empty,
-                                packed_lanes.table, packed_lanes.points)
+            out = sense_step(fast.G, pos, vel, guess, heading, d_front, *empty,
+                             packed_lanes.table, packed_lanes.points, 0.1, *NO_NEIGHBOUR)
             assert np.array_equal(out[0], s) and np.isnan(out[3]).all()
 
 
 def test_compiled_neighbour_sense_equals_the_numpy_one_whatever_the_guess():
-    """sim/sumo_sense.py sense_neighbours (one compiled call, last step's s as the guess)
-    gives what FastLine.to_frenet without a guess and the numpy arithmetic gave."""
+    """sim/sumo_sense.py sense_step's neighbours (SUMO's front bumper converted, projected
+    with last step's s as the guess, in the same call as the members) give what
+    sumo_to_cog_rows, FastLine.to_frenet without a guess and the numpy arithmetic gave."""
     from formation_traci.road.line_pack import FastLine, packed
-    from formation_traci.sim.sumo_sense import NeighbourGuess, sense_neighbours
+    from formation_traci.sim.sumo_sense import NeighbourGuess, sense_step
     rng = np.random.default_rng(9)
+    no_lane = (np.empty(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3)))
+    used = 0
     for line in lines():
         fast = FastLine(float(line.length), packed(line))
         guess = NeighbourGuess()
@@ -264,16 +272,26 @@ def test_compiled_neighbour_sense_equals_the_numpy_one_whatever_the_guess():
             s_true[k] += rng.uniform(0.0, 2.0, n)
             fr = np.array([fast.frame(s) for s in s_true[k]])
             off = rng.uniform(-6.0, 6.0, n)
-            x, y = fr[:, 0] - off * fr[:, 3], fr[:, 1] + off * fr[:, 2]
+            front = np.column_stack([fr[:, 0] - off * fr[:, 3], fr[:, 1] + off * fr[:, 2]])
+            angle = rng.uniform(0.0, 360.0, n)
             length, width = rng.uniform(3.0, 18.0, n), rng.uniform(1.6, 2.6, n)
+            members = int(rng.integers(0, 4))
+            pos = rng.uniform(0.0, 50.0, (members, 2))
             g = guess(ids)
-            s, d, rear, half_w = sense_neighbours(fast.G, x, y, length, width, g)
-            guess.keep(ids, s)
-            s_ref, d_ref = fast.to_frenet(np.column_stack([x, y]))
-            assert np.array_equal(s, s_ref) and np.array_equal(d, d_ref)
+            s, d, v, gap, n_off, x, y, psi, rear, half_w = sense_step(
+                fast.G, pos, np.ones((members, 2)), np.full(members, np.nan), np.zeros(members),
+                np.ones(members), np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), *no_lane,
+                0.1, front, angle, length, width, g)
+            guess.keep(ids, s[members:])
+            x_ref, y_ref, psi_ref = sumo_to_cog_rows(front, angle, length * 0.5)
+            assert np.array_equal(x, x_ref) and np.array_equal(y, y_ref) and np.array_equal(psi, psi_ref)
+            s_ref, d_ref = fast.to_frenet(np.column_stack([x_ref, y_ref]))
+            assert np.array_equal(s[members:], s_ref) and np.array_equal(d[members:], d_ref)
             assert np.array_equal(rear, s_ref - length / 2) and np.array_equal(half_w, width / 2)
-            if step:
-                assert np.isfinite(g).any()  # guesses were used
+            m_ref = fast.to_frenet(pos)  # the members' projection is not changed by the neighbours'
+            assert np.array_equal(s[:members], m_ref[0]) and np.array_equal(d[:members], m_ref[1])
+            used += int(np.isfinite(g).sum())
+    assert used > 20  # last step's s was the guess of many of them
 
 
 def _full_track_lanes(self, ids, lanes, lane_index, lat):
@@ -290,8 +308,9 @@ def _full_track_lanes(self, ids, lanes, lane_index, lat):
             self._advance_route_window(vid, lane)
 
 
-def _full_placement(self, t, gap_sumo):
-    """sim/events.py MemberWatch.placement as it was."""
+def _full_placement(self, t, gap_sumo, n_off=None):
+    """sim/events.py MemberWatch.placement as it was (the count of gaps over the tolerance
+    the compiled sense gives is not used)."""
     off = gap_sumo > 0.1
     new = off & ~self.mismatch
     for i in (np.flatnonzero(new) if new.any() else ()):

@@ -36,11 +36,15 @@ class MemberWatch:
     def removed(self, t, i):
         self.rec.add_event(t, "member_removed", self.ids[i], "", "SUMO no longer has the member")
 
-    def placement(self, t, gap_sumo):
-        off = gap_sumo > PLACEMENT_TOLERANCE
-        if not off.any():  # every member where the model put it (the usual step)
+    def placement(self, t, gap_sumo, n_off=None):
+        """``n_off``: how many gaps exceed PLACEMENT_TOLERANCE, when already counted."""
+        if n_off == 0:  # every member where the model put it (the usual step)
             if self._off:
-                self.mismatch, self._off = off, False
+                self.mismatch, self._off = gap_sumo > PLACEMENT_TOLERANCE, False
+            return
+        off = gap_sumo > PLACEMENT_TOLERANCE
+        if not off.any():
+            self.mismatch, self._off = off, False
             return
         new = off & ~self.mismatch
         for i in (np.flatnonzero(new) if new.any() else ()):

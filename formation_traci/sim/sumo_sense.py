@@ -1,10 +1,11 @@
-"""The members' per-step sense in one compiled call (sim/sumo_world.py ``SumoWorld.sense``).
+"""A step's sense in one compiled call (sim/sumo_world.py ``SumoWorld.sense``).
 
-:func:`sense_members` gives, for every member, its arc length and lateral offset along the
+:func:`sense_step` gives, for every member, its arc length and lateral offset along the
 reference line (road/fast_line.py ``to_frenet_many``), its speed, and how far SUMO has it from
 our pose (``sumo_gap``: the larger of the CoG distance and the distance between our front
 bumper and the point SUMO's lane, lane position and lateral lane position give on SUMO's lane
-shapes). :class:`PackedLanes` packs the lane shapes of road/lanes.py ``LaneShapes`` into two
+shapes); for every neighbour its centre and heading (SUMO's front bumper converted) and its
+place along the line. :class:`PackedLanes` packs the lane shapes of road/lanes.py ``LaneShapes`` into two
 arrays the kernel reads. The arithmetic is that of ``LaneShapes.xy``, sim/sumo_types.py's
 conversions and ``math.hypot`` (:func:`~..kernels.py_hypot`), bit for bit
 (tests/test_fast_paths.py).
@@ -94,24 +95,57 @@ def lane_point(table, points, li, pos, lat):
 
 
 @kernel
-def sense_members(G, pos, vel, s_guess, heading, d_front, front, angle, lane_pos, lat, li,
-                  table, points):
-    """Per member: arc length s [m] and lateral offset d [m] of our CoG ``pos`` (n, 2) [m]
-    along the line ``G`` (``s_guess``: last step's s, NaN: none), speed [m/s] from ``vel``
-    (n, 2), and, when SUMO's rows are given (``li`` of length n, else length 0: gap NaN),
+def sense_step(G, pos, vel, s_guess, heading, d_front, front, angle, lane_pos, lat, li, table,
+               points, tolerance, nb_front, nb_angle, nb_length, nb_width, nb_guess):
+    """One step's sense, members then neighbours, in one call.
+
+    Members: arc length s [m] and lateral offset d [m] of our CoG ``pos`` (n, 2) [m] along
+    the line ``G`` (``s_guess``: last step's s, NaN: none), speed [m/s] from ``vel`` (n, 2),
+    and, when SUMO's rows are given (``li`` of length n, else length 0: gap NaN),
     ``sumo_gap`` [m]: the larger of the distance between our CoG and SUMO's (SUMO's front
     bumper ``front`` (n, 2) [m] and ``angle`` (n,) [deg]; NaN: not in SUMO) and the distance
     between our front bumper (``d_front`` [m] ahead of the CoG along ``heading`` [rad]) and
     lane row ``li``'s point at ``lane_pos`` [m], ``lat`` [m] (li < 0 or a non-finite
-    position: not used)."""
+    position: not used); and how many gaps exceed ``tolerance`` [m].
+
+    Neighbours (m of them): their centre x, y [m] and heading [rad] from SUMO's front bumper
+    ``nb_front`` (m, 2) [m], ``nb_angle`` [deg] and ``nb_length`` [m]; their s, d along the
+    line (``nb_guess``: last step's s, NaN: none), the arc length of their rear
+    (s - length / 2) [m] and their half width [m] (``nb_width`` / 2).
+
+    Returns (s, d) of members and neighbours concatenated (n + m,), the members' speed, gap
+    and count of gaps over the tolerance, and the neighbours' x, y, heading, rear, half width.
+    """
     n = pos.shape[0]
-    s, d = to_frenet_many(G, pos, s_guess)
+    m = nb_front.shape[0]
+    xy = np.empty((n + m, 2))
+    guess = np.empty(n + m)
+    nb_x = np.empty(m)
+    nb_y = np.empty(m)
+    nb_psi = np.empty(m)
+    for i in range(n):
+        xy[i, 0] = pos[i, 0]
+        xy[i, 1] = pos[i, 1]
+        guess[i] = s_guess[i]
+    for j in range(m):
+        nb_x[j], nb_y[j], nb_psi[j] = sumo_to_cog_one(nb_front[j, 0], nb_front[j, 1], nb_angle[j],
+                                                      nb_length[j] * 0.5)
+        xy[n + j, 0] = nb_x[j]
+        xy[n + j, 1] = nb_y[j]
+        guess[n + j] = nb_guess[j]
+    s, d = to_frenet_many(G, xy, guess)  # each point its own iteration: as if projected apart
+    rear = np.empty(m)
+    half_w = np.empty(m)
+    for j in range(m):
+        rear[j] = s[n + j] - nb_length[j] / 2
+        half_w[j] = nb_width[j] / 2
     v = np.empty(n)
     gap = np.full(n, np.nan)
     for i in range(n):
         v[i] = math.hypot(vel[i, 0], vel[i, 1])
+    n_off = 0
     if li.shape[0] != n:
-        return s, d, v, gap
+        return s, d, v, gap, n_off, nb_x, nb_y, nb_psi, rear, half_w
     for i in range(n):
         px = pos[i, 0]
         py = pos[i, 1]
@@ -126,30 +160,13 @@ def sense_members(G, pos, vel, s_guess, heading, d_front, front, angle, lane_pos
             if h > g:
                 g = h
         gap[i] = g
-    return s, d, v, gap
-
-
-@kernel
-def sense_neighbours(G, x, y, length, width, s_guess):
-    """The vehicles near the members along the line ``G``: arc length s [m] and lateral
-    offset d [m] of their centres x, y (n,) [m] (``s_guess``: last step's s, NaN: none), the
-    arc length of their rear (s - length / 2) [m] and their half width [m]."""
-    n = x.shape[0]
-    xy = np.empty((n, 2))
-    for i in range(n):
-        xy[i, 0] = x[i]
-        xy[i, 1] = y[i]
-    s, d = to_frenet_many(G, xy, s_guess)
-    rear = np.empty(n)
-    half_w = np.empty(n)
-    for i in range(n):
-        rear[i] = s[i] - length[i] / 2
-        half_w[i] = width[i] / 2
-    return s, d, rear, half_w
+        if g > tolerance:
+            n_off += 1
+    return s, d, v, gap, n_off, nb_x, nb_y, nb_psi, rear, half_w
 
 
 class NeighbourGuess:
-    """Last step's arc length of each neighbour, the guess of :func:`sense_neighbours`
+    """Last step's arc length of each neighbour, the guess of :func:`sense_step`
     (the same vehicles as last step: last step's array; otherwise per id, NaN for new ones)."""
 
     def __init__(self):

@@ -16,20 +16,24 @@ import numpy as np
 from ..record.ssm import SsmConverter
 from ..road.line_pack import FastLine, packed
 from ..scenario.schema import Scenario
-from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
-                     log_sumo_events)
+from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch,
+                     TrafficWatch, log_sumo_events)
 from .road_setup import rectangles_overlap
 from .demand import measure_plan, traffic_meta
 from .join import adopt, enter, take_over
 from .messages import sumo_outputs_meta
 from .sumo_adapter import SumoAdapter, SumoError
-from .sumo_sense import NeighbourGuess, PackedLanes, sense_members, sense_neighbours
+from .sumo_neighbours import NOBODY
+from .sumo_sense import NeighbourGuess, PackedLanes, sense_step
+from .sumo_types import Neighbours
 from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import CAR, flow_vehicles_per_hour, write_routes
 from .world import Sensed
 
 _NO_ROWS = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0, dtype=np.int64))
-"""sense_members' SUMO rows when the members are not in SUMO (not inserted yet, a baseline)."""
+"""sense_step's SUMO rows of the members when they are not in SUMO (not inserted yet, a baseline)."""
+_NO_NB = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0))
+"""sense_step's neighbour rows when there is no neighbour."""
 
 
 class SumoWorld:
@@ -144,30 +148,36 @@ class SumoWorld:
         self._kin = None  # adopt may write into this state after sense
         member_rows = self.inserted and not self.baseline  # a baseline twin has no member in SUMO
         rows = self._member_rows(t) if member_rows else _NO_ROWS
-        lanes = self.packed_lanes
-        m_s, m_d, v_m, gap = sense_members(self.line.G, pos, vel, self.m_s, heading, self.d_front,
-                                           *rows[:5], lanes.table, lanes.points)
+        nb_rows = self.adapter.neighbour_rows(self.all_bg) if self.inserted else None  # all: baseline
+        nb_in = _NO_NB if nb_rows is None else (*nb_rows[2:4], *nb_rows[6:8], self._nb_guess(nb_rows[0]))
+        lanes, n = self.packed_lanes, len(self.ids)
+        s, d, v_m, gap, n_off, *nb_out = sense_step(
+            self.line.G, pos, vel, self.m_s, heading, self.d_front, *rows[:5], lanes.table,
+            lanes.points, PLACEMENT_TOLERANCE, *nb_in)
+        m_s, m_d = s[:n], d[:n]
         self.m_s = m_s
         sensed = Sensed(self.active, {"s": m_s, "d": m_d, "slot": self.slot_index}, v_m, m_s, m_d)
-        if self.inserted:
-            if member_rows:
-                sensed.extra.update(sumo_gap=gap, lane_index=rows[5])
-                self.members.placement(t, gap)
-                self.members.lane_changes(t, *rows[6:])
-            ev = self.ev
-            if ev is not None and (ev.collisions or ev.teleports):
-                log_sumo_events(self.rec, t, ev, self._id_set, self.joined_names())
-            sensed.nb = self.adapter.neighbours(self.all_bg)  # every vehicle in a baseline twin
-        nb = sensed.nb
-        if nb is not None and len(nb.ids):
-            sensed.nb_s, sensed.nb_d, sensed.nb_rear, sensed.nb_half_w = sense_neighbours(
-                self.line.G, nb.x, nb.y, nb.length, nb.width, self._nb_guess(nb.ids))
-            sensed.nb_v = nb.v
-            self._nb_guess.keep(nb.ids, sensed.nb_s)
+        if not self.inserted:
+            return sensed
+        if member_rows:
+            sensed.extra.update(sumo_gap=gap, lane_index=rows[5])
+            self.members.placement(t, gap, n_off)
+            self.members.lane_changes(t, *rows[6:])
+        ev = self.ev
+        if ev is not None and (ev.collisions or ev.teleports):
+            log_sumo_events(self.rec, t, ev, self._id_set, self.joined_names())
+        if nb_rows is None:
+            sensed.nb = NOBODY
+            return sensed
+        ids, types, _, _, v, a, length, width, lane_ids, lane_index = nb_rows
+        x, y, psi, sensed.nb_rear, sensed.nb_half_w = nb_out
+        sensed.nb = Neighbours(ids, types, x, y, psi, v, a, length, width, lane_ids, lane_index)
+        sensed.nb_s, sensed.nb_d, sensed.nb_v = s[n:], d[n:], v
+        self._nb_guess.keep(ids, sensed.nb_s)
         return sensed
 
     def _member_rows(self, t):
-        """SUMO's rows of the members for :func:`~.sumo_sense.sense_members` (front bumper,
+        """SUMO's rows of the members for :func:`~.sumo_sense.sense_step` (front bumper,
         angle, lane position, lateral position, packed lane row; NaN and -1 for members out
         of the run or no longer in SUMO, who are reported removed), then the recorded lane
         index and :meth:`MemberWatch.lane_changes`' arguments."""
