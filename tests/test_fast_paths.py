@@ -170,6 +170,7 @@ def test_a_run_does_not_import_pandas(tmp_path):
     assert out.stdout.strip().splitlines()[-1] == "False"
 
 
+@pytest.mark.jit_off  # also as plain Python (NUMBA_DISABLE_JIT=1)
 def test_py_hypot_is_pythons_math_hypot_bit_for_bit():
     """The compiled lane-point distance uses CPython's hypot, not the C library's (they
     differ in the last bit for about 1 input in 1000)."""
@@ -204,6 +205,7 @@ def reference_sumo_gap(shapes, pos, heading, d_front, front, angle, lanes, lane_
 NO_NEIGHBOUR = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0))
 
 
+@pytest.mark.jit_off  # also as plain Python (NUMBA_DISABLE_JIT=1)
 def test_compiled_member_sense_equals_the_python_sumo_gap_and_projection():
     """sim/sumo_sense.py sense_step: the members' s, d, speed and sumo_gap in one compiled
     call, bit for bit the Python loop over LaneShapes.xy, FastLine.to_frenet and np.hypot it
@@ -252,6 +254,7 @@ def test_compiled_member_sense_equals_the_python_sumo_gap_and_projection():
             assert np.array_equal(out[0], s) and np.isnan(out[3]).all()
 
 
+@pytest.mark.jit_off  # also as plain Python (NUMBA_DISABLE_JIT=1)
 def test_compiled_neighbour_sense_equals_the_numpy_one_whatever_the_guess():
     """sim/sumo_sense.py sense_step's neighbours (SUMO's front bumper converted, projected
     with last step's s as the guess, in the same call as the members) give what

@@ -142,7 +142,7 @@ def sense_step(G, pos, vel, s_guess, heading, d_front, front, angle, lane_pos, l
     v = np.empty(n)
     gap = np.full(n, np.nan)
     for i in range(n):
-        v[i] = math.hypot(vel[i, 0], vel[i, 1])
+        v[i] = np.hypot(vel[i, 0], vel[i, 1])  # the C library's, as numpy (jit on or off)
     n_off = 0
     if li.shape[0] != n:
         return s, d, v, gap, n_off, nb_x, nb_y, nb_psi, rear, half_w
@@ -150,7 +150,7 @@ def sense_step(G, pos, vel, s_guess, heading, d_front, front, angle, lane_pos, l
         px = pos[i, 0]
         py = pos[i, 1]
         x, y, _ = sumo_to_cog_one(front[i, 0], front[i, 1], angle[i], d_front[i])
-        g = math.hypot(x - px, y - py)
+        g = np.hypot(x - px, y - py)
         lp = lane_pos[i]
         lt = lat[i]
         if li[i] >= 0 and math.isfinite(lt) and math.isfinite(lp):
