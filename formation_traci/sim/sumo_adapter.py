@@ -312,9 +312,9 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         if len(here) != len(ids):
             here = self._all_here = np.ones(len(ids), dtype=bool)
             here.flags.writeable = False  # shared between steps
-        return (np.array(pos, dtype=float), np.array(ang, dtype=float), lanes,
-                np.array(lane_index, dtype=np.int64), np.array(lat, dtype=float),
-                np.array(lane_pos, dtype=float), here)
+        ang, lat, lane_pos = np.array((ang, lat, lane_pos), dtype=float)  # rows of one array
+        return (np.array(pos, dtype=float), ang, lanes, np.array(lane_index, dtype=np.int64), lat,
+                lane_pos, here)
 
     def _read_some_members(self, ids, rows):
         """:meth:`read_members` when SUMO no longer has some of the members (NaN, '' and -1)."""

@@ -93,10 +93,10 @@ class NeighbourReads:
         cols = list(zip(*map(self._neighbour_get, map(rows.__getitem__, ids))))
         bodies, body = self._bodies, self._body
         body = list(zip(*[bodies.get(vid) or body(vid) for vid in ids]))
-        ang, v, a = (np.array(c, dtype=float) for c in cols[1:4])
-        return (ids, list(body[2]), np.array(cols[0], dtype=float), ang, v, a,
-                np.array(body[0], dtype=float), np.array(body[1], dtype=float), list(cols[5]),
-                np.array(cols[4], dtype=int))
+        ang, v, a = np.array(cols[1:4], dtype=float)  # rows of one array: one conversion
+        length, width = np.array(body[:2], dtype=float)
+        return (ids, list(body[2]), np.array(cols[0], dtype=float), ang, v, a, length, width,
+                list(cols[5]), np.array(cols[4], dtype=int))
 
     def vehicle_bodies(self):
         """Every vehicle in SUMO: ids, body centre x, y [m], heading [rad], length, width [m]
