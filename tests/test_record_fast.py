@@ -228,3 +228,60 @@ def test_traffic_and_emergency_watches_report_what_the_full_loops_report():
     kinds = {r[1] for r in want.rows}
     assert {"lane_change", "cut_in", "emergency_brake", "emergency_end"} <= kinds
     assert got.rows == want.rows
+
+
+def _straightforward(monkeypatch):
+    """The recording as it was: the rows column by column, the watches' full loops."""
+    from formation_traci.sim import sumo_world
+
+    def add_step(self, t, sig, extra, mask, truth, written=False):
+        assert not written
+        self.add_signal_rows(t, sig, extra, mask=mask)
+        self.add_comfort_rows(t, sig, mask=mask)
+        x, y, theta, v, omega, v_dot, _, s = (float(q) for q in truth)
+        self.add_vc(t, LeaderRow(x, y, theta, v, omega, v_dot), s=s)
+
+    def add_periods(self, t, dt, vals, mask=None):
+        if vals.shape[0] > 1:
+            self.add_comfort_periods([t + j * dt for j in range(1, vals.shape[0])], vals[1:], mask=mask)
+
+    def add_background(self, t, nb, s, d):
+        if len(nb.ids):
+            self._append_background(t, nb, s, d)
+
+    monkeypatch.setattr(Recorder, "signal_rows", lambda self, mask: None)
+    monkeypatch.setattr(Recorder, "add_step", add_step)
+    monkeypatch.setattr(Recorder, "add_periods", add_periods)
+    monkeypatch.setattr(Recorder, "add_background", add_background)
+    monkeypatch.setattr(sumo_world, "TrafficWatch", ReferenceTrafficWatch)
+    monkeypatch.setattr(sumo_world, "EmergencyWatch", ReferenceEmergencyWatch)
+
+
+@pytest.mark.parametrize("case", ["highway", "free space, delayed leader"])
+def test_runs_write_the_files_the_straightforward_recording_writes(tmp_path, monkeypatch, case):
+    """Real runs (SUMO through libsumo; free space with a delayed virtual car, whose error is
+    recorded against the true one), tables cut every 10 steps: the part files are the same
+    bytes with the compiled rows and block writes as with the straightforward recording."""
+    from pathlib import Path
+
+    from formation_traci.scenario import load_scenario
+    from formation_traci.sim.runner import run_scenario
+
+    root = Path(__file__).resolve().parents[1]
+    if case == "highway":
+        path = root / "scenarios" / "highway" / "straight_wedge5_medium.toml"
+        kw = {"run.duration": 3.0, "traffic.warmup": 10.0}
+    else:
+        path = root / "scenarios" / "thesis" / "dynamic_case4_turning.toml"
+        kw = {"run.duration": 2.0, "comm.delay_s": 0.1}
+    monkeypatch.setattr(recorder_module, "STEPS_PER_CHUNK", 10)
+    sc = load_scenario(path, **kw)
+    fast = run_scenario(sc, tmp_path / "fast", scenario_path=path, progress=False, force=True)
+    _straightforward(monkeypatch)
+    slow = run_scenario(sc, tmp_path / "slow", scenario_path=path, progress=False, force=True)
+    assert fast.status == slow.status == "completed"
+    a, b = _part_bytes(tmp_path / "slow"), _part_bytes(tmp_path / "fast")
+    assert sorted(a) == sorted(b) and len([p for p in a if p.startswith("traj")]) >= 4
+    assert (case == "highway") == any(p.startswith("background") for p in a)
+    for name in a:
+        assert a[name] == b[name], name

@@ -214,11 +214,19 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
 
 @kernel
 def member_signals(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, vc, slots,
-                   v_cap, a_cap, cols, out):
+                   v_cap, a_cap, cols, out, t, limits, traj, traj_ids, at, comfort, comfort_ids,
+                   c_at, comfort_cols):
     """The recorded signals at the start of a step (the first control period's reference)
-    into out[i, cols[q]]; e_lon / e_lat in the frame of the member's virtual car."""
+    into out[i, cols[q]]; e_lon / e_lat in the frame of the member's virtual car.
+
+    With ``at`` >= 0, also the members' table rows at time t [s] unless a |signal| exceeds
+    ``limits`` (one per column of out): member i's row is column at + i of ``traj`` (one
+    row per table column: t, then out's columns) and of ``traj_ids`` (its code, i), and
+    column c_at + i of ``comfort`` (t, then out's columns ``comfort_cols``) and
+    ``comfort_ids``. Returns True when it wrote the rows (sim/recorder.py signal_rows)."""
     vals = np.empty(N_SIGNALS)
-    for i in range(x.shape[0]):
+    n = x.shape[0]
+    for i in range(n):
         px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, 0, i)
         res = member_input_at(kind, x, i, theta_star[i], speed_in[i], k[i], k_theta[i], gains,
                               px, py, tvx, tvy, tax, tay, v_cap[i], a_cap[i])
@@ -228,6 +236,23 @@ def member_signals(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame
         for q in range(N_SIGNALS):
             if cols[q] >= 0:
                 out[i, cols[q]] = vals[q]
+    if at < 0:
+        return False
+    m = out.shape[1]
+    for i in range(n):
+        for q in range(m):
+            if abs(out[i, q]) > limits[q]:
+                return False  # out of range: the caller records the rows (and the event)
+    for i in range(n):
+        traj[0, at + i] = t
+        for q in range(m):
+            traj[1 + q, at + i] = out[i, q]
+        traj_ids[at + i] = i
+        comfort[0, c_at + i] = t
+        for q in range(comfort_cols.shape[0]):
+            comfort[1 + q, c_at + i] = out[i, comfort_cols[q]]
+        comfort_ids[c_at + i] = i
+    return True
 
 
 @kernel
@@ -250,6 +275,9 @@ def kinematics_rows(x, speed_in, kind):
 # ------------------------------------------------------------------------ the wrapper
 
 _NO_COMFORT = np.empty((0, 0, 3))
+_NO_ROWS = (np.empty(0), np.empty((0, 0)), np.empty(0, dtype=np.int32), -1, np.empty((0, 0)),
+            np.empty(0, dtype=np.int32), -1, np.empty(0, dtype=np.int64))
+"""member_signals' table-row arguments when no rows are written."""
 
 def _f64(a) -> np.ndarray:
     """a as a C-contiguous, writeable float64 array (no copy when it already is one)."""
@@ -318,10 +346,18 @@ class Fleet:
         """The recorded member columns at the start of the step (SIGNAL_COLUMNS order)."""
         if out is None:
             out = np.full((self.cfg.n, len(SIGNAL_COLUMNS)), np.nan)
-        member_signals(_f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self.kind,
-                       self.P, self.k, self.k_theta, self.gains, ref.line, ref.frame, ref.vc,
-                       ref.slots, _f64(ref.v_cap), _f64(ref.a_cap), self.cols, out)
+        self.signals_into(state, ref, out)
         return out
+
+    def signals_into(self, state: FleetState, ref: Reference, out: np.ndarray, t: float = 0.0,
+                     rows: tuple | None = None) -> bool:
+        """:meth:`signals` into ``out`` (n, len(SIGNAL_COLUMNS)); with ``rows`` (sim/recorder.py
+        Recorder.signal_rows) also written as the step's table rows at t [s], in the same
+        compiled call: returns True when they were (False: out of range, or no ``rows``)."""
+        return member_signals(_f64(state.x), _f64(state.theta_star), _f64(state.speed_in),
+                              self.kind, self.P, self.k, self.k_theta, self.gains, ref.line,
+                              ref.frame, ref.vc, ref.slots, _f64(ref.v_cap), _f64(ref.a_cap),
+                              self.cols, out, float(t), *(_NO_ROWS if rows is None else rows))
 
     def kinematics(self, state: FleetState):
         """Position (n, 2) [m], velocity (n, 2) [m/s], heading (n,) [rad]."""

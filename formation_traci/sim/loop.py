@@ -107,11 +107,13 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             if parts.road_load is not None:  # drag ratio and grade, held over the step
                 fleet.set_road_load(*parts.road_load(state, sensed, ref))
             if world.records_members:
-                fleet.signals(state, ref, out=sig)
-                if true_error and ref.vc is not ref0.vc:  # the error against the true virtual car
+                true_vc = true_error and ref.vc is not ref0.vc
+                rows = None if true_vc else rec.signal_rows(ref.active)  # rows in the same call
+                written = fleet.signals_into(state, ref, sig, t, rows)
+                if true_vc:  # the error against the true virtual car
                     fleet.signals(state, ref.with_(vc=ref0.vc), out=sig_true)
                     sig[:, err_cols] = sig_true[:, err_cols]
-                rec.add_step(t, sig, sensed.extra, ref.active, ref.truth)
+                rec.add_step(t, sig, sensed.extra, ref.active, ref.truth, written)
             else:
                 rec.add_vc(t, ref.leader(), s=float(ref.truth[7]))
             clock.lap("record")

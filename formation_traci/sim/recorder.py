@@ -87,7 +87,6 @@ class Recorder:
         self._abs = np.empty((n, len(SIGNAL_COLUMNS)))
         self._bad = np.empty((n, len(SIGNAL_COLUMNS)), dtype=bool)
         self._traj_ids = self.traj.column("vehicle_id")
-        self._codes_vc = np.append(self.codes, np.int32(self.vc_code))
         limits = dict(slip_front=MAX_SLIP, slip_rear=MAX_SLIP, friction_usage=MAX_FRICTION_USAGE,
                       v=MAX_SPEED)
         self._sig_limits = np.array([limits.get(c, np.inf) for c in SIGNAL_COLUMNS])
@@ -96,6 +95,10 @@ class Recorder:
         cf = self.comfort
         self._cf_t, self._cf_vals = cf.column("t"), cf.block(("v", "a_lon", "a_lat"))
         self._cf_ids = cf.column("vehicle_id")
+        self._cf_block = cf.block([c.name for c in COMFORT_COLUMNS if c.dtype == "float64"])
+        self._cf_cols = np.array([self._sig_index[c.name] for c in COMFORT_COLUMNS[2:]], dtype=np.int64)
+        if self._floats[:len(SIGNAL_COLUMNS) + 1] != ["t", *SIGNAL_COLUMNS]:
+            raise ValueError("member_signals writes t, then the signal columns, as table rows")
         self._period_key, self._period_t, self._period_ids = None, None, None
         bg = self.background
         if bg is not None:
@@ -206,36 +209,52 @@ class Recorder:
             cf.column(name)[sl].reshape(m, n)[:] = vals[:, :, q]
         cf.commit(m * n)
 
-    def add_step(self, t, sig: np.ndarray, extra: dict, mask, truth: np.ndarray) -> None:
+    def signal_rows(self, mask) -> tuple | None:
+        """Where sim/fleet.py member_signals writes the members' rows of the step itself
+        (Fleet.signals_into; then :meth:`add_step` with ``written``), or None when it must
+        not: a member out of the run (``mask``), a signal out of range at the step before
+        (events), or a part ends inside the step."""
+        n, tr, cf = len(self.codes), self.traj, self.comfort
+        at, c_at = tr.rows_buffered, cf.rows_buffered
+        if (self._any_out or at + n + 1 > tr.chunk_rows or c_at + n > cf.chunk_rows
+                or (mask is not None and mask.tobytes() != self._all_in)):
+            return None
+        return (self._sig_limits, self._float_block, self._traj_ids, at, self._cf_block,
+                self._cf_ids, c_at, self._cf_cols)
+
+    def add_step(self, t, sig: np.ndarray, extra: dict, mask, truth: np.ndarray,
+                 written: bool = False) -> None:
         """The rows of one recorded step at t [s]: what :meth:`add_signal_rows` (t, sig, extra,
         mask), :meth:`add_comfort_rows` (t, sig, mask) and :meth:`add_vc` (t, the virtual car
         ``truth`` = Reference.truth, its s) write in that order, with one write per block of
-        columns. Those three calls do it when a member is out of the run, a signal is (or
-        was) out of range (events) or a part ends inside the step."""
+        columns; ``written``: member_signals wrote the members' signal rows already (at
+        :meth:`signal_rows`). Those three calls do it when a member is out of the run, a
+        signal is (or was) out of range (events) or a part ends inside the step."""
         n, tr, cf, bad = len(self.codes), self.traj, self.comfort, self._bad
         at, c_at = tr.rows_buffered, cf.rows_buffered
-        if sig.shape == bad.shape:
-            np.greater(np.abs(sig, out=self._abs), self._sig_limits, out=bad)
-        if (self._any_out or at + n + 1 > tr.chunk_rows or c_at + n > cf.chunk_rows
-                or sig.shape != bad.shape or b"\x01" in bad.tobytes()
-                or (mask is not None and mask.tobytes() != self._all_in)):
-            self.add_signal_rows(t, sig, extra, mask)
-            self.add_comfort_rows(t, sig, mask)
-            x, y, theta, v, omega, v_dot, _, s = truth.tolist()
-            self.add_vc(t, LeaderRow(x, y, theta, v, omega, v_dot), s)
-            return
         e, blk = at + n, self._float_block
-        self._sig_block[:, at:e] = sig.T
-        blk[0, at:e] = t
+        if not written:
+            if sig.shape == bad.shape:
+                np.greater(np.abs(sig, out=self._abs), self._sig_limits, out=bad)
+            if (sig.shape != bad.shape or b"\x01" in bad.tobytes()
+                    or self.signal_rows(mask) is None):
+                self.add_signal_rows(t, sig, extra, mask)
+                self.add_comfort_rows(t, sig, mask)
+                x, y, theta, v, omega, v_dot, _, s = truth.tolist()
+                self.add_vc(t, LeaderRow(x, y, theta, v, omega, v_dot), s)
+                return
+            self._sig_block[:, at:e] = sig.T
+            blk[0, at:e] = t
+            self._traj_ids[at:e] = self.codes
+            self._cf_t[c_at:c_at + n] = t
+            self._cf_vals[0, c_at:c_at + n] = sig[:, self._v_at]
+            self._cf_vals[1:, c_at:c_at + n] = sig[:, self._acc].T
+            self._cf_ids[c_at:c_at + n] = self.codes
         self._extras(extra, self._extra_block[:, at:e])
         x, y, theta, v, omega, v_dot, _, s = truth.tolist()
         blk[:, e] = self._vc_row(t, x, y, theta, v, omega, v_dot, s)
-        self._traj_ids[at:e + 1] = self._codes_vc
+        self._traj_ids[e] = self.vc_code
         tr.commit(n + 1)
-        self._cf_t[c_at:c_at + n] = t
-        self._cf_vals[0, c_at:c_at + n] = sig[:, self._v_at]
-        self._cf_vals[1:, c_at:c_at + n] = sig[:, self._acc].T
-        self._cf_ids[c_at:c_at + n] = self.codes
         cf.commit(n)
 
     def _extras(self, extra: dict, out: np.ndarray) -> None:
