@@ -110,13 +110,15 @@ def member_input_at(kind, x, i, theta_star_i, speed_in_i, k_i, k_theta_i, gains,
 
 @kernel
 def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, vc, slots,
-                 v_cap, a_cap, dt_c, n_sub, comfort):
+                 v_cap, a_cap, dt_c, n_sub, comfort, t0, table, table_ids, at):
     """One step: for each of the vc.shape[0] control periods of dt_c [s], every member's
     input from the reference, held over RK4 in n_sub sub-steps. Inputs are not modified;
     returns (x, theta_star, speed_in) after the step. When ``comfort`` has a row per
     period ((n_ctrl, n, 3); else pass an empty array), member i's speed [m/s], a_lon and
     a_lat [m/s^2] at the start of period j go to comfort[j, i] (the values
-    :func:`member_signals` records for that period)."""
+    :func:`member_signals` records for that period); with ``at`` >= 0 too, periods 1 ..
+    n_ctrl - 1 also as comfort table rows at columns at, at + 1, ... of ``table`` (t = t0 +
+    j dt_c [s], speed, a_lon, a_lat) and ``table_ids`` (code i), period by period."""
     n = x.shape[0]
     m = x.shape[1]
     x = x.copy()
@@ -147,6 +149,16 @@ def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, 
                            U0[i], U1[i], P, i, h, n_sub)
             for q in range(m):
                 x[i, q] = s[q]
+    if at >= 0 and comfort.shape[0] == vc.shape[0]:
+        for j in range(1, vc.shape[0]):
+            tj = t0 + j * dt_c
+            for i in range(n):
+                r = at + (j - 1) * n + i
+                table[0, r] = tj
+                table[1, r] = comfort[j, i, 0]
+                table[2, r] = comfort[j, i, 1]
+                table[3, r] = comfort[j, i, 2]
+                table_ids[r] = i
     return x, theta_star, speed_in
 
 
@@ -278,6 +290,8 @@ _NO_COMFORT = np.empty((0, 0, 3))
 _NO_ROWS = (np.empty(0), np.empty((0, 0)), np.empty(0, dtype=np.int32), -1, np.empty((0, 0)),
             np.empty(0, dtype=np.int32), -1, np.empty(0, dtype=np.int64))
 """member_signals' table-row arguments when no rows are written."""
+_NO_PERIOD_ROWS = (np.empty((0, 0)), np.empty(0, dtype=np.int32), -1)
+"""step_members' table-row arguments when no rows are written."""
 
 def _f64(a) -> np.ndarray:
     """a as a C-contiguous, writeable float64 array (no copy when it already is one)."""
@@ -331,15 +345,19 @@ class Fleet:
     def n_sub(self, dt_c: float) -> int:
         return substeps(dt_c, self.cfg.physics_step)
 
-    def step(self, state: FleetState, ref: Reference, comfort: np.ndarray | None = None) -> FleetState:
+    def step(self, state: FleetState, ref: Reference, comfort: np.ndarray | None = None,
+             rows: tuple | None = None) -> FleetState:
         """The members over one step of ``ref.n_ctrl`` control periods of ``ref.dt``;
         ``comfort`` (n_ctrl, n, 3), if given, receives every period's speed [m/s], a_lon and
-        a_lat [m/s^2] at its start (:func:`step_members`)."""
+        a_lat [m/s^2] at its start (:func:`step_members`), and with ``rows``
+        (sim/recorder.py Recorder.period_rows) periods 1 .. n_ctrl - 1 go into the comfort
+        table's buffers too, in the same compiled call."""
         x, ts, sp = step_members(
             _f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self.kind, self.P,
             self.k, self.k_theta, self.gains, ref.line, ref.frame, ref.vc, ref.slots,
             _f64(ref.v_cap), _f64(ref.a_cap), float(ref.dt), self.n_sub(ref.dt),
-            _NO_COMFORT if comfort is None else comfort)
+            _NO_COMFORT if comfort is None else comfort, float(ref.t),
+            *(_NO_PERIOD_ROWS if rows is None else rows))
         return FleetState(x, ts, sp)
 
     def signals(self, state: FleetState, ref: Reference, out: np.ndarray | None = None):

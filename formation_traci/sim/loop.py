@@ -153,6 +153,7 @@ def step_recording(fleet: Fleet, state: FleetState, ref, rec, comfort: np.ndarra
     One compiled call for the whole step (sim/fleet.py step_members), the values those of
     ``fleet.signals`` at each period, bit for bit. ``comfort``: a (n_ctrl, n, 3) buffer the
     step writes whole (reused from step to step)."""
-    state = fleet.step(state, ref, comfort)
-    rec.add_periods(ref.t, ref.dt, comfort, mask=ref.active)
+    rows = rec.period_rows(ref.n_ctrl, ref.active)  # the table rows in the same call
+    state = fleet.step(state, ref, comfort, rows)
+    rec.add_periods(ref.t, ref.dt, comfort, mask=ref.active, written=rows is not None)
     return state

@@ -266,14 +266,28 @@ class Recorder:
             for name, row in zip(FILLED_BY_CALLER[2:], out):
                 row[:] = extra.get(name, np.nan)
 
-    def add_periods(self, t, dt, vals: np.ndarray, mask=None) -> None:
+    def period_rows(self, m: int, mask) -> tuple | None:
+        """Where sim/fleet.py step_members writes control periods 1 .. m - 1 of the step
+        itself (Fleet.step; then :meth:`add_periods` with ``written``), or None when it must
+        not: one period only, a member out of the run or a part ends inside the step."""
+        at, cf = self.comfort.rows_buffered, self.comfort
+        if (m < 2 or (mask is not None and mask.tobytes() != self._all_in)
+                or at + (m - 1) * len(self.codes) > cf.chunk_rows):
+            return None
+        return self._cf_block, self._cf_ids, at
+
+    def add_periods(self, t, dt, vals: np.ndarray, mask=None, written: bool = False) -> None:
         """Control periods 1 .. m-1 of a step starting at t [s] with periods of dt [s]:
         ``vals`` (m, n, 3) from sim/fleet.py step_members; what :meth:`add_comfort_periods`
-        ([t + j dt for j = 1 .. m-1], vals[1:], mask) writes, with one write per block."""
+        ([t + j dt for j = 1 .. m-1], vals[1:], mask) writes, with one write per block
+        (``written``: step_members wrote them already, at :meth:`period_rows`)."""
         m, n = vals.shape[0], len(self.codes)
         cf, rows = self.comfort, (vals.shape[0] - 1) * len(self.codes)
+        if written:
+            cf.commit(rows)
+            return
         at = cf.rows_buffered
-        if m < 2 or (mask is not None and not mask.all()) or at + rows > cf.chunk_rows:
+        if self.period_rows(m, mask) is None:
             if m > 1:
                 self.add_comfort_periods([t + j * dt for j in range(1, m)], vals[1:], mask)
             return
