@@ -145,52 +145,45 @@ def test_background_rows_equal_the_column_by_column_append_byte_for_byte(tmp_pat
 
 
 class ReferenceTrafficWatch:
-    """TrafficWatch as it was: every vehicle looked at every step."""
+    """TrafficWatch without its shortcut: every vehicle looked at every step."""
 
     def __init__(self, rec, ids, lanes, time_gap, min_gap):
         self.rec, self.ids, self.lanes = rec, ids, lanes
         self.time_gap, self.min_gap = time_gap, min_gap
 
     def __call__(self, t, nb, lead_idx, gap, v_m, active):
-        changed = set()
-        prev, seen = self.lanes.prev, self.lanes.lane
-        for j, (vid, lane) in enumerate(zip(nb.ids, nb.lane_ids)):
+        prev, seen, moved = self.lanes.prev, self.lanes.lane, []
+        for j, vid in enumerate(nb.ids):
+            lane, li = nb.lane_ids[j], int(nb.lane_index[j])
             if seen.get(vid) == lane:
                 continue
-            seen[vid] = lane
             edge = lane.rsplit("_", 1)[0]
-            li = int(nb.lane_index[j])
-            old = prev.get(vid)
-            if old is not None and old[0] == edge and old[1] != li and not edge.startswith(":"):
-                self.rec.add_event(t, "lane_change", vid, "", f"{old[1]} -> {li}")
-                changed.add(j)
-            prev[vid] = (edge, li)
-        for i in np.flatnonzero(active):
+            was_edge, was_index = prev.get(vid, (None, None))
+            seen[vid], prev[vid] = lane, (edge, li)
+            if was_edge == edge and was_index != li and edge[:1] != ":":
+                moved.append(j)
+                self.rec.add_event(t, "lane_change", vid, "", f"{was_index} -> {li}")
+        for i, member in enumerate(self.ids):
             j = lead_idx[i]
-            if j >= 0 and j in changed and gap[i] < self.min_gap + self.time_gap * v_m[i]:
-                self.rec.add_event(t, "cut_in", nb.ids[j], self.ids[i], f"gap {gap[i]:.1f} m ahead of the member")
+            if active[i] and j in moved and gap[i] < self.min_gap + self.time_gap * v_m[i]:
+                self.rec.add_event(t, "cut_in", nb.ids[j], member, f"gap {gap[i]:.1f} m ahead of the member")
 
 
 class ReferenceEmergencyWatch:
-    """EmergencyWatch as it was."""
+    """EmergencyWatch without its shortcut: every step, who brakes hard now against before."""
 
     def __init__(self, rec, ids):
-        self.rec, self.ids = rec, list(ids)
-        self.on = np.zeros(len(self.ids) + 1, dtype=bool)
+        self.rec, self.who = rec, [*ids, "vc"]
+        self.on = np.zeros(len(self.who), dtype=bool)
 
     def __call__(self, t, info):
-        members, vc = info["emergency_members"], info["emergency"]
-        if not (vc or self.on[-1] or members.any() or self.on.any()):
-            return
-        now = np.append(members, vc)
-        n = len(self.ids)
+        now = np.append(info["emergency_members"], info["emergency"])
+        a = np.append(info["a_cap_request"], info["a_request"])
         for i in np.flatnonzero(now != self.on):
-            who = "vc" if i == n else self.ids[i]
-            a = info["a_request"] if i == n else info["a_cap_request"][i]
-            if now[i]:
-                self.rec.add_event(t, "emergency_brake", who, "", f"braking request {-a:.2f} m/s^2")
-            else:
-                self.rec.add_event(t, "emergency_end", who, "", "back within comfortable braking")
+            start = ("emergency_brake", f"braking request {-a[i]:.2f} m/s^2")
+            end = ("emergency_end", "back within comfortable braking")
+            kind, detail = start if now[i] else end
+            self.rec.add_event(t, kind, self.who[i], "", detail)
         self.on = now
 
 
