@@ -323,11 +323,12 @@ def _full_placement(self, t, gap_sumo, n_off=None):
 
 
 def _full_lane_changes(self, t, idx_act, present, lanes, lane_idx):
-    """sim/events.py MemberWatch.lane_changes as it was."""
+    """sim/events.py MemberWatch.lane_changes without its shortcut: the loop over every member."""
     prev, ids, seen = self.lanes.prev, self.ids, self.lanes.lane
     for j, i in enumerate(idx_act):
         if present[j] and seen.get(ids[i]) == lanes[j] and self.lane_prev[i] == lane_idx[j]:
             continue
+        self.lanes.version += 1
         if present[j]:
             seen[ids[i]] = lanes[j]
         if present[j] and self.lane_prev[i] >= 0 and lane_idx[j] != self.lane_prev[i] \
