@@ -123,8 +123,8 @@ def reference_lane_xy(lane, pos, lat):
 
 
 def test_lane_shape_points_equal_the_numpy_ones_bit_for_bit():
-    """The per-member lane point of sim/sumo_world.py sumo_gap, on curved and real lanes
-    (positions before, on, between and past the shape points; lateral offsets both ways)."""
+    """The per-member lane point of sumo_gap (sim/sumo_sense.py lane_point has its arithmetic),
+    on curved and real lanes (positions before, on, between and past the shape points; lateral offsets both ways)."""
     import sumolib
     rng = np.random.default_rng(3)
     nets = [ROOT / "sumo_nets" / "curved3.net.xml", ROOT / "sumo_nets" / "lanedrop.net.xml"]
