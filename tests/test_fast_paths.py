@@ -297,46 +297,20 @@ def test_compiled_neighbour_sense_equals_the_numpy_one_whatever_the_guess():
     assert used > 20  # last step's s was the guess of many of them
 
 
-def _full_track_lanes(self, ids, lanes, lane_index, lat):
-    """sim/sumo_adapter.py _track_lanes as it was: the loop over every member each step."""
-    member_lane, overlap, window_lane = self._member_lane, self._overlap, self._window_lane
-    for vid, lane, li, lt in zip(ids, lanes, lane_index, lat):
-        member_lane[vid] = (lane, li, lt)
-        other = self._overlapped_lane(lane, li, lt, self.members[vid].width)
-        if other is not None:
-            overlap[vid] = other
-        elif overlap:
-            overlap.pop(vid, None)
-        if window_lane.get(vid) != lane:
-            self._advance_route_window(vid, lane)
+def _without_shortcut(method):
+    """``method`` with the state its shortcut keys on forgotten first: its full loop every step."""
+    def full(self, *args):
+        self._settled = None
+        return method(self, *args)
+    return full
 
 
-def _full_placement(self, t, gap_sumo, n_off=None):
-    """sim/events.py MemberWatch.placement as it was (the count of gaps over the tolerance
-    the compiled sense gives is not used)."""
-    off = gap_sumo > 0.1
-    new = off & ~self.mismatch
-    for i in (np.flatnonzero(new) if new.any() else ()):
-        self.rec.add_event(t, "placement_mismatch", self.ids[i], "",
-                           f"SUMO has the member {gap_sumo[i]:.2f} m from where the model put it")
-    self.mismatch = off
-
-
-def _full_lane_changes(self, t, idx_act, present, lanes, lane_idx):
-    """sim/events.py MemberWatch.lane_changes without its shortcut: the loop over every member."""
-    prev, ids, seen = self.lanes.prev, self.ids, self.lanes.lane
-    for j, i in enumerate(idx_act):
-        if present[j] and seen.get(ids[i]) == lanes[j] and self.lane_prev[i] == lane_idx[j]:
-            continue
-        self.lanes.version += 1
-        if present[j]:
-            seen[ids[i]] = lanes[j]
-        if present[j] and self.lane_prev[i] >= 0 and lane_idx[j] != self.lane_prev[i] \
-                and lanes[j].rsplit("_", 1)[0] == prev.get(ids[i], ("", -1))[0]:
-            self.rec.add_event(t, "lane_change", ids[i], "", f"{self.lane_prev[i]} -> {lane_idx[j]}")
-        if present[j]:
-            self.lane_prev[i] = lane_idx[j]
-            prev[ids[i]] = (lanes[j].rsplit("_", 1)[0], int(lane_idx[j]))
+def _placement_counting_itself(method):
+    """MemberWatch.placement without the count of gaps over the tolerance the compiled sense
+    gives: its own comparison every step."""
+    def full(self, t, gap_sumo, n_off=None):
+        return method(self, t, gap_sumo)
+    return full
 
 
 def test_member_read_shortcuts_record_what_the_full_loops_record(tmp_path, monkeypatch):
@@ -375,9 +349,9 @@ def test_member_read_shortcuts_record_what_the_full_loops_record(tmp_path, monke
         fast = run("fast")
     assert 0 < calls["full"] < calls["reads"] * 3  # 3 members: most reads took the shortcut
     with monkeypatch.context() as m:
-        m.setattr(sumo_adapter.SumoAdapter, "_track_lanes", _full_track_lanes)
-        m.setattr(events.MemberWatch, "placement", _full_placement)
-        m.setattr(events.MemberWatch, "lane_changes", _full_lane_changes)
+        m.setattr(sumo_adapter.SumoAdapter, "_track_lanes", _without_shortcut(fast_track))
+        m.setattr(events.MemberWatch, "placement", _placement_counting_itself(events.MemberWatch.placement))
+        m.setattr(events.MemberWatch, "lane_changes", _without_shortcut(events.MemberWatch.lane_changes))
         full = run("full")
     assert fast.keys() == full.keys() and len(fast) >= 4
     for name, table in fast.items():  # NaN included, bit for bit
