@@ -11,10 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from formation_traci.control.formation import LeaderState
 from formation_traci.record.columns import SIGNAL_COLUMNS
 from formation_traci.sim import recorder as recorder_module
 from formation_traci.sim.events import EmergencyWatch, LaneTracker, MemberWatch, TrafficWatch
-from formation_traci.sim.recorder import MAX_SLIP, LeaderRow, Recorder
+from formation_traci.sim.recorder import MAX_SLIP, Recorder
 from formation_traci.sim.sumo_types import Neighbours
 
 IDS = ["m0", "m1", "m2", "m3"]
@@ -71,8 +72,7 @@ def _record(tmp_path, name, steps, fast, cut):
         else:
             rec.add_signal_rows(t, sig.copy(), extra, mask=mask)
             rec.add_comfort_rows(t, sig, mask=mask)
-            x, y, theta, v, omega, v_dot, _, s = (float(q) for q in truth)
-            rec.add_vc(t, LeaderRow(x, y, theta, v, omega, v_dot), s=s)
+            rec.add_vc(t, LeaderState(*(float(q) for q in truth[:7])), s=float(truth[7]))
             rec.add_comfort_periods([t + j * 0.01 for j in range(1, PERIODS)], per[1:], mask=mask)
         if cut:
             rec.end_step(k, t)
@@ -232,8 +232,7 @@ def _straightforward(monkeypatch):
         assert not written
         self.add_signal_rows(t, sig, extra, mask=mask)
         self.add_comfort_rows(t, sig, mask=mask)
-        x, y, theta, v, omega, v_dot, _, s = (float(q) for q in truth)
-        self.add_vc(t, LeaderRow(x, y, theta, v, omega, v_dot), s=s)
+        self.add_vc(t, LeaderState(*(float(q) for q in truth[:7])), s=float(truth[7]))
 
     def add_periods(self, t, dt, vals, mask=None, written=False):
         assert not written

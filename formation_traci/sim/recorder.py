@@ -3,10 +3,10 @@ from __future__ import annotations
 
 from operator import itemgetter
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
+from ..control.formation import LeaderState
 from ..record.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, EVENT_COLUMNS, FILLED_BY_CALLER,
                               SIGNAL_COLUMNS, TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID)
 from ..record.writer import ChunkedTable
@@ -25,18 +25,6 @@ MAX_SPEED = 60.0
 """Speeds above this are outside anything the parameters were meant for [m/s]."""
 
 _VC_COLUMNS = ("t", "x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "s", "d")
-
-
-class LeaderRow(NamedTuple):
-    """What :meth:`Recorder.add_vc` reads of the virtual car (control/formation.py
-    LeaderState's fields) [m, m, rad, m/s, rad/s, m/s^2]."""
-
-    x: float
-    y: float
-    theta: float
-    v: float
-    omega: float
-    v_dot: float
 
 
 class Recorder:
@@ -240,8 +228,8 @@ class Recorder:
                     or self.signal_rows(mask) is None):
                 self.add_signal_rows(t, sig, extra, mask)
                 self.add_comfort_rows(t, sig, mask)
-                x, y, theta, v, omega, v_dot, _, s = truth.tolist()
-                self.add_vc(t, LeaderRow(x, y, theta, v, omega, v_dot), s)
+                vc = truth.tolist()
+                self.add_vc(t, LeaderState(*vc[:7]), vc[7])
                 return
             self._sig_block[:, at:e] = sig.T
             blk[0, at:e] = t
