@@ -37,21 +37,16 @@ class MemberWatch:
     def removed(self, t, i):
         self.rec.add_event(t, "member_removed", self.ids[i], "", "SUMO no longer has the member")
 
-    def placement(self, t, gap_sumo, n_off=None):
-        """``n_off``: how many gaps exceed PLACEMENT_TOLERANCE, when already counted."""
-        if n_off == 0:  # every member where the model put it (the usual step)
-            if self._off:
-                self.mismatch, self._off = gap_sumo > PLACEMENT_TOLERANCE, False
-            return
+    def placement(self, t, gap_sumo, n_off: int):
+        """``n_off``: how many gaps exceed PLACEMENT_TOLERANCE (sim/sumo_sense.py counts them)."""
+        if n_off == 0 and not self._off:
+            return  # every member where the model put it, now and at the last read (the usual step)
         off = gap_sumo > PLACEMENT_TOLERANCE
-        if not off.any():
-            self.mismatch, self._off = off, False
-            return
         new = off & ~self.mismatch
         for i in (np.flatnonzero(new) if new.any() else ()):
             self.rec.add_event(t, "placement_mismatch", self.ids[i], "",
                                f"SUMO has the member {gap_sumo[i]:.2f} m from where the model put it")
-        self.mismatch, self._off = off, True
+        self.mismatch, self._off = off, n_off > 0
 
     def lane_changes(self, t, idx_act, present, lanes, lane_idx):
         every = len(idx_act) == len(self.ids) and present.all()
