@@ -131,6 +131,8 @@ def meet(me: str, other: str) -> float:
     t0 = time.perf_counter()
     Path(d, me).touch()
     while not Path(d, other).exists():
+        if time.perf_counter() - t0 > 600.0:  # the partner failed before it was ready
+            raise RuntimeError(f"{other} not ready after 600 s")
         time.sleep(0.001)
     return time.perf_counter() - t0
 
