@@ -22,6 +22,7 @@ from formation_traci.road.bernstein import ball_tree, clearance, hermite_bpoly
 from formation_traci.road.fast_line import LEAF_SIZE, WINDOW
 from formation_traci.road.geometry import ReferenceLine
 from formation_traci.road.lanes import LaneShapes
+from formation_traci.sim.events import PLACEMENT_TOLERANCE
 from formation_traci.sim.sumo_types import cog_to_sumo, cog_to_sumo_rows, sumo_to_cog, sumo_to_cog_rows
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -308,8 +309,9 @@ def _without_shortcut(method):
 def _placement_counting_itself(method):
     """MemberWatch.placement without the count of gaps over the tolerance the compiled sense
     gives: its own comparison every step."""
-    def full(self, t, gap_sumo, n_off=None):
-        return method(self, t, gap_sumo)
+    def full(self, t, gap_sumo, n_off):
+        self._off = True  # the state its shortcut keys on forgotten: the full comparison
+        return method(self, t, gap_sumo, int(np.count_nonzero(gap_sumo > PLACEMENT_TOLERANCE)))
     return full
 
 
