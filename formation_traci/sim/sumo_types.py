@@ -114,9 +114,10 @@ class MemberType:
     ssm_device: bool = False  # SUMO's SSM device on members of this type (sumo.ssm = "members")
 
 
-@dataclass
+@dataclass(frozen=True)
 class StepEvents:
-    """What SUMO reported during one step (ids are SUMO vehicle ids)."""
+    """What SUMO reported during one step (ids are SUMO vehicle ids). Frozen: a quiet step
+    returns one shared instance (sim/sumo_adapter.py ``step``)."""
 
     collisions: list[tuple[str, str, str]] = field(default_factory=list)  # (collider, victim, lane)
     teleports: list[str] = field(default_factory=list)
