@@ -58,7 +58,7 @@ def scene(rng, n, k):
     return (m_s, m_d, v_m, active, nb_s - 2.5, nb_d, np.full(k, 0.9), rng.uniform(10, 35, k))
 
 
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", [pytest.param(0, marks=pytest.mark.jit_off), 1, 2, 3])  # 0: also as plain Python
 def test_fused_reference_step_equals_the_laws_composed(seed):
     rng = np.random.default_rng(seed)
     G = packed(reference_line_from_net(net_path("curved3"), ["entry", "main"], 1))
