@@ -252,12 +252,7 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         lane ``lane_id``, body ``width`` [m]), or None."""
         if not lane_id or lane_id.startswith(":"):
             return None
-        geo = self._lane_geometry.get(lane_id)
-        if geo is None:
-            edge = lane_id.rsplit("_", 1)[0]
-            geo = self._lane_geometry[lane_id] = (self.api.lane.getWidth(lane_id),
-                                                  self.api.edge.getLaneNumber(edge), edge)
-        lane_w, n_lanes, edge = geo
+        lane_w, n_lanes, edge = self._lane_geo(lane_id)
         if abs(lat) + width / 2 <= lane_w / 2:
             return None
         other = lane_index + (1 if lat > 0 else -1)
@@ -364,8 +359,16 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         """Half the width of a lane [m] for :meth:`_track_lanes` (inf: never overlapped)."""
         if not lane_id or lane_id.startswith(":"):
             return np.inf
-        self._overlapped_lane(lane_id, 0, 0.0, 0.0)  # caches its geometry
-        return self._lane_geometry[lane_id][0] / 2
+        return self._lane_geo(lane_id)[0] / 2
+
+    def _lane_geo(self, lane_id: str) -> tuple[float, int, str]:
+        """A lane's width [m], its edge's number of lanes and the edge id (read once)."""
+        geo = self._lane_geometry.get(lane_id)
+        if geo is None:
+            edge = lane_id.rsplit("_", 1)[0]
+            geo = self._lane_geometry[lane_id] = (self.api.lane.getWidth(lane_id),
+                                                  self.api.edge.getLaneNumber(edge), edge)
+        return geo
 
     def remove_vehicle(self, vid: str) -> None:
         """Take a vehicle out of SUMO. Its subscriptions are dropped first: libsumo 1.28 raises
