@@ -7,11 +7,13 @@ scenarios/thesis/dynamic_case4_straight.toml; SUMO: scenarios/highway/straight_3
 without warm-up), timed from before the process is spawned to its exit. *Cold*: numba's
 on-disk cache (NUMBA_CACHE_DIR) and the road cache (sim/road_cache.py, below it) empty, so
 every kernel compiles and the reference line is fitted; *warm*: the same cache directory again
-(kernels and line loaded from disk). Prints one line per case (median of --repeat warm runs)
-and whether the compile notice was printed; then, for the warm runs, the time to the end of
-the run (the one step run, recorded and SUMO closed; what is left is the interpreter's exit)
-and the CPU time of the process (user + system: less sensitive to other load on a shared
-machine than wall-clock time).
+(kernels and line loaded from disk). Python writes and reads its bytecode (``__pycache__``,
+as an installed package has it; PYTHONDONTWRITEBYTECODE is dropped for the child: without
+bytecode every module of the package is compiled from source, ~0.1-0.2 s of every start).
+Prints one line per case (median of --repeat warm runs) and whether the compile notice was
+printed; then, for the warm runs, the time to the end of the run (the one step run, recorded
+and SUMO closed; what is left is the interpreter's exit) and the CPU time of the process
+(user + system: less sensitive to other load on a shared machine than wall-clock time).
 """
 from __future__ import annotations
 
@@ -47,6 +49,7 @@ def once(path: str, extra: dict, cache_dir: str, root: Path = ROOT) -> tuple[flo
     """(wall time to exit [s], stderr, wall time to the end of the run [s], CPU time [s])."""
     env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir, PYTHONPATH=str(root))
     env.pop("FORMATION_TRACI_CACHE", None)  # the road cache below NUMBA_CACHE_DIR
+    env.pop("PYTHONDONTWRITEBYTECODE", None)  # bytecode as in an installed package
     cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t_start = time.time()
     t0 = time.perf_counter()
