@@ -130,6 +130,18 @@ def test_the_cache_directory(monkeypatch, tmp_path):
         assert road_cache.cache_dir() == tmp_path / "xdg" / "formation-traci"
 
 
+def test_the_oldest_entries_beyond_the_limit_are_dropped(cache, monkeypatch):
+    monkeypatch.setattr(road_cache, "MAX_ENTRIES", 2)
+    cache.mkdir()
+    for i in range(3):
+        old = cache / f"road-old{i}.npz"
+        old.write_bytes(b"x")
+        os.utime(old, ns=(10 ** 9 * (i + 1), 10 ** 9 * (i + 1)))
+    build_road(load_scenario(CURVED), CURVED)
+    assert sorted(p.name for p in cache.iterdir())[-1] == "road-old2.npz"
+    assert len(list(cache.iterdir())) == 2 and not (cache / "road-old0.npz").exists()
+
+
 def test_an_unwritable_cache_is_skipped(tmp_path, monkeypatch):
     blocker = tmp_path / "file"
     blocker.write_text("a file where the cache directory would be")

@@ -16,6 +16,7 @@ float64 arrays, so a run from a cached line is bit for bit the run from a fitted
 * **Safety**: written to a temporary file in the same directory and renamed into place
   (concurrent sweep processes writing the same entry are safe); an entry that cannot be read
   or does not match its key is ignored and rebuilt; a cache that cannot be written is skipped.
+* **Size**: at most :data:`MAX_ENTRIES` entries; writing one more drops the oldest.
 * **Clearing**: delete the directory (``road-*.npz`` files); nothing else lives there.
 """
 from __future__ import annotations
@@ -39,6 +40,8 @@ _CODE = ("road/geometry.py", "road/line_fit.py", "road/smoothing.py", "road/bern
          "sim/road_cache.py")
 """Modules whose source is part of the key (paths below the package)."""
 _CODE_DIGEST: list = []
+MAX_ENTRIES = 64
+"""Entries kept in the cache directory (a bundled route's entry is ~0.1-1 MB)."""
 
 
 def cache_dir() -> Path | None:
@@ -127,6 +130,7 @@ def store(key: str, lanes: list, line: ReferenceLine, G: np.ndarray, fit: dict) 
             np.savez(f, meta=np.array(json.dumps(meta)), G=G, **arrays)
         os.replace(tmp, path)
         tmp = None
+        _prune(path.parent)
     except OSError:
         pass
     finally:
@@ -135,3 +139,18 @@ def store(key: str, lanes: list, line: ReferenceLine, G: np.ndarray, fit: dict) 
                 os.unlink(tmp)
             except OSError:
                 pass
+
+
+def _prune(directory: Path) -> None:
+    """Drop the oldest entries beyond :data:`MAX_ENTRIES` (another process may drop them too)."""
+    entries = []
+    for p in directory.glob("road-*.npz"):
+        try:
+            entries.append((p.stat().st_mtime_ns, p))
+        except OSError:
+            pass
+    for _, p in sorted(entries)[:max(0, len(entries) - MAX_ENTRIES)]:
+        try:
+            p.unlink()
+        except OSError:
+            pass
