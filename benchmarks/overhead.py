@@ -17,6 +17,7 @@ Then the scaling with 1, 5, 20 and 50 members, and a 600 s versus 3600 s run for
     python benchmarks/overhead.py --no-ssm        # SUMO's SSM device off in every run
     python benchmarks/overhead.py --ssm-all       # SUMO's SSM device on every vehicle
     python benchmarks/overhead.py --edge-m 120000 # the motorway as one 120 km edge
+    python benchmarks/overhead.py --together      # formation and twin at once, one per core
 
 Pair i runs with seed ``--seed`` + i (formation, twin and bare of a pair share it). A formation
 run and its twin never see the same realisation of the random traffic (the queue behind the
@@ -121,17 +122,39 @@ def peak_rss_mb() -> float:
 
 
 # --------------------------------------------------------------------------- children
+def meet(me: str, other: str) -> float:
+    """--together: say ``me`` is ready and wait until ``other`` is (files in BENCH_BARRIER);
+    returns the seconds waited. No-op (0) when not run together."""
+    d = os.environ.get("BENCH_BARRIER")
+    if not d:
+        return 0.0
+    t0 = time.perf_counter()
+    Path(d, me).touch()
+    while not Path(d, other).exists():
+        time.sleep(0.001)
+    return time.perf_counter() - t0
+
+
 def child_formation(n, duration, flow_end, seed):
     from formation_traci.scenario import parse_scenario
     from formation_traci.sim.runner import run_scenario
     sc = parse_scenario(scenario(n, duration, flow_end, seed), "benchmark")
     out = Path(tempfile.mkdtemp(prefix="bench_"))
+    waited = []
+
+    def barrier(k, t, adapter):  # after SUMO's first step: both loops start together
+        if k == 0:
+            waited.append(meet("formation.ready", "twin.ready"))
+
     t0 = time.perf_counter()
-    res = run_scenario(sc, out / "run", progress=False)
+    res = run_scenario(sc, out / "run", progress=False, step_hook=barrier)
     total = time.perf_counter() - t0
     meta = json.loads((out / "run" / "run.json").read_text())
     timing = meta.get("timing_s", {})
+    timing["sumo_step"] = timing.get("sumo_step", 0.0) - sum(waited)  # the wait is no work
     loop = sum(timing.values())
+    total -= sum(waited)
+    keep_busy("formation.done", "twin.done")
     shutil.rmtree(out, ignore_errors=True)
     return {"status": res.status, "total_s": total, "loop_s": loop, "setup_s": total - loop,
             "timing_s": timing, "steps": res.steps_done, "peak_rss_mb": peak_rss_mb()}
@@ -167,17 +190,58 @@ def child_sumo(n, duration, flow_end, seed):
     t0 = time.perf_counter()
     routes = twin_routes(sc, out, duration, n)
     args = sumo_args(sc, long_net(), routes, out, duration + 1)
+    if os.environ.get("BENCH_BARRIER"):  # --together: SUMO may step on after the timed loop
+        args[args.index("--end") + 1] = repr(3 * duration + 10)
     adapter = SumoAdapter("libsumo")
     adapter.start(args)
+    waited = meet("twin.ready", "formation.ready")
     t1 = time.perf_counter()
     steps = int(round(duration / sc.run.step))
     for _ in range(steps):
         adapter.simulation_step()
     t2 = time.perf_counter()
+    keep_busy("twin.done", "formation.done", adapter.simulation_step)
+    t3 = time.perf_counter()
     adapter.close()
+    t4 = time.perf_counter()
     shutil.rmtree(out, ignore_errors=True)
-    return {"status": "completed", "total_s": time.perf_counter() - t0, "loop_s": t2 - t1,
-            "setup_s": t1 - t0, "steps": steps, "peak_rss_mb": peak_rss_mb()}
+    setup = t1 - t0 - waited  # the wait and the work after the timed loop are not the run's
+    return {"status": "completed", "total_s": setup + (t2 - t1) + (t4 - t3), "loop_s": t2 - t1,
+            "setup_s": setup, "steps": steps, "peak_rss_mb": peak_rss_mb()}
+
+
+def keep_busy(me: str, other: str, work=None) -> None:
+    """--together: say ``me`` is done, then keep working (``work()``: SUMO steps on; else a
+    Python loop) until ``other`` is done, so that the partner runs under the same load to
+    its end. No-op when not run together."""
+    d = os.environ.get("BENCH_BARRIER")
+    if not d:
+        return
+    Path(d, me).touch()
+    t_give_up = time.perf_counter() + 3600.0
+    while not Path(d, other).exists() and time.perf_counter() < t_give_up:
+        if work is not None:
+            work()
+        else:
+            sum(range(20000))
+
+
+def spawn_together(n: int, duration: float, seed: int) -> tuple[dict, dict]:
+    """The formation and its twin at the same time, one per core, their loops started
+    together (the machine's speed drifts by tens of percent within minutes; run together,
+    both see the same drift)."""
+    with tempfile.TemporaryDirectory(prefix="bench_barrier_") as d:
+        env = dict(os.environ, BENCH_BARRIER=d)
+        procs = [subprocess.Popen([sys.executable, __file__, "--child", kind, str(n), str(duration),
+                                   "None", str(seed)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                  text=True, env=env) for kind in ("formation", "sumo")]
+        out = []
+        for kind, p in zip(("formation", "twin"), procs):
+            so, se = p.communicate()
+            if p.returncode != 0:
+                raise RuntimeError(f"{kind} child failed:\n{se[-3000:]}")
+            out.append(json.loads(so.strip().splitlines()[-1]))
+    return out[0], out[1]
 
 
 def spawn(kind: str, n: int, duration: float, flow_end: float | None, seed: int) -> dict:
@@ -206,6 +270,9 @@ def main() -> None:
                          "SUMO's time and memory); default: on the members only (sumo.ssm = members)")
     ap.add_argument("--edge-m", type=float, default=1000.0,
                     help="length of one edge of the 120 km motorway [m] (120000: a single edge)")
+    ap.add_argument("--together", action="store_true",
+                    help="run each pair's formation and twin at the same time, one per core, their "
+                         "loops started together (cancels the machine's drift; needs 2 idle cores)")
     ap.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
@@ -226,7 +293,15 @@ def main() -> None:
     form, twin, bare = [], [], []
     for i in range(a.pairs):
         seed = a.seed + i  # a pair shares its seed; pairs differ (see RESULTS.md: traffic realisations)
-        order = [("formation", form), ("twin", twin)] if i % 2 == 0 else [("twin", twin), ("formation", form)]
+        if a.together:
+            f, t = spawn_together(5, a.duration, seed)
+            form.append(f)
+            twin.append(t)
+            for kind, r in (("formation", f), ("twin", t)):
+                print(f"  pair {i + 1} (seed {seed}) {kind:9s} loop {r['loop_s']:7.2f} s  setup {r['setup_s']:5.2f} s  "
+                      f"peak {r['peak_rss_mb']:6.0f} MB  (together)")
+        order = [] if a.together else (
+            [("formation", form), ("twin", twin)] if i % 2 == 0 else [("twin", twin), ("formation", form)])
         for kind, bucket in order:
             r = spawn("formation" if kind == "formation" else "sumo", 5 if kind != "bare" else 0,
                       a.duration, None, seed)

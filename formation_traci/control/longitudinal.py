@@ -58,6 +58,12 @@ class PlannerParams:
     """A lifted cap this far above the member's acceleration no longer binds: it goes [m/s^2]
     (above the speed loop's lag behind a cap rising at jerk_max, ~0.1 m/s^2)."""
 
+    def packed(self) -> np.ndarray:
+        """(tau, jerk_max, jerk_emergency, decel_comfort, tau_speed_cap, lift_margin) for
+        :func:`plan_step`."""
+        return np.array([self.tau, self.jerk_max, self.jerk_emergency, self.decel_comfort,
+                         self.tau_speed_cap, self.lift_margin])
+
 
 @kernel
 def plan_accel(a_prev, a_request, dt, tau, jerk_max, jerk_emergency, decel_comfort):
@@ -101,11 +107,26 @@ def plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, tau, jerk_max, j
                                                 decel_comfort)
 
 
+@kernel
+def plan_step(a_vc_prev, a_request, a_cap_prev, v_cap, a_cap, v_member, a_member, dt, pp, a_out,
+              emergency):
+    """One step of the whole planner: the virtual car's acceleration (:func:`plan_accel`,
+    returned with its emergency flag) and the members' caps (:func:`plan_caps` into ``a_out``
+    and ``emergency``). ``pp``: the :class:`PlannerParams` as :meth:`PlannerParams.packed`."""
+    tau, jerk_max, jerk_emergency, decel_comfort = pp[0], pp[1], pp[2], pp[3]
+    a_vc, emergency_vc = plan_accel(a_vc_prev, a_request, dt, tau, jerk_max, jerk_emergency,
+                                    decel_comfort)
+    plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, tau, jerk_max, jerk_emergency,
+              decel_comfort, pp[4], pp[5], a_out, emergency)
+    return a_vc, emergency_vc
+
+
 class LongitudinalPlanner:
     """State of the planner over one run: the virtual car's acceleration and the members' caps."""
 
     def __init__(self, n: int, params: PlannerParams, a0: float = 0.0):
         self.p = params
+        self.pp = params.packed()
         self.a_vc = float(a0)
         self.emergency_vc = False
         self.v_cap = np.full(n, np.inf)  # never set: speed caps act through a_cap
@@ -113,15 +134,13 @@ class LongitudinalPlanner:
         self.emergency = np.zeros(n, dtype=np.bool_)
 
     def step(self, a_request: float, v_cap, a_cap, v_member, a_member, dt: float):
-        """One SUMO step: returns (a_vc, v_cap, a_cap), the smoothed references (the speed
-        caps are folded into the acceleration caps, so v_cap is all inf)."""
-        p = self.p
-        self.a_vc, self.emergency_vc = plan_accel(self.a_vc, float(a_request), float(dt), p.tau,
-                                                  p.jerk_max, p.jerk_emergency, p.decel_comfort)
+        """One SUMO step (:func:`plan_step`): returns (a_vc, v_cap, a_cap), the smoothed
+        references (the speed caps are folded into the acceleration caps, so v_cap is all inf).
+        The road reference (control/reference_road.py) runs the same kernel inside its step."""
         a_out = np.empty_like(self.a_cap)
-        plan_caps(self.a_cap, np.asarray(v_cap, np.float64), np.asarray(a_cap, np.float64),
-                  np.asarray(v_member, np.float64), np.asarray(a_member, np.float64), float(dt),
-                  p.tau, p.jerk_max, p.jerk_emergency, p.decel_comfort, p.tau_speed_cap,
-                  p.lift_margin, a_out, self.emergency)
+        self.a_vc, self.emergency_vc = plan_step(
+            self.a_vc, float(a_request), self.a_cap, np.asarray(v_cap, np.float64),
+            np.asarray(a_cap, np.float64), np.asarray(v_member, np.float64),
+            np.asarray(a_member, np.float64), float(dt), self.pp, a_out, self.emergency)
         self.a_cap = a_out
         return self.a_vc, self.v_cap, a_out

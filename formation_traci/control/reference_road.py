@@ -4,6 +4,7 @@ longitudinal planner (control/longitudinal.py), slots in road or vehicle frame.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,7 +12,7 @@ import numpy as np
 from ..kernels import kernel
 from ..road.leader import road_leader_at
 from .governor import column_caps, governor_step
-from .longitudinal import LongitudinalPlanner, PlannerParams
+from .longitudinal import LongitudinalPlanner, PlannerParams, plan_step
 from .reference import FRAME_ROAD, FRAME_VEHICLE, Reference, constant_slots, set_vc_period
 from .virtual_car import along_line_advance, knot_profile_at
 
@@ -27,6 +28,54 @@ def road_vc_rows(G, s, v, a, dt_c, vc):
     return s, v
 
 
+@kernel(error_model="python")
+def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, half_w,
+                        m_s, m_d, v_m, active, nb_rear, nb_d, nb_half_w, nb_v, lim, pp,
+                        a_vc_prev, a_cap_prev, v_prev, has_prev, emergency, dt_c, vc):
+    """One step of the road reference in one compiled call: the governor over the members and
+    their neighbours (:func:`governor_step`, :func:`column_caps`; slot ``along`` the line
+    ahead of the virtual car at ``s`` [m], across it ``slot_d_road`` [m] for road-frame slots,
+    the member's own ``m_d`` otherwise), its request capped by ``a_limit`` [m/s^2] (inf: none;
+    a maneuver's room-making deceleration), the jerk-limited planner (:func:`plan_step`;
+    members not in the run get no caps) and the virtual car's rows into ``vc``
+    (:func:`road_vc_rows`, control period ``dt_c`` [s]). ``lim``: :meth:`GovernorLimits.packed`;
+    ``pp``: :meth:`PlannerParams.packed`. The members' acceleration is their mean over the
+    previous step (``v_prev`` [m/s], updated in place; zero at the first step, ``has_prev``
+    False). One call instead of six: issue 18.
+
+    Returns (a_request, a_vc, emergency_vc, s_next, v_next, gap, lead_idx, a_cap_request,
+    a_cap); ``a_cap_prev`` and ``emergency`` are the planner's state, updated in place."""
+    n = m_s.shape[0]
+    slot_d = np.where(is_road, slot_d_road, m_d)
+    v_set, v_set_dot = knot_profile_at(prof, 0, t)
+    slot_s = s + along
+    a_gov, gap, lead_idx, v_cap, a_cap_req = governor_step(
+        m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v, v_set, v_set_dot,
+        nb_rear, nb_d, nb_half_w, nb_v, lim[0], lim[1], lim[2], lim[3])
+    v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
+    a_request = a_limit if a_limit < a_gov else a_gov  # Python's min(a_gov, a_limit)
+    dt = dt_c * vc.shape[0]
+    a_cap_in = a_cap_req.copy()
+    for i in range(n):
+        if not active[i]:
+            v_cap[i] = np.inf
+            a_cap_in[i] = np.inf
+    a_m = np.zeros(n)
+    if has_prev:
+        for i in range(n):
+            a_m[i] = (v_m[i] - v_prev[i]) / dt
+    v_prev[:] = v_m
+    a_cap = np.empty(n)
+    a_vc, emergency_vc = plan_step(a_vc_prev, a_request, a_cap_prev, v_cap, a_cap_in, v_m, a_m,
+                                   dt, pp, a_cap, emergency)
+    for i in range(n):
+        if not active[i]:  # a cap being eased out goes with its member
+            a_cap[i] = np.inf
+    a_cap_prev[:] = a_cap
+    s_next, v_next = road_vc_rows(G, s, v, a_vc, dt_c, vc)
+    return a_request, a_vc, emergency_vc, s_next, v_next, gap, lead_idx, a_cap_req, a_cap
+
+
 @dataclass(frozen=True)
 class GovernorLimits:
     """The governor's settings (scenario [leader], capped by the road's adhesion)."""
@@ -36,6 +85,10 @@ class GovernorLimits:
     accel_max: float  # [m/s^2]
     decel_max: float  # comfortable [m/s^2]
     decel_emergency: float  # [m/s^2]
+
+    def packed(self) -> np.ndarray:
+        """(time_gap, min_gap, accel_max, decel_emergency) for :func:`road_reference_step`."""
+        return np.array([self.time_gap, self.min_gap, self.accel_max, self.decel_emergency])
 
 
 class RoadReference:
@@ -49,66 +102,49 @@ class RoadReference:
         self.is_road = np.asarray(is_road, dtype=bool)
         self.frame = np.where(self.is_road, FRAME_ROAD, FRAME_VEHICLE).astype(np.int64)
         offsets = np.where(self.is_road[:, None], np.nan_to_num(slots), np.nan_to_num(rigid))
-        self.slot_d = np.nan_to_num(np.asarray(slots, float)[:, 1])
-        self.along = offsets[:, 0]  # slot ahead of the virtual car [m]
+        self.slot_d = np.ascontiguousarray(np.nan_to_num(np.asarray(slots, float)[:, 1]))
+        self.along = np.ascontiguousarray(offsets[:, 0])  # slot ahead of the virtual car [m]
         self.slots = constant_slots(offsets, n_ctrl)
         self.s, self.v = float(s0), float(v0)
         self.prof = speed_profile.packed()
-        # d_front: CoG to front bumper [m], one or one per member (a mixed formation)
-        self.limits, self.half_w, self.d_front = limits, half_w, np.asarray(d_front, float)
+        # half_w [m], d_front (CoG to front bumper) [m]: one or one per member (a mixed formation)
+        n = len(self.frame)
+        self.limits = limits
+        self.lim = limits.packed()
+        self.half_w = np.broadcast_to(np.asarray(half_w, float), (n,)).copy()
+        self.d_front = np.broadcast_to(np.asarray(d_front, float), (n,)).copy()
         self.end_margin = float(end_margin)
         self.dt_c, self.n_ctrl = float(dt_c), int(n_ctrl)
         self._next = None
         self.longitudinal = LongitudinalPlanner(len(self.frame), PlannerParams(decel_comfort=limits.decel_max))
-        self._v_prev = None  # members' speed at the previous step [m/s]
+        self._v_prev = np.zeros(len(self.frame))  # members' speed at the previous step [m/s]
+        self._has_prev = False
 
-    def governor(self, t: float, sensed):
-        """(a_vc, gap, lead index, v_cap, a_cap) from the members' and neighbours' road
-        coordinates (control/governor.py); members of one column share the tightest caps
-        ahead of them (``column_caps``)."""
-        lim = self.limits
-        slot_d = np.where(self.is_road, self.slot_d, sensed.m_d)
-        v_set, v_set_dot = knot_profile_at(self.prof, 0, float(t))
-        df = self.d_front
-        slot_s = self.s + self.along
-        a_vc, gap, lead_idx, v_cap, a_cap = governor_step(
-            sensed.m_s + df, sensed.m_d, slot_s + df, slot_d, self.half_w,
-            sensed.v_m, sensed.active, self.v, v_set, v_set_dot, sensed.nb_rear, sensed.nb_d,
-            sensed.nb_half_w, sensed.nb_v, lim.time_gap, lim.min_gap, lim.accel_max,
-            lim.decel_emergency)
-        v_cap, a_cap = column_caps(slot_s, slot_d, self.half_w, sensed.active, v_cap, a_cap)
-        return a_vc, gap, lead_idx, v_cap, a_cap
+    def request_limit(self, t: float, sensed) -> float:
+        """An upper bound on the virtual car's requested acceleration [m/s^2] for the step
+        starting at t [s] (inf: none); a maneuver's generator bounds it and moves the slots."""
+        return math.inf
 
     def reference(self, t: float, sensed) -> Reference:
-        """The reference of the step starting at t [s]."""
-        a_request, gap, lead_idx, v_cap_req, a_cap_req = self.governor(t, sensed)
-        a_vc, v_cap, a_cap = self.smooth(sensed, a_request, v_cap_req, a_cap_req)
+        """The reference of the step starting at t [s] (:func:`road_reference_step`)."""
+        a_limit = self.request_limit(t, sensed)
+        pl = self.longitudinal
         vc = np.empty((self.n_ctrl, len(self.frame), 8))
-        self._next = road_vc_rows(self.G, self.s, self.v, a_vc, self.dt_c, vc)
+        (a_request, pl.a_vc, pl.emergency_vc, s_next, v_next, gap, lead_idx, a_cap_req,
+         a_cap) = road_reference_step(
+            self.G, self.prof, float(t), self.s, self.v, a_limit, self.along, self.slot_d,
+            self.is_road, self.d_front, self.half_w, sensed.m_s, sensed.m_d, sensed.v_m,
+            sensed.active, sensed.nb_rear, sensed.nb_d, sensed.nb_half_w, sensed.nb_v, self.lim,
+            pl.pp, pl.a_vc, pl.a_cap, self._v_prev, self._has_prev, pl.emergency, self.dt_c, vc)
+        self._has_prev = True
+        self._next = (s_next, v_next)
         truth = vc[0, 0].copy()  # period 0: road_leader_at(G, s, v, a_vc) and s
-        return Reference(float(t), self.dt_c, vc, self.slots, self.frame, sensed.active, v_cap,
+        return Reference(float(t), self.dt_c, vc, self.slots, self.frame, sensed.active, pl.v_cap,
                          a_cap, line=self.G, truth=truth,
-                         info={"a_vc": a_vc, "gap": gap, "lead_idx": lead_idx,
+                         info={"a_vc": pl.a_vc, "gap": gap, "lead_idx": lead_idx,
                                "a_request": a_request, "a_cap_request": a_cap_req,
-                               "emergency": self.longitudinal.emergency_vc,
-                               "emergency_members": self.longitudinal.emergency.copy()})
-
-    def smooth(self, sensed, a_request, v_cap, a_cap):
-        """The governor's requests through the jerk-limited planner (control/longitudinal.py):
-        (a_vc [m/s^2], v_cap [m/s] (all +inf: folded into a_cap), a_cap [m/s^2]). The members'
-        acceleration is their mean over the previous step. Members not (or no longer) in the
-        run get no caps (and so no emergency)."""
-        dt = self.dt_c * self.n_ctrl
-        off = ~np.asarray(sensed.active, dtype=bool)
-        if off.any():
-            v_cap, a_cap = np.where(off, np.inf, v_cap), np.where(off, np.inf, a_cap)
-        v_m = np.asarray(sensed.v_m, dtype=float)
-        a_m = np.zeros(len(v_m)) if self._v_prev is None else (v_m - self._v_prev) / dt
-        self._v_prev = v_m.copy()
-        a_vc, v_cap, a_cap = self.longitudinal.step(a_request, v_cap, a_cap, v_m, a_m, dt)
-        if off.any():  # a cap being eased out goes with its member
-            a_cap[off] = np.inf
-        return a_vc, v_cap, a_cap
+                               "emergency": pl.emergency_vc,
+                               "emergency_members": pl.emergency.copy()})
 
     def commit(self) -> None:
         self.s, self.v = (float(q) for q in self._next)

@@ -115,6 +115,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             rec.add_vc(t, ref.leader(), s=float(ref.truth[7]))
             clock.lap("record")
             yield k, t
+            clock.lap("record")  # the caller's share: the step's end, part files, progress (sim/runner.py)
             if k == n_steps:
                 return
             stop = gen.stop_reason(t) or world.stop_reason(t)

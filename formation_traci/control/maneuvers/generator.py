@@ -14,6 +14,8 @@ into the step's Reference.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..governor import LATERAL_MARGIN, time_gap_accel
@@ -90,7 +92,10 @@ class ManeuverRoadReference(RoadReference):
         # (where = (s, d, v)) member i's own vehicle enters the road under the world's driver
         self.on_join = on_join
 
-    def governor(self, t: float, sensed):
+    def request_limit(self, t: float, sensed) -> float:
+        """The maneuver planner's step (its events; the slots of this step), then the
+        room-making deceleration towards the next goal [m/s^2] (:func:`room_accel`; inf when
+        there is no goal or nobody near)."""
         others = NO_OTHERS
         nb = sensed.nb
         if nb is not None and len(nb.ids):
@@ -106,18 +111,16 @@ class ManeuverRoadReference(RoadReference):
             else:
                 self.on_event(t, ev.kind, "vc", "", ev.detail)
         now = self.planner.slots(t)
-        self.along, self.slot_d = now[:, 0], now[:, 1]
+        self.along, self.slot_d = np.ascontiguousarray(now[:, 0]), np.ascontiguousarray(now[:, 1])
         sensed.extra["slot"] = self.planner.slot_of.astype(float)
-        a_vc, gap, lead_idx, v_cap, a_cap = super().governor(t, sensed)
         p = self.longitudinal.p
         lead = room_lookahead(p.tau, p.jerk_max)
         goal = self.planner.goal_ahead(t, self.s, self.v, sensed.active, lead)
         nb = sensed.nb
-        if goal is not None and nb is not None and len(nb.ids):
-            lim = self.limits
-            a_room = room_accel(goal, self.s + self.d_front, self.v, self.half_w,
+        if goal is None or nb is None or not len(nb.ids):
+            return math.inf
+        lim = self.limits
+        return float(room_accel(goal, self.s + self.d_front, self.v, self.half_w,
                                 self.body_length, sensed.active, sensed.nb_rear, sensed.nb_d,
                                 sensed.nb_half_w, nb.length, sensed.nb_v, lim.time_gap,
-                                lim.min_gap, lead)
-            a_vc = min(a_vc, a_room)
-        return a_vc, gap, lead_idx, v_cap, a_cap
+                                lim.min_gap, lead))
