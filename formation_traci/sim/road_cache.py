@@ -128,6 +128,7 @@ def store(key: str, lanes: list, line: ReferenceLine, G: np.ndarray, fit: dict) 
                                          delete=False) as f:
             tmp = f.name
             np.savez(f, meta=np.array(json.dumps(meta)), G=G, **arrays)
+        os.chmod(tmp, 0o644)  # as numba's cache files (a temporary file is private)
         os.replace(tmp, path)
         tmp = None
         _prune(path.parent)
