@@ -280,6 +280,11 @@ class ChunkedTable:
     def rows_buffered(self) -> int:
         return self._n
 
+    @property
+    def news(self) -> bool:
+        """True when a part was completed since the last :meth:`written_up_to`."""
+        return bool(self._done)
+
 
 def _storage_dtype(c: Column) -> str:
     return "int32" if c.dtype == "string" else c.dtype

@@ -20,6 +20,7 @@ class LaneTracker:
     def __init__(self):
         self.prev: dict[str, tuple[str, int]] = {}
         self.lane: dict[str, str] = {}  # lane id last seen: the same lane means nothing to do
+        self.version = 0  # counts the member watch's writes (TrafficWatch's check that it saw all)
 
 
 class MemberWatch:
@@ -47,6 +48,7 @@ class MemberWatch:
         for j, i in enumerate(idx_act):
             if present[j] and seen.get(ids[i]) == lanes[j] and self.lane_prev[i] == lane_idx[j]:
                 continue  # on the lane it was on: nothing changes
+            self.lanes.version += 1
             if present[j]:
                 seen[ids[i]] = lanes[j]
             if present[j] and self.lane_prev[i] >= 0 and lane_idx[j] != self.lane_prev[i] \
@@ -78,8 +80,12 @@ class TrafficWatch:
     def __init__(self, rec, ids, lanes: LaneTracker, time_gap: float, min_gap: float):
         self.rec, self.ids, self.lanes = rec, ids, lanes
         self.time_gap, self.min_gap = time_gap, min_gap
+        self._last = ([], [], -1)  # vehicles and lanes of the last call, lanes.version after it
 
     def __call__(self, t, nb, lead_idx, gap, v_m, active):
+        ids, lanes, version = self._last
+        if nb.lane_ids == lanes and nb.ids == ids and self.lanes.version == version:
+            return  # the vehicles of the last call on their lanes, nobody else wrote: no change
         changed = set()
         prev, seen = self.lanes.prev, self.lanes.lane
         for j, (vid, lane) in enumerate(zip(nb.ids, nb.lane_ids)):
@@ -93,6 +99,9 @@ class TrafficWatch:
                 self.rec.add_event(t, "lane_change", vid, "", f"{old[1]} -> {li}")
                 changed.add(j)
             prev[vid] = (edge, li)
+        self._last = (list(nb.ids), list(nb.lane_ids), self.lanes.version)
+        if not changed:
+            return
         for i in np.flatnonzero(active):
             j = lead_idx[i]
             if j >= 0 and j in changed and gap[i] < self.min_gap + self.time_gap * v_m[i]:
@@ -108,10 +117,11 @@ class EmergencyWatch:
     def __init__(self, rec, ids):
         self.rec, self.ids = rec, list(ids)
         self.on = np.zeros(len(self.ids) + 1, dtype=bool)  # members, then the virtual car
+        self._any_on = False  # self.on.any()
 
     def __call__(self, t, info: dict) -> None:
         members, vc = info["emergency_members"], info["emergency"]
-        if not (vc or self.on[-1] or members.any() or self.on.any()):
+        if not (vc or self._any_on or members.any()):
             return  # nobody braking hard, before or now
         now = np.append(members, vc)
         n = len(self.ids)
@@ -123,6 +133,7 @@ class EmergencyWatch:
             else:
                 self.rec.add_event(t, "emergency_end", who, "", "back within comfortable braking")
         self.on = now
+        self._any_on = bool(now.any())
 
 
 class RefusalWatch:

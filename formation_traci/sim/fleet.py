@@ -110,13 +110,15 @@ def member_input_at(kind, x, i, theta_star_i, speed_in_i, k_i, k_theta_i, gains,
 
 @kernel
 def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, vc, slots,
-                 v_cap, a_cap, dt_c, n_sub, comfort):
+                 v_cap, a_cap, dt_c, n_sub, comfort, t0, table, table_ids, at):
     """One step: for each of the vc.shape[0] control periods of dt_c [s], every member's
     input from the reference, held over RK4 in n_sub sub-steps. Inputs are not modified;
     returns (x, theta_star, speed_in) after the step. When ``comfort`` has a row per
     period ((n_ctrl, n, 3); else pass an empty array), member i's speed [m/s], a_lon and
     a_lat [m/s^2] at the start of period j go to comfort[j, i] (the values
-    :func:`member_signals` records for that period)."""
+    :func:`member_signals` records for that period); with ``at`` >= 0 too, periods 1 ..
+    n_ctrl - 1 also as comfort table rows at columns at, at + 1, ... of ``table`` (t = t0 +
+    j dt_c [s], speed, a_lon, a_lat) and ``table_ids`` (code i), period by period."""
     n = x.shape[0]
     m = x.shape[1]
     x = x.copy()
@@ -147,6 +149,16 @@ def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, 
                            U0[i], U1[i], P, i, h, n_sub)
             for q in range(m):
                 x[i, q] = s[q]
+    if at >= 0 and comfort.shape[0] == vc.shape[0]:
+        for j in range(1, vc.shape[0]):
+            tj = t0 + j * dt_c
+            for i in range(n):
+                r = at + (j - 1) * n + i
+                table[0, r] = tj
+                table[1, r] = comfort[j, i, 0]
+                table[2, r] = comfort[j, i, 1]
+                table[3, r] = comfort[j, i, 2]
+                table_ids[r] = i
     return x, theta_star, speed_in
 
 
@@ -214,11 +226,19 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
 
 @kernel
 def member_signals(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, vc, slots,
-                   v_cap, a_cap, cols, out):
+                   v_cap, a_cap, cols, out, t, limits, traj, traj_ids, at, comfort, comfort_ids,
+                   c_at, comfort_cols):
     """The recorded signals at the start of a step (the first control period's reference)
-    into out[i, cols[q]]; e_lon / e_lat in the frame of the member's virtual car."""
+    into out[i, cols[q]]; e_lon / e_lat in the frame of the member's virtual car.
+
+    With ``at`` >= 0, also the members' table rows at time t [s] unless a |signal| exceeds
+    ``limits`` (one per column of out): member i's row is column at + i of ``traj`` (one
+    row per table column: t, then out's columns) and of ``traj_ids`` (its code, i), and
+    column c_at + i of ``comfort`` (t, then out's columns ``comfort_cols``) and
+    ``comfort_ids``. Returns True when it wrote the rows (sim/recorder.py signal_rows)."""
     vals = np.empty(N_SIGNALS)
-    for i in range(x.shape[0]):
+    n = x.shape[0]
+    for i in range(n):
         px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, 0, i)
         res = member_input_at(kind, x, i, theta_star[i], speed_in[i], k[i], k_theta[i], gains,
                               px, py, tvx, tvy, tax, tay, v_cap[i], a_cap[i])
@@ -228,6 +248,23 @@ def member_signals(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame
         for q in range(N_SIGNALS):
             if cols[q] >= 0:
                 out[i, cols[q]] = vals[q]
+    if at < 0:
+        return False
+    m = out.shape[1]
+    for i in range(n):
+        for q in range(m):
+            if abs(out[i, q]) > limits[q]:
+                return False  # out of range: the caller records the rows (and the event)
+    for i in range(n):
+        traj[0, at + i] = t
+        for q in range(m):
+            traj[1 + q, at + i] = out[i, q]
+        traj_ids[at + i] = i
+        comfort[0, c_at + i] = t
+        for q in range(comfort_cols.shape[0]):
+            comfort[1 + q, c_at + i] = out[i, comfort_cols[q]]
+        comfort_ids[c_at + i] = i
+    return True
 
 
 @kernel
@@ -250,6 +287,11 @@ def kinematics_rows(x, speed_in, kind):
 # ------------------------------------------------------------------------ the wrapper
 
 _NO_COMFORT = np.empty((0, 0, 3))
+_NO_ROWS = (np.empty(0), np.empty((0, 0)), np.empty(0, dtype=np.int32), -1, np.empty((0, 0)),
+            np.empty(0, dtype=np.int32), -1, np.empty(0, dtype=np.int64))
+"""member_signals' table-row arguments when no rows are written."""
+_NO_PERIOD_ROWS = (np.empty((0, 0)), np.empty(0, dtype=np.int32), -1)
+"""step_members' table-row arguments when no rows are written."""
 
 def _f64(a) -> np.ndarray:
     """a as a C-contiguous, writeable float64 array (no copy when it already is one)."""
@@ -303,25 +345,37 @@ class Fleet:
     def n_sub(self, dt_c: float) -> int:
         return substeps(dt_c, self.cfg.physics_step)
 
-    def step(self, state: FleetState, ref: Reference, comfort: np.ndarray | None = None) -> FleetState:
+    def step(self, state: FleetState, ref: Reference, comfort: np.ndarray | None = None,
+             rows: tuple | None = None) -> FleetState:
         """The members over one step of ``ref.n_ctrl`` control periods of ``ref.dt``;
         ``comfort`` (n_ctrl, n, 3), if given, receives every period's speed [m/s], a_lon and
-        a_lat [m/s^2] at its start (:func:`step_members`)."""
+        a_lat [m/s^2] at its start (:func:`step_members`), and with ``rows``
+        (sim/recorder.py Recorder.period_rows) periods 1 .. n_ctrl - 1 go into the comfort
+        table's buffers too, in the same compiled call."""
         x, ts, sp = step_members(
             _f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self.kind, self.P,
             self.k, self.k_theta, self.gains, ref.line, ref.frame, ref.vc, ref.slots,
             _f64(ref.v_cap), _f64(ref.a_cap), float(ref.dt), self.n_sub(ref.dt),
-            _NO_COMFORT if comfort is None else comfort)
+            _NO_COMFORT if comfort is None else comfort, float(ref.t),
+            *(_NO_PERIOD_ROWS if rows is None else rows))
         return FleetState(x, ts, sp)
 
     def signals(self, state: FleetState, ref: Reference, out: np.ndarray | None = None):
         """The recorded member columns at the start of the step (SIGNAL_COLUMNS order)."""
         if out is None:
             out = np.full((self.cfg.n, len(SIGNAL_COLUMNS)), np.nan)
-        member_signals(_f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self.kind,
-                       self.P, self.k, self.k_theta, self.gains, ref.line, ref.frame, ref.vc,
-                       ref.slots, _f64(ref.v_cap), _f64(ref.a_cap), self.cols, out)
+        self.signals_into(state, ref, out)
         return out
+
+    def signals_into(self, state: FleetState, ref: Reference, out: np.ndarray, t: float = 0.0,
+                     rows: tuple | None = None) -> bool:
+        """:meth:`signals` into ``out`` (n, len(SIGNAL_COLUMNS)); with ``rows`` (sim/recorder.py
+        Recorder.signal_rows) also written as the step's table rows at t [s], in the same
+        compiled call: returns True when they were (False: out of range, or no ``rows``)."""
+        return member_signals(_f64(state.x), _f64(state.theta_star), _f64(state.speed_in),
+                              self.kind, self.P, self.k, self.k_theta, self.gains, ref.line,
+                              ref.frame, ref.vc, ref.slots, _f64(ref.v_cap), _f64(ref.a_cap),
+                              self.cols, out, float(t), *(_NO_ROWS if rows is None else rows))
 
     def kinematics(self, state: FleetState):
         """Position (n, 2) [m], velocity (n, 2) [m/s], heading (n,) [rad]."""

@@ -79,6 +79,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
     n_steps = int(round(sc.run.duration / step))
     sig = np.full((fleet.cfg.n, len(SIGNAL_COLUMNS)), np.nan)
     sig_true = sig.copy()
+    periods = np.empty((0, fleet.cfg.n, 3))  # step_recording's comfort buffer
     err_cols = [SIGNAL_COLUMNS.index(c) for c in ERROR_COLUMNS]
     perfect = np.zeros(fleet.cfg.n)  # leader_age_s without a channel
     sensing = [tr for tr in parts.transforms if hasattr(tr, "sense")]
@@ -106,13 +107,15 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             if parts.road_load is not None:  # drag ratio and grade, held over the step
                 fleet.set_road_load(*parts.road_load(state, sensed, ref))
             if world.records_members:
-                fleet.signals(state, ref, out=sig)
-                if true_error and ref.vc is not ref0.vc:  # the error against the true virtual car
+                true_vc = true_error and ref.vc is not ref0.vc
+                rows = None if true_vc else rec.signal_rows(ref.active)  # rows in the same call
+                written = fleet.signals_into(state, ref, sig, t, rows)
+                if true_vc:  # the error against the true virtual car
                     fleet.signals(state, ref.with_(vc=ref0.vc), out=sig_true)
                     sig[:, err_cols] = sig_true[:, err_cols]
-                rec.add_signal_rows(t, sig, sensed.extra, mask=ref.active)
-                rec.add_comfort_rows(t, sig, mask=ref.active)
-            rec.add_vc(t, ref.leader(), s=float(ref.truth[7]))
+                rec.add_step(t, sig, sensed.extra, ref.active, ref.truth, written)
+            else:
+                rec.add_vc(t, ref.leader(), s=float(ref.truth[7]))
             clock.lap("record")
             yield k, t
             clock.lap("record")  # the caller's share: the step's end, part files, progress (sim/runner.py)
@@ -128,7 +131,9 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             clock.start()
             v_before = fleet.speed(state)
             if world.records_members:
-                state = step_recording(fleet, state, ref, rec, sig)
+                if periods.shape[0] != ref.n_ctrl:
+                    periods = np.empty((ref.n_ctrl, fleet.cfg.n, 3))
+                state = step_recording(fleet, state, ref, rec, periods)
             else:
                 state = fleet.step(state, ref)
             gen.commit()
@@ -142,15 +147,14 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
         world.close()
 
 
-def step_recording(fleet: Fleet, state: FleetState, ref, rec, sig: np.ndarray) -> FleetState:
+def step_recording(fleet: Fleet, state: FleetState, ref, rec, comfort: np.ndarray) -> FleetState:
     """``fleet.step(state, ref)``, recording the members' speed and accelerations at the
     start of periods 1 .. n_ctrl - 1 into ``comfort.parquet`` (period 0 is recorded with the
     step's trajectory row): the comfort analysis gets the control rate, 100 Hz by default.
     One compiled call for the whole step (sim/fleet.py step_members), the values those of
-    ``fleet.signals`` at each period, bit for bit."""
-    comfort = np.empty((ref.n_ctrl, fleet.cfg.n, 3))
-    state = fleet.step(state, ref, comfort)
-    if ref.n_ctrl > 1:
-        rec.add_comfort_periods([ref.t + j * ref.dt for j in range(1, ref.n_ctrl)], comfort[1:],
-                                mask=ref.active)
+    ``fleet.signals`` at each period, bit for bit. ``comfort``: a (n_ctrl, n, 3) buffer the
+    step writes whole (reused from step to step)."""
+    rows = rec.period_rows(ref.n_ctrl, ref.active)  # the table rows in the same call
+    state = fleet.step(state, ref, comfort, rows)
+    rec.add_periods(ref.t, ref.dt, comfort, mask=ref.active, written=rows is not None)
     return state

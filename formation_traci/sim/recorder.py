@@ -1,7 +1,9 @@
 """Recording of a run: trajectories, events and background vehicles as chunked Parquet."""
 from __future__ import annotations
 
+from operator import itemgetter
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -12,6 +14,8 @@ from ..record.writer import ChunkedTable
 
 STEPS_PER_CHUNK = 1200
 """Outer steps per trajectory part file (60 s of simulated time at the default 0.05 s step)."""
+BACKGROUND_CHUNK_ROWS = 50_000
+"""Rows per background part file at most (a part also ends every STEPS_PER_CHUNK steps)."""
 
 MAX_SLIP = np.radians(10.0)
 """Tire slip beyond which the Magic Formula fit of Table 3.2 is far past its peak [rad]."""
@@ -21,6 +25,18 @@ MAX_SPEED = 60.0
 """Speeds above this are outside anything the parameters were meant for [m/s]."""
 
 _VC_COLUMNS = ("t", "x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "s", "d")
+
+
+class LeaderRow(NamedTuple):
+    """What :meth:`Recorder.add_vc` reads of the virtual car (control/formation.py
+    LeaderState's fields) [m, m, rad, m/s, rad/s, m/s^2]."""
+
+    x: float
+    y: float
+    theta: float
+    v: float
+    omega: float
+    v_dot: float
 
 
 class Recorder:
@@ -51,11 +67,44 @@ class Recorder:
         self._out_of_range = np.zeros(n, dtype=bool)
         if with_sumo:
             self.background = ChunkedTable(out_dir / "background.parquet", BACKGROUND_COLUMNS,
-                                           chunk_rows=50_000)
+                                           chunk_rows=BACKGROUND_CHUNK_ROWS)
         self.event_counts: dict[str, int] = {}
         self.ssm = None  # record.ssm.SsmConverter: set by sim/sumo_world.py when SUMO's SSM device is on
         self._latest: dict[str, float] = {}
         self._reported = -np.inf
+        self._fast_init(n)
+
+    def _fast_init(self, n: int) -> None:
+        """Views and constants of the one-write-per-block paths (:meth:`add_step`,
+        :meth:`add_periods`, :meth:`add_background`)."""
+        self._extra_block = self.traj.block(FILLED_BY_CALLER[2:])
+        self._get_extras = itemgetter(*FILLED_BY_CALLER[2:])
+        ix = self._sig_index
+        self._v_at, self._acc = ix["v"], slice(ix["a_lon"], ix["a_lat"] + 1)  # a_lon, a_lat follow
+        if self._acc.stop - self._acc.start != 2:
+            raise ValueError("a_lon and a_lat must be consecutive signal columns")
+        self._all_in = np.ones(n, dtype=bool).tobytes()  # a mask with every member in the run
+        self._abs = np.empty((n, len(SIGNAL_COLUMNS)))
+        self._bad = np.empty((n, len(SIGNAL_COLUMNS)), dtype=bool)
+        self._traj_ids = self.traj.column("vehicle_id")
+        limits = dict(slip_front=MAX_SLIP, slip_rear=MAX_SLIP, friction_usage=MAX_FRICTION_USAGE,
+                      v=MAX_SPEED)
+        self._sig_limits = np.array([limits.get(c, np.inf) for c in SIGNAL_COLUMNS])
+        self._any_out = False
+        self._fixed_tables = [tb for name, tb in self.tables().items() if name != "ssm"]
+        cf = self.comfort
+        self._cf_t, self._cf_vals = cf.column("t"), cf.block(("v", "a_lon", "a_lat"))
+        self._cf_ids = cf.column("vehicle_id")
+        self._cf_block = cf.block([c.name for c in COMFORT_COLUMNS if c.dtype == "float64"])
+        self._cf_cols = np.array([self._sig_index[c.name] for c in COMFORT_COLUMNS[2:]], dtype=np.int64)
+        if self._floats[:len(SIGNAL_COLUMNS) + 1] != ["t", *SIGNAL_COLUMNS]:
+            raise ValueError("member_signals writes t, then the signal columns, as table rows")
+        self._period_key, self._period_t, self._period_ids = None, None, None
+        bg = self.background
+        if bg is not None:
+            self._bg_floats = bg.block([c.name for c in BACKGROUND_COLUMNS if c.dtype == "float64"])
+            self._bg_ints = bg.block([c.name for c in BACKGROUND_COLUMNS if c.dtype != "float64"])
+            self._bg_key, self._bg_codes = ((), (), ()), None
 
     def tables(self) -> dict:
         """The run's tables by name (SSM only once SUMO has written its file)."""
@@ -78,6 +127,9 @@ class Recorder:
     def written_up_to(self) -> float | None:
         """Time [s] up to which every table is on disk, if it moved on since the last call
         (else None): progress reported from it is never ahead of the data."""
+        if not any([tb.news for tb in self._fixed_tables]) and (
+                self.ssm is None or self.ssm.table is None or not self.ssm.table.news):
+            return None  # no part completed since the last call: nothing moved on
         tables = self.tables()
         for name, table in tables.items():
             done = table.written_up_to()
@@ -157,6 +209,97 @@ class Recorder:
             cf.column(name)[sl].reshape(m, n)[:] = vals[:, :, q]
         cf.commit(m * n)
 
+    def signal_rows(self, mask) -> tuple | None:
+        """Where sim/fleet.py member_signals writes the members' rows of the step itself
+        (Fleet.signals_into; then :meth:`add_step` with ``written``), or None when it must
+        not: a member out of the run (``mask``), a signal out of range at the step before
+        (events), or a part ends inside the step."""
+        n, tr, cf = len(self.codes), self.traj, self.comfort
+        at, c_at = tr.rows_buffered, cf.rows_buffered
+        if (self._any_out or at + n + 1 > tr.chunk_rows or c_at + n > cf.chunk_rows
+                or (mask is not None and mask.tobytes() != self._all_in)):
+            return None
+        return (self._sig_limits, self._float_block, self._traj_ids, at, self._cf_block,
+                self._cf_ids, c_at, self._cf_cols)
+
+    def add_step(self, t, sig: np.ndarray, extra: dict, mask, truth: np.ndarray,
+                 written: bool = False) -> None:
+        """The rows of one recorded step at t [s]: what :meth:`add_signal_rows` (t, sig, extra,
+        mask), :meth:`add_comfort_rows` (t, sig, mask) and :meth:`add_vc` (t, the virtual car
+        ``truth`` = Reference.truth, its s) write in that order, with one write per block of
+        columns; ``written``: member_signals wrote the members' signal rows already (at
+        :meth:`signal_rows`). Those three calls do it when a member is out of the run, a
+        signal is (or was) out of range (events) or a part ends inside the step."""
+        n, tr, cf, bad = len(self.codes), self.traj, self.comfort, self._bad
+        at, c_at = tr.rows_buffered, cf.rows_buffered
+        e, blk = at + n, self._float_block
+        if not written:
+            if sig.shape == bad.shape:
+                np.greater(np.abs(sig, out=self._abs), self._sig_limits, out=bad)
+            if (sig.shape != bad.shape or b"\x01" in bad.tobytes()
+                    or self.signal_rows(mask) is None):
+                self.add_signal_rows(t, sig, extra, mask)
+                self.add_comfort_rows(t, sig, mask)
+                x, y, theta, v, omega, v_dot, _, s = truth.tolist()
+                self.add_vc(t, LeaderRow(x, y, theta, v, omega, v_dot), s)
+                return
+            self._sig_block[:, at:e] = sig.T
+            blk[0, at:e] = t
+            self._traj_ids[at:e] = self.codes
+            self._cf_t[c_at:c_at + n] = t
+            self._cf_vals[0, c_at:c_at + n] = sig[:, self._v_at]
+            self._cf_vals[1:, c_at:c_at + n] = sig[:, self._acc].T
+            self._cf_ids[c_at:c_at + n] = self.codes
+        self._extras(extra, self._extra_block[:, at:e])
+        x, y, theta, v, omega, v_dot, _, s = truth.tolist()
+        blk[:, e] = self._vc_row(t, x, y, theta, v, omega, v_dot, s)
+        self._traj_ids[e] = self.vc_code
+        tr.commit(n + 1)
+        cf.commit(n)
+
+    def _extras(self, extra: dict, out: np.ndarray) -> None:
+        """The road and SUMO columns (FILLED_BY_CALLER[2:]) of ``extra`` into out (rows in
+        that order; NaN for a column ``extra`` lacks)."""
+        try:
+            out[:] = self._get_extras(extra)
+        except (KeyError, ValueError):  # a column missing (NaN) or not an (n,) array
+            for name, row in zip(FILLED_BY_CALLER[2:], out):
+                row[:] = extra.get(name, np.nan)
+
+    def period_rows(self, m: int, mask) -> tuple | None:
+        """Where sim/fleet.py step_members writes control periods 1 .. m - 1 of the step
+        itself (Fleet.step; then :meth:`add_periods` with ``written``), or None when it must
+        not: one period only, a member out of the run or a part ends inside the step."""
+        at, cf = self.comfort.rows_buffered, self.comfort
+        if (m < 2 or (mask is not None and mask.tobytes() != self._all_in)
+                or at + (m - 1) * len(self.codes) > cf.chunk_rows):
+            return None
+        return self._cf_block, self._cf_ids, at
+
+    def add_periods(self, t, dt, vals: np.ndarray, mask=None, written: bool = False) -> None:
+        """Control periods 1 .. m-1 of a step starting at t [s] with periods of dt [s]:
+        ``vals`` (m, n, 3) from sim/fleet.py step_members; what :meth:`add_comfort_periods`
+        ([t + j dt for j = 1 .. m-1], vals[1:], mask) writes, with one write per block
+        (``written``: step_members wrote them already, at :meth:`period_rows`)."""
+        m, n = vals.shape[0], len(self.codes)
+        cf, rows = self.comfort, (vals.shape[0] - 1) * len(self.codes)
+        if written:
+            cf.commit(rows)
+            return
+        at = cf.rows_buffered
+        if self.period_rows(m, mask) is None:
+            if m > 1:
+                self.add_comfort_periods([t + j * dt for j in range(1, m)], vals[1:], mask)
+            return
+        if self._period_key != (m, dt):
+            self._period_key = (m, dt)
+            self._period_t = np.repeat(np.arange(1, m) * dt, n)  # j dt, as Python's j * dt
+            self._period_ids = np.tile(self.codes, m - 1)
+        np.add(self._period_t, t, out=self._cf_t[at:at + rows])
+        self._cf_vals[:, at:at + rows] = vals[1:].reshape(rows, 3).T
+        self._cf_ids[at:at + rows] = self._period_ids
+        cf.commit(rows)
+
     def _flag_range(self, t, slip, usage, v, mask):
         bad = (slip > MAX_SLIP) | (usage > MAX_FRICTION_USAGE) | (v > MAX_SPEED)
         if mask is not None:
@@ -167,17 +310,22 @@ class Recorder:
                                f"slip {np.degrees(slip[i]):.1f} deg, friction usage {usage[i]:.2f}, "
                                f"v {v[i]:.1f} m/s")
         self._out_of_range = bad
+        self._any_out = bool(bad.any())
 
     def add_vc(self, t, vc, s=np.nan):
         """One row for the virtual car; the member-only columns stay NaN."""
-        vec = self._vc_vec
-        vec[self._vc_at] = (t, vc.x, vc.y, vc.theta, vc.v, vc.omega, vc.v_dot, vc.v * vc.omega, s,
-                            0.0 if s == s else np.nan)
+        vec = self._vc_row(t, vc.x, vc.y, vc.theta, vc.v, vc.omega, vc.v_dot, s)
         tr = self.traj
         sl = tr.rows(1)
         self._float_block[:, sl.start] = vec
         tr.column("vehicle_id")[sl.start] = self.vc_code
         tr.commit(1)
+
+    def _vc_row(self, t, x, y, theta, v, omega, v_dot, s) -> np.ndarray:
+        """The virtual car's row of float columns (Python floats in [m, rad, m/s, ...])."""
+        vec = self._vc_vec
+        vec[self._vc_at] = (t, x, y, theta, v, omega, v_dot, v * omega, s, 0.0 if s == s else np.nan)
+        return vec
 
     def add_event(self, t, kind, vehicle_id, other_id="", detail=""):
         ev = self.events
@@ -186,15 +334,39 @@ class Recorder:
         self.event_counts[kind] = self.event_counts.get(kind, 0) + 1
 
     def add_background(self, t, nb, s, d):
+        """SUMO's vehicles near the formation at t [s] (``nb``: sim/sumo_types.py Neighbours,
+        ``s``, ``d`` their Frenet coordinates [m]): one write per block of columns; the
+        string columns' codes are reused while the vehicles, their types and lanes are those
+        of the step before (the usual step)."""
         n = len(nb.ids)
         if n == 0:
             return
         bg = self.background
-        self.background.append({
+        at = bg.rows_buffered
+        if at + n > bg.chunk_rows:  # a part ends inside: the rows split over two parts
+            self._append_background(t, nb, s, d)
+            return
+        key = self._bg_key
+        if not (nb.ids == key[0] and nb.types == key[1] and nb.lane_ids == key[2]):
+            self._bg_key = (list(nb.ids), list(nb.types), list(nb.lane_ids))
+            self._bg_codes = np.array([bg.codes(nb.ids), bg.codes(nb.types), bg.codes(nb.lane_ids)])
+        fl, ints, e = self._bg_floats, self._bg_ints, at + n
+        fl[0, at:e] = t
+        fl[1:8, at:e] = (nb.x, nb.y, nb.heading, nb.v, nb.a, nb.length, nb.width)
+        fl[8, at:e] = s
+        fl[9, at:e] = d
+        ints[0:3, at:e] = self._bg_codes
+        ints[3, at:e] = nb.lane_index
+        bg.commit(n)
+
+    def _append_background(self, t, nb, s, d):
+        """:meth:`add_background` written out column by column (ChunkedTable.append)."""
+        bg = self.background
+        bg.append({
             "t": t, "vehicle_id": bg.codes(nb.ids), "type": bg.codes(nb.types),
             "x": nb.x, "y": nb.y, "heading": nb.heading, "v": nb.v, "a": nb.a,
             "length": nb.length, "width": nb.width, "lane": bg.codes(nb.lane_ids),
-            "lane_index": nb.lane_index.astype(np.int32), "s": s, "d": d}, n)
+            "lane_index": nb.lane_index.astype(np.int32), "s": s, "d": d}, len(nb.ids))
 
     def flush(self, t_end: float | None = None) -> list[tuple[str, BaseException]]:
         """End of the run: write what is buffered; empty tables get a zero-row part. Never
