@@ -123,8 +123,8 @@ def reference_lane_xy(lane, pos, lat):
 
 
 def test_lane_shape_points_equal_the_numpy_ones_bit_for_bit():
-    """The per-member lane point of sim/sumo_world.py sumo_gap, on curved and real lanes
-    (positions before, on, between and past the shape points; lateral offsets both ways)."""
+    """The per-member lane point of sumo_gap (sim/sumo_sense.py lane_point has its arithmetic),
+    on curved and real lanes (positions before, on, between and past the shape points; lateral offsets both ways)."""
     import sumolib
     rng = np.random.default_rng(3)
     nets = [ROOT / "sumo_nets" / "curved3.net.xml", ROOT / "sumo_nets" / "lanedrop.net.xml"]
@@ -168,3 +168,198 @@ def test_a_run_does_not_import_pandas(tmp_path):
                          cwd=tmp_path, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().splitlines()[-1] == "False"
+
+
+@pytest.mark.jit_off  # also as plain Python (NUMBA_DISABLE_JIT=1)
+def test_py_hypot_is_pythons_math_hypot_bit_for_bit():
+    """The compiled lane-point distance uses CPython's hypot, not the C library's (they
+    differ in the last bit for about 1 input in 1000)."""
+    from formation_traci.kernels import py_hypot
+    rng = np.random.default_rng(11)
+    n = 200_000
+    a = rng.uniform(-5, 5, n) * 10.0 ** rng.integers(-12, 6, n)
+    b = rng.uniform(-5, 5, n) * 10.0 ** rng.integers(-12, 6, n)
+    special = [(0.0, 0.0), (-0.0, 0.0), (np.inf, np.nan), (-np.inf, 1.0), (np.nan, np.inf),
+               (np.nan, 1.0), (1e-310, 1e-311), (5e-324, 0.0), (1e308, 1e308), (3.0, 4.0)]
+    pairs = special + list(zip(a.tolist(), b.tolist()))
+    got = np.array([py_hypot(x, y) for x, y in pairs])
+    ref = np.array([math.hypot(x, y) for x, y in pairs])
+    assert np.array_equal(got, ref, equal_nan=True)
+    assert np.count_nonzero(np.hypot(a, b) != ref[len(special):]) > 0  # the C library's differs
+
+
+def reference_sumo_gap(shapes, pos, heading, d_front, front, angle, lanes, lane_pos, lat):
+    """sim/sumo_world.py sumo_gap as it was (Python loop over LaneShapes.xy), with SUMO's
+    front bumper converted to the CoG as sumo_adapter.read_members did."""
+    px, py = np.ascontiguousarray(pos[:, 0]), np.ascontiguousarray(pos[:, 1])
+    xs, ys, _ = sumo_to_cog_rows(front, angle, d_front)
+    gap = np.hypot(xs - px, ys - py)
+    fx, fy, _ = (a.tolist() for a in cog_to_sumo_rows(px, py, heading, d_front))
+    for j, (lane, lt, lp) in enumerate(zip(lanes, lat.tolist(), lane_pos.tolist())):
+        if lane and math.isfinite(lt) and math.isfinite(lp):
+            sx, sy = shapes.xy(lane, lp, lt)
+            gap[j] = max(gap[j], math.hypot(sx - fx[j], sy - fy[j]))
+    return gap
+
+
+NO_NEIGHBOUR = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0))
+
+
+@pytest.mark.jit_off  # also as plain Python (NUMBA_DISABLE_JIT=1)
+def test_compiled_member_sense_equals_the_python_sumo_gap_and_projection():
+    """sim/sumo_sense.py sense_step: the members' s, d, speed and sumo_gap in one compiled
+    call, bit for bit the Python loop over LaneShapes.xy, FastLine.to_frenet and np.hypot it
+    replaces (curved and real lanes, members off their lane, out of SUMO, no lane)."""
+    import sumolib
+    from formation_traci.road.line_pack import FastLine, packed
+    from formation_traci.sim.sumo_sense import PackedLanes, sense_step
+    rng = np.random.default_rng(5)
+    line = lines()[2]
+    fast = FastLine(float(line.length), packed(line))
+    for net_file in (ROOT / "sumo_nets" / "curved3.net.xml", ROOT / "sumo_nets" / "lanedrop.net.xml"):
+        net = sumolib.net.readNet(str(net_file), withInternal=True)
+        shapes = LaneShapes(net)
+        packed_lanes = PackedLanes(shapes)
+        all_lanes = [lane for edge in net.getEdges(withInternal=True) for lane in edge.getLanes()]
+        for _ in range(300):
+            n = int(rng.integers(1, 8))
+            pick = [all_lanes[i] for i in rng.integers(0, len(all_lanes), n)]
+            lanes = [lane.getID() for lane in pick]
+            lane_pos = np.array([rng.uniform(-2.0, lane.getLength() + 2.0) for lane in pick])
+            lat = rng.uniform(-2.5, 2.5, n)
+            front = np.array([shapes.xy(lid, p, q) for lid, p, q in zip(lanes, lane_pos, lat)])
+            front += rng.normal(0.0, rng.choice([1e-9, 0.05, 3.0]), (n, 2))
+            angle, heading = rng.uniform(0.0, 360.0, n), rng.uniform(-4.0, 4.0, n)
+            d_front = rng.uniform(1.0, 4.0, n)
+            pos = front + rng.normal(0.0, 2.0, (n, 2))
+            vel = rng.normal(0.0, 20.0, (n, 2))
+            if n > 2:  # out of SUMO, no lane, a non-finite lane position
+                front[0], angle[0], lanes[0] = np.nan, np.nan, ""
+                lanes[1] = ""
+                lane_pos[2] = np.nan
+            li = packed_lanes.indices(lanes).copy()
+            guess = np.where(rng.random(n) < 0.5, np.nan, rng.uniform(0.0, line.length, n))
+            s, d, v, gap, n_off, *nb = sense_step(
+                fast.G, pos, vel, guess, heading, d_front, front, angle, lane_pos, lat, li,
+                packed_lanes.table, packed_lanes.points, 0.1, *NO_NEIGHBOUR)
+            ref = reference_sumo_gap(shapes, pos, heading, d_front, front, angle, lanes, lane_pos, lat)
+            assert np.array_equal(gap, ref, equal_nan=True)
+            assert n_off == np.count_nonzero(ref > 0.1) and all(len(a) == 0 for a in nb)
+            s_ref, d_ref = fast.to_frenet(pos)
+            assert np.array_equal(s, s_ref) and np.array_equal(d, d_ref)
+            assert np.array_equal(v, np.hypot(vel[:, 0], vel[:, 1]))
+            empty = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0, dtype=np.int64))
+            out = sense_step(fast.G, pos, vel, guess, heading, d_front, *empty,
+                             packed_lanes.table, packed_lanes.points, 0.1, *NO_NEIGHBOUR)
+            assert np.array_equal(out[0], s) and np.isnan(out[3]).all()
+
+
+@pytest.mark.jit_off  # also as plain Python (NUMBA_DISABLE_JIT=1)
+def test_compiled_neighbour_sense_equals_the_numpy_one_whatever_the_guess():
+    """sim/sumo_sense.py sense_step's neighbours (SUMO's front bumper converted, projected
+    with last step's s as the guess, in the same call as the members) give what
+    sumo_to_cog_rows, FastLine.to_frenet without a guess and the numpy arithmetic gave."""
+    from formation_traci.road.line_pack import FastLine, packed
+    from formation_traci.sim.sumo_sense import NeighbourGuess, sense_step
+    rng = np.random.default_rng(9)
+    no_lane = (np.empty(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3)))
+    used = 0
+    for line in lines():
+        fast = FastLine(float(line.length), packed(line))
+        guess = NeighbourGuess()
+        s_true = rng.uniform(-20.0, line.length + 20.0, 12)
+        for step in range(6):
+            n = int(rng.integers(1, 12))
+            ids = sorted(f"v{i}" for i in rng.choice(12, n, replace=False))
+            k = [int(v[1:]) for v in ids]
+            s_true[k] += rng.uniform(0.0, 2.0, n)
+            fr = np.array([fast.frame(s) for s in s_true[k]])
+            off = rng.uniform(-6.0, 6.0, n)
+            front = np.column_stack([fr[:, 0] - off * fr[:, 3], fr[:, 1] + off * fr[:, 2]])
+            angle = rng.uniform(0.0, 360.0, n)
+            length, width = rng.uniform(3.0, 18.0, n), rng.uniform(1.6, 2.6, n)
+            members = int(rng.integers(0, 4))
+            pos = rng.uniform(0.0, 50.0, (members, 2))
+            g = guess(ids)
+            s, d, v, gap, n_off, x, y, psi, rear, half_w = sense_step(
+                fast.G, pos, np.ones((members, 2)), np.full(members, np.nan), np.zeros(members),
+                np.ones(members), np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), *no_lane,
+                0.1, front, angle, length, width, g)
+            guess.keep(ids, s[members:])
+            x_ref, y_ref, psi_ref = sumo_to_cog_rows(front, angle, length * 0.5)
+            assert np.array_equal(x, x_ref) and np.array_equal(y, y_ref) and np.array_equal(psi, psi_ref)
+            s_ref, d_ref = fast.to_frenet(np.column_stack([x_ref, y_ref]))
+            assert np.array_equal(s[members:], s_ref) and np.array_equal(d[members:], d_ref)
+            assert np.array_equal(rear, s_ref - length / 2) and np.array_equal(half_w, width / 2)
+            m_ref = fast.to_frenet(pos)  # the members' projection is not changed by the neighbours'
+            assert np.array_equal(s[:members], m_ref[0]) and np.array_equal(d[:members], m_ref[1])
+            used += int(np.isfinite(g).sum())
+    assert used > 20  # last step's s was the guess of many of them
+
+
+def _without_shortcut(method):
+    """``method`` with the state its shortcut keys on forgotten first: its full loop every step."""
+    def full(self, *args):
+        self._settled = None
+        return method(self, *args)
+    return full
+
+
+def _placement_counting_itself(method):
+    """MemberWatch.placement without the count of gaps over the tolerance the compiled sense
+    gives: its own comparison every step."""
+    def full(self, t, gap_sumo, n_off=None):
+        return method(self, t, gap_sumo)
+    return full
+
+
+def test_member_read_shortcuts_record_what_the_full_loops_record(tmp_path, monkeypatch):
+    """Real SUMO: a reshape at a lane drop (members change lanes and reach into the
+    neighbour lane) recorded once with the per-step shortcuts of the member read (lane
+    tracking, placement and lane-change checks skip a step where nothing changed) and once
+    with the full loops they replace: every table is the same, bit for bit, and both the
+    shortcut and the full loop were taken."""
+    import pyarrow.parquet as pq
+    from formation_traci.scenario import load_scenario
+    from formation_traci.sim import events, sumo_adapter
+    from formation_traci.sim.runner import run_scenario
+    path = ROOT / "scenarios" / "maneuvers" / "lanedrop_reshape.toml"
+    calls = {"full": 0, "reads": 0}
+    fast_track = sumo_adapter.SumoAdapter._track_lanes
+    overlapped = sumo_adapter.SumoAdapter._overlapped_lane
+
+    def counted_track(self, *a):
+        calls["reads"] += 1
+        return fast_track(self, *a)
+
+    def counted_overlap(self, lane_id, *a):
+        calls["full"] += 1
+        return overlapped(self, lane_id, *a)
+
+    def run(name):
+        sc = load_scenario(path, **{"run.duration": 60.0})
+        res = run_scenario(sc, tmp_path / name, scenario_path=path, progress=False, force=True)
+        assert res.status == "completed", res.reason
+        return {p.relative_to(tmp_path / name): pq.read_table(p) for p in (tmp_path / name).rglob("*.parquet")
+                if p.is_file()}
+
+    with monkeypatch.context() as m:
+        m.setattr(sumo_adapter.SumoAdapter, "_track_lanes", counted_track)
+        m.setattr(sumo_adapter.SumoAdapter, "_overlapped_lane", counted_overlap)
+        fast = run("fast")
+    assert 0 < calls["full"] < calls["reads"] * 3  # 3 members: most reads took the shortcut
+    with monkeypatch.context() as m:
+        m.setattr(sumo_adapter.SumoAdapter, "_track_lanes", _without_shortcut(fast_track))
+        m.setattr(events.MemberWatch, "placement", _placement_counting_itself(events.MemberWatch.placement))
+        m.setattr(events.MemberWatch, "lane_changes", _without_shortcut(events.MemberWatch.lane_changes))
+        full = run("full")
+    assert fast.keys() == full.keys() and len(fast) >= 4
+    for name, table in fast.items():  # NaN included, bit for bit
+        other = full[name]
+        assert table.column_names == other.column_names and table.num_rows == other.num_rows, name
+        for a, b in zip(table.columns, other.columns):
+            a, b = a.to_numpy(zero_copy_only=False), b.to_numpy(zero_copy_only=False)
+            assert (a.tobytes() == b.tobytes()) if a.dtype.kind == "f" else list(a) == list(b), name
+    ev = full[Path("events.parquet") if Path("events.parquet") in full else next(
+        k for k in full if k.parts[0] == "events.parquet")].to_pandas()
+    assert (ev.kind == "lane_change").sum() >= 2  # the full loops had lane changes to report

@@ -159,6 +159,11 @@ class LaneShapes:
                                           float(scale))
         return got
 
+    def shape(self, lane_id: str) -> tuple[list, list, list, float]:
+        """The lane's shape points x, y [m], their length along the shape [m] (lists of
+        floats) and the scale from SUMO's lane position to that length."""
+        return self._lane(lane_id)
+
     def xy(self, lane_id: str, pos: float, lat: float) -> tuple[float, float]:
         """Point at lane position ``pos`` [m] and ``lat`` [m] left of the lane's centre line.
         (Python floats: called per member and step; the arithmetic of the numpy form, bit

@@ -31,19 +31,32 @@ class MemberWatch:
         self.rec, self.ids, self.lanes = rec, ids, lanes
         self.mismatch = np.zeros(n, dtype=bool)
         self.lane_prev = np.full(n, -1)
+        self._off = False  # any member in self.mismatch
+        self._settled = None  # lanes of the last read when every member was in it and in SUMO
 
     def removed(self, t, i):
         self.rec.add_event(t, "member_removed", self.ids[i], "", "SUMO no longer has the member")
 
-    def placement(self, t, gap_sumo):
+    def placement(self, t, gap_sumo, n_off=None):
+        """``n_off``: how many gaps exceed PLACEMENT_TOLERANCE, when already counted."""
+        if n_off == 0:  # every member where the model put it (the usual step)
+            if self._off:
+                self.mismatch, self._off = gap_sumo > PLACEMENT_TOLERANCE, False
+            return
         off = gap_sumo > PLACEMENT_TOLERANCE
+        if not off.any():
+            self.mismatch, self._off = off, False
+            return
         new = off & ~self.mismatch
         for i in (np.flatnonzero(new) if new.any() else ()):
             self.rec.add_event(t, "placement_mismatch", self.ids[i], "",
                                f"SUMO has the member {gap_sumo[i]:.2f} m from where the model put it")
-        self.mismatch = off
+        self.mismatch, self._off = off, True
 
     def lane_changes(self, t, idx_act, present, lanes, lane_idx):
+        every = len(idx_act) == len(self.ids) and present.all()
+        if every and lanes == self._settled:
+            return  # every member on the lane it was on at the last read (a lane's index is fixed)
         prev, ids, seen = self.lanes.prev, self.ids, self.lanes.lane
         for j, i in enumerate(idx_act):
             if present[j] and seen.get(ids[i]) == lanes[j] and self.lane_prev[i] == lane_idx[j]:
@@ -57,6 +70,7 @@ class MemberWatch:
             if present[j]:
                 self.lane_prev[i] = lane_idx[j]
                 prev[ids[i]] = (lanes[j].rsplit("_", 1)[0], int(lane_idx[j]))
+        self._settled = list(lanes) if every else None
 
 
 def log_sumo_events(rec, t, ev, members: set[str], names: dict | None = None) -> None:

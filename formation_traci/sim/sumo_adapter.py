@@ -12,7 +12,7 @@ on here are documented in docs/sumo.md (each with the test that shows it).
 """
 from __future__ import annotations
 
-from operator import itemgetter
+from operator import add, itemgetter, le
 
 import numpy as np
 
@@ -26,6 +26,10 @@ from .sumo_types import (GUI_VIEW, GUI_ZOOM, KEEP_ROUTE, LANE_CHANGE_MODE_DEFAUL
                          cog_to_sumo, cog_to_sumo_rows, sumo_binary, sumo_to_cog,
                          sumo_to_cog_rows)
 
+
+
+_QUIET = StepEvents((), (), ())
+"""What a step without collisions, teleports or arrivals reports (shared, read-only tuples)."""
 
 
 def _f64(a) -> np.ndarray:
@@ -68,7 +72,11 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         self._front = np.empty(0)
         self._member_get = None  # itemgetter of the members' subscription variables
         self._all_here = np.ones(0, dtype=bool)  # read_members' 'present' when SUMO has them all
-        self.lane_pos = np.empty(0)  # members' front bumper along their lane at the last read [m]
+        self._settled = None  # (ids, lanes, half widths, half lane widths) of _track_lanes
+        fast = getattr(self.api, "_libsumo", None)  # libsumo's functions without their wrappers
+        v = self.api.vehicle
+        self._move_xy = v.moveToXY if fast is None else fast.vehicle_moveToXY
+        self._set_previous_speed = v.setPreviousSpeed if fast is None else fast.vehicle_setPreviousSpeed
         self._started = False
         self.departed: dict[str, int] = {}  # flow id -> vehicles SUMO inserted (see count_departures)
         self._proc = None  # the SUMO process of the traci backend
@@ -213,15 +221,13 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         then registers the member on both lanes (its "shadow lane") and followers in the
         other lane see it (docs/sumo.md).
         """
-        refused = []
-        xf, yf, ang = (a.tolist() for a in cog_to_sumo_rows(
-            _f64(x), _f64(y), _f64(psi), self._d_front(ids)))
-        move, overlap = self.api.vehicle.moveToXY, self._overlap
-        for i, vid in enumerate(ids):
+        xf, yf, ang = cog_to_sumo_rows(_f64(x), _f64(y), _f64(psi), self._d_front(ids))
+        move, overlap, refused = self._move_xy, self._overlap, []
+        for i, (vid, a, b, c) in enumerate(zip(ids, xf.tolist(), yf.tolist(), ang.tolist())):
             if overlap and vid in overlap:
                 self._hint_lane(vid, overlap[vid])
             try:
-                move(vid, "", -1, xf[i], yf[i], ang[i], KEEP_ROUTE, MATCH_THRESHOLD)
+                move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
             except self.api.TraCIException as exc:
                 refused.append((vid, f"moveToXY refused for {vid} at ({x[i]:.2f}, {y[i]:.2f}): {exc}"))
         return refused
@@ -266,31 +272,33 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         except Exception as exc:
             raise SumoError(f"SUMO raised during the step to t = {self.time:.2f} s: {exc}") from exc
         sim = self.api.simulation
-        ev = StepEvents()
-        for c in sim.getCollisions():
-            ev.collisions.append((c.collider, c.victim, c.lane))
-        ev.teleports = list(sim.getStartingTeleportIDList())
-        ev.arrived = list(sim.getArrivedIDList())
+        collisions, teleports, arrived = (sim.getCollisions(), sim.getStartingTeleportIDList(),
+                                          sim.getArrivedIDList())
         if self.departed:
             self._count_departed()
-        for vid in ev.arrived:
+        if not (collisions or teleports or arrived):
+            return _QUIET  # nothing reported (most steps)
+        for vid in arrived:
             self._bodies.pop(vid, None)
-        return ev
+        return StepEvents([(c.collider, c.victim, c.lane) for c in collisions], list(teleports),
+                          list(arrived))
 
     def set_true_speeds(self, ids: list[str], v, a) -> None:
         """Tell SUMO each member's true speed [m/s] and acceleration [m/s^2] (it would infer
         a half-step-late mean speed clamped to the lane limit from the distance moved)."""
-        set_speed = self.api.vehicle.setPreviousSpeed
-        for vid, vi, ai in zip(ids, np.maximum(v, 0.0).tolist(), _f64(a).tolist()):
+        set_speed = self._set_previous_speed
+        for vid, vi, ai in zip(ids, np.maximum(v, 0.0).tolist(), a.tolist()):
             try:
                 set_speed(vid, vi, ai)
             except self.api.TraCIException:
                 pass  # removed during the step: the next read_members reports it
 
     def read_members(self, ids: list[str]):
-        """Where SUMO put each member: CoG x, y [m], heading [rad], lane id, lane index,
-        lateral position in the lane [m]; ``present`` is False for members SUMO no longer has.
-        One subscription read; per member only what changed (its lane) costs more."""
+        """Where SUMO put each member, in SUMO's frame (sim/sumo_sense.py converts it): front
+        bumper (n, 2) [m], angle (n,) [deg, CW from north], lane ids, lane index, lateral
+        position in the lane [m], lane position of the front bumper [m]; ``present`` is False
+        for members SUMO no longer has (NaN, '' and -1 there). One subscription read; per
+        member only what changed (its lane) costs more."""
         if not ids:
             return self._read_some_members(ids, [])
         res = self.api.vehicle.getAllSubscriptionResults()
@@ -299,39 +307,44 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
             return self._read_some_members(ids, rows)
         pos, ang, lanes, lane_index, lat, lane_pos = zip(*map(self._member_get, rows))
         lanes = list(lanes)
-        self.lane_pos = np.array(lane_pos, dtype=float)  # front bumper along its lane [m]
-        x, y, psi = sumo_to_cog_rows(np.array(pos, dtype=float), np.array(ang, dtype=float),
-                                     self._d_front(ids))
         self._track_lanes(ids, lanes, lane_index, lat)
         here = self._all_here
         if len(here) != len(ids):
             here = self._all_here = np.ones(len(ids), dtype=bool)
             here.flags.writeable = False  # shared between steps
-        return (x, y, psi, lanes, np.array(lane_index, dtype=int), np.array(lat, dtype=float), here)
+        ang, lat, lane_pos = np.array((ang, lat, lane_pos), dtype=float)  # rows of one array
+        return (np.array(pos, dtype=float), ang, lanes, np.array(lane_index, dtype=np.int64), lat,
+                lane_pos, here)
 
     def _read_some_members(self, ids, rows):
         """:meth:`read_members` when SUMO no longer has some of the members (NaN, '' and -1)."""
         n = len(ids)
         here = [i for i, r in enumerate(rows) if r]
-        x, y, psi, lat, lane_pos = (np.full(n, np.nan) for _ in range(5))
-        lane_index, lanes = np.full(n, -1, dtype=int), [""] * n
+        front = np.full((n, 2), np.nan)
+        ang, lat, lane_pos = (np.full(n, np.nan) for _ in range(3))
+        lane_index, lanes = np.full(n, -1, dtype=np.int64), [""] * n
         for i, vid in enumerate(ids):
             if not rows[i]:
                 self._member_lane.pop(vid, None)
                 self._overlap.pop(vid, None)
         if here:
             sub = [ids[i] for i in here]
-            xs, ys, ps, ls, lis, lts, _ = self.read_members(sub)
-            x[here], y[here], psi[here], lane_index[here], lat[here] = xs, ys, ps, lis, lts
-            lane_pos[here] = self.lane_pos
+            fs, angs, ls, lis, lts, lps, _ = self.read_members(sub)
+            front[here], ang[here], lane_index[here], lat[here], lane_pos[here] = fs, angs, lis, lts, lps
             for j, i in enumerate(here):
                 lanes[i] = ls[j]
-        self.lane_pos = lane_pos  # front bumper along its lane [m] (NaN: not in SUMO)
-        return x, y, psi, lanes, lane_index, lat, np.array([bool(r) for r in rows], dtype=bool)
+        return front, ang, lanes, lane_index, lat, lane_pos, np.array([bool(r) for r in rows], dtype=bool)
 
     def _track_lanes(self, ids, lanes, lane_index, lat) -> None:
         """Per member: its lane as read, the neighbour lane its body reaches into (for
-        :meth:`place`) and its route window, which moves on when it entered a new edge."""
+        :meth:`place`) and its route window, which moves on when it entered a new edge.
+        Nothing to do while the same members are on the lanes of the last read, each inside
+        its lane, with no overlap and every route window checked on its lane (the usual
+        step: :attr:`_settled`)."""
+        settled = self._settled
+        if (settled is not None and not self._overlap and lanes == settled[1] and ids == settled[0]
+                and all(map(le, map(add, map(abs, lat), settled[2]), settled[3]))):
+            return
         member_lane, overlap, window_lane = self._member_lane, self._overlap, self._window_lane
         for vid, lane, li, lt in zip(ids, lanes, lane_index, lat):
             member_lane[vid] = (lane, li, lt)
@@ -342,6 +355,17 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
                 overlap.pop(vid, None)
             if window_lane.get(vid) != lane:
                 self._advance_route_window(vid, lane)
+        self._settled = None
+        if all(window_lane.get(vid) == lane for vid, lane in zip(ids, lanes)):
+            self._settled = (list(ids), lanes, [self.members[vid].width / 2 for vid in ids],
+                             [self._half_lane(lane) for lane in lanes])
+
+    def _half_lane(self, lane_id: str) -> float:
+        """Half the width of a lane [m] for :meth:`_track_lanes` (inf: never overlapped)."""
+        if not lane_id or lane_id.startswith(":"):
+            return np.inf
+        self._overlapped_lane(lane_id, 0, 0.0, 0.0)  # caches its geometry
+        return self._lane_geometry[lane_id][0] / 2
 
     def remove_vehicle(self, vid: str) -> None:
         """Take a vehicle out of SUMO. Its subscriptions are dropped first: libsumo 1.28 raises

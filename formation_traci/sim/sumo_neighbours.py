@@ -10,7 +10,7 @@ from operator import itemgetter
 
 import numpy as np
 
-from .sumo_types import Neighbours, sumo_to_cog, sumo_to_cog_rows
+from .sumo_types import Neighbours, sumo_to_cog
 
 
 def _nobody() -> Neighbours:
@@ -20,7 +20,8 @@ def _nobody() -> Neighbours:
     return Neighbours([], [], e, e, e, e, e, e, e, [], i)
 
 
-_NOBODY = _nobody()
+NOBODY = _nobody()
+"""No vehicle near the formation (shared between steps)."""
 
 
 class NeighbourReads:
@@ -44,6 +45,8 @@ class NeighbourReads:
     def _neighbour_vars(self):
         """Variables that change every step; length, width and type are read once per vehicle."""
         tc = self.tc
+        self._neighbour_get = itemgetter(tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED,
+                                         tc.VAR_ACCELERATION, tc.VAR_LANE_INDEX, tc.VAR_LANE_ID)
         return [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VAR_LANE_ID,
                 tc.VAR_LANE_INDEX]
 
@@ -68,9 +71,12 @@ class NeighbourReads:
                 self.api.vehicle.subscribe(vid, self._neighbour_vars())
                 self._subscribed.add(vid)
 
-    def neighbours(self, all_vehicles: bool) -> Neighbours:
+    def neighbour_rows(self, all_vehicles: bool):
         """Non-member vehicles from the context subscriptions (or from all subscriptions),
-        sorted by id."""
+        sorted by id, in SUMO's frame (sim/sumo_sense.py ``sense_step`` converts it into
+        :class:`Neighbours`): ids, vTypes, front bumper (m, 2) [m], angle [deg], speed [m/s],
+        acceleration [m/s^2], length [m], width [m], lane ids, lane index; None when there
+        is none."""
         if all_vehicles:
             rows = {vid: r for vid, r in self.api.vehicle.getAllSubscriptionResults().items() if r}
         else:
@@ -83,19 +89,14 @@ class NeighbourReads:
                     rows.update(part)
         ids = sorted(rows.keys() - self.members.keys())
         if not ids:  # nobody near the formation (often, ahead of the traffic)
-            return _NOBODY
-        tc = self.tc
-        get = itemgetter(tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION,
-                         tc.VAR_LANE_INDEX, tc.VAR_LANE_ID)
-        cols = list(zip(*[get(rows[vid]) for vid in ids])) or [()] * 6
+            return None
+        cols = list(zip(*map(self._neighbour_get, map(rows.__getitem__, ids))))
         bodies, body = self._bodies, self._body
-        body = list(zip(*[bodies.get(vid) or body(vid) for vid in ids])) or [()] * 3
-        xy = np.array(cols[0], dtype=float).reshape(-1, 2)
-        ang, v, a = (np.array(c, dtype=float) for c in cols[1:4])
-        li, lanes = np.array(cols[4], dtype=int), list(cols[5])
-        length, width, types = np.array(body[0], dtype=float), np.array(body[1], dtype=float), list(body[2])
-        x, y, psi = sumo_to_cog_rows(xy, ang, length * 0.5)  # centre of the body
-        return Neighbours(ids, types, x, y, psi, v, a, length, width, lanes, li)
+        body = list(zip(*[bodies.get(vid) or body(vid) for vid in ids]))
+        ang, v, a = np.array(cols[1:4], dtype=float)  # rows of one array: one conversion
+        length, width = np.array(body[:2], dtype=float)
+        return (ids, list(body[2]), np.array(cols[0], dtype=float), ang, v, a, length, width,
+                list(cols[5]), np.array(cols[4], dtype=int))
 
     def vehicle_bodies(self):
         """Every vehicle in SUMO: ids, body centre x, y [m], heading [rad], length, width [m]

@@ -59,6 +59,22 @@ def sumo_to_cog(xf, yf, angle_deg, d_front):
 
 
 @kernel
+def cog_to_sumo_one(x, y, psi, d_front):
+    """:func:`cog_to_sumo` compiled, for one pose: SUMO's front bumper xf, yf [m] and angle
+    [deg, CW from north]."""
+    return (x + d_front * np.cos(psi), y + d_front * np.sin(psi),
+            np.mod(90.0 - psi * (180.0 / math.pi), 360.0))
+
+
+@kernel
+def sumo_to_cog_one(xf, yf, angle_deg, d_front):
+    """:func:`sumo_to_cog` compiled, for one front bumper xf, yf [m] and angle [deg]: CoG
+    x, y [m] and heading [rad CCW from +x]."""
+    p = (90.0 - angle_deg) * (math.pi / 180.0)
+    return xf - d_front * np.cos(p), yf - d_front * np.sin(p), p
+
+
+@kernel
 def cog_to_sumo_rows(x, y, psi, d_front):
     """:func:`cog_to_sumo` compiled, for (n,) arrays: SUMO's front bumper xf, yf [m] and
     angle [deg, CW from north]."""
@@ -67,9 +83,7 @@ def cog_to_sumo_rows(x, y, psi, d_front):
     yf = np.empty(n)
     ang = np.empty(n)
     for i in range(n):
-        xf[i] = x[i] + d_front[i] * np.cos(psi[i])
-        yf[i] = y[i] + d_front[i] * np.sin(psi[i])
-        ang[i] = np.mod(90.0 - psi[i] * (180.0 / math.pi), 360.0)
+        xf[i], yf[i], ang[i] = cog_to_sumo_one(x[i], y[i], psi[i], d_front[i])
     return xf, yf, ang
 
 
@@ -82,10 +96,7 @@ def sumo_to_cog_rows(xy, angle_deg, d_front):
     y = np.empty(n)
     psi = np.empty(n)
     for i in range(n):
-        p = (90.0 - angle_deg[i]) * (math.pi / 180.0)
-        psi[i] = p
-        x[i] = xy[i, 0] - d_front[i] * np.cos(p)
-        y[i] = xy[i, 1] - d_front[i] * np.sin(p)
+        x[i], y[i], psi[i] = sumo_to_cog_one(xy[i, 0], xy[i, 1], angle_deg[i], d_front[i])
     return x, y, psi
 
 

@@ -16,17 +16,24 @@ import numpy as np
 from ..record.ssm import SsmConverter
 from ..road.line_pack import FastLine, packed
 from ..scenario.schema import Scenario
-from .events import (EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch, TrafficWatch,
-                     log_sumo_events)
+from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch,
+                     TrafficWatch, log_sumo_events)
 from .road_setup import rectangles_overlap
 from .demand import measure_plan, traffic_meta
 from .join import adopt, enter, take_over
 from .messages import sumo_outputs_meta
 from .sumo_adapter import SumoAdapter, SumoError
-from .sumo_types import cog_to_sumo_rows
+from .sumo_neighbours import NOBODY
+from .sumo_sense import NeighbourGuess, PackedLanes, sense_step
+from .sumo_types import Neighbours
 from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import CAR, flow_vehicles_per_hour, write_routes
 from .world import Sensed
+
+_NO_ROWS = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0, dtype=np.int64))
+"""sense_step's SUMO rows of the members when they are not in SUMO (not inserted yet, a baseline)."""
+_NO_NB = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0))
+"""sense_step's neighbour rows when there is no neighbour."""
 
 
 class SumoWorld:
@@ -54,7 +61,9 @@ class SumoWorld:
         self.inserted = False
         self.all_bg = sc.traffic.record_radius is None or baseline
         self.ctx_owner = None
-        self.m_s = None
+        self.m_s = np.full(n, np.nan)  # members' arc length at the last sense [m] (NaN: none yet)
+        self.packed_lanes = PackedLanes(plan.road.shapes)
+        self._nb_guess = NeighbourGuess()
         self.ev = None
         self._kin = None  # (state, pos, vel, heading) of the state last placed
         self.along = np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])
@@ -137,30 +146,45 @@ class SumoWorld:
     def sense(self, k: int, t: float, state) -> Sensed:
         pos, vel, heading = self._kinematics(state)
         self._kin = None  # adopt may write into this state after sense
-        self._heading = heading
-        v_m = np.hypot(vel[:, 0], vel[:, 1])
-        m_s, m_d = self.line.to_frenet(pos, self.m_s)
+        member_rows = self.inserted and not self.baseline  # a baseline twin has no member in SUMO
+        rows = self._member_rows(t) if member_rows else _NO_ROWS
+        nb_rows = self.adapter.neighbour_rows(self.all_bg) if self.inserted else None  # all: baseline
+        nb_in = _NO_NB if nb_rows is None else (*nb_rows[2:4], *nb_rows[6:8], self._nb_guess(nb_rows[0]))
+        lanes, n = self.packed_lanes, len(self.ids)
+        s, d, v_m, gap, n_off, *nb_out = sense_step(
+            self.line.G, pos, vel, self.m_s, heading, self.d_front, *rows[:5], lanes.table,
+            lanes.points, PLACEMENT_TOLERANCE, *nb_in)
+        m_s, m_d = s[:n], d[:n]
         self.m_s = m_s
         sensed = Sensed(self.active, {"s": m_s, "d": m_d, "slot": self.slot_index}, v_m, m_s, m_d)
-        if self.inserted:
-            if not self.baseline:  # a baseline twin has no member in SUMO
-                self._read_members(t, pos, sensed.extra)
-            ev = self.ev
-            if ev is not None and (ev.collisions or ev.teleports):
-                log_sumo_events(self.rec, t, ev, self._id_set, self.joined_names())
-            sensed.nb = self.adapter.neighbours(self.all_bg)  # every vehicle in a baseline twin
-        nb = sensed.nb
-        if nb is not None and len(nb.ids):
-            sensed.nb_s, sensed.nb_d = self.line.to_frenet(np.column_stack([nb.x, nb.y]))
-            sensed.nb_rear, sensed.nb_half_w, sensed.nb_v = (sensed.nb_s - nb.length / 2,
-                                                             nb.width / 2, nb.v)
+        if not self.inserted:
+            return sensed
+        if member_rows:
+            sensed.extra.update(sumo_gap=gap, lane_index=rows[5])
+            self.members.placement(t, gap, n_off)
+            self.members.lane_changes(t, *rows[6:])
+        ev = self.ev
+        if ev is not None and (ev.collisions or ev.teleports):
+            log_sumo_events(self.rec, t, ev, self._id_set, self.joined_names())
+        if nb_rows is None:
+            sensed.nb = NOBODY
+            return sensed
+        ids, types, _, _, v, a, length, width, lane_ids, lane_index = nb_rows
+        x, y, psi, sensed.nb_rear, sensed.nb_half_w = nb_out
+        sensed.nb = Neighbours(ids, types, x, y, psi, v, a, length, width, lane_ids, lane_index)
+        sensed.nb_s, sensed.nb_d, sensed.nb_v = s[n:], d[n:], v
+        self._nb_guess.keep(ids, sensed.nb_s)
         return sensed
 
-    def _read_members(self, t, pos, extra) -> None:
+    def _member_rows(self, t):
+        """SUMO's rows of the members for :func:`~.sumo_sense.sense_step` (front bumper,
+        angle, lane position, lateral position, packed lane row; NaN and -1 for members out
+        of the run or no longer in SUMO, who are reported removed), then the recorded lane
+        index and :meth:`MemberWatch.lane_changes`' arguments."""
         n = len(self.ids)
         every = self.active.all()
         idx_act = self._every if every else np.flatnonzero(self.active)
-        xs, ys, _, lanes, lane_idx, lat, present = self.adapter.read_members(
+        front, ang, lanes, lane_idx, lat, lane_pos, present = self.adapter.read_members(
             self.sumo_ids if every else [self.sumo_ids[i] for i in idx_act])
         here = present.all()
         if not here:
@@ -168,20 +192,17 @@ class SumoWorld:
                 if not present[j]:
                     self.members.removed(t, i)
                     self.active[i] = False
+        li = self.packed_lanes.indices(lanes)
         if every and here:  # every member in the run and in SUMO (no copies, no masks)
-            gap_sumo = sumo_gap(self.plan.road, pos, self._heading, self.d_front, xs, ys, lanes,
-                                self.adapter.lane_pos, lat)
-            lane_index = lane_idx.astype(float)
-        else:
-            gap_sumo = np.full(n, np.nan)
-            lane_index = np.full(n, np.nan)
-            heading = self._heading[idx_act]
-            gap_sumo[idx_act] = sumo_gap(self.plan.road, pos[idx_act], heading, self.d_front[idx_act],
-                                         xs, ys, lanes, self.adapter.lane_pos, lat)
-            lane_index[idx_act] = np.where(present, lane_idx, np.nan)
-        extra.update(sumo_gap=gap_sumo, lane_index=lane_index)
-        self.members.placement(t, gap_sumo)
-        self.members.lane_changes(t, idx_act, present, lanes, lane_idx)
+            return (front, ang, lane_pos, lat, li, lane_idx.astype(float), idx_act, present, lanes,
+                    lane_idx)
+        rows = (np.full((n, 2), np.nan), np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan),
+                np.full(n, -1, dtype=np.int64))
+        for full, part in zip(rows, (front, ang, lane_pos, lat, li)):
+            full[idx_act] = part
+        lane_index = np.full(n, np.nan)
+        lane_index[idx_act] = np.where(present, lane_idx, np.nan)
+        return (*rows, lane_index, idx_act, present, lanes, lane_idx)
 
     def release(self, t: float, i: int, exit_edge: str = "") -> None:
         """Leave: hand member i over to SUMO's own driver model where it is (its lane,
@@ -304,23 +325,6 @@ def subscribe_context(adapter, ids, active, along, across, radius):
     extent = float(np.max(np.hypot(along[idx] - along[owner], across[idx] - across[owner])))
     adapter.subscribe_neighbours(ids[owner], radius + extent)
     return owner
-
-
-def sumo_gap(road, pos, heading, d_front, xs, ys, lanes, lane_pos, lat):
-    """How far SUMO has each member from our pose [m]: the larger of the position gap and the
-    distance between our front bumper (``d_front`` [m] ahead of the CoG, per member) and the point SUMO's lane, lane position and lateral
-    lane position give (SUMO's lane shapes, road/lanes.py). (In the step of a move SUMO
-    echoes the commanded x, y even where it put the vehicle on another lane.)"""
-    px, py = np.ascontiguousarray(pos[:, 0]), np.ascontiguousarray(pos[:, 1])
-    gap = np.hypot(xs - px, ys - py)
-    fx, fy, _ = (a.tolist() for a in cog_to_sumo_rows(px, py, np.ascontiguousarray(heading, dtype=float),
-                                                      np.ascontiguousarray(d_front, dtype=float)))
-    xy, isfinite = road.shapes.xy, math.isfinite
-    for j, (lane, lt, lp) in enumerate(zip(lanes, lat.tolist(), lane_pos.tolist())):
-        if lane and isfinite(lt) and isfinite(lp):
-            sx, sy = xy(lane, lp, lt)
-            gap[j] = max(gap[j], math.hypot(sx - fx[j], sy - fy[j]))
-    return gap
 
 
 def clear_insertion_zone(adapter, rec, t, pos, heading, v, vehicles, front):

@@ -1,0 +1,183 @@
+"""A step's sense in one compiled call (sim/sumo_world.py ``SumoWorld.sense``).
+
+:func:`sense_step` gives, for every member, its arc length and lateral offset along the
+reference line (road/fast_line.py ``to_frenet_many``), its speed, and how far SUMO has it from
+our pose (``sumo_gap``: the larger of the CoG distance and the distance between our front
+bumper and the point SUMO's lane, lane position and lateral lane position give on SUMO's lane
+shapes); for every neighbour its centre and heading (SUMO's front bumper converted) and its
+place along the line. :class:`PackedLanes` packs the lane shapes of road/lanes.py ``LaneShapes`` into two
+arrays the kernel reads. The arithmetic is that of ``LaneShapes.xy``, sim/sumo_types.py's
+conversions and ``math.hypot`` (:func:`~..kernels.py_hypot`), bit for bit
+(tests/test_fast_paths.py).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..kernels import kernel, py_hypot
+from ..road.fast_line import to_frenet_many
+from .sumo_types import cog_to_sumo_one, sumo_to_cog_one
+
+
+class PackedLanes:
+    """SUMO lane shapes (road/lanes.py ``LaneShapes``) packed as the lanes are first seen:
+    ``table`` (m, 3) rows (first point, number of points, scale from SUMO's lane position to
+    the shape's length) and ``points`` (k, 3) rows (x [m], y [m], length along the shape [m])."""
+
+    def __init__(self, shapes):
+        self.shapes = shapes
+        self._index: dict[str, int] = {}
+        self.table = np.zeros((0, 3))
+        self.points = np.zeros((0, 3))
+        self._last: list[str] | None = None
+        self._last_idx = np.empty(0, dtype=np.int64)
+
+    def index(self, lane_id: str) -> int:
+        """Row of ``lane_id`` in :attr:`table` (-1 for no lane: '')."""
+        i = self._index.get(lane_id)
+        if i is None:
+            if not lane_id:
+                return -1
+            px, py, cum, scale = self.shapes.shape(lane_id)
+            i = self._index[lane_id] = len(self.table)
+            self.table = np.vstack([self.table, [[len(self.points), len(px), scale]]])
+            self.points = np.vstack([self.points, np.column_stack([px, py, cum])])
+        return i
+
+    def indices(self, lanes: list[str]) -> np.ndarray:
+        """Rows of ``lanes`` (kept while the list stays the same; read-only)."""
+        if lanes != self._last:
+            self._last = list(lanes)
+            self._last_idx = np.array([self.index(lane) for lane in lanes], dtype=np.int64)
+            self._last_idx.flags.writeable = False
+        return self._last_idx
+
+
+@kernel
+def lane_point(table, points, li, pos, lat):
+    """``LaneShapes.xy`` of lane row ``li``: the point at lane position ``pos`` [m] and
+    ``lat`` [m] left of the lane's centre line (x, y [m])."""
+    first = int(table[li, 0])
+    n = int(table[li, 1])
+    last = points[first + n - 1, 2]
+    g = pos * table[li, 2]
+    if 0.0 > g:
+        g = 0.0
+    if last < g:
+        g = last
+    lo = 0  # bisect_right(cum, g) by bisection
+    hi = n
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if g < points[first + mid, 2]:
+            hi = mid
+        else:
+            lo = mid + 1
+    k = lo - 1
+    if k < 0:
+        k = 0
+    if k > n - 2:
+        k = n - 2
+    a = first + k
+    sx = points[a + 1, 0] - points[a, 0]
+    sy = points[a + 1, 1] - points[a, 1]
+    length = py_hypot(sx, sy)
+    if length == 0.0:
+        length = 1.0
+    tx = sx / length
+    ty = sy / length
+    along = g - points[a, 2]
+    x = points[a, 0] + tx * along
+    y = points[a, 1] + ty * along
+    return x - lat * ty, y + lat * tx
+
+
+@kernel
+def sense_step(G, pos, vel, s_guess, heading, d_front, front, angle, lane_pos, lat, li, table,
+               points, tolerance, nb_front, nb_angle, nb_length, nb_width, nb_guess):
+    """One step's sense, members then neighbours, in one call.
+
+    Members: arc length s [m] and lateral offset d [m] of our CoG ``pos`` (n, 2) [m] along
+    the line ``G`` (``s_guess``: last step's s, NaN: none), speed [m/s] from ``vel`` (n, 2),
+    and, when SUMO's rows are given (``li`` of length n, else length 0: gap NaN),
+    ``sumo_gap`` [m]: the larger of the distance between our CoG and SUMO's (SUMO's front
+    bumper ``front`` (n, 2) [m] and ``angle`` (n,) [deg]; NaN: not in SUMO) and the distance
+    between our front bumper (``d_front`` [m] ahead of the CoG along ``heading`` [rad]) and
+    lane row ``li``'s point at ``lane_pos`` [m], ``lat`` [m] (li < 0 or a non-finite
+    position: not used); and how many gaps exceed ``tolerance`` [m].
+
+    Neighbours (m of them): their centre x, y [m] and heading [rad] from SUMO's front bumper
+    ``nb_front`` (m, 2) [m], ``nb_angle`` [deg] and ``nb_length`` [m]; their s, d along the
+    line (``nb_guess``: last step's s, NaN: none), the arc length of their rear
+    (s - length / 2) [m] and their half width [m] (``nb_width`` / 2).
+
+    Returns (s, d) of members and neighbours concatenated (n + m,), the members' speed, gap
+    and count of gaps over the tolerance, and the neighbours' x, y, heading, rear, half width.
+    """
+    n = pos.shape[0]
+    m = nb_front.shape[0]
+    xy = np.empty((n + m, 2))
+    guess = np.empty(n + m)
+    nb_x = np.empty(m)
+    nb_y = np.empty(m)
+    nb_psi = np.empty(m)
+    for i in range(n):
+        xy[i, 0] = pos[i, 0]
+        xy[i, 1] = pos[i, 1]
+        guess[i] = s_guess[i]
+    for j in range(m):
+        nb_x[j], nb_y[j], nb_psi[j] = sumo_to_cog_one(nb_front[j, 0], nb_front[j, 1], nb_angle[j],
+                                                      nb_length[j] * 0.5)
+        xy[n + j, 0] = nb_x[j]
+        xy[n + j, 1] = nb_y[j]
+        guess[n + j] = nb_guess[j]
+    s, d = to_frenet_many(G, xy, guess)  # each point its own iteration: as if projected apart
+    rear = np.empty(m)
+    half_w = np.empty(m)
+    for j in range(m):
+        rear[j] = s[n + j] - nb_length[j] / 2
+        half_w[j] = nb_width[j] / 2
+    v = np.empty(n)
+    gap = np.full(n, np.nan)
+    for i in range(n):
+        v[i] = np.hypot(vel[i, 0], vel[i, 1])  # the C library's, as numpy (jit on or off)
+    n_off = 0
+    if li.shape[0] != n:
+        return s, d, v, gap, n_off, nb_x, nb_y, nb_psi, rear, half_w
+    for i in range(n):
+        px = pos[i, 0]
+        py = pos[i, 1]
+        x, y, _ = sumo_to_cog_one(front[i, 0], front[i, 1], angle[i], d_front[i])
+        g = np.hypot(x - px, y - py)
+        lp = lane_pos[i]
+        lt = lat[i]
+        if li[i] >= 0 and math.isfinite(lt) and math.isfinite(lp):
+            fx, fy, _ = cog_to_sumo_one(px, py, heading[i], d_front[i])
+            sx, sy = lane_point(table, points, li[i], lp, lt)
+            h = py_hypot(sx - fx, sy - fy)
+            if h > g:
+                g = h
+        gap[i] = g
+        if g > tolerance:
+            n_off += 1
+    return s, d, v, gap, n_off, nb_x, nb_y, nb_psi, rear, half_w
+
+
+class NeighbourGuess:
+    """Last step's arc length of each neighbour, the guess of :func:`sense_step`
+    (the same vehicles as last step: last step's array; otherwise per id, NaN for new ones)."""
+
+    def __init__(self):
+        self._ids: list[str] = []
+        self._s = np.empty(0)
+
+    def __call__(self, ids: list[str]) -> np.ndarray:
+        if ids == self._ids:
+            return self._s
+        last = dict(zip(self._ids, self._s.tolist()))
+        return np.array([last.get(vid, np.nan) for vid in ids], dtype=float)
+
+    def keep(self, ids: list[str], s: np.ndarray) -> None:
+        self._ids, self._s = ids, s
