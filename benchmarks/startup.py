@@ -5,14 +5,21 @@
 Each measurement is a fresh ``python`` process that runs a scenario for one step (free space:
 scenarios/thesis/dynamic_case4_straight.toml; SUMO: scenarios/highway/straight_3lane_light.toml
 without warm-up), timed from before the process is spawned to its exit. *Cold*: numba's
-on-disk cache (NUMBA_CACHE_DIR) empty, so every kernel compiles; *warm*: the same cache
-directory again (kernels loaded from disk). Prints one line per case (median of --repeat
-warm runs) and whether the compile notice was printed.
+on-disk cache (NUMBA_CACHE_DIR) and the road cache (sim/road_cache.py, below it) empty, so
+every kernel compiles and the reference line is fitted; *warm*: the same cache directory again
+(kernels and line loaded from disk). Python writes and reads its bytecode (``__pycache__``,
+as an installed package has it; PYTHONDONTWRITEBYTECODE is dropped for the child: without
+bytecode every module of the package is compiled from source, ~0.1-0.2 s of every start).
+Prints one line per case (median of --repeat warm runs) and whether the compile notice was
+printed; then, for the warm runs, the time to the end of the run (the one step run, recorded
+and SUMO closed; what is left is the interpreter's exit) and the CPU time of the process
+(user + system: less sensitive to other load on a shared machine than wall-clock time).
 """
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -26,7 +33,7 @@ CASES = {
     "sumo": ("scenarios/highway/straight_3lane_light.toml", {"traffic.warmup": 0.0}),
 }
 CHILD = """
-import sys, tempfile
+import sys, tempfile, time
 from formation_traci.scenario import load_scenario
 from formation_traci.sim.runner import run_scenario
 path, extra = sys.argv[1], eval(sys.argv[2])
@@ -34,18 +41,27 @@ sc = load_scenario(path, **{"run.duration": 0.05, **extra})
 with tempfile.TemporaryDirectory() as d:
     r = run_scenario(sc, d + "/run", scenario_path=path, progress=False, force=True)
     assert r.status == "completed", r.reason
+print("END_OF_RUN", time.time())
 """
 
 
-def once(path: str, extra: dict, cache_dir: str, root: Path = ROOT) -> tuple[float, str]:
+def once(path: str, extra: dict, cache_dir: str, root: Path = ROOT) -> tuple[float, str, float, float]:
+    """(wall time to exit [s], stderr, wall time to the end of the run [s], CPU time [s])."""
     env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir, PYTHONPATH=str(root))
+    env.pop("FORMATION_TRACI_CACHE", None)  # the road cache below NUMBA_CACHE_DIR
+    env.pop("PYTHONDONTWRITEBYTECODE", None)  # bytecode as in an installed package
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t_start = time.time()
     t0 = time.perf_counter()
     p = subprocess.run([sys.executable, "-c", CHILD, str(root / path), repr(extra)], env=env,
                        capture_output=True, text=True, cwd=root)
     wall = time.perf_counter() - t0
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if p.returncode:
         raise RuntimeError(p.stderr[-2000:])
-    return wall, p.stderr
+    end = [float(line.split()[1]) for line in p.stdout.splitlines() if line.startswith("END_OF_RUN")]
+    cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
+    return wall, p.stderr, end[-1] - t_start, cpu
 
 
 def main() -> None:
@@ -56,11 +72,12 @@ def main() -> None:
     args = ap.parse_args()
     for name, (path, extra) in CASES.items():
         with tempfile.TemporaryDirectory() as cache:
-            cold, err = once(path, extra, cache, args.root)
+            cold, err, _, _ = once(path, extra, cache, args.root)
             notice = "compiling" in err.lower()
-            warm = statistics.median(once(path, extra, cache, args.root)[0]
-                                     for _ in range(args.repeat))
-        print(f"{name:10s} cold {cold:6.2f} s  warm {warm:6.2f} s  compile notice: {notice}")
+            warm = [once(path, extra, cache, args.root) for _ in range(args.repeat)]
+        med = [statistics.median(w[i] for w in warm) for i in (0, 2, 3)]
+        print(f"{name:10s} cold {cold:6.2f} s  warm {med[0]:6.2f} s  compile notice: {notice}  "
+              f"(warm: {med[1]:.2f} s to the end of the run, CPU {med[2]:.2f} s)")
 
 
 if __name__ == "__main__":

@@ -5,13 +5,18 @@ Every physical and control law of the package is a ``@kernel`` function in its h
 variable ``NUMBA_DISABLE_JIT=1`` the same functions run as plain Python: that is the
 reference the ``jit_off`` tests run (README, CI).
 
-Two chores live here:
+Three chores live here:
 
 * one line on stderr when kernels are compiled for the first time in a process (a cold
   numba cache costs tens of seconds; the user should not see a silent stall);
 * numba keys its on-disk cache on the file that defines a function only, not on the files
   of the functions it calls: a digest of every module that defines kernels is stored next
-  to each cache directory, and a directory whose digest differs is emptied of kernels.
+  to each cache directory, and a directory whose digest differs is emptied of kernels;
+* a kernel read from the on-disk cache is machine code that needs numba's runtime (NRT)
+  only: :class:`_QuickLoadCache` loads it without first initialising numba's compiler
+  registries (its ``target_context.refresh()``, which imports all of numba's lowering
+  modules and scipy.linalg: 0.3-0.6 s of every warm start, issue 18). A compilation
+  initialises them itself (numba's compiler refreshes its contexts).
 """
 from __future__ import annotations
 
@@ -23,6 +28,8 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 from numba.core import event
+from numba.core.caching import FunctionCache
+from numba.core.runtime import nrt
 
 _NOTICE = "formation-traci: compiling the numba kernels (first run only, cached afterwards) ..."
 _STAMP = "formation_kernels.digest"
@@ -64,11 +71,36 @@ def _drop_stale_cache(dispatcher) -> None:
         pass
 
 
+class _QuickLoadCache(FunctionCache):
+    """numba's cache of a function, loading without the compiler's registries (module
+    docstring): ``Cache.load_overload`` minus its ``target_context.refresh()``."""
+
+    def load_overload(self, sig, target_context):
+        nrt.rtsys.initialize(target_context)  # the runtime the machine code calls
+        try:
+            with self._guard_against_spurious_io_errors():
+                return self._load_overload(sig, target_context)
+        except AttributeError:  # numba's internals moved (another version): its own load
+            return FunctionCache.load_overload(self, sig, target_context)
+        return None  # an I/O error swallowed by the guard: numba compiles
+
+
+def _quick_load_possible() -> bool:
+    """numba still has the internals :class:`_QuickLoadCache` relies on (checked once)."""
+    return all(hasattr(FunctionCache, name) for name in
+               ("load_overload", "_load_overload", "_guard_against_spurious_io_errors"))
+
+
+_QUICK_LOAD = _quick_load_possible()
+
+
 def kernel(fn=None, **options):
     """``numba.njit(cache=True, error_model="numpy")`` (options override), with the stale
-    cache check of :func:`_drop_stale_cache`."""
+    cache check of :func:`_drop_stale_cache` and the quick load of :class:`_QuickLoadCache`."""
     def wrap(f):
         d = njit(**{"cache": True, "error_model": "numpy", **options})(f)
+        if _QUICK_LOAD and type(getattr(d, "_cache", None)) is FunctionCache:
+            d._cache.__class__ = _QuickLoadCache
         _drop_stale_cache(d)
         return d
     return wrap(fn) if fn is not None else wrap

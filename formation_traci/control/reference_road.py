@@ -46,7 +46,9 @@ def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, 
     Returns (a_request, a_vc, emergency_vc, s_next, v_next, gap, lead_idx, a_cap_request,
     a_cap); ``a_cap_prev`` and ``emergency`` are the planner's state, updated in place."""
     n = m_s.shape[0]
-    slot_d = np.where(is_road, slot_d_road, m_d)
+    slot_d = np.empty(n)  # np.where(is_road, slot_d_road, m_d); np.where's numba implementation
+    for i in range(n):  # would load numba's arraymath and scipy.linalg at every start (0.3 s)
+        slot_d[i] = slot_d_road[i] if is_road[i] else m_d[i]
     v_set, v_set_dot = knot_profile_at(prof, 0, t)
     slot_s = s + along
     a_gov, gap, lead_idx, v_cap, a_cap_req = governor_step(

@@ -8,12 +8,13 @@ of set-up before (issue 18).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.interpolate import BPoly
-from scipy.special import comb, poch
-
 from ..kernels import kernel
+
+if TYPE_CHECKING:  # pragma: no cover
+    from scipy.interpolate import BPoly
 
 
 def hermite_bpoly(xi: np.ndarray, yi: np.ndarray, extrapolate=True) -> BPoly:
@@ -21,6 +22,9 @@ def hermite_bpoly(xi: np.ndarray, yi: np.ndarray, extrapolate=True) -> BPoly:
     (m + 1, d): d derivatives at every breakpoint, a polynomial of degree 2d - 1 per interval.
     The arithmetic of scipy's ``_construct_from_derivatives``, operation for operation, on all
     intervals at once (the powers of the interval length through the same scalar ``pow``)."""
+    from scipy.interpolate import BPoly
+    from scipy.special import comb, poch
+
     xi = np.asarray(xi, dtype=float)
     yi = np.asarray(yi, dtype=float)
     d = yi.shape[1]

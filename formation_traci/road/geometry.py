@@ -35,8 +35,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Sequence, Union
 
 import numpy as np
-from scipy.interpolate import BPoly, BSpline
-from scipy.spatial import cKDTree
 
 from .bernstein import hermite_bpoly
 from .fast_line import frame_many, to_frenet_many
@@ -46,6 +44,8 @@ from .line_pack import packed
 
 if TYPE_CHECKING:  # pragma: no cover
     import sumolib.net
+    from scipy.interpolate import BPoly, BSpline
+    from scipy.spatial import cKDTree
 
 NetLike = Union[str, "os.PathLike[str]", "sumolib.net.Net"]
 
@@ -69,26 +69,34 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]
 
 
-@dataclass(frozen=True, slots=True, eq=False)
+@dataclass(frozen=True, eq=False)
 class ReferenceLine:
     """Smooth planar curve c(s) parametrised by arc length s in [0, length] [m].
 
     Build it with :meth:`from_points` or :func:`reference_line_from_net`. All methods are
     vectorised over s (any shape); positions get a trailing axis of 2. Beyond the ends the
     line continues straight along the end tangents.
+
+    The line is its arrays (:data:`ARRAYS`): scipy's objects of the fit (``curve``,
+    ``curve_d1..3``, ``u_of_s``, ``tree``) are made from them when first asked for, and the
+    evaluation runs on the packed buffer (road/line_pack.py), so a line read back from the
+    road cache (sim/road_cache.py) needs no scipy.
     """
 
     length: float  # arc length of the fitted curve [m]
     points: np.ndarray = field(repr=False)  # cleaned input polyline, shape (n, 2) [m]
-    curve: BSpline = field(repr=False)  # c(u), u = chord-length parameter [m]
-    curve_d1: BSpline = field(repr=False)  # dc/du [-]
-    curve_d2: BSpline = field(repr=False)  # d2c/du2 [1/m]
-    curve_d3: BSpline = field(repr=False)  # d3c/du3 [1/m^2]
-    u_of_s: BPoly = field(repr=False)  # u(s), quintic Hermite [m]
+    knots: np.ndarray = field(repr=False)  # knots of the quintic B-spline c(u) [m]
+    coef: np.ndarray = field(repr=False)  # its coefficients, shape (n_coef, 2) [m]
+    u_coef: np.ndarray = field(repr=False)  # Bernstein coefficients of u(s), shape (6, m) [m]
     s_nodes: np.ndarray = field(repr=False)  # arc length at the knots, shape (m+1,) [m]
     heading_nodes: np.ndarray = field(repr=False)  # unwrapped heading at s_nodes [rad]
-    tree: cKDTree = field(repr=False)  # samples of c, first guess of the projection
+    tree_xy: np.ndarray = field(repr=False)  # samples of c, first guess of the projection [m]
     tree_s: np.ndarray = field(repr=False)  # arc length of the tree samples [m]
+    _made: dict = field(default_factory=dict, repr=False, compare=False)  # scipy objects, G
+
+    ARRAYS = ("points", "knots", "coef", "u_coef", "s_nodes", "heading_nodes", "tree_xy",
+              "tree_s")
+    """The fields that are arrays (with ``length`` they are the whole line)."""
 
     @classmethod
     def from_points(cls, xy, fit: LineFit = LINE_FIT_DEFAULT) -> "ReferenceLine":
@@ -101,6 +109,8 @@ class ReferenceLine:
         fit : LineFit
             Smoothing settings.
         """
+        from scipy.spatial import cKDTree
+
         pts = clean_polyline(xy, fit.min_segment, fit.max_segment)
         u = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
         curve = _fit_pspline(u, pts, fit)
@@ -120,9 +130,36 @@ class ReferenceLine:
         length = float(s_nodes[-1])
         n_tree = max(math.ceil(length / 1.0), 2) + 1
         tree_s = np.linspace(0.0, length, n_tree)
-        tree_xy = curve(u_of_s(tree_s).reshape(-1))
-        return cls(length, pts, curve, d1, d2, d3, u_of_s, s_nodes, heading_nodes,
-                   cKDTree(tree_xy), tree_s)
+        tree = cKDTree(curve(u_of_s(tree_s).reshape(-1)))
+        line = cls(length, pts, curve.t, curve.c, u_of_s.c, u_of_s.x, heading_nodes,
+                   tree.data, tree_s)
+        line._made.update(curve=curve, curve_d1=d1, curve_d2=d2, curve_d3=d3, u_of_s=u_of_s,
+                          tree=tree)
+        return line
+
+    def _make(self, name: str):
+        got = self._made.get(name)
+        if got is None:
+            from scipy.interpolate import BPoly, BSpline
+            from scipy.spatial import cKDTree
+
+            if name == "curve":
+                got = BSpline(self.knots, self.coef, _DEGREE, extrapolate=True)
+            elif name.startswith("curve_d"):
+                got = self.curve.derivative(int(name[-1]))
+            elif name == "u_of_s":
+                got = BPoly(self.u_coef, self.s_nodes, True)
+            else:
+                got = cKDTree(self.tree_xy)
+            self._made[name] = got
+        return got
+
+    curve = property(lambda self: self._make("curve"), doc="c(u), u = chord-length parameter [m] (scipy BSpline)")
+    curve_d1 = property(lambda self: self._make("curve_d1"), doc="dc/du [-]")
+    curve_d2 = property(lambda self: self._make("curve_d2"), doc="d2c/du2 [1/m]")
+    curve_d3 = property(lambda self: self._make("curve_d3"), doc="d3c/du3 [1/m^2]")
+    u_of_s = property(lambda self: self._make("u_of_s"), doc="u(s), quintic Hermite [m] (scipy BPoly)")
+    tree = property(lambda self: self._make("tree"), doc="cKDTree of the samples tree_xy")
 
     # ---------------------------------------------------------------- evaluation
     def frame(self, s) -> LinePoint:

@@ -7,10 +7,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import scipy.sparse as sparse
-import scipy.sparse.linalg as sparse_linalg
-from scipy.interpolate import BSpline
+
+if TYPE_CHECKING:  # pragma: no cover
+    import scipy.sparse as sparse
+    from scipy.interpolate import BSpline
 
 _DEGREE = 5
 """Degree of the B-spline of x(u), y(u) (quintic: curvature rate is C2)."""
@@ -82,6 +85,8 @@ def clean_polyline(xy, min_segment: float, max_segment: float) -> np.ndarray:
 
 
 def _difference_matrix(n: int, order: int) -> sparse.csr_matrix:
+    import scipy.sparse as sparse
+
     d = sparse.identity(n, format="csr")
     for _ in range(order):
         d = d[1:] - d[:-1]
@@ -89,7 +94,11 @@ def _difference_matrix(n: int, order: int) -> sparse.csr_matrix:
 
 
 def _fit_pspline(u: np.ndarray, pts: np.ndarray, fit: LineFit) -> BSpline:
-    """Penalised quintic regression spline of pts (n, 2) over parameter u [m]."""
+    """Penalised quintic regression spline of pts (n, 2) over parameter u [m] (scipy is
+    imported here: a line read from the road cache is not fitted)."""
+    import scipy.sparse.linalg as sparse_linalg
+    from scipy.interpolate import BSpline
+
     total = float(u[-1])
     m = max(math.ceil(total / fit.knot_spacing), 1)
     h = total / m

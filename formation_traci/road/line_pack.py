@@ -8,8 +8,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import BPoly, BSpline, PPoly
-
 from .bernstein import ball_tree, clearance
 from .fast_line import (_H_KAPPA, _H_N_SAMP, _H_OFF_CC, _H_OFF_CLR, _H_OFF_HN, _H_OFF_SN,
                         _H_OFF_SS, _H_OFF_SXY, _H_OFF_TREE, _H_OFF_UC, _H_OFF_UK, _H_SIZE,
@@ -32,7 +30,9 @@ class FastLine:
     @classmethod
     def from_reference_line(cls, line) -> "FastLine":
         """Pack a :class:`~.geometry.ReferenceLine` (its fitted spline, u(s), nodes, samples)."""
-        curve: BSpline = line.curve
+        from scipy.interpolate import PPoly
+
+        curve = line.curve  # scipy BSpline
         k = curve.k
         if k != _DEGREE or np.asarray(curve.c).ndim != 2 or curve.c.shape[1] != 2:
             raise ValueError("expected a quintic planar BSpline c(u)")
@@ -48,14 +48,14 @@ class FastLine:
             if not np.array_equal(pp.x[k:n_coef + 1], u_knots):
                 raise ValueError("unexpected PPoly breakpoints")
             coef[:, :, dim] = pp.c[::-1, k:n_coef].T  # ascending powers about the left knot
-        bp: BPoly = line.u_of_s
+        bp = line.u_of_s  # scipy BPoly
         uc = np.asarray(bp.c, dtype=float).reshape(bp.c.shape[0], -1)
         s_nodes = np.asarray(bp.x, dtype=float)
         if uc.shape != (k + 1, len(s_nodes) - 1):
             raise ValueError("u(s) must be a scalar quintic BPoly")
         if not np.array_equal(s_nodes, line.s_nodes):
             raise ValueError("u(s) breakpoints differ from s_nodes")
-        samp_xy = np.asarray(line.tree.data, dtype=float)
+        samp_xy = np.asarray(line.tree_xy, dtype=float)
         samp_s = np.asarray(line.tree_s, dtype=float)
         ds = float(samp_s[1] - samp_s[0])
         tree = ball_tree(samp_xy, LEAF_SIZE)
@@ -107,19 +107,14 @@ def _clearance(xy: np.ndarray, window: int) -> np.ndarray:
 
 
 def packed(line) -> np.ndarray:
-    """The buffer G of a ReferenceLine (built once per line and kept on it); a FastLine or a
-    G buffer passes through."""
+    """The buffer G of a ReferenceLine (built once per line and kept on it, or read back
+    with it from the road cache); a FastLine or a G buffer passes through."""
     if isinstance(line, np.ndarray):
         return line
     if isinstance(line, FastLine):
         return line.G
-    hit = _PACKED.get(id(line))
-    if hit is None or hit[0] is not line:
-        hit = (line, FastLine.from_reference_line(line).G)
-        _PACKED[id(line)] = hit
-        while len(_PACKED) > 16:  # a process uses one or two lines; keep a few
-            del _PACKED[next(iter(_PACKED))]
-    return hit[1]
-
-
-_PACKED: dict[int, tuple] = {}
+    made = line._made
+    G = made.get("G")
+    if G is None:
+        G = made["G"] = FastLine.from_reference_line(line).G
+    return G

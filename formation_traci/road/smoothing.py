@@ -26,6 +26,8 @@ FIT_TOLERANCE_DEFAULT = 0.6
 """Largest lateral distance of the reference line from SUMO's lane centre [m] (road.fit_tolerance)."""
 MAX_SMOOTHING = 160.0
 """Longest smoothing length tried [m]."""
+FIT_SETTINGS = repr((LINE_FIT_DEFAULT, MAX_SMOOTHING))
+"""The settings of :func:`fit_within` beyond the tolerance (part of the road cache's key)."""
 
 
 def deviation(line: ReferenceLine, xy) -> float:

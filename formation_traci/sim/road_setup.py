@@ -17,7 +17,6 @@ from ..models.params import VehicleParams
 from ..road.geometry import ReferenceLine, load_net
 from ..road.lanes import (LaneCentres, LaneShapes, geometric_route_lanes, geometric_route_shape,
                           lane_centre_offsets, sideways_internal_lanes)
-from ..road.smoothing import fit_within
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
 from .routes import resolve_route
@@ -163,16 +162,25 @@ _REFERENCE_CACHE: dict = {}
 
 def _reference(net_file: str, route: tuple, lane: int, tolerance: float, net):
     """Geometric lanes of the reference lane along the route, and the line fitted to them
-    within ``tolerance`` [m] (road/smoothing.py); cached per network file (and its mtime),
-    route, lane and tolerance."""
+    within ``tolerance`` [m] (road/smoothing.py); kept per network file (and its mtime),
+    route, lane and tolerance in the process, and on disk (sim/road_cache.py)."""
     key = (net_file, os.stat(net_file).st_mtime_ns, route, lane, tolerance)
     if key not in _REFERENCE_CACHE:
-        lanes = geometric_route_lanes(net, route, lane)
-        line, length, dev = fit_within(geometric_route_shape(net, route, lane), tolerance)
+        from . import road_cache
+        from ..road.line_pack import packed
+        from ..road.smoothing import FIT_SETTINGS, fit_within
+
+        disk_key = road_cache.entry_key(net_file, route, lane, tolerance, FIT_SETTINGS)
+        got = road_cache.load(disk_key)
+        if got is None:
+            lanes = geometric_route_lanes(net, route, lane)
+            line, length, dev = fit_within(geometric_route_shape(net, route, lane), tolerance)
+            got = (lanes, line, {"smoothing_length_m": length, "max_deviation_m": dev,
+                                 "tolerance_m": tolerance})
+            road_cache.store(disk_key, lanes, line, packed(line), got[2])
         if len(_REFERENCE_CACHE) > 8:
             _REFERENCE_CACHE.clear()
-        _REFERENCE_CACHE[key] = (lanes, line, {"smoothing_length_m": length, "max_deviation_m": dev,
-                                               "tolerance_m": tolerance})
+        _REFERENCE_CACHE[key] = got
     return _REFERENCE_CACHE[key]
 
 

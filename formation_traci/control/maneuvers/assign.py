@@ -13,7 +13,6 @@ ACROSS_SCALE. The Hungarian method (scipy.optimize.linear_sum_assignment) finds 
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 ALONG_SCALE = 8.0
 """Length of a car plus its margins [m] (the along axis of the scaled frame)."""
@@ -49,6 +48,8 @@ def assign_slots(current: np.ndarray, targets: np.ndarray,
     diff = (current[:, None, :] - targets[None, :, :]) / scale
     cost = np.sum(diff * diff, axis=2)
     cost = cost + TIE_BREAK * np.sqrt(cost)
+    from scipy.optimize import linear_sum_assignment  # only when a maneuver reassigns slots
+
     rows, cols = linear_sum_assignment(cost)
     out = np.empty(len(current), dtype=int)
     out[rows] = cols

@@ -1,0 +1,190 @@
+"""The road cache (sim/road_cache.py) and the warm start without scipy (issue 18, set-up).
+
+A run from a cached reference line is the run from a fitted one, bit for bit; a damaged
+entry is rebuilt; a warm process (numba and road caches filled) loads neither scipy's fitting
+modules nor numba's compiler registries.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+import formation_traci.road.smoothing as smoothing
+from formation_traci.road.geometry import ReferenceLine
+from formation_traci.scenario import load_scenario
+from formation_traci.sim import road_cache, road_setup
+from formation_traci.sim.road_setup import build_road
+from formation_traci.sim.runner import run_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+CURVED = ROOT / "scenarios" / "highway" / "curved_3lane.toml"
+SHORT = {"run.duration": 2.0, "traffic.warmup": 5.0}
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    """An empty road cache of this test, nothing kept in the process."""
+    d = tmp_path / "road_cache"
+    monkeypatch.setenv(road_cache.ENV, str(d))
+    road_setup._REFERENCE_CACHE.clear()
+    yield d
+    road_setup._REFERENCE_CACHE.clear()
+
+
+def _no_fit(*_a, **_k):
+    raise AssertionError("the line was fitted although the cache holds it")
+
+
+def _tables(out: Path) -> dict:
+    """Every recorded table's columns as raw bytes (NaN and sign bits included)."""
+    got = {}
+    for p in sorted(out.rglob("*.parquet")):
+        t = pq.read_table(p)
+        for name in t.column_names:
+            a = t.column(name).to_numpy(zero_copy_only=False)
+            got[(p.name, name)] = a.tobytes() if a.dtype != object else repr(a.tolist())
+    return got
+
+
+def test_a_run_from_the_cached_line_is_the_run_from_the_fitted_line(cache, tmp_path, monkeypatch):
+    sc = load_scenario(CURVED, **SHORT)
+    r = run_scenario(sc, tmp_path / "cold", scenario_path=CURVED, progress=False)
+    assert r.status == "completed", r.reason
+    assert len(list(cache.glob("road-*.npz"))) == 1
+    road_setup._REFERENCE_CACHE.clear()
+    monkeypatch.setattr(smoothing, "fit_within", _no_fit)  # the warm run must read the entry
+    r = run_scenario(sc, tmp_path / "warm", scenario_path=CURVED, progress=False)
+    assert r.status == "completed", r.reason
+    cold, warm = _tables(tmp_path / "cold"), _tables(tmp_path / "warm")
+    assert cold.keys() == warm.keys() and len(cold) > 20
+    assert [k for k in cold if cold[k] != warm[k]] == []
+    meta = [json.loads((tmp_path / d / "run.json").read_text()) for d in ("cold", "warm")]
+    assert [m["steps_done"] for m in meta] == [40, 40] and meta[0]["members"] == meta[1]["members"]
+
+
+def test_the_cached_line_has_the_fitted_arrays_and_evaluates_the_same(cache):
+    sc = load_scenario(CURVED)
+    road = build_road(sc, CURVED)
+    fitted = road.line
+    road_setup._REFERENCE_CACHE.clear()
+    again = build_road(sc, CURVED)
+    cached = again.line
+    assert again.fit == road.fit and road.fit["smoothing_length_m"] > 0
+    assert again.segments == road.segments
+    assert cached is not fitted and cached.length == fitted.length
+    for name in ReferenceLine.ARRAYS:
+        assert np.array_equal(getattr(cached, name), getattr(fitted, name)), name
+    s = np.linspace(-20.0, fitted.length + 20.0, 2001)
+    assert fitted.frame(s).position.tobytes() == cached.frame(s).position.tobytes()
+    assert fitted.curvature(s).tobytes() == cached.curvature(s).tobytes()
+    xy = fitted.from_frenet(s, 1.7)
+    assert [a.tobytes() for a in fitted.to_frenet(xy)] == [a.tobytes() for a in cached.to_frenet(xy)]
+    # scipy's objects are rebuilt from the arrays on demand, equal to the fit's
+    u = np.linspace(0.0, 100.0, 11)
+    assert np.array_equal(cached.curve(u), fitted.curve(u))
+    assert np.array_equal(cached.u_of_s(s[:50]), fitted.u_of_s(s[:50]))
+
+
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "other key"])
+def test_a_damaged_entry_is_rebuilt_without_error(cache, damage):
+    sc = load_scenario(CURVED)
+    line = build_road(sc, CURVED).line
+    (entry,) = cache.glob("road-*.npz")
+    good = entry.read_bytes()
+    if damage == "garbage":
+        entry.write_bytes(b"not a cache entry")
+    elif damage == "truncated":
+        entry.write_bytes(good[: len(good) // 2])
+    else:  # a valid file whose key is not this entry's
+        with np.load(entry) as z:
+            arrays = {k: z[k] for k in z.files}
+        meta = json.loads(str(arrays["meta"]))
+        meta["key"] = "0" * 64
+        arrays["meta"] = np.array(json.dumps(meta))
+        with open(entry, "wb") as f:
+            np.savez(f, **arrays)
+    road_setup._REFERENCE_CACHE.clear()
+    again = build_road(sc, CURVED).line
+    assert again.frame(np.arange(0.0, line.length, 7.0)).position.tobytes() == \
+        line.frame(np.arange(0.0, line.length, 7.0)).position.tobytes()
+    assert entry.read_bytes() == good  # rewritten whole
+    assert [p.name for p in cache.iterdir()] == [entry.name]  # no temporary file left
+
+
+def test_the_cache_directory(monkeypatch, tmp_path):
+    monkeypatch.setenv(road_cache.ENV, "off")
+    assert road_cache.cache_dir() is None
+    monkeypatch.delenv(road_cache.ENV)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    assert road_cache.cache_dir() == tmp_path / "formation_traci"
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    if sys.platform.startswith("linux"):
+        assert road_cache.cache_dir() == tmp_path / "xdg" / "formation-traci"
+
+
+def test_the_oldest_entries_beyond_the_limit_are_dropped(cache, monkeypatch):
+    monkeypatch.setattr(road_cache, "MAX_ENTRIES", 2)
+    cache.mkdir()
+    for i in range(3):
+        old = cache / f"road-old{i}.npz"
+        old.write_bytes(b"x")
+        os.utime(old, ns=(10 ** 9 * (i + 1), 10 ** 9 * (i + 1)))
+    build_road(load_scenario(CURVED), CURVED)
+    assert sorted(p.name for p in cache.iterdir())[-1] == "road-old2.npz"
+    assert len(list(cache.iterdir())) == 2 and not (cache / "road-old0.npz").exists()
+
+
+def test_an_unwritable_cache_is_skipped(tmp_path, monkeypatch):
+    blocker = tmp_path / "file"
+    blocker.write_text("a file where the cache directory would be")
+    monkeypatch.setenv(road_cache.ENV, str(blocker / "cache"))
+    road_setup._REFERENCE_CACHE.clear()
+    line = build_road(load_scenario(CURVED), CURVED).line
+    road_setup._REFERENCE_CACHE.clear()
+    assert line.length > 100.0 and not (blocker / "cache").exists()
+
+
+FIRST_STEP = """
+import sys
+from formation_traci.scenario import load_scenario
+from formation_traci.sim.runner import run_scenario
+path, out, extra = sys.argv[1], sys.argv[2], eval(sys.argv[3])
+sc = load_scenario(path, **{"run.duration": 0.05, **extra})
+r = run_scenario(sc, out, scenario_path=path, progress=False, force=True)
+assert r.status == "completed", r.reason
+print(sorted(m for m in sys.modules if m.startswith(("scipy.", "numba.np.arraymath"))))
+"""
+HEAVY = ("scipy.interpolate", "scipy.sparse", "scipy.optimize", "scipy.special", "scipy.spatial",
+         "scipy.linalg", "numba.np.arraymath")
+
+
+def _first_step(path: Path, out: Path, env: dict, extra=None) -> list[str]:
+    r = subprocess.run([sys.executable, "-c", FIRST_STEP, str(path), str(out), repr(extra or {})],
+                       capture_output=True, text=True, env=env, cwd=out.parent, timeout=900)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return eval(r.stdout.strip().splitlines()[-1])
+
+
+def test_a_warm_start_imports_neither_scipy_nor_numbas_compiler(tmp_path):
+    """A road run and a free-space run with warm caches read their line and load their
+    kernels: scipy's fitting modules (0.4 s) and numba's lowering registries or its arraymath
+    module with scipy.linalg (0.3 s) stay out. (On main before issue 18's start-up work a warm
+    road run imported scipy.interpolate, .optimize, .sparse, .special and .linalg.)"""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), FORMATION_TRACI_CACHE=str(tmp_path / "cache"))
+    road = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
+    no_warmup = {"traffic.warmup": 0.0}
+    cold = _first_step(road, tmp_path / "r0", env, no_warmup)
+    assert "scipy.interpolate" in cold  # the fit needs it
+    warm = _first_step(road, tmp_path / "r1", env, no_warmup)
+    assert [m for m in warm if m.startswith(HEAVY)] == []
+    free = ROOT / "scenarios" / "thesis" / "dynamic_case4_straight.toml"
+    _first_step(free, tmp_path / "f0", env)
+    assert [m for m in _first_step(free, tmp_path / "f1", env) if m.startswith(HEAVY)] == []
