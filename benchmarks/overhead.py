@@ -202,7 +202,15 @@ def child_sumo(n, duration, flow_end, seed):
     for _ in range(steps):
         adapter.simulation_step()
     t2 = time.perf_counter()
-    keep_busy("twin.done", "formation.done", adapter.simulation_step)
+    t_stop = float(args[args.index("--end") + 1]) - 1.0  # SUMO steps on until its end, then Python
+
+    def more():
+        if adapter.time < t_stop:
+            adapter.simulation_step()
+        else:
+            sum(range(20000))
+
+    keep_busy("twin.done", "formation.done", more)
     t3 = time.perf_counter()
     adapter.close()
     t4 = time.perf_counter()
