@@ -47,11 +47,12 @@ class PackedLanes:
         return i
 
     def indices(self, lanes: list[str]) -> np.ndarray:
-        """Rows of ``lanes`` (kept while the list stays the same; read-only)."""
+        """Rows of ``lanes`` (kept while the list stays the same: callers do not write it; a
+        read-only array would be another type to :func:`sense_step`, a second compiled copy
+        of it to load at every start)."""
         if lanes != self._last:
             self._last = list(lanes)
             self._last_idx = np.array([self.index(lane) for lane in lanes], dtype=np.int64)
-            self._last_idx.flags.writeable = False
         return self._last_idx
 
 
