@@ -133,13 +133,18 @@ def test_the_cache_directory(monkeypatch, tmp_path):
 def test_the_oldest_entries_beyond_the_limit_are_dropped(cache, monkeypatch):
     monkeypatch.setattr(road_cache, "MAX_ENTRIES", 2)
     cache.mkdir()
-    for i in range(3):
-        old = cache / f"road-old{i}.npz"
+    names = [f"road-{i:040x}.npz" for i in range(3)]  # entries of earlier runs, oldest first
+    for i, name in enumerate(names):
+        old = cache / name
         old.write_bytes(b"x")
         os.utime(old, ns=(10 ** 9 * (i + 1), 10 ** 9 * (i + 1)))
+    foreign = cache / "road-mine.npz"  # not a name the cache writes: never deleted
+    foreign.write_bytes(b"y")
+    os.utime(foreign, ns=(1, 1))
     build_road(load_scenario(CURVED), CURVED)
-    assert sorted(p.name for p in cache.iterdir())[-1] == "road-old2.npz"
-    assert len(list(cache.iterdir())) == 2 and not (cache / "road-old0.npz").exists()
+    ours = sorted(p.name for p in cache.iterdir() if p != foreign)
+    assert names[2] in ours and names[0] not in ours
+    assert len(ours) == 2 and foreign.read_bytes() == b"y"
 
 
 def test_an_unwritable_cache_is_skipped(tmp_path, monkeypatch):

@@ -17,7 +17,8 @@ float64 arrays, so a run from a cached line is bit for bit the run from a fitted
   (concurrent sweep processes writing the same entry are safe); an entry that cannot be read
   or does not match its key is ignored and rebuilt; a cache that cannot be written is skipped.
 * **Size**: at most :data:`MAX_ENTRIES` entries; writing one more drops the oldest.
-* **Clearing**: delete the directory (``road-*.npz`` files); nothing else lives there.
+* **Clearing**: delete the directory (``road-<40 hex digits>.npz`` files); pruning touches
+  no other file in it.
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ import hashlib
 import json
 import os
 import platform
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -41,6 +43,8 @@ _CODE = ("road/geometry.py", "road/line_fit.py", "road/smoothing.py", "road/bern
 """Modules whose source is part of the key (paths below the package)."""
 _CODE_DIGEST: list = []
 MAX_ENTRIES = 64
+_OURS = re.compile(r"road-[0-9a-f]{40}\.npz")
+"""The names of the entries this module writes (:func:`_path`); pruning touches no other file."""
 """Entries kept in the cache directory (a bundled route's entry is ~0.1-1 MB)."""
 
 
@@ -146,6 +150,8 @@ def _prune(directory: Path) -> None:
     """Drop the oldest entries beyond :data:`MAX_ENTRIES` (another process may drop them too)."""
     entries = []
     for p in directory.glob("road-*.npz"):
+        if not _OURS.fullmatch(p.name):  # never a file the tool did not write
+            continue
         try:
             entries.append((p.stat().st_mtime_ns, p))
         except OSError:
