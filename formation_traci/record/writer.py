@@ -5,6 +5,8 @@ readable as one table by ``pandas.read_parquet(dir)``, pyarrow.dataset, polars o
 Rows are buffered in preallocated numpy arrays and each full buffer is written, by a
 background thread, as one part file under a temporary name (leading '.', which dataset
 readers ignore) and then renamed, so a killed process leaves only complete part files.
+pyarrow is imported by that thread when it writes the first part, not before a run's first
+step (~40-50 ms of every start).
 """
 from __future__ import annotations
 
@@ -15,16 +17,16 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from .columns import Column
 
 
-def _arrow(data: np.ndarray) -> pa.Array:
+def _arrow(data: np.ndarray):
     """A 1-D numpy array (numbers or bool) as a pyarrow array without nulls, the values
     ``pa.array(data)`` gives. Built from its buffers: ``pa.array`` imports pandas on its first
     call (about 1 s), which a run does not otherwise need."""
+    import pyarrow as pa
+
     n = len(data)
     if data.dtype == np.bool_:
         return pa.Array.from_buffers(pa.bool_(), n, [None, pa.py_buffer(np.packbits(data, bitorder="little"))])
@@ -32,8 +34,10 @@ def _arrow(data: np.ndarray) -> pa.Array:
                                  [None, pa.py_buffer(np.ascontiguousarray(data))])
 
 
-def _arrow_strings(labels: Sequence[str]) -> pa.Array:
+def _arrow_strings(labels: Sequence[str]):
     """A list of str as a pyarrow string array (from its buffers, as :func:`_arrow`)."""
+    import pyarrow as pa
+
     enc = [s.encode("utf-8") for s in labels]
     offsets = np.zeros(len(enc) + 1, dtype=np.int32)
     np.cumsum([len(b) for b in enc], out=offsets[1:])
@@ -114,11 +118,7 @@ class ChunkedTable:
         self._broken = False  # a write failed: the writer thread writes no later part
         self._pool: ThreadPoolExecutor | None = None
         self._pending: list[Future] = []
-        self._schema = pa.schema([
-            pa.field(c.name, pa.string() if c.dtype == "string" else pa.from_numpy_dtype(np.dtype(c.dtype)),
-                     metadata={"unit": c.unit, "doc": c.doc})
-            for c in self.columns
-        ])
+        self._schema = None  # the Arrow schema, built with the first part (:meth:`_arrow_schema`)
 
     def code(self, label: str) -> int:
         """Integer code of a string value (added on first use)."""
@@ -250,7 +250,22 @@ class ChunkedTable:
         self.last_on_disk = tag
         self._done.append(tag)
 
+    def _arrow_schema(self):
+        """The table's Arrow schema: column names, types and each column's unit and doc."""
+        if self._schema is None:
+            import pyarrow as pa
+
+            self._schema = pa.schema([
+                pa.field(c.name, pa.string() if c.dtype == "string" else pa.from_numpy_dtype(np.dtype(c.dtype)),
+                         metadata={"unit": c.unit, "doc": c.doc})
+                for c in self.columns
+            ])
+        return self._schema
+
     def _write(self, blocks, labels, name, tag, n) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
         if self._broken:  # never a part after a hole: the table stays a prefix of the run
             raise OSError(f"{self.directory.name}: {name} not written after an earlier part failed")
         arrays = []
@@ -261,7 +276,7 @@ class ChunkedTable:
                 arrays.append(pa.DictionaryArray.from_arrays(_arrow(data), labels).dictionary_decode())
             else:
                 arrays.append(_arrow(data))
-        table = pa.Table.from_arrays(arrays, schema=self._schema)
+        table = pa.Table.from_arrays(arrays, schema=self._arrow_schema())
         tmp = self.directory / f".{name}.tmp"
         try:
             pq.write_table(table, tmp, compression="zstd")

@@ -31,6 +31,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from ..versions import installed_versions
+
 import numpy as np
 
 from ..road.geometry import ReferenceLine
@@ -66,17 +68,12 @@ def cache_dir() -> Path | None:
 
 def _code_digest() -> str:
     if not _CODE_DIGEST:
-        from importlib.metadata import PackageNotFoundError, version
-
         h = hashlib.sha256()
         root = Path(__file__).resolve().parents[1]
         for rel in _CODE:
             h.update(rel.encode() + (root / rel).read_bytes())
-        for dist in ("numpy", "scipy", "numba"):
-            try:
-                h.update(f"{dist}={version(dist)};".encode())
-            except PackageNotFoundError:  # pragma: no cover - an installed dependency
-                h.update(f"{dist}=?;".encode())
+        for dist, v in installed_versions(("numpy", "scipy", "numba")).items():
+            h.update(f"{dist}={'?' if v == 'not installed' else v};".encode())
         h.update(f"{sys.version};{platform.machine()}".encode())
         _CODE_DIGEST.append(h.hexdigest())
     return _CODE_DIGEST[0]

@@ -11,7 +11,6 @@ from __future__ import annotations
 import datetime as _dt
 import errno
 import gc
-import importlib.metadata
 import os
 import platform
 import traceback
@@ -23,6 +22,7 @@ from ..record.rundir import RunDirError, RunDirExists, RUN_SCHEMA, open_out_dir 
 from ..record.writer import atomic_write_json
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
+from ..versions import installed_versions, platform_name
 from ..comm.link import with_comm
 from .loop import ModelRangeError, check_finite, free_space_run, step_loop  # noqa: F401
 from .recorder import Recorder
@@ -42,16 +42,14 @@ def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
+RECORDED_DISTRIBUTIONS = ("formation-traci", "numpy", "pandas", "pyarrow", "pydantic", "scipy",
+                          "eclipse-sumo", "libsumo", "sumolib")
+
+
 def versions() -> dict[str, str]:
     """Versions of the package, its dependencies and Python, for run.json."""
-    out = {"python": platform.python_version(), "platform": platform.platform()}
-    for dist in ("formation-traci", "numpy", "pandas", "pyarrow", "pydantic", "scipy",
-                 "eclipse-sumo", "libsumo", "sumolib"):
-        try:
-            out[dist] = importlib.metadata.version(dist)
-        except importlib.metadata.PackageNotFoundError:
-            out[dist] = "not installed"
-    return out
+    return {"python": platform.python_version(), "platform": platform_name(),
+            **installed_versions(RECORDED_DISTRIBUTIONS)}
 
 
 RESERVE_BYTES = 1 << 18

@@ -8,7 +8,6 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import fcntl
-import importlib.metadata
 import json
 import os
 import time
@@ -18,6 +17,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..interrupt import raising_signals
+from ..versions import installed_versions
 from .case import CASE_JSON, CaseSpec
 from .executors import run_dask, run_local
 from .expand import Sweep, load_sweep
@@ -109,13 +109,7 @@ def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
 def _versions() -> dict[str, str]:
     from ..sim.runner import versions
 
-    out = versions()
-    for dist in ("dask", "distributed"):
-        try:
-            out[dist] = importlib.metadata.version(dist)
-        except importlib.metadata.PackageNotFoundError:
-            out[dist] = "not installed"
-    return out
+    return {**versions(), **installed_versions(("dask", "distributed"))}
 
 
 def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str]) -> pd.DataFrame:
