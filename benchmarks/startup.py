@@ -16,6 +16,11 @@ start to the end of the first simulated step, t = 0 -> one step, recorded), the 
 end of the run (its tables written, SUMO closed; what is left is the interpreter's exit) and
 the CPU time of the process
 (user + system: less sensitive to other load on a shared machine than wall-clock time).
+
+The last line is the floor any tool built on these libraries pays, measured in turn with the
+warm runs (the VM's speed varies up to 2x from minute to minute): a process that imports
+numpy, numba and libsumo, starts SUMO on the SUMO case's network and makes one step, no
+formation and nothing recorded. What a warm run takes beyond it is this package's share.
 """
 from __future__ import annotations
 
@@ -54,6 +59,27 @@ print("END_OF_RUN", time.time())
 """
 
 
+FLOOR = """
+import sys, time
+import numpy, numba, libsumo
+libsumo.start(["sumo", "-n", sys.argv[1], "--no-step-log", "true", "--step-length", "0.05"])
+libsumo.simulationStep()
+print("FIRST_STEP", time.time())
+libsumo.close()
+"""
+FLOOR_NET = "sumo_nets/straight3.net.xml"  # the SUMO case's network (straight_3lane_light)
+
+
+def floor_once(root: Path = ROOT) -> float:
+    """Wall time [s] from process start to the end of SUMO's first step, for :data:`FLOOR`."""
+    t_start = time.time()
+    p = subprocess.run([sys.executable, "-c", FLOOR, str(root / FLOOR_NET)], capture_output=True,
+                       text=True, cwd=root)
+    if p.returncode:
+        raise RuntimeError(p.stderr[-2000:])
+    return [float(x.split()[1]) for x in p.stdout.splitlines() if x.startswith("FIRST_STEP")][-1] - t_start
+
+
 def once(path: str, extra: dict, cache_dir: str, root: Path = ROOT) -> tuple[float, str, float, float]:
     """(wall time to exit [s], stderr, wall time to the end of the run [s], CPU time [s])."""
     env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir, PYTHONPATH=str(root))
@@ -80,15 +106,22 @@ def main() -> None:
     ap.add_argument("--root", type=Path, default=ROOT,
                     help="checkout to measure (default: this one), e.g. another worktree")
     args = ap.parse_args()
+    floors = []
     for name, (path, extra) in CASES.items():
         with tempfile.TemporaryDirectory() as cache:
             cold, err, _, _, cold_first = once(path, extra, cache, args.root)
             notice = "compiling" in err.lower()
-            warm = [once(path, extra, cache, args.root) for _ in range(args.repeat)]
+            warm = []
+            for _ in range(args.repeat):
+                floors.append(floor_once(args.root))
+                warm.append(once(path, extra, cache, args.root))
         med = [statistics.median(w[i] for w in warm) for i in (0, 2, 3, 4)]
         print(f"{name:10s} cold {cold:6.2f} s  warm {med[0]:6.2f} s  compile notice: {notice}  "
               f"(warm: {med[3]:.2f} s to the first step, {med[1]:.2f} s to the end of the run, "
               f"CPU {med[2]:.2f} s; cold: {cold_first:.2f} s to the first step)")
+    print(f"floor      numpy + numba + libsumo imported, SUMO started on {FLOOR_NET}, one step: "
+          f"{statistics.median(floors):.2f} s to the first step (median of {len(floors)}, "
+          f"{min(floors):.2f}-{max(floors):.2f})")
 
 
 if __name__ == "__main__":
