@@ -118,3 +118,9 @@ def packed(line) -> np.ndarray:
     if G is None:
         G = made["G"] = FastLine.from_reference_line(line).G
     return G
+
+
+def keep_packed(line, G: np.ndarray) -> None:
+    """Keep ``G``, the buffer :func:`packed` built for ``line`` in an earlier process (read
+    back from the road cache, sim/road_cache.py), on the ReferenceLine ``line``."""
+    line._made["G"] = G

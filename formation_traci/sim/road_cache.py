@@ -31,11 +31,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-from ..versions import installed_versions
-
 import numpy as np
 
 from ..road.geometry import ReferenceLine
+from ..road.line_pack import keep_packed
+from ..versions import installed_versions
 
 ENV = "FORMATION_TRACI_CACHE"
 """Environment variable: the cache directory, or ``off``."""
@@ -45,9 +45,9 @@ _CODE = ("road/geometry.py", "road/line_fit.py", "road/smoothing.py", "road/bern
 """Modules whose source is part of the key (paths below the package)."""
 _CODE_DIGEST: list = []
 MAX_ENTRIES = 64
+"""Entries kept in the cache directory (a bundled route's entry is ~0.1-1 MB)."""
 _OURS = re.compile(r"road-[0-9a-f]{40}\.npz")
 """The names of the entries this module writes (:func:`_path`); pruning touches no other file."""
-"""Entries kept in the cache directory (a bundled route's entry is ~0.1-1 MB)."""
 
 
 def cache_dir() -> Path | None:
@@ -109,7 +109,7 @@ def load(key: str):
         if G.ndim != 1 or not np.isfinite(G[0]):
             return None
         line = ReferenceLine(float(meta["length"]), **arrays)
-        line._made["G"] = G
+        keep_packed(line, G)
         return list(meta["lanes"]), line, dict(meta["fit"])
     except Exception:  # noqa: BLE001 - any damaged entry is rebuilt, never an error
         return None
