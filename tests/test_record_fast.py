@@ -281,3 +281,19 @@ def test_runs_write_the_files_the_straightforward_recording_writes(tmp_path, mon
     assert (case == "highway") == any(p.startswith("background") for p in a)
     for name in a:
         assert a[name] == b[name], name
+
+
+def test_extras_after_a_step_without_road_columns_are_still_recorded(tmp_path):
+    """A step lacking the road columns (free space) sends later steps down the column-by-column
+    path at once; a later step that has them still records their values."""
+    rec = Recorder(tmp_path / "extras", IDS, with_sumo=True)
+    names = recorder_module.FILLED_BY_CALLER[2:]
+    out = np.zeros((len(names), len(IDS)))
+    rec._extras({"leader_age_s": np.full(len(IDS), 0.5)}, out)
+    want = np.full((len(names), len(IDS)), np.nan)
+    want[names.index("leader_age_s")] = 0.5
+    np.testing.assert_array_equal(out, want)
+    full = {name: np.arange(len(IDS), dtype=float) + i for i, name in enumerate(names)}
+    rec._extras(full, out)
+    np.testing.assert_array_equal(out, np.array([full[name] for name in names]))
+    assert rec.flush() == []

@@ -67,6 +67,7 @@ class Recorder:
         :meth:`add_periods`, :meth:`add_background`)."""
         self._extra_block = self.traj.block(FILLED_BY_CALLER[2:])
         self._get_extras = itemgetter(*FILLED_BY_CALLER[2:])
+        self._extras_whole = True  # every step so far had every road and SUMO column (_extras)
         ix = self._sig_index
         self._v_at, self._acc = ix["v"], slice(ix["a_lon"], ix["a_lat"] + 1)  # a_lon, a_lat follow
         if self._acc.stop - self._acc.start != 2:
@@ -247,12 +248,16 @@ class Recorder:
 
     def _extras(self, extra: dict, out: np.ndarray) -> None:
         """The road and SUMO columns (FILLED_BY_CALLER[2:]) of ``extra`` into out (rows in
-        that order; NaN for a column ``extra`` lacks)."""
-        try:
-            out[:] = self._get_extras(extra)
-        except (KeyError, ValueError):  # a column missing (NaN) or not an (n,) array
-            for name, row in zip(FILLED_BY_CALLER[2:], out):
-                row[:] = extra.get(name, np.nan)
+        that order; NaN for a column ``extra`` lacks). Once a step lacked one (free space has
+        no road columns), later steps take the column-by-column path at once."""
+        if self._extras_whole:
+            try:
+                out[:] = self._get_extras(extra)
+                return
+            except (KeyError, ValueError):  # a column missing (NaN) or not an (n,) array
+                self._extras_whole = False
+        for name, row in zip(FILLED_BY_CALLER[2:], out):
+            row[:] = extra.get(name, np.nan)
 
     def period_rows(self, m: int, mask) -> tuple | None:
         """Where sim/fleet.py step_members writes control periods 1 .. m - 1 of the step
