@@ -208,7 +208,7 @@ def child_sumo(n, duration, flow_end, seed):
         if adapter.time < t_stop:
             adapter.simulation_step()
         else:
-            sum(range(20000))
+            _spin()
 
     keep_busy("twin.done", "formation.done", more)
     t3 = time.perf_counter()
@@ -230,10 +230,12 @@ def keep_busy(me: str, other: str, work=None) -> None:
     Path(d, me).touch()
     t_give_up = time.perf_counter() + 3600.0
     while not Path(d, other).exists() and time.perf_counter() < t_give_up:
-        if work is not None:
-            work()
-        else:
-            sum(range(20000))
+        (work or _spin)()
+
+
+def _spin() -> None:
+    """A few hundred microseconds of Python work (keeps a core busy)."""
+    sum(range(20000))
 
 
 def spawn_together(n: int, duration: float, seed: int) -> tuple[dict, dict]:

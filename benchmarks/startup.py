@@ -33,6 +33,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = {
@@ -70,6 +71,11 @@ libsumo.close()
 FLOOR_NET = "sumo_nets/straight3.net.xml"  # the SUMO case's network (straight_3lane_light)
 
 
+def _stamp(stdout: str, tag: str) -> float:
+    """The time.time() a child printed after ``tag`` (its last such line)."""
+    return [float(x.split()[1]) for x in stdout.splitlines() if x.startswith(tag)][-1]
+
+
 def floor_once(root: Path = ROOT) -> float:
     """Wall time [s] from process start to the end of SUMO's first step, for :data:`FLOOR`."""
     t_start = time.time()
@@ -77,11 +83,21 @@ def floor_once(root: Path = ROOT) -> float:
                        text=True, cwd=root)
     if p.returncode:
         raise RuntimeError(p.stderr[-2000:])
-    return [float(x.split()[1]) for x in p.stdout.splitlines() if x.startswith("FIRST_STEP")][-1] - t_start
+    return _stamp(p.stdout, "FIRST_STEP") - t_start
 
 
-def once(path: str, extra: dict, cache_dir: str, root: Path = ROOT) -> tuple[float, str, float, float]:
-    """(wall time to exit [s], stderr, wall time to the end of the run [s], CPU time [s])."""
+class Start(NamedTuple):
+    """One start of a case, from process start [s]: to its exit, to the end of the run, to the
+    first step; the CPU time of the process [s]; its stderr."""
+    exit: float
+    end_of_run: float
+    first_step: float
+    cpu: float
+    stderr: str
+
+
+def once(path: str, extra: dict, cache_dir: str, root: Path = ROOT) -> Start:
+    """Run the case ``path`` (with overrides ``extra``) for one step in a fresh process."""
     env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir, PYTHONPATH=str(root))
     env.pop("FORMATION_TRACI_CACHE", None)  # the road cache below NUMBA_CACHE_DIR
     env.pop("PYTHONDONTWRITEBYTECODE", None)  # bytecode as in an installed package
@@ -94,10 +110,9 @@ def once(path: str, extra: dict, cache_dir: str, root: Path = ROOT) -> tuple[flo
     cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if p.returncode:
         raise RuntimeError(p.stderr[-2000:])
-    end = [float(line.split()[1]) for line in p.stdout.splitlines() if line.startswith("END_OF_RUN")]
-    first = [float(line.split()[1]) for line in p.stdout.splitlines() if line.startswith("FIRST_STEP")]
     cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
-    return wall, p.stderr, end[-1] - t_start, cpu, first[-1] - t_start
+    return Start(wall, _stamp(p.stdout, "END_OF_RUN") - t_start, _stamp(p.stdout, "FIRST_STEP") - t_start,
+                 cpu, p.stderr)
 
 
 def main() -> None:
@@ -109,16 +124,16 @@ def main() -> None:
     floors = []
     for name, (path, extra) in CASES.items():
         with tempfile.TemporaryDirectory() as cache:
-            cold, err, _, _, cold_first = once(path, extra, cache, args.root)
-            notice = "compiling" in err.lower()
+            cold = once(path, extra, cache, args.root)
             warm = []
             for _ in range(args.repeat):
                 floors.append(floor_once(args.root))
                 warm.append(once(path, extra, cache, args.root))
-        med = [statistics.median(w[i] for w in warm) for i in (0, 2, 3, 4)]
-        print(f"{name:10s} cold {cold:6.2f} s  warm {med[0]:6.2f} s  compile notice: {notice}  "
-              f"(warm: {med[3]:.2f} s to the first step, {med[1]:.2f} s to the end of the run, "
-              f"CPU {med[2]:.2f} s; cold: {cold_first:.2f} s to the first step)")
+        med = Start(*(statistics.median(getattr(w, f) for w in warm) for f in Start._fields[:4]), "")
+        print(f"{name:10s} cold {cold.exit:6.2f} s  warm {med.exit:6.2f} s  "
+              f"compile notice: {'compiling' in cold.stderr.lower()}  "
+              f"(warm: {med.first_step:.2f} s to the first step, {med.end_of_run:.2f} s to the end of the run, "
+              f"CPU {med.cpu:.2f} s; cold: {cold.first_step:.2f} s to the first step)")
     print(f"floor      numpy + numba + libsumo imported, SUMO started on {FLOOR_NET}, one step: "
           f"{statistics.median(floors):.2f} s to the first step (median of {len(floors)}, "
           f"{min(floors):.2f}-{max(floors):.2f})")
