@@ -18,6 +18,7 @@ import pytest
 
 import formation_traci.road.smoothing as smoothing
 from formation_traci.road.geometry import ReferenceLine
+from formation_traci.road.line_pack import packed
 from formation_traci.scenario import load_scenario
 from formation_traci.sim import road_cache, road_setup
 from formation_traci.sim.road_setup import build_road
@@ -193,3 +194,42 @@ def test_a_warm_start_imports_neither_scipy_nor_numbas_compiler(tmp_path):
     free = ROOT / "scenarios" / "thesis" / "dynamic_case4_straight.toml"
     _first_step(free, tmp_path / "f0", env)
     assert [m for m in _first_step(free, tmp_path / "f1", env) if m.startswith(HEAVY)] == []
+
+
+WRITER = """
+import sys
+from pathlib import Path
+from formation_traci.scenario import load_scenario
+from formation_traci.sim import road_cache, road_setup
+from formation_traci.road.line_pack import packed
+path = Path(sys.argv[1])
+road = road_setup.build_road(load_scenario(path), path)  # fitted (or read) once
+key = sys.argv[2]
+for _ in range(int(sys.argv[3])):
+    road_cache.store(key, ["a", "b"], road.line, packed(road.line), {"n": 1})
+"""
+
+
+def test_an_entry_rewritten_by_other_processes_always_reads_back_whole(cache):
+    """The docstring's safety claim: while other processes (a sweep's cases starting
+    together) write the same entry, a reader never sees a torn file, and no temporary file is
+    left behind."""
+    key = "f" * 64
+    fitted = build_road(load_scenario(CURVED), CURVED).line
+    road_cache.store(key, ["a", "b"], fitted, packed(fitted), {"n": 1})
+    env = dict(os.environ, **{road_cache.ENV: str(cache)})
+    procs = [subprocess.Popen([sys.executable, "-c", WRITER, str(CURVED), key, "40"], env=env,
+                              stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    reads = torn = 0
+    while any(p.poll() is None for p in procs):
+        got = road_cache.load(key)
+        reads += 1
+        torn += got is None or got[0] != ["a", "b"]
+    for p in procs:
+        err = p.communicate()[1]
+        assert p.returncode == 0, err[-2000:]
+    assert reads > 0 and torn == 0
+    got = road_cache.load(key)
+    for name in ReferenceLine.ARRAYS:
+        assert np.array_equal(getattr(got[1], name), getattr(fitted, name)), name
+    assert [p.name for p in cache.iterdir() if not p.name.startswith("road-")] == []
