@@ -227,8 +227,7 @@ class ChunkedTable:
         tag = float(self._buf[self.progress_column][n - 1]) if self.progress_column and n else None
         tag = mark if mark is not None else tag
         name = f"part-{self.parts_written:05d}.parquet"
-        labels = _arrow_strings(self.labels)
-        self._submit(self._write, blocks, labels, name, tag, n)
+        self._submit(self._write, blocks, list(self.labels), name, tag, n)
         self.parts_written += 1
         self.rows_written += n
         self._n = 0
@@ -268,6 +267,7 @@ class ChunkedTable:
 
         if self._broken:  # never a part after a hole: the table stays a prefix of the run
             raise OSError(f"{self.directory.name}: {name} not written after an earlier part failed")
+        labels = _arrow_strings(labels)
         arrays = []
         for c in self.columns:
             dt, j = self._where[c.name]
