@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from formation_traci.control.governor import column_caps, governor_step
-from formation_traci.control.longitudinal import LongitudinalPlanner, PlannerParams
+from formation_traci.control.longitudinal import LongitudinalPlanner, PlannerParams, plan_accel, plan_caps
 from formation_traci.control.reference_road import GovernorLimits, road_reference_step, road_vc_rows
 from formation_traci.control.virtual_car import knot_profile_at
 from formation_traci.road.geometry import reference_line_from_net
@@ -39,7 +39,14 @@ def composed(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, ha
     off = ~active
     v_c, a_c = np.where(off, np.inf, v_cap), np.where(off, np.inf, a_cap_req)
     a_m = np.zeros(len(v_m)) if v_prev is None else (v_m - v_prev) / dt
-    a_vc, _, a_cap = planner.step(a_request, v_c, a_c, v_m, a_m, dt)
+    p = planner.p  # the planner's step before it was fused (plan_accel, then plan_caps)
+    a_vc, planner.emergency_vc = plan_accel(planner.a_vc, float(a_request), dt, p.tau, p.jerk_max,
+                                            p.jerk_emergency, p.decel_comfort)
+    planner.a_vc = a_vc
+    a_cap = np.empty_like(planner.a_cap)
+    plan_caps(planner.a_cap, v_c, a_c, v_m, a_m, dt, p.tau, p.jerk_max, p.jerk_emergency,
+              p.decel_comfort, p.tau_speed_cap, p.lift_margin, a_cap, planner.emergency)
+    planner.a_cap = a_cap
     a_cap[off] = np.inf
     vc = np.empty((N_CTRL, len(v_m), 8))
     s1, v1 = road_vc_rows(G, s, v, a_vc, DT_C, vc)
