@@ -67,7 +67,7 @@ class Recorder:
         :meth:`add_periods`, :meth:`add_background`)."""
         self._extra_block = self.traj.block(FILLED_BY_CALLER[2:])
         self._get_extras = itemgetter(*FILLED_BY_CALLER[2:])
-        self._extras_whole = True  # every step so far had every road and SUMO column (_extras)
+        self._extra_names = frozenset(FILLED_BY_CALLER[2:])
         ix = self._sig_index
         self._v_at, self._acc = ix["v"], slice(ix["a_lon"], ix["a_lat"] + 1)  # a_lon, a_lat follow
         if self._acc.stop - self._acc.start != 2:
@@ -248,14 +248,14 @@ class Recorder:
 
     def _extras(self, extra: dict, out: np.ndarray) -> None:
         """The road and SUMO columns (FILLED_BY_CALLER[2:]) of ``extra`` into out (rows in
-        that order; NaN for a column ``extra`` lacks). Once a step lacked one (free space has
-        no road columns), later steps take the column-by-column path at once."""
-        if self._extras_whole:
+        that order; NaN for a column ``extra`` lacks: free space, or a road step before the
+        members are in SUMO)."""
+        if self._extra_names <= extra.keys():
             try:
                 out[:] = self._get_extras(extra)
                 return
-            except (KeyError, ValueError):  # a column missing (NaN) or not an (n,) array
-                self._extras_whole = False
+            except ValueError:  # a column that is not an (n,) array
+                pass
         for name, row in zip(FILLED_BY_CALLER[2:], out):
             row[:] = extra.get(name, np.nan)
 
