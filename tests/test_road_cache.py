@@ -23,6 +23,7 @@ from formation_traci.scenario import load_scenario
 from formation_traci.sim import road_cache, road_setup
 from formation_traci.sim.road_setup import build_road
 from formation_traci.sim.runner import run_scenario
+from sumo_nets import net_path
 
 ROOT = Path(__file__).resolve().parents[1]
 CURVED = ROOT / "scenarios" / "highway" / "curved_3lane.toml"
@@ -162,6 +163,7 @@ FIRST_STEP = """
 import sys
 from formation_traci.scenario import load_scenario
 from formation_traci.sim.runner import run_scenario
+from sumo_nets import net_path
 path, out, extra = sys.argv[1], sys.argv[2], eval(sys.argv[3])
 sc = load_scenario(path, **{"run.duration": 0.05, **extra})
 r = run_scenario(sc, out, scenario_path=path, progress=False, force=True)
@@ -233,3 +235,24 @@ def test_an_entry_rewritten_by_other_processes_always_reads_back_whole(cache):
     for name in ReferenceLine.ARRAYS:
         assert np.array_equal(getattr(got[1], name), getattr(fitted, name)), name
     assert [p.name for p in cache.iterdir() if not p.name.startswith("road-")] == []
+
+
+@pytest.mark.parametrize("change", ["cpu", "sumolib", "road_setup"])
+def test_the_key_changes_with_the_cpu_sumolib_and_the_code_that_stores_the_entry(monkeypatch, change):
+    """A line fitted on another CPU kind (numpy's SIMD loops), read by another sumolib or
+    stored by other set-up code is another entry (a cache may be shared by a cluster)."""
+    args = (str(net_path("curved3")), ("main",), 1, 0.05, smoothing.FIT_SETTINGS)
+    monkeypatch.setattr(road_cache, "_CODE_DIGEST", [])
+    before = road_cache.entry_key(*args)
+    monkeypatch.setattr(road_cache, "_CODE_DIGEST", [])
+    if change == "cpu":
+        monkeypatch.setattr(road_cache, "_cpu_features", lambda: "SSE2")
+    elif change == "sumolib":
+        real = road_cache.installed_versions
+        monkeypatch.setattr(road_cache, "installed_versions",
+                            lambda names: {**real(names), **({"sumolib": "0.0.1"} if "sumolib" in names else {})})
+    else:
+        real_read = Path.read_bytes
+        monkeypatch.setattr(Path, "read_bytes", lambda self: real_read(self) + (
+            b"# edited" if self.name == "road_setup.py" else b""))
+    assert road_cache.entry_key(*args) != before

@@ -11,8 +11,9 @@ float64 arrays, so a run from a cached line is bit for bit the run from a fitted
   user cache directory (``$XDG_CACHE_HOME`` or ``~/.cache``, ``~/Library/Caches``,
   ``%LOCALAPPDATA%``) ``/formation-traci``. Never the scenario's or the run's directory.
 * **Key**: sha256 of the network file's bytes, the route, the reference lane, the fit
-  tolerance and settings, the source of the modules that fit and pack the line, and the
-  numpy / scipy / numba / Python versions and the machine type. Any change is a new entry.
+  tolerance and settings, the source of the modules that fit, pack and store the line, the
+  numpy / scipy / numba / sumolib / Python versions, the machine type and the CPU's SIMD
+  features (numpy's). Any change is a new entry.
 * **Safety**: written to a temporary file in the same directory and renamed into place
   (concurrent sweep processes writing the same entry are safe); an entry that cannot be read
   or does not match its key is ignored and rebuilt; a cache that cannot be written is skipped.
@@ -41,7 +42,7 @@ ENV = "FORMATION_TRACI_CACHE"
 """Environment variable: the cache directory, or ``off``."""
 _CODE = ("road/geometry.py", "road/line_fit.py", "road/smoothing.py", "road/bernstein.py",
          "road/line_pack.py", "road/fast_line.py", "road/lanes.py", "kernels.py",
-         "sim/road_cache.py")
+         "sim/road_cache.py", "sim/road_setup.py")
 """Modules whose source is part of the key (paths below the package)."""
 _CODE_DIGEST: list = []
 MAX_ENTRIES = 64
@@ -72,11 +73,21 @@ def _code_digest() -> str:
         root = Path(__file__).resolve().parents[1]
         for rel in _CODE:
             h.update(rel.encode() + (root / rel).read_bytes())
-        for dist, v in installed_versions(("numpy", "scipy", "numba")).items():
+        for dist, v in installed_versions(("numpy", "scipy", "numba", "sumolib")).items():
             h.update(f"{dist}={'?' if v == 'not installed' else v};".encode())
-        h.update(f"{sys.version};{platform.machine()}".encode())
+        h.update(f"{sys.version};{platform.machine()};{_cpu_features()}".encode())
         _CODE_DIGEST.append(h.hexdigest())
     return _CODE_DIGEST[0]
+
+
+def _cpu_features() -> str:
+    """The SIMD features numpy's loops may use on this CPU (its math can differ in the last
+    bit between CPUs: a cache shared by the machines of a cluster keeps one entry per kind)."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__ as features
+    except ImportError:  # pragma: no cover - another numpy layout
+        return platform.processor()
+    return ",".join(sorted(name for name, on in features.items() if on))
 
 
 def entry_key(net_file: str, route: tuple, lane: int, tolerance: float, settings: str) -> str:
