@@ -1,7 +1,7 @@
 """Versions of installed distributions and the platform's name, for run.json, sweep summaries
 and cache keys, read without the start-up cost of ``importlib.metadata`` (issue 18: a run's
 start <= 1 s): parsing nine METADATA files took ~20 ms, ``platform.platform()`` ~15 ms (it
-scans the Python executable for the C library's version)."""
+runs ``uname -p`` in a subprocess for the processor field)."""
 from __future__ import annotations
 
 import os
@@ -13,11 +13,12 @@ import sys
 def installed_versions(names) -> dict[str, str]:
     """{name: version, or "not installed"} for the distributions ``names``, as
     ``importlib.metadata.version`` gives them: the first ``NAME-VERSION.dist-info`` directory
-    on sys.path (its name is the wheel standard's), else the metadata (e.g. an egg)."""
+    on sys.path (its name is the wheel standard's), else (an ``.egg-info`` comes first, or
+    nothing was found) the metadata itself."""
     found = _dist_info_versions(names)
     out = {}
     for dist in names:
-        if dist not in found:
+        if found.get(dist) is None:
             from importlib.metadata import PackageNotFoundError, version
             try:
                 found[dist] = version(dist)
@@ -31,9 +32,10 @@ def _norm(name: str) -> str:
     return re.sub(r"[-_.]+", "_", name).lower()
 
 
-def _dist_info_versions(names) -> dict[str, str]:
-    """{name: version} of those ``names`` found as ``NAME-VERSION.dist-info`` directories on
-    sys.path (the first in path order, as importlib.metadata finds them)."""
+def _dist_info_versions(names) -> dict[str, str | None]:
+    """{name: version} of those ``names`` whose first metadata directory on sys.path (in path
+    order, as importlib.metadata finds them) is ``NAME-VERSION.dist-info``; None for those
+    whose first is an ``.egg-info`` (its version is inside)."""
     wanted, found = {_norm(n): n for n in names}, {}
     for entry in sys.path:
         try:
@@ -41,21 +43,27 @@ def _dist_info_versions(names) -> dict[str, str]:
         except OSError:
             continue
         for item in listing:
-            stem = item[:-len(".dist-info")] if item.endswith(".dist-info") else ""
-            if stem.count("-") == 1:
-                name, version = stem.split("-")
-                dist = wanted.get(_norm(name))
-                if dist is not None and dist not in found:
-                    found[dist] = version
+            if item.endswith(".dist-info"):
+                stem, egg = item[:-len(".dist-info")], False
+            elif item.endswith(".egg-info"):
+                stem, egg = item[:-len(".egg-info")], True
+            else:
+                continue
+            name, _, version = stem.partition("-")
+            dist = wanted.get(_norm(name))
+            if dist is None or dist in found:
+                continue
+            found[dist] = None if egg or not version or "-" in version else version
     return found
 
 
 def platform_name() -> str:
-    """``platform.platform()``'s text; on Linux with glibc built from ``os.uname`` and
-    ``os.confstr`` the way it builds it, without its scan of the executable."""
-    libc = os.confstr("CS_GNU_LIBC_VERSION") if "CS_GNU_LIBC_VERSION" in getattr(os, "confstr_names", {}) else None
+    """``platform.platform()``'s text without the processor field (``uname -p``, which Linux
+    distributions report as "unknown" or as the machine, in which cases the texts are equal);
+    other systems than Linux get ``platform.platform()`` itself."""
     u = os.uname()
-    if u.sysname != "Linux" or not libc or not libc.startswith("glibc "):
+    join = getattr(platform, "_platform", None)  # platform.platform()'s joining and cleaning
+    if u.sysname != "Linux" or join is None:
         return platform.platform()
-    return "-".join(part.replace(" ", "_") for part in (u.sysname, u.release, u.machine, "with",
-                                                          libc.replace(" ", "")))
+    libc, version = platform.libc_ver()  # os.confstr: no scan of the executable
+    return join(u.sysname, u.release, u.machine, "with", libc + version)

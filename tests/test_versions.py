@@ -43,13 +43,29 @@ def test_the_first_dist_info_on_sys_path_wins_with_the_names_normalised(tmp_path
     assert installed_versions(("fake-dist",)) == {"fake-dist": "1.2.3"} == {"fake-dist": md.version("fake-dist")}
 
 
-def test_platform_name_is_platforms():
-    assert platform_name() == platform.platform()
+def _platform_without_processor() -> str:
+    text, u = platform.platform(), platform.uname()
+    if u.processor and u.processor not in ("unknown", u.machine):
+        text = text.replace(f"-{u.processor}-", "-", 1)
+    return text
+
+
+def test_an_egg_info_first_on_sys_path_is_read_as_importlib_metadata_reads_it(tmp_path, monkeypatch):
+    egg = tmp_path / "a" / "fake_dist.egg-info"
+    egg.mkdir(parents=True)
+    (egg / "PKG-INFO").write_text("Metadata-Version: 2.1\nName: fake-dist\nVersion: 3.0\n")
+    _fake_dist(tmp_path / "b", "fake_dist-9.9.dist-info", "9.9")
+    monkeypatch.setattr(sys, "path", [str(tmp_path / "a"), str(tmp_path / "b")] + sys.path)
+    assert installed_versions(("fake-dist",)) == {"fake-dist": "3.0"} == {"fake-dist": md.version("fake-dist")}
+
+
+def test_platform_name_is_platforms_without_the_processor():
+    assert platform_name() == _platform_without_processor()
 
 
 def test_run_json_versions():
     v = versions()
-    assert v["python"] == platform.python_version() and v["platform"] == platform.platform()
+    assert v["python"] == platform.python_version() and v["platform"] == _platform_without_processor()
     assert all(v[d] == _metadata_version(d) for d in RECORDED_DISTRIBUTIONS)
 
 

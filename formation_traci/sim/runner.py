@@ -46,10 +46,11 @@ RECORDED_DISTRIBUTIONS = ("formation-traci", "numpy", "pandas", "pyarrow", "pyda
                           "eclipse-sumo", "libsumo", "sumolib")
 
 
-def versions() -> dict[str, str]:
-    """Versions of the package, its dependencies and Python, for run.json."""
+def versions(more=()) -> dict[str, str]:
+    """Versions of the package, its dependencies and Python, for run.json (and of the
+    distributions ``more``, e.g. a sweep's executor)."""
     return {"python": platform.python_version(), "platform": platform_name(),
-            **installed_versions(RECORDED_DISTRIBUTIONS)}
+            **installed_versions(RECORDED_DISTRIBUTIONS + tuple(more))}
 
 
 RESERVE_BYTES = 1 << 18

@@ -17,7 +17,6 @@ from pathlib import Path
 import pandas as pd
 
 from ..interrupt import raising_signals
-from ..versions import installed_versions
 from .case import CASE_JSON, CaseSpec
 from .executors import run_dask, run_local
 from .expand import Sweep, load_sweep
@@ -109,7 +108,7 @@ def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
 def _versions() -> dict[str, str]:
     from ..sim.runner import versions
 
-    return {**versions(), **installed_versions(("dask", "distributed"))}
+    return versions(("dask", "distributed"))
 
 
 def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str]) -> pd.DataFrame:
