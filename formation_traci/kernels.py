@@ -76,8 +76,8 @@ class _QuickLoadCache(FunctionCache):
     docstring): ``Cache.load_overload`` minus its ``target_context.refresh()``."""
 
     def load_overload(self, sig, target_context):
-        nrt.rtsys.initialize(target_context)  # the runtime the machine code calls
         try:
+            nrt.rtsys.initialize(target_context)  # the runtime the machine code calls
             with self._guard_against_spurious_io_errors():
                 return self._load_overload(sig, target_context)
         except AttributeError:  # numba's internals moved (another version): its own load
@@ -85,21 +85,12 @@ class _QuickLoadCache(FunctionCache):
         return None  # an I/O error swallowed by the guard: numba compiles
 
 
-def _quick_load_possible() -> bool:
-    """numba still has the internals :class:`_QuickLoadCache` relies on (checked once)."""
-    return all(hasattr(FunctionCache, name) for name in
-               ("load_overload", "_load_overload", "_guard_against_spurious_io_errors"))
-
-
-_QUICK_LOAD = _quick_load_possible()
-
-
 def kernel(fn=None, **options):
     """``numba.njit(cache=True, error_model="numpy")`` (options override), with the stale
     cache check of :func:`_drop_stale_cache` and the quick load of :class:`_QuickLoadCache`."""
     def wrap(f):
         d = njit(**{"cache": True, "error_model": "numpy", **options})(f)
-        if _QUICK_LOAD and type(getattr(d, "_cache", None)) is FunctionCache:
+        if type(getattr(d, "_cache", None)) is FunctionCache:
             d._cache.__class__ = _QuickLoadCache
         _drop_stale_cache(d)
         return d

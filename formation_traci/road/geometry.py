@@ -92,7 +92,7 @@ class ReferenceLine:
     heading_nodes: np.ndarray = field(repr=False)  # unwrapped heading at s_nodes [rad]
     tree_xy: np.ndarray = field(repr=False)  # samples of c, first guess of the projection [m]
     tree_s: np.ndarray = field(repr=False)  # arc length of the tree samples [m]
-    _made: dict = field(default_factory=dict, repr=False, compare=False)  # scipy objects, G
+    _made: dict = field(default_factory=dict, init=False, repr=False, compare=False)  # scipy objects, G
 
     ARRAYS = ("points", "knots", "coef", "u_coef", "s_nodes", "heading_nodes", "tree_xy",
               "tree_s")

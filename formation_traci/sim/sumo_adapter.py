@@ -23,8 +23,7 @@ from .sumo_types import (GUI_VIEW, GUI_ZOOM, KEEP_ROUTE, LANE_CHANGE_MODE_DEFAUL
                          MATCH_THRESHOLD, ORDINARY_CLASS, REMOVED_REASONS, ROUTE_AHEAD_M,
                          SPEED_MODE_DEFAULT,
                          START_TIMEOUT_S, MemberType, Neighbours, StepEvents, SumoError,
-                         cog_to_sumo, cog_to_sumo_rows, sumo_binary, sumo_to_cog,
-                         sumo_to_cog_rows)
+                         cog_to_sumo, cog_to_sumo_rows, sumo_binary, sumo_to_cog)
 
 
 
@@ -59,7 +58,7 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         self.gui = gui
         self.version = ""
         self.members: dict[str, MemberType] = {}
-        self._member_lane: dict[str, tuple[str, int, float]] = {}
+        self._member_lane: dict[str, str] = {}  # member -> its lane at the last change of lanes
         self._context: dict[str, float] = {}  # vehicle -> radius of its context subscription
         self._subscribed: set[str] = set()  # vehicles with a variable subscription
         self._routes: dict[str, tuple[list[str], np.ndarray]] = {}  # id -> edges, edge lengths [m]
@@ -342,7 +341,7 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
             return
         member_lane, overlap, window_lane = self._member_lane, self._overlap, self._window_lane
         for vid, lane, li, lt in zip(ids, lanes, lane_index, lat):
-            member_lane[vid] = (lane, li, lt)
+            member_lane[vid] = lane
             other = self._overlapped_lane(lane, li, lt, self.members[vid].width)
             if other is not None:
                 overlap[vid] = other

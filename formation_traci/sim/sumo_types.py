@@ -5,8 +5,9 @@ conversions and the small dataclasses of its results.
 SUMO's vehicle position is the front bumper and its angle is degrees clockwise from north;
 ours is the centre of gravity (CoG) and radians counter-clockwise from +x. The conversions
 are here, once: :func:`cog_to_sumo` / :func:`sumo_to_cog` on arrays, and the compiled
-:func:`cog_to_sumo_rows` / :func:`sumo_to_cog_rows` of the per-step reads and moves (the
-same arithmetic, bit for bit).
+:func:`cog_to_sumo_rows` of the per-step moves (the same arithmetic, bit for bit; the per-step
+reads convert inside sim/sumo_sense.py's ``sense_step``, with :func:`sumo_to_cog_rows`'s
+arithmetic, tests/test_fast_paths.py).
 """
 from __future__ import annotations
 

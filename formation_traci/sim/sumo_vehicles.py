@@ -65,7 +65,7 @@ class VehicleSetup:
         neighbour). Returns its lane id; raises SumoError when the exit cannot be reached."""
         v = self.api.vehicle
         window = self._window.pop(vid, None)
-        lane = self._member_lane.pop(vid, ("", -1, 0.0))[0]
+        lane = self._member_lane.pop(vid, "")
         self._overlap.pop(vid, None)
         mt = self.members.get(vid)
         if mt is not None and mt.vclass in ORDINARY_CLASS:  # lanes closed to members open again
