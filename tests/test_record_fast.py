@@ -81,7 +81,9 @@ def _record(tmp_path, name, steps, fast, cut):
 
 
 @pytest.mark.parametrize("cut", [True, False], ids=["cut every 6 steps", "parts end inside steps"])
-def test_step_and_period_rows_equal_the_straightforward_calls_byte_for_byte(tmp_path, monkeypatch, cut):
+def test_step_rows_equal_the_straightforward_calls_byte_for_byte(tmp_path, monkeypatch, cut):
+    """add_step's block writes against the column-by-column calls (the control periods that
+    sim/fleet.py step_members writes itself are compared in whole runs, below)."""
     monkeypatch.setattr(recorder_module, "STEPS_PER_CHUNK", 6)
     steps = _steps()
     slow = _record(tmp_path, "slow", steps, fast=False, cut=cut)

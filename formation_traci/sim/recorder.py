@@ -88,7 +88,6 @@ class Recorder:
         self._cf_cols = np.array([self._sig_index[c.name] for c in COMFORT_COLUMNS[2:]], dtype=np.int64)
         if self._floats[:len(SIGNAL_COLUMNS) + 1] != ["t", *SIGNAL_COLUMNS]:
             raise ValueError("member_signals writes t, then the signal columns, as table rows")
-        self._period_key, self._period_t, self._period_ids = None, None, None
         bg = self.background
         if bg is not None:
             self._bg_floats = bg.block([c.name for c in BACKGROUND_COLUMNS if c.dtype == "float64"])
@@ -271,27 +270,14 @@ class Recorder:
 
     def add_periods(self, t, dt, vals: np.ndarray, mask=None, written: bool = False) -> None:
         """Control periods 1 .. m-1 of a step starting at t [s] with periods of dt [s]:
-        ``vals`` (m, n, 3) from sim/fleet.py step_members; what :meth:`add_comfort_periods`
-        ([t + j dt for j = 1 .. m-1], vals[1:], mask) writes, with one write per block
-        (``written``: step_members wrote them already, at :meth:`period_rows`)."""
-        m, n = vals.shape[0], len(self.codes)
-        cf, rows = self.comfort, (vals.shape[0] - 1) * len(self.codes)
+        ``vals`` (m, n, 3) from sim/fleet.py step_members. ``written``: step_members wrote
+        them already, at :meth:`period_rows` (commit them); else as :meth:`add_comfort_periods`
+        ([t + j dt for j = 1 .. m-1], vals[1:], mask)."""
+        m = vals.shape[0]
         if written:
-            cf.commit(rows)
-            return
-        at = cf.rows_buffered
-        if self.period_rows(m, mask) is None:
-            if m > 1:
-                self.add_comfort_periods([t + j * dt for j in range(1, m)], vals[1:], mask)
-            return
-        if self._period_key != (m, dt):
-            self._period_key = (m, dt)
-            self._period_t = np.repeat(np.arange(1, m) * dt, n)  # j dt, as Python's j * dt
-            self._period_ids = np.tile(self.codes, m - 1)
-        np.add(self._period_t, t, out=self._cf_t[at:at + rows])
-        self._cf_vals[:, at:at + rows] = vals[1:].reshape(rows, 3).T
-        self._cf_ids[at:at + rows] = self._period_ids
-        cf.commit(rows)
+            self.comfort.commit((m - 1) * len(self.codes))
+        elif m > 1:
+            self.add_comfort_periods([t + j * dt for j in range(1, m)], vals[1:], mask)
 
     def _flag_range(self, t, slip, usage, v, mask):
         bad = (slip > MAX_SLIP) | (usage > MAX_FRICTION_USAGE) | (v > MAX_SPEED)
