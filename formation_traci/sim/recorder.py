@@ -36,7 +36,8 @@ class Recorder:
         self.comfort = ChunkedTable(out_dir / "comfort.parquet", COMFORT_COLUMNS,
                                     chunk_rows=n * STEPS_PER_CHUNK * max(1, periods_per_step),
                                     labels=list(member_ids))
-        self._comfort_from = np.array([SIGNAL_COLUMNS.index(c.name) for c in COMFORT_COLUMNS[2:]])
+        self._comfort_from = np.array([SIGNAL_COLUMNS.index(c.name) for c in COMFORT_COLUMNS[2:]],
+                                      dtype=np.int64)  # signal column of each comfort value
         self.traj = ChunkedTable(out_dir / "trajectories.parquet", TRAJECTORY_COLUMNS,
                                  chunk_rows=(n + 1) * STEPS_PER_CHUNK,
                                  labels=list(member_ids) + [VIRTUAL_CAR_ID], progress_column="t")
@@ -85,7 +86,6 @@ class Recorder:
         self._cf_t, self._cf_vals = cf.column("t"), cf.block(("v", "a_lon", "a_lat"))
         self._cf_ids = cf.column("vehicle_id")
         self._cf_block = cf.block([c.name for c in COMFORT_COLUMNS if c.dtype == "float64"])
-        self._cf_cols = np.array([self._sig_index[c.name] for c in COMFORT_COLUMNS[2:]], dtype=np.int64)
         if self._floats[:len(SIGNAL_COLUMNS) + 1] != ["t", *SIGNAL_COLUMNS]:
             raise ValueError("member_signals writes t, then the signal columns, as table rows")
         bg = self.background
@@ -208,7 +208,7 @@ class Recorder:
                 or (mask is not None and mask.tobytes() != self._all_in)):
             return None
         return (self._sig_limits, self._float_block, self._traj_ids, at, self._cf_block,
-                self._cf_ids, c_at, self._cf_cols)
+                self._cf_ids, c_at, self._comfort_from)
 
     def add_step(self, t, sig: np.ndarray, extra: dict, mask, truth: np.ndarray,
                  written: bool = False) -> None:
