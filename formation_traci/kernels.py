@@ -23,6 +23,7 @@ from __future__ import annotations
 import hashlib
 import math
 import sys
+import types
 from pathlib import Path
 
 import numpy as np
@@ -95,6 +96,19 @@ def kernel(fn=None, **options):
         _drop_stale_cache(d)
         return d
     return wrap(fn) if fn is not None else wrap
+
+
+def rebind(fn, **names):
+    """A compiled copy of kernel (or plain function) ``fn`` whose globals ``names`` are
+    replaced: how a law or model defined outside the package runs inside the compiled step
+    (control/laws, models/integrator.py ``rk4_for``). Not cached on disk (numba cannot
+    cache a function whose globals are not its module's); compiled on first call."""
+    f = getattr(fn, "py_func", fn)
+    glb = dict(f.__globals__)
+    glb.update(names)
+    copy = types.FunctionType(f.__code__, glb, f.__name__, f.__defaults__, f.__closure__)
+    copy.__kwdefaults__, copy.__doc__ = f.__kwdefaults__, f.__doc__
+    return njit(error_model="numpy")(copy)
 
 
 class _CompileNotice(event.Listener):

@@ -8,7 +8,7 @@ from formation_traci.models.params import (G, MF_SEED, PASSENGER_CAR, SURFACES, 
                                            make_tires)
 from formation_traci.models import params as params_mod
 from formation_traci.models.params import SMALL_TRUCK, pack_params, stack
-from formation_traci.sim.integrate import DYNAMIC, integrate
+from formation_traci.models.integrator import DYNAMIC, integrate
 
 pytestmark = pytest.mark.jit_off  # also run with NUMBA_DISABLE_JIT=1 (README)
 

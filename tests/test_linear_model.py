@@ -6,7 +6,7 @@ from formation_traci.models import bicycle
 from formation_traci.models.bicycle import S, U
 from formation_traci.models.linear import (critical_speed, full_ab, lateral_ab,
                                            steady_state_yaw_gain, understeer_gradient)
-from formation_traci.sim.integrate import DYNAMIC, integrate
+from formation_traci.models.integrator import DYNAMIC, integrate
 from formation_traci.models.params import (pack_params, MF_SEED, PASSENGER_CAR, SMALL_TRUCK, axle_loads,
                                            bicycle_params, make_tires)
 

@@ -6,13 +6,13 @@ Python callers (set-up, the governor's set speed, tests).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
 from ..kernels import kernel, substeps
+from ..models.integrator import KINEMATIC, rk4_row
 from .formation import LeaderState
 
 
@@ -83,31 +83,29 @@ def yaw_offset(prof):
     return 2 + 2 * int(prof[0])
 
 
+_NO_PARAMS = np.zeros((1, 1))
+
+
 @kernel
 def free_pose_advance(prof, t, X, Y, th, dt, n_sub):
-    """Pose (x, y, theta) of the virtual car at t + dt: RK4 of eq (2.3) in n_sub sub-steps,
-    v(t) and omega(t) from the packed profiles."""
+    """Pose (x, y, theta) of the virtual car at t + dt: eq (2.3), the unicycle, integrated by
+    models/integrator.py's RK4 in n_sub sub-steps with v(t) and omega(t) from the packed
+    profiles at the stage times."""
     h = dt / n_sub
     ow = yaw_offset(prof)
-    for i in range(n_sub):
-        t0 = t + i * h
-        v1 = knot_profile_at(prof, 0, t0)[0]
-        w1 = knot_profile_at(prof, ow, t0)[0]
-        k1x, k1y, k1t = v1 * math.cos(th), v1 * math.sin(th), w1
-        th2 = th + h / 2 * k1t
-        v2 = knot_profile_at(prof, 0, t0 + h / 2)[0]
-        w2 = knot_profile_at(prof, ow, t0 + h / 2)[0]
-        k2x, k2y, k2t = v2 * math.cos(th2), v2 * math.sin(th2), w2
-        th3 = th + h / 2 * k2t
-        k3x, k3y, k3t = v2 * math.cos(th3), v2 * math.sin(th3), w2
-        th4 = th + h * k3t
-        v4 = knot_profile_at(prof, 0, t0 + h)[0]
-        w4 = knot_profile_at(prof, ow, t0 + h)[0]
-        k4x, k4y, k4t = v4 * math.cos(th4), v4 * math.sin(th4), w4
-        X += h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
-        Y += h / 6 * (k1y + 2 * k2y + 2 * k3y + k4y)
-        th += h / 6 * (k1t + 2 * k2t + 2 * k3t + k4t)
-    return X, Y, th
+    stages = np.empty((n_sub, 3, 2))
+    for q in range(n_sub):
+        t0 = t + q * h
+        for c in range(3):
+            tc = t0 if c == 0 else (t0 + h / 2 if c == 1 else t0 + h)
+            stages[q, c, 0] = knot_profile_at(prof, 0, tc)[0]
+            stages[q, c, 1] = knot_profile_at(prof, ow, tc)[0]
+    s = np.empty(3)
+    s[0] = X
+    s[1] = Y
+    s[2] = th
+    rk4_row(KINEMATIC, s, 0.0, 0.0, _NO_PARAMS, 0, h, n_sub, np.empty((5, 3)), stages)
+    return s[0], s[1], s[2]
 
 
 @kernel

@@ -301,3 +301,20 @@ def project(x, p: BicycleParams):
     x[:, S.V] = np.maximum(x[:, S.V], 0.0)
     x[:, S.DELTA] = np.clip(x[:, S.DELTA], -p.steer_max, p.steer_max)
     return x
+
+
+# ------------------------------------------------ the model over a named state row (integrator)
+
+@kernel
+def rhs_into(s, u0, u1, P, i, out):
+    """:func:`rhs_at` of the state row ``s`` (slots :class:`S`) under (a_ref, steering rate)
+    into ``out``: the form models/integrator.py integrates."""
+    d = rhs_at(s[S.PSI], s[S.V], s[S.BETA], s[S.R], s[S.DELTA], u0, u1, P, i)
+    for q in range(N_STATES):
+        out[q] = d[q]
+
+
+@kernel
+def constrain(s, P, i):
+    """:func:`project_at` on the state row ``s`` after an integration step."""
+    s[S.V], s[S.DELTA] = project_at(s[S.V], s[S.DELTA], P[i, _SMAX])

@@ -6,6 +6,7 @@ exactly (the formation controller's references, eqs 2.6 and 2.8).
 """
 from __future__ import annotations
 
+import math
 from enum import IntEnum
 
 import numpy as np
@@ -37,7 +38,14 @@ def rhs_at(psi, v_in, omega):
 
     The speed input is floored at 0: the vehicles of the seed only move forward."""
     v = maximum(v_in, 0.0)
-    return v * np.cos(psi), v * np.sin(psi), omega
+    return v * math.cos(psi), v * math.sin(psi), omega
+
+
+@kernel
+def rhs_into(s, u0, u1, P, i, out):
+    """:func:`rhs_at` of the state row ``s`` (slots :class:`KS`) under (v, omega) into ``out``
+    (the form models/integrator.py integrates; ``P``, ``i`` unused)."""
+    out[KS.X], out[KS.Y], out[KS.PSI] = rhs_at(s[KS.PSI], u0, u1)
 
 
 def rhs(x, u, p=None):

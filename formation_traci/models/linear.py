@@ -8,8 +8,11 @@ numbers (see docs/model.md).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from ..kernels import kernel
 from .params import VehicleParams, Tires
 
 
@@ -116,3 +119,32 @@ def stable_blend_speed(veh: VehicleParams, tires: Tires, h: float, floor: float 
     """
     lam1 = float(np.abs(np.linalg.eigvals(lateral_ab(1.0, veh, tires)[0])).max())
     return max(floor, h * lam1 / STEP_STABILITY_MARGIN)
+
+
+# ------------------------------------------------ the model over a named state row (integrator)
+
+LINEAR_SLOTS = ("X", "Y", "psi", "v", "beta", "r")
+"""State slots of the linear model (3.26, 3.30); inputs (delta [rad], a_r [m/s^2])."""
+LINEAR_PARAMS = ("a11", "a12", "a21", "a22", "b1", "b2")
+"""Columns of the linear model's parameter row: A and B of :func:`lateral_ab`, row by row."""
+
+
+def linear_params(ab: tuple[np.ndarray, np.ndarray], n: int) -> np.ndarray:
+    """(n, 6) parameter rows (LINEAR_PARAMS) of :func:`rhs_into` for A, B = ``ab``."""
+    A, B = (np.asarray(m, dtype=float) for m in ab)
+    row = [A[0, 0], A[0, 1], A[1, 0], A[1, 1], B[0, 0], B[1, 0]]
+    return np.ascontiguousarray(np.tile(row, (n, 1)))
+
+
+@kernel
+def rhs_into(s, u0, u1, P, i, out):
+    """The linear model of state row ``s`` (LINEAR_SLOTS) under delta = u0 [rad] and
+    a_r = u1 [m/s^2]: position along the course, v dot = a_r, and the lateral pair
+    (beta, r) dot = A (beta, r) + B delta (3.26, 3.30); sums in a fixed order (no BLAS)."""
+    course = s[2] + s[4]
+    out[0] = s[3] * math.cos(course)
+    out[1] = s[3] * math.sin(course)
+    out[2] = s[5]
+    out[3] = u1
+    out[4] = (s[4] * P[i, 0] + s[5] * P[i, 1]) + u0 * P[i, 4]
+    out[5] = (s[4] * P[i, 2] + s[5] * P[i, 3]) + u0 * P[i, 5]

@@ -11,6 +11,9 @@ from dataclasses import dataclass
 VIRTUAL_CAR_ID = "vc"
 """``vehicle_id`` of the virtual car (virtual leader, eq 2.3) in the trajectory table."""
 
+DEFAULT_FORMATION_ID = "f0"
+"""``formation_id`` of a scenario's one formation given by its top-level leader and members."""
+
 
 @dataclass(frozen=True, slots=True)
 class Column:
@@ -18,11 +21,14 @@ class Column:
     dtype: str  # numpy dtype name
     unit: str
     doc: str
+    derived_from: str = ""  # a string column whose value follows from this one (written by the writer)
 
 
 TRAJECTORY_COLUMNS: tuple[Column, ...] = (
     Column("t", "float64", "s", "simulated time"),
     Column("vehicle_id", "string", "-", "member id, or 'vc' for the virtual car"),
+    Column("formation_id", "string", "-", "the formation the member or virtual car belongs to",
+           derived_from="vehicle_id"),
     Column("x", "float64", "m", "centre-of-gravity x (eq 3.24)"),
     Column("y", "float64", "m", "centre-of-gravity y (eq 3.25)"),
     Column("heading", "float64", "rad", "yaw angle psi, counter-clockwise from +x"),
@@ -63,7 +69,7 @@ car has no controller) are NaN.
 """
 
 COMFORT_COLUMNS: tuple[Column, ...] = tuple(
-    c for c in TRAJECTORY_COLUMNS if c.name in ("t", "vehicle_id", "v", "a_lon", "a_lat"))
+    c for c in TRAJECTORY_COLUMNS if c.name in ("t", "vehicle_id", "formation_id", "v", "a_lon", "a_lat"))
 """Columns of ``comfort.parquet``: the members' accelerations at the control rate (every
 ``run.control_step``, 100 Hz by default), for ISO 2631 weighting and jerk; the rows at the
 recorded steps equal those of ``trajectories.parquet``."""
@@ -80,6 +86,8 @@ EVENT_COLUMNS: tuple[Column, ...] = (
                                   "maneuver_start | maneuver_end | maneuver_postponed | maneuver_cancelled | "
                                   "comm_timeout | comm_restored"),
     Column("vehicle_id", "string", "-", "the vehicle the event is about"),
+    Column("formation_id", "string", "-", "the formation of vehicle_id (a member or a virtual car), "
+                                          "else empty", derived_from="vehicle_id"),
     Column("other_id", "string", "-", "the other vehicle involved, or empty"),
     Column("detail", "string", "-", "free text; maneuver events: the maneuver's name first ('reshape: ...')"),
 )
@@ -125,5 +133,5 @@ FILLED_BY_CALLER = ("t", "vehicle_id", "s", "d", "lane_index", "sumo_gap", "slot
 """Trajectory columns the member-signal kernel (sim/fleet.py) does not compute."""
 
 SIGNAL_COLUMNS: tuple[str, ...] = tuple(c.name for c in TRAJECTORY_COLUMNS
-                                        if c.name not in FILLED_BY_CALLER)
+                                        if c.name not in FILLED_BY_CALLER and not c.derived_from)
 """Columns of the member-signal array, in the order of TRAJECTORY_COLUMNS."""

@@ -85,11 +85,18 @@ class ChunkedTable:
 
     ``progress_column``: the last value of this column in each part file written is kept
     (:meth:`written_up_to`), so a caller reports only progress that is on disk.
+
+    A column with ``derived_from`` (e.g. ``formation_id`` from ``vehicle_id``) has no buffer:
+    the writer maps every value of its source column through ``derived`` (a label -> label
+    dict the caller keeps up to date; "" where it has no entry) when it writes a part, so
+    recording it costs nothing per row.
     """
 
     def __init__(self, directory: Path, columns: Sequence[Column], chunk_rows: int = 50_000,
-                 labels: Sequence[str] = (), progress_column: str | None = None):
+                 labels: Sequence[str] = (), progress_column: str | None = None,
+                 derived: dict[str, str] | None = None):
         self.directory = Path(directory)
+        self.derived = {} if derived is None else derived
         self.directory.mkdir(parents=True, exist_ok=True)
         self.columns = tuple(columns)
         self.chunk_rows = int(chunk_rows)
@@ -97,7 +104,8 @@ class ChunkedTable:
         self._label_index = {s: i for i, s in enumerate(self.labels)}
         groups: dict[str, list[str]] = {}
         for c in self.columns:
-            groups.setdefault(_storage_dtype(c), []).append(c.name)
+            if not c.derived_from:
+                groups.setdefault(_storage_dtype(c), []).append(c.name)
         self._blocks: dict[str, np.ndarray] = {}
         self._where: dict[str, tuple[str, int]] = {}  # column -> (storage dtype, row in its block)
         self._buf: dict[str, np.ndarray] = {}  # column -> its row of the block (a view)
@@ -227,7 +235,7 @@ class ChunkedTable:
         tag = float(self._buf[self.progress_column][n - 1]) if self.progress_column and n else None
         tag = mark if mark is not None else tag
         name = f"part-{self.parts_written:05d}.parquet"
-        self._submit(self._write, blocks, list(self.labels), name, tag, n)
+        self._submit(self._write, blocks, list(self.labels), name, tag, n, dict(self.derived))
         self.parts_written += 1
         self.rows_written += n
         self._n = 0
@@ -261,18 +269,23 @@ class ChunkedTable:
             ])
         return self._schema
 
-    def _write(self, blocks, labels, name, tag, n) -> None:
+    def _write(self, blocks, labels, name, tag, n, derived=None) -> None:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
         if self._broken:  # never a part after a hole: the table stays a prefix of the run
             raise OSError(f"{self.directory.name}: {name} not written after an earlier part failed")
+        mapped = None
+        if any(c.derived_from for c in self.columns):
+            mapped = _arrow_strings([(derived or {}).get(label, "") for label in labels])
         labels = _arrow_strings(labels)
         arrays = []
         for c in self.columns:
-            dt, j = self._where[c.name]
+            dt, j = self._where[c.derived_from or c.name]
             data = blocks[dt][j]
-            if c.dtype == "string":
+            if c.derived_from:
+                arrays.append(pa.DictionaryArray.from_arrays(_arrow(data), mapped).dictionary_decode())
+            elif c.dtype == "string":
                 arrays.append(pa.DictionaryArray.from_arrays(_arrow(data), labels).dictionary_decode())
             else:
                 arrays.append(_arrow(data))

@@ -10,6 +10,8 @@ from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
+from ..control.laws import DEFAULT_LAW, law_names
+
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict  # noqa: F401
 from .comm_spec import CommLinkSpec, CommSpec  # noqa: F401
 from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec
@@ -82,11 +84,20 @@ GAIN_TABLES = Literal["table_3_4", "table_3_6", "table_3_7", "table_3_8", "table
 
 
 class ControllerSpec(Strict):
+    law: str = Field(DEFAULT_LAW, description="the members' control law by name (control/laws): "
+                     "'virtual_structure' is the seed's (2.4-2.11 with 3.32-3.38)")
     k: PosFloat = Field(1.0, description="position gain of (2.7) [m/s]")
     k_theta: PosFloat = Field(3.0, description="heading gain of (2.8) [1/s]")
     speed_gains: GAIN_TABLES | GainSpec = Field(
         "table_3_4", description="linear-velocity schedule (3.34); 'table_3_6' for the truck")
     yaw_gains: GAIN_TABLES | GainSpec = Field("table_3_8", description="angular-velocity schedule (3.34)")
+
+    @field_validator("law")
+    @classmethod
+    def _known_law(cls, v):
+        if v not in law_names():
+            raise ValueError(f"unknown control law {v!r}; expected one of: {', '.join(law_names())}")
+        return v
 
 
 class LeaderSpec(Strict):

@@ -4,7 +4,7 @@ Per control period of a step, for every member: its desired point from the step'
 :class:`~formation_traci.control.reference.Reference` (control/targets.py) -> the formation
 controller (2.5-2.10) -> the model input (kinematic: v_ref, omega_ref; dynamic: the
 scheduled speed loop 3.32-3.34 capped by the safety layer, the steering-rate loop 3.37) ->
-the input held while RK4 integrates the vehicle (sim/integrate.py) and Euler theta* (2.11).
+the input held while RK4 integrates the vehicle (models/integrator.py) and Euler theta* (2.11).
 The laws live in their home modules; this module only wires them, per member, in one
 compiled call per step (:func:`step_members`) and one for the recorded signals
 (:func:`member_signals`). Parameters are per-member arrays (a formation may mix vehicles).
@@ -16,15 +16,18 @@ from typing import Literal
 
 import numpy as np
 
-from ..control.formation import formation_at, initial_theta_star
+from ..control.formation import initial_theta_star
+from ..control.laws import DEFAULT_LAW, law_code, law_module
+from ..control.laws.dispatch import law_input_at, runtime_dispatch
 from ..control.reference import Reference
-from ..control.schedule import GainSchedule, p_law
+from ..control.schedule import GainSchedule
 from ..control.targets import desired_point_at
-from ..kernels import kernel, maximum, minimum, substeps
+from ..kernels import kernel, maximum, rebind, substeps
 from ..models import bicycle, kinematic
+from ..models.integrator import HELD, rk4_row
 from ..models.params import _DRAG, _GRADE, BicycleParams, N_PARAMS, pack_params
+from ..models.state import DYNAMIC, KINEMATIC, motion_at
 from ..record.columns import SIGNAL_COLUMNS
-from .integrate import DYNAMIC, KINEMATIC, rk4_at
 
 _KERNEL_SIGNALS = ("x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "ex", "ey",
                    "e_lon", "e_lat", "x_des", "y_des", "v_ref", "omega_ref", "steer",
@@ -52,6 +55,8 @@ class FleetConfig:
     speed_gains: GainSchedule | tuple[GainSchedule, ...]  # one, or one per member
     yaw_gains: GainSchedule | tuple[GainSchedule, ...]  # one, or one per member
     physics_step: float  # [s]
+    law: str = DEFAULT_LAW  # control/laws: the members' control law (controller.law)
+    pred: tuple[int, ...] | None = None  # member ahead of each in the column (-1: none); None: none
 
     @property
     def n(self) -> int:
@@ -84,35 +89,12 @@ def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, target
 # ---------------------------------------------------------------------------- kernels
 
 @kernel
-def motion_at(kind, x, i, speed_in_i):
-    """Speed [m/s], yaw rate [rad/s] and course angle [rad] of member i."""
-    if kind == KINEMATIC:
-        return speed_in_i, 0.0, x[i, 2]
-    return x[i, 3], x[i, 5], x[i, 2] + x[i, 4]
-
-
-@kernel
-def member_input_at(kind, x, i, theta_star_i, speed_in_i, k_i, k_theta_i, gains, px, py, tvx,
-                    tvy, tax, tay, v_cap_i, a_cap_i):
-    """Formation controller and model input of member i for its desired point:
-    (u0, u1, capped v_ref, omega_ref, theta* dot, v_ref dot, ex, ey, heading error)."""
-    v, r, course = motion_at(kind, x, i, speed_in_i)
-    vr, om, tsd, vrd, ex, ey, he = formation_at(
-        px, py, tvx, tvy, tax, tay, x[i, 0], x[i, 1], v * np.cos(course), v * np.sin(course),
-        x[i, 2], theta_star_i, k_i, k_theta_i)
-    vr = minimum(vr, v_cap_i)
-    if kind == KINEMATIC:
-        return vr, om, vr, om, tsd, vrd, ex, ey, he
-    a_r = minimum(p_law(vr, v, gains[i, 0], gains[i, 1], gains[i, 2]), a_cap_i)
-    return (a_r, p_law(om, r, gains[i, 3], gains[i, 4], gains[i, 5]), vr, om, tsd, vrd, ex, ey,
-            he)
-
-
-@kernel
-def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, vc, slots,
+def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame, vc, slots,
                  v_cap, a_cap, dt_c, n_sub, comfort, t0, table, table_ids, at):
     """One step: for each of the vc.shape[0] control periods of dt_c [s], every member's
-    input from the reference, held over RK4 in n_sub sub-steps. Inputs are not modified;
+    input from the reference under its control law (``law``: control/laws dispatch code,
+    ``L`` the per-member law parameters, ``pred`` the member ahead), held over RK4 in n_sub
+    sub-steps (models/integrator.py). Inputs are not modified;
     returns (x, theta_star, speed_in) after the step. When ``comfort`` has a row per
     period ((n_ctrl, n, 3); else pass an empty array), member i's speed [m/s], a_lon and
     a_lat [m/s^2] at the start of period j go to comfort[j, i] (the values
@@ -127,12 +109,13 @@ def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, 
     U0 = np.empty(n)
     U1 = np.empty(n)
     tsd = np.empty(n)
+    w = np.empty((5, m))
     h = dt_c / n_sub
     for j in range(vc.shape[0]):
         for i in range(n):
             px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, j, i)
-            res = member_input_at(kind, x, i, theta_star[i], speed_in[i], k[i], k_theta[i],
-                                  gains, px, py, tvx, tvy, tax, tay, v_cap[i], a_cap[i])
+            res = law_input_at(law, kind, x, i, theta_star[i], speed_in[i], L, gains, px, py,
+                               tvx, tvy, tax, tay, v_cap[i], a_cap[i], pred[i])
             U0[i] = res[0]
             U1[i] = res[1]
             tsd[i] = res[4]
@@ -140,15 +123,9 @@ def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, 
                 _comfort_values(kind, x, i, P, res, comfort, j)
         for i in range(n):
             theta_star[i] = theta_star[i] + tsd[i] * dt_c
+            rk4_row(kind, x[i], U0[i], U1[i], P, i, h, n_sub, w, HELD)
             if kind == KINEMATIC:
-                s = rk4_at(kind, x[i, 0], x[i, 1], x[i, 2], 0.0, 0.0, 0.0, 0.0, U0[i], U1[i], P,
-                           i, h, n_sub)
                 speed_in[i] = maximum(U0[i], 0.0)
-            else:
-                s = rk4_at(kind, x[i, 0], x[i, 1], x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6],
-                           U0[i], U1[i], P, i, h, n_sub)
-            for q in range(m):
-                x[i, q] = s[q]
     if at >= 0 and comfort.shape[0] == vc.shape[0]:
         for j in range(1, vc.shape[0]):
             tj = t0 + j * dt_c
@@ -225,7 +202,7 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
 
 
 @kernel
-def member_signals(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, vc, slots,
+def member_signals(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame, vc, slots,
                    v_cap, a_cap, cols, out, t, limits, traj, traj_ids, at, comfort, comfort_ids,
                    c_at, comfort_cols):
     """The recorded signals at the start of a step (the first control period's reference)
@@ -240,8 +217,8 @@ def member_signals(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame
     n = x.shape[0]
     for i in range(n):
         px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, 0, i)
-        res = member_input_at(kind, x, i, theta_star[i], speed_in[i], k[i], k_theta[i], gains,
-                              px, py, tvx, tvy, tax, tay, v_cap[i], a_cap[i])
+        res = law_input_at(law, kind, x, i, theta_star[i], speed_in[i], L, gains, px, py, tvx,
+                           tvy, tax, tay, v_cap[i], a_cap[i], pred[i])
         th = vc[0, i, 2]
         _signal_values(kind, x, i, P, res[0], res[1], res, px, py, np.cos(th), np.sin(th),
                        vals)
@@ -301,6 +278,23 @@ def _f64(a) -> np.ndarray:
     return np.array(a, dtype=np.float64, order="C")
 
 
+_RUNTIME_KERNELS: dict = {}
+
+
+def _law_kernels(law: str):
+    """(step kernel, signal kernel) for the law ``law``: the cached ones for a built-in law,
+    a compiled copy bound to a law registered at run time (control/laws)."""
+    if law_code(law) >= 0:
+        return step_members, member_signals
+    mod = law_module(law)
+    got = _RUNTIME_KERNELS.get(law)
+    if got is None or got[0] is not mod:
+        disp = rebind(runtime_dispatch, LAW=mod.input_at)
+        got = _RUNTIME_KERNELS[law] = (mod, rebind(step_members, law_input_at=disp),
+                                       rebind(member_signals, law_input_at=disp))
+    return got[1], got[2]
+
+
 class Fleet:
     """A FleetConfig packed once into the kernels' per-member arrays.
 
@@ -318,8 +312,10 @@ class Fleet:
             self.kind, self.P = KINEMATIC, np.zeros((n, N_PARAMS))
         else:
             raise ValueError(f"unknown model {cfg.model!r}")
-        self.k = _f64(np.broadcast_to(np.asarray(cfg.k, dtype=float), (n,)))
-        self.k_theta = _f64(np.broadcast_to(np.asarray(cfg.k_theta, dtype=float), (n,)))
+        self.law = law_code(cfg.law)
+        self.L = _f64(law_module(cfg.law).pack(cfg))  # (n, len(PARAMS)) law parameters
+        self.pred = np.array(cfg.pred if cfg.pred is not None else (-1,) * n, dtype=np.int64)
+        self._step, self._signals = _law_kernels(cfg.law)
         sg, yg = (g if isinstance(g, (tuple, list)) else (g,) * n
                   for g in (cfg.speed_gains, cfg.yaw_gains))
         self.gains = _f64([[a.g_min, a.g_max, a.k_min, b.g_min, b.g_max, b.k_min]
@@ -352,9 +348,9 @@ class Fleet:
         a_lat [m/s^2] at its start (:func:`step_members`), and with ``rows``
         (sim/recorder.py Recorder.period_rows) periods 1 .. n_ctrl - 1 go into the comfort
         table's buffers too, in the same compiled call."""
-        x, ts, sp = step_members(
+        x, ts, sp = self._step(
             _f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self.kind, self.P,
-            self.k, self.k_theta, self.gains, ref.line, ref.frame, ref.vc, ref.slots,
+            self.law, self.L, self.gains, self.pred, ref.line, ref.frame, ref.vc, ref.slots,
             _f64(ref.v_cap), _f64(ref.a_cap), float(ref.dt), self.n_sub(ref.dt),
             _NO_COMFORT if comfort is None else comfort, float(ref.t),
             *(_NO_PERIOD_ROWS if rows is None else rows))
@@ -372,8 +368,8 @@ class Fleet:
         """:meth:`signals` into ``out`` (n, len(SIGNAL_COLUMNS)); with ``rows`` (sim/recorder.py
         Recorder.signal_rows) also written as the step's table rows at t [s], in the same
         compiled call: returns True when they were (False: out of range, or no ``rows``)."""
-        return member_signals(_f64(state.x), _f64(state.theta_star), _f64(state.speed_in),
-                              self.kind, self.P, self.k, self.k_theta, self.gains, ref.line,
+        return self._signals(_f64(state.x), _f64(state.theta_star), _f64(state.speed_in),
+                              self.kind, self.P, self.law, self.L, self.gains, self.pred, ref.line,
                               ref.frame, ref.vc, ref.slots, _f64(ref.v_cap), _f64(ref.a_cap),
                               self.cols, out, float(t), *(_NO_ROWS if rows is None else rows))
 

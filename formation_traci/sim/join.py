@@ -19,7 +19,7 @@ import numpy as np
 
 from ..control.formation import initial_theta_star_at
 from ..control.targets import desired_point_at
-from .integrate import KINEMATIC
+from ..models.state import KINEMATIC
 from .traffic import CAR
 
 

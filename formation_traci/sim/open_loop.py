@@ -7,7 +7,7 @@ Every control period (``run.control_step``) each member gets
   steering limit), the ``steer_rate_deg_s`` profile (3.38), or the yaw-rate loop on
   omega_ref - psi dot with the schedule, as a rate (3.37) or an angle (3.35),
 and the dynamic bicycle model is integrated with the one compiled RK4 of the closed loop
-(sim/integrate.py ``integrate``, the laws of models/bicycle.py; the speed and yaw loops are
+(models/integrator.py ``integrate``, the laws of models/bicycle.py; the speed and yaw loops are
 control/schedule.py's law). With ``linear_speed`` the linear model (3.30, models/linear.py) linearised there runs
 beside each member on the same steering angle and a_r (v dot = a_r, 3.26).
 
@@ -25,12 +25,12 @@ from ..control.schedule import apply as p_law
 from ..kernels import substeps
 from ..models import bicycle
 from ..models.bicycle import S, traction_from_acceleration_at
-from ..models.linear import lateral_ab
+from ..models.linear import lateral_ab, linear_params
 from ..models.params import make_tires, pack_params
 from ..record.columns import SIGNAL_COLUMNS, Column
 from ..record.writer import ChunkedTable
 from ..scenario.schema import Scenario
-from .integrate import DYNAMIC, integrate
+from ..models.integrator import DYNAMIC, LINEAR, integrate
 from .recorder import Recorder
 from .setup import build_fleet, gain_schedule, profile, road_mu, vehicle_params
 
@@ -74,34 +74,6 @@ def _commands(sc: Scenario, x, t, p_gain, angle_loop, sg, yg, prof):
     return a_r, angle, rate
 
 
-def _linear_rhs(z, u, ab):
-    """Linear model state [X, Y, psi, v, beta, r] with inputs [delta, a_r] (3.26, 3.30)."""
-    A, B = ab
-    dz = np.empty_like(z)
-    course = z[:, 2] + z[:, 4]
-    dz[:, 0] = z[:, 3] * np.cos(course)
-    dz[:, 1] = z[:, 3] * np.sin(course)
-    dz[:, 2] = z[:, 5]
-    dz[:, 3] = u[:, 1]
-    lat = z[:, 4:6] @ A.T + u[:, :1] @ B.T
-    dz[:, 4:6] = lat
-    return dz
-
-
-def _linear_step(z, u, ab, dt: float, max_step: float):
-    """The linear model advanced by dt [s] with RK4 sub-steps of at most max_step [s] (the
-    same scheme as sim/integrate.py, whose kernel holds the nonlinear models only)."""
-    n = substeps(dt, max_step)
-    h = dt / n
-    for _ in range(n):
-        k1 = _linear_rhs(z, u, ab)
-        k2 = _linear_rhs(z + 0.5 * h * k1, u, ab)
-        k3 = _linear_rhs(z + 0.5 * h * k2, u, ab)
-        k4 = _linear_rhs(z + h * k3, u, ab)
-        z = z + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-    return z
-
-
 def open_loop_steps(sc: Scenario, rec: Recorder, out_dir: Path) -> Iterator[tuple[int, float]]:
     """Simulate ``sc`` open loop; yields (step index, time [s]) after recording each step."""
     run, ol = sc.run, sc.open_loop
@@ -131,7 +103,7 @@ def open_loop_steps(sc: Scenario, rec: Recorder, out_dir: Path) -> Iterator[tupl
     if ol.linear_speed is not None:
         veh = vehicle_params(sc)
         tires = make_tires(veh, road_mu(sc), sc.vehicle.tire, linear=sc.vehicle.tire_law == "linear")
-        ab = lateral_ab(ol.linear_speed, veh, tires)
+        ab = linear_params(lateral_ab(ol.linear_speed, veh, tires), n)
         z = np.column_stack([x[:, S.X], x[:, S.Y], x[:, S.PSI], x[:, S.V], x[:, S.BETA], x[:, S.R]])
     table = ChunkedTable(out_dir / "open_loop.parquet", OPEN_LOOP_COLUMNS, chunk_rows=n * 2000,
                          labels=ids)
@@ -152,8 +124,8 @@ def open_loop_steps(sc: Scenario, rec: Recorder, out_dir: Path) -> Iterator[tupl
                         break
                 x = integrate(DYNAMIC, x, u, P, dt_c, run.physics_step)
                 if z is not None:
-                    z = _linear_step(z, np.column_stack([x[:, S.DELTA], a_r]), ab, dt_c,
-                                     run.physics_step)
+                    z = integrate(LINEAR, z, np.column_stack([x[:, S.DELTA], a_r]), ab, dt_c,
+                                  run.physics_step)
             yield k, t
     finally:
         table.close()

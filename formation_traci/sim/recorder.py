@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 
 from ..control.formation import LeaderState
-from ..record.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, EVENT_COLUMNS, FILLED_BY_CALLER,
-                              SIGNAL_COLUMNS, TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID)
+from ..record.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, DEFAULT_FORMATION_ID,
+                              EVENT_COLUMNS, FILLED_BY_CALLER, SIGNAL_COLUMNS, TRAJECTORY_COLUMNS,
+                              VIRTUAL_CAR_ID)
 from ..record.writer import ChunkedTable
 
 
@@ -28,19 +29,28 @@ _VC_COLUMNS = ("t", "x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "s",
 
 
 class Recorder:
-    """Owns the run's tables; every ``add_*`` appends rows, :meth:`flush` writes the rest."""
+    """Owns the run's tables; every ``add_*`` appends rows, :meth:`flush` writes the rest.
+
+    ``formation_of`` maps vehicle ids (members, the virtual car) to their formation's id: the
+    ``formation_id`` column of the trajectory, comfort and event tables (record/writer.py
+    derived columns); by default every member and the virtual car are ``formation_id``'s."""
 
     def __init__(self, out_dir: Path, member_ids: list[str], with_sumo: bool,
-                 periods_per_step: int = 1):
+                 periods_per_step: int = 1, formation_id: str = DEFAULT_FORMATION_ID,
+                 formation_of: dict[str, str] | None = None):
         n = len(member_ids)
+        self.formation_of = (dict(formation_of) if formation_of is not None else
+                             {v: formation_id for v in [*member_ids, VIRTUAL_CAR_ID]})
         self.comfort = ChunkedTable(out_dir / "comfort.parquet", COMFORT_COLUMNS,
                                     chunk_rows=n * STEPS_PER_CHUNK * max(1, periods_per_step),
-                                    labels=list(member_ids))
-        self._comfort_from = np.array([SIGNAL_COLUMNS.index(c.name) for c in COMFORT_COLUMNS[2:]],
+                                    labels=list(member_ids), derived=self.formation_of)
+        self._comfort_from = np.array([SIGNAL_COLUMNS.index(c.name) for c in COMFORT_COLUMNS
+                                       if c.name in SIGNAL_COLUMNS],
                                       dtype=np.int64)  # signal column of each comfort value
         self.traj = ChunkedTable(out_dir / "trajectories.parquet", TRAJECTORY_COLUMNS,
                                  chunk_rows=(n + 1) * STEPS_PER_CHUNK,
-                                 labels=list(member_ids) + [VIRTUAL_CAR_ID], progress_column="t")
+                                 labels=list(member_ids) + [VIRTUAL_CAR_ID], progress_column="t",
+                                 derived=self.formation_of)
         # the members' signal columns (x .. friction_usage) are consecutive float64 columns
         self._sig_block = self.traj.block(SIGNAL_COLUMNS)
         self._sig_index = {name: j for j, name in enumerate(SIGNAL_COLUMNS)}
@@ -50,7 +60,8 @@ class Recorder:
         self._vc_at = np.array([self._floats.index(c) for c in _VC_COLUMNS])
         self.codes = np.arange(n, dtype=np.int32)
         self.vc_code = n
-        self.events = ChunkedTable(out_dir / "events.parquet", EVENT_COLUMNS, chunk_rows=2000, labels=[""])
+        self.events = ChunkedTable(out_dir / "events.parquet", EVENT_COLUMNS, chunk_rows=2000, labels=[""],
+                                   derived=self.formation_of)
         self.background = None
         self.member_ids = list(member_ids)
         self._out_of_range = np.zeros(n, dtype=bool)

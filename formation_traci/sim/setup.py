@@ -86,6 +86,7 @@ def build_fleet(sc: Scenario) -> FleetConfig:
         speed_gains=_member_gains(sc, "speed_gains"),
         yaw_gains=_member_gains(sc, "yaw_gains"),
         physics_step=sc.run.physics_step,
+        law=ctl.law,
     )
 
 

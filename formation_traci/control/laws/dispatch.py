@@ -1,0 +1,27 @@
+"""The compiled dispatch of the built-in control laws: :func:`law_input_at` calls the law
+whose code (control/laws/__init__.py BUILTIN) a member has. Registering a built-in law is one
+name in BUILTIN and one branch here; a law registered at run time (``register_law``) gets a
+dispatch of its own (control/laws/__init__.py ``law_kernels``)."""
+from __future__ import annotations
+
+from ...kernels import kernel
+from . import virtual_structure
+
+VIRTUAL_STRUCTURE = 0
+
+
+@kernel
+def law_input_at(code, kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax,
+                 tay, v_cap_i, a_cap_i, pred_i):
+    """Member i's model input under its law ``code`` (the tuple every law's ``input_at``
+    returns: control/laws/virtual_structure.py)."""
+    return virtual_structure.input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py,
+                                      tvx, tvy, tax, tay, v_cap_i, a_cap_i, pred_i)
+
+
+def runtime_dispatch(code, kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy,
+                     tax, tay, v_cap_i, a_cap_i, pred_i):
+    """The dispatch of a law registered at run time: compiled per law with ``LAW`` bound to
+    its ``input_at`` (kernels.rebind; sim/fleet.py)."""
+    return LAW(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy,  # noqa: F821
+               tax, tay, v_cap_i, a_cap_i, pred_i)
