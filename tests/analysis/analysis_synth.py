@@ -17,7 +17,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from formation_traci.record.columns import (BACKGROUND_COLUMNS, EVENT_COLUMNS, SSM_COLUMNS,
+from formation_traci.record.columns import (BACKGROUND_COLUMNS, DEFAULT_FORMATION_ID, EVENT_COLUMNS, SSM_COLUMNS,
                                             TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID)
 
 Signal = Callable[[str, np.ndarray], np.ndarray]
@@ -97,6 +97,7 @@ def trajectories(*, dt: float = 0.01, t_end: float = 20.0, v: float = 20.0,
                 cols[k] = nan
         frames.append(pd.DataFrame(cols))
     df = pd.concat(frames, ignore_index=True)
+    df["formation_id"] = DEFAULT_FORMATION_ID
     for col in TRAJECTORY_COLUMNS:  # contract columns this helper does not model: NaN
         if col.name not in df.columns:
             df[col.name] = np.nan
@@ -217,8 +218,14 @@ def background(t: np.ndarray, vehicles: Mapping[str, Mapping[str, Any]]) -> pd.D
 
 
 def events(rows) -> pd.DataFrame:
-    """Events table from ``(t, kind, vehicle_id, other_id, detail)`` tuples."""
-    return pd.DataFrame(list(rows), columns=[c.name for c in EVENT_COLUMNS])
+    """Events table from ``(t, kind, vehicle_id, other_id, detail)`` tuples (formation_id:
+    the one formation's for members and the virtual car, else empty, as the recorder writes)."""
+    cols = [c.name for c in EVENT_COLUMNS if c.name != "formation_id"]
+    df = pd.DataFrame(list(rows), columns=cols)
+    df.insert(cols.index("vehicle_id") + 1, "formation_id",
+              [DEFAULT_FORMATION_ID if v == VIRTUAL_CAR_ID or v in OFFSETS else ""
+               for v in df["vehicle_id"]])
+    return df
 
 
 def ssm(rows) -> pd.DataFrame:

@@ -1,0 +1,18 @@
+"""A toy control law defined outside the package (tests/test_law_seam.py): every member drives
+straight ahead at the speed ``v_set`` [m/s] of its parameter row, whatever the formation."""
+import numpy as np
+from numba import njit
+
+PARAMS = ("v_set",)
+V_SET = 12.5
+
+
+def pack(cfg):
+    return np.full((cfg.n, 1), V_SET)
+
+
+@njit(cache=False)
+def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay,
+             v_cap_i, a_cap_i, pred_i):
+    v = L[i, 0]
+    return v, 0.0, v, 0.0, 0.0, 0.0, px - x[i, 0], py - x[i, 1], 0.0
