@@ -1,5 +1,7 @@
 """A toy control law defined outside the package (tests/test_law_seam.py): every member drives
-straight ahead at the speed ``v_set`` [m/s] of its parameter row, whatever the formation."""
+straight ahead at the speed ``v_set`` [m/s] of its parameter row, whatever the formation: the
+unicycle gets v_set as its speed input, the dynamic model a_r = 2 (v_set - v) [m/s^2] (a first
+order approach with time constant 0.5 s) and no steering."""
 import numpy as np
 from numba import njit
 
@@ -15,4 +17,5 @@ def pack(cfg):
 def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay,
              v_cap_i, a_cap_i, pred_i):
     v = L[i, 0]
-    return v, 0.0, v, 0.0, 0.0, 0.0, px - x[i, 0], py - x[i, 1], 0.0
+    u0 = v if kind == 0 else 2.0 * (v - x[i, 3])
+    return u0, 0.0, v, 0.0, 0.0, 0.0, px - x[i, 0], py - x[i, 1], 0.0

@@ -36,6 +36,7 @@ from ..kernels import kernel
 from ..road.leader import road_leader_at
 from .channel import Channel, build_channel, link_params
 from .predict import predict_planar
+from ..scenario.formations import formation_views
 
 N_VC = 8  # x, y, theta, v, omega, v_dot, omega_dot, s (control/reference.py VC_FIELDS)
 
@@ -199,8 +200,14 @@ class CommChannel:
 
 
 def with_comm(sc, parts, baseline: bool = False):
-    """``parts`` (sim/loop.py RunParts) with the [comm] channel as its first transform."""
-    if sc.comm is not None and not baseline:
-        n_ctrl = int(round(sc.run.step / sc.run.control_step))
-        parts.transforms.insert(0, CommChannel.from_scenario(sc, n_ctrl))
+    """``parts`` (sim/loop.py RunParts) with each formation's [comm] channel as the first of
+    its transforms."""
+    if baseline:
+        return parts
+    n_ctrl = int(round(sc.run.step / sc.run.control_step))
+    views = dict(formation_views(sc))
+    for f in parts.formations:
+        view = views[f.id]
+        if view.comm is not None:
+            f.transforms.insert(0, CommChannel.from_scenario(view, n_ctrl))
     return parts

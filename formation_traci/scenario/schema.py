@@ -11,6 +11,7 @@ from typing import Annotated, Literal
 from pydantic import Field, field_validator, model_validator
 
 from ..control.laws import DEFAULT_LAW, law_names
+from ..record.columns import DEFAULT_FORMATION_ID
 
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict  # noqa: F401
 from .comm_spec import CommLinkSpec, CommSpec  # noqa: F401
@@ -146,6 +147,17 @@ class MemberSpec(Strict):
         return self
 
 
+class FormationSpec(Strict):
+    """A further formation of the run (free space): its own virtual leader, members and
+    controller; the top-level ``leader``/``members``/``controller``/``comm`` are the first."""
+
+    id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$", description="formation_id in the tables")
+    leader: LeaderSpec
+    members: list[MemberSpec] = Field(min_length=1, description="at least one member")
+    controller: ControllerSpec = ControllerSpec()
+    comm: CommSpec | None = Field(None, description="leader-to-member radio; default: perfect")
+
+
 class SumoSpec(Strict):
     backend: Literal["libsumo", "traci"] = "libsumo"
     gui: bool = Field(False, description="run sumo-gui (traci backend only)")
@@ -235,6 +247,34 @@ class Scenario(Strict):
     open_loop: OpenLoopSpec | None = Field(None, description="drive the members open loop (free space only)")
     maneuvers: list[ManeuverSpec] = Field(default_factory=list, description="scheduled maneuvers, run one at a time in this order")
     maneuver_limits: ManeuverLimits = ManeuverLimits()
+    formations: list[FormationSpec] = Field(
+        default_factory=list, description="further formations beside the top-level one (whose "
+        f"formation_id is '{DEFAULT_FORMATION_ID}'); free space only for now")
+
+    @model_validator(mode="after")
+    def _formation_rules(self):
+        if not self.formations:
+            return self
+        if self.road is not None or self.open_loop is not None:
+            raise ValueError("formations: several formations run in free space (no [road], no "
+                             "open_loop) in this version")
+        fids = [DEFAULT_FORMATION_ID] + [f.id for f in self.formations]
+        if len(set(fids)) < len(fids):
+            raise ValueError(f"formations: ids must be unique and not '{DEFAULT_FORMATION_ID}' "
+                             f"(the top-level formation's): {fids}")
+        ids = [m.id for m in self.members] + [m.id for f in self.formations for m in f.members]
+        dup = sorted({i for i in ids if ids.count(i) > 1})
+        if dup:
+            raise ValueError(f"member ids must be unique over all formations, repeated: {dup}")
+        for j, f in enumerate(self.formations):
+            bad = [f"formations.{j}.members.{i}" for i, m in enumerate(f.members)
+                   if m.offset is None or m.position is None]
+            if bad:
+                raise ValueError(f"free-space formations need 'offset' and 'position' for every "
+                                 f"member ({', '.join(bad)})")
+            if f.comm is not None and sorted(set(f.comm.links) - {m.id for m in f.members}):
+                raise ValueError(f"formations.{j}.comm.links names members not in the formation")
+        return self
 
     @model_validator(mode="after")
     def _energy_needs_forces(self):

@@ -55,7 +55,7 @@ class FleetConfig:
     speed_gains: GainSchedule | tuple[GainSchedule, ...]  # one, or one per member
     yaw_gains: GainSchedule | tuple[GainSchedule, ...]  # one, or one per member
     physics_step: float  # [s]
-    law: str = DEFAULT_LAW  # control/laws: the members' control law (controller.law)
+    law: str | tuple[str, ...] = DEFAULT_LAW  # control/laws: the members' law, or one per member
     pred: tuple[int, ...] | None = None  # member ahead of each in the column (-1: none); None: none
 
     @property
@@ -114,7 +114,7 @@ def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame
     for j in range(vc.shape[0]):
         for i in range(n):
             px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, j, i)
-            res = law_input_at(law, kind, x, i, theta_star[i], speed_in[i], L, gains, px, py,
+            res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py,
                                tvx, tvy, tax, tay, v_cap[i], a_cap[i], pred[i])
             U0[i] = res[0]
             U1[i] = res[1]
@@ -217,7 +217,7 @@ def member_signals(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, fra
     n = x.shape[0]
     for i in range(n):
         px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, 0, i)
-        res = law_input_at(law, kind, x, i, theta_star[i], speed_in[i], L, gains, px, py, tvx,
+        res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py, tvx,
                            tvy, tax, tay, v_cap[i], a_cap[i], pred[i])
         th = vc[0, i, 2]
         _signal_values(kind, x, i, P, res[0], res[1], res, px, py, np.cos(th), np.sin(th),
@@ -281,15 +281,30 @@ def _f64(a) -> np.ndarray:
 _RUNTIME_KERNELS: dict = {}
 
 
-def _law_kernels(law: str):
-    """(step kernel, signal kernel) for the law ``law``: the cached ones for a built-in law,
-    a compiled copy bound to a law registered at run time (control/laws)."""
-    if law_code(law) >= 0:
+def _pack_laws(cfg: FleetConfig):
+    """Every member's law code (n,), the law parameters (n, most PARAMS of its laws) and the
+    one law registered at run time among them (or None)."""
+    laws = cfg.law if isinstance(cfg.law, (tuple, list)) else (cfg.law,) * cfg.n
+    codes = np.array([law_code(name) for name in laws], dtype=np.int64)
+    runtime = sorted({name for name, c in zip(laws, codes) if c < 0})
+    if len(runtime) > 1:
+        raise ValueError(f"one fleet runs at most one law registered at run time, not {runtime}")
+    packs = {name: np.asarray(law_module(name).pack(cfg), dtype=float) for name in set(laws)}
+    L = np.zeros((cfg.n, max(p.shape[1] for p in packs.values())))
+    for i, name in enumerate(laws):
+        L[i, :packs[name].shape[1]] = packs[name][i]
+    return codes, L, (runtime[0] if runtime else None)
+
+
+def _law_kernels(law: str | None):
+    """(step kernel, signal kernel): the cached ones when every law is built in, else a
+    compiled copy that also dispatches to ``law``, registered at run time (control/laws)."""
+    if law is None:
         return step_members, member_signals
     mod = law_module(law)
     got = _RUNTIME_KERNELS.get(law)
     if got is None or got[0] is not mod:
-        disp = rebind(runtime_dispatch, LAW=mod.input_at)
+        disp = rebind(runtime_dispatch, LAW=mod.input_at, builtin=law_input_at)
         got = _RUNTIME_KERNELS[law] = (mod, rebind(step_members, law_input_at=disp),
                                        rebind(member_signals, law_input_at=disp))
     return got[1], got[2]
@@ -312,10 +327,9 @@ class Fleet:
             self.kind, self.P = KINEMATIC, np.zeros((n, N_PARAMS))
         else:
             raise ValueError(f"unknown model {cfg.model!r}")
-        self.law = law_code(cfg.law)
-        self.L = _f64(law_module(cfg.law).pack(cfg))  # (n, len(PARAMS)) law parameters
+        self.law, self.L, runtime = _pack_laws(cfg)
         self.pred = np.array(cfg.pred if cfg.pred is not None else (-1,) * n, dtype=np.int64)
-        self._step, self._signals = _law_kernels(cfg.law)
+        self._step, self._signals = _law_kernels(runtime)
         sg, yg = (g if isinstance(g, (tuple, list)) else (g,) * n
                   for g in (cfg.speed_gains, cfg.yaw_gains))
         self.gains = _f64([[a.g_min, a.g_max, a.k_min, b.g_min, b.g_max, b.k_min]

@@ -9,16 +9,19 @@ picture and where a maneuver planner or a communication channel plugs in.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Iterator
 
 import numpy as np
 
 from ..control.reference import apply
 from ..control.reference_free import FreeReference
-from ..record.columns import SIGNAL_COLUMNS
+from ..record.columns import DEFAULT_FORMATION_ID, SIGNAL_COLUMNS, VIRTUAL_CAR_ID
+from ..scenario.formations import formation_views
 from ..scenario.schema import Scenario
 from .fleet import Fleet, FleetState
+from .formation import (Formation, join_configs, join_references, join_states, merge_extra,
+                        sensed_of, virtual_car_id)
 from .road_load import road_load_part
 from .setup import build_fleet, build_free_leader, build_initial_state, member_vehicles, offsets
 from .timing import PhaseClock
@@ -37,18 +40,25 @@ class ModelRangeError(RuntimeError):
 
 @dataclass
 class RunParts:
-    """Everything the loop needs; ``transforms`` modify each step's Reference in order (one
-    with a ``sense(k, t, sensed, kinematics, rec)`` method is told what the world sensed, the
-    members' (pos, vel, heading) and the recorder first; one with ``error_against_truth`` has
-    the formation error recorded against the true virtual car: comm/link.py)."""
+    """Everything the loop needs: the world, the run's members as one fleet and its state, and
+    the formations (sim/formation.py: each its reference generator and transforms). A
+    formation's transforms modify its Reference each step in order (one with a ``sense(k, t,
+    sensed, kinematics, rec)`` method is told what the world sensed, the members' (pos, vel,
+    heading) and the recorder first; one with ``error_against_truth`` has the formation error
+    recorded against the true virtual car: comm/link.py)."""
 
     world: object  # a sim.world.World
-    generator: object  # FreeReference or RoadReference
     fleet: Fleet
     state: FleetState
-    transforms: list = field(default_factory=list)
+    formations: list[Formation]
     timing: dict | None = None  # run.json timing_s, or None: not timed
     road_load: object = None  # sim/road_load.py: (state, sensed, ref) -> (drag ratio, grade)
+
+
+def one_formation(world, generator, fleet: Fleet, state: FleetState, transforms=(), **kw) -> RunParts:
+    """The parts of a run with one formation (every member in it)."""
+    f = Formation(DEFAULT_FORMATION_ID, slice(0, fleet.cfg.n), generator, list(transforms))
+    return RunParts(world, fleet, state, [f], **kw)
 
 
 def check_finite(state: FleetState, ids, t) -> None:
@@ -58,15 +68,54 @@ def check_finite(state: FleetState, ids, t) -> None:
 
 
 def free_space_run(sc: Scenario) -> RunParts:
-    """World, reference and fleet of a free-space run (no [road])."""
+    """World, references and fleet of a free-space run (no [road]): one formation per
+    scenario/formations.py ``formation_views`` entry."""
     run = sc.run
     n_ctrl = int(round(run.step / run.control_step))
-    cfg = build_fleet(sc)
-    leader, pose = build_free_leader(sc)
-    state = build_initial_state(sc, cfg, leader.sample(0.0, pose))
-    gen = FreeReference(leader, pose, offsets(sc), run.step / n_ctrl, n_ctrl)
-    return RunParts(FreeSpace(cfg.n), gen, Fleet(cfg), state,
-                    road_load=road_load_part(sc, member_vehicles(sc)))
+    views = formation_views(sc)
+    cfgs, states, forms, at = [], [], [], 0
+    for fid, fsc in views:
+        cfg = build_fleet(fsc)
+        leader, pose = build_free_leader(fsc)
+        states.append(build_initial_state(fsc, cfg, leader.sample(0.0, pose)))
+        gen = FreeReference(leader, pose, offsets(fsc), run.step / n_ctrl, n_ctrl)
+        forms.append(Formation(fid, slice(at, at + cfg.n), gen,
+                               vc_id=virtual_car_id(fid, len(views))))
+        cfgs.append(cfg)
+        at += cfg.n
+    vehicles = [v for _, fsc in views for v in member_vehicles(fsc)]
+    return RunParts(FreeSpace(at), Fleet(join_configs(cfgs)), join_states(states), forms,
+                    road_load=road_load_part(sc, vehicles))
+
+
+def _references(forms, k, t, sensed, fleet, state, rec):
+    """The step's reference of every formation, joined for the fleet: (reference before the
+    transforms, after them, the one to record the error against)."""
+    kin = None
+    if len(forms) == 1:
+        f = forms[0]
+        for tr in f.sensing:
+            kin = fleet.kinematics(state) if kin is None else kin  # once for every transform
+            tr.sense(k, t, sensed, kin, rec)
+        ref0 = f.generator.reference(t, sensed)
+        ref = apply(ref0, f.transforms)
+        return ref0, ref, (ref0 if f.true_error and ref.vc is not ref0.vc else ref)
+    raw, out, err = [], [], []
+    for f in forms:
+        part = sensed_of(sensed, f.members)
+        if f.sensing:
+            kin = fleet.kinematics(state) if kin is None else kin
+            for tr in f.sensing:
+                tr.sense(k, t, part, tuple(a[f.members] for a in kin), rec)
+            merge_extra(sensed, part, f.members)
+        ref0 = f.generator.reference(t, part)
+        ref = apply(ref0, f.transforms)
+        raw.append(ref0)
+        out.append(ref)
+        err.append(ref0 if f.true_error and ref.vc is not ref0.vc else ref)
+    ref = join_references(out)
+    truth_ref = ref if all(e is o for e, o in zip(err, out)) else join_references(err)
+    return join_references(raw), ref, truth_ref
 
 
 def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float]]:
@@ -74,7 +123,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
     kernel compilation run under the caller's signal handling); yields (step index, time
     [s]) after recording each step."""
     parts: RunParts = build()
-    world, gen, fleet, state = parts.world, parts.generator, parts.fleet, parts.state
+    world, fleet, state, forms = parts.world, parts.fleet, parts.state, parts.formations
     step, ids = sc.run.step, list(fleet.cfg.ids)
     n_steps = int(round(sc.run.duration / step))
     sig = np.full((fleet.cfg.n, len(SIGNAL_COLUMNS)), np.nan)
@@ -82,8 +131,6 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
     periods = np.empty((0, fleet.cfg.n, 3))  # step_recording's comfort buffer
     err_cols = [SIGNAL_COLUMNS.index(c) for c in ERROR_COLUMNS]
     perfect = np.zeros(fleet.cfg.n)  # leader_age_s without a channel
-    sensing = [tr for tr in parts.transforms if hasattr(tr, "sense")]
-    true_error = any(getattr(tr, "error_against_truth", False) for tr in parts.transforms)
     clock = PhaseClock({} if parts.timing is None else parts.timing)
     adopt = getattr(world, "adopt", None)
     try:
@@ -94,12 +141,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             sensed = world.sense(k, t, state)
             sensed.extra.setdefault("leader_age_s", perfect)
             clock.lap("sumo_read")
-            if sensing:
-                kin = fleet.kinematics(state)  # once for every sensing transform
-                for tr in sensing:
-                    tr.sense(k, t, sensed, kin, rec)
-            ref0 = gen.reference(t, sensed)
-            ref = apply(ref0, parts.transforms)
+            ref0, ref, ref_err = _references(forms, k, t, sensed, fleet, state, rec)
             if adopt is not None:  # vehicles the world handed to the formation (join)
                 state = adopt(state, ref)
             clock.lap("governor")
@@ -107,11 +149,11 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             if parts.road_load is not None:  # drag ratio and grade, held over the step
                 fleet.set_road_load(*parts.road_load(state, sensed, ref))
             if world.records_members:
-                true_vc = true_error and ref.vc is not ref0.vc
+                true_vc = ref_err is not ref
                 rows = None if true_vc else rec.signal_rows(ref.active)  # rows in the same call
                 written = fleet.signals_into(state, ref, sig, t, rows)
                 if true_vc:  # the error against the true virtual car
-                    fleet.signals(state, ref.with_(vc=ref0.vc), out=sig_true)
+                    fleet.signals(state, ref.with_(vc=ref_err.vc), out=sig_true)
                     sig[:, err_cols] = sig_true[:, err_cols]
                 rec.add_step(t, sig, sensed.extra, ref.active, ref.truth, written)
             else:
@@ -121,11 +163,11 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             clock.lap("record")  # the caller's share: the step's end, part files, progress (sim/runner.py)
             if k == n_steps:
                 return
-            stop = gen.stop_reason(t) or world.stop_reason(t)
+            stop = _stop_reason(forms, world, t)
             if stop is not None:
-                kind, detail, why = stop
+                vc_id, (kind, detail, why) = stop
                 if kind:
-                    rec.add_event(t, kind, "vc", "", detail)
+                    rec.add_event(t, kind, vc_id, "", detail)
                 meta["stopped_early"] = why
                 return
             clock.start()
@@ -136,7 +178,8 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
                 state = step_recording(fleet, state, ref, rec, periods)
             else:
                 state = fleet.step(state, ref)
-            gen.commit()
+            for f in forms:
+                f.generator.commit()
             check_finite(state, ids, t + step)
             clock.lap("control_model")
             world.actuate(t + step, state, v_before)
@@ -145,6 +188,17 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             clock.lap("sumo_step")
     finally:
         world.close()
+
+
+def _stop_reason(forms, world, t):
+    """(virtual car id, (event kind, detail, why)) of the first formation whose generator
+    ends the run (end of road), or of the world (no member left); None: go on."""
+    for f in forms:
+        stop = f.generator.stop_reason(t)
+        if stop is not None:
+            return f.vc_id, stop
+    stop = world.stop_reason(t)
+    return None if stop is None else (VIRTUAL_CAR_ID, stop)
 
 
 def step_recording(fleet: Fleet, state: FleetState, ref, rec, comfort: np.ndarray) -> FleetState:

@@ -33,12 +33,15 @@ class Recorder:
 
     ``formation_of`` maps vehicle ids (members, the virtual car) to their formation's id: the
     ``formation_id`` column of the trajectory, comfort and event tables (record/writer.py
-    derived columns); by default every member and the virtual car are ``formation_id``'s."""
+    derived columns); by default every member and the virtual car are ``formation_id``'s.
+    ``vc_ids``: the formations' virtual cars, one row each per step after the members' (a
+    one-formation run: 'vc')."""
 
     def __init__(self, out_dir: Path, member_ids: list[str], with_sumo: bool,
                  periods_per_step: int = 1, formation_id: str = DEFAULT_FORMATION_ID,
-                 formation_of: dict[str, str] | None = None):
+                 formation_of: dict[str, str] | None = None, vc_ids: list[str] | None = None):
         n = len(member_ids)
+        vc_ids = [VIRTUAL_CAR_ID] if vc_ids is None else list(vc_ids)
         self.formation_of = (dict(formation_of) if formation_of is not None else
                              {v: formation_id for v in [*member_ids, VIRTUAL_CAR_ID]})
         self.comfort = ChunkedTable(out_dir / "comfort.parquet", COMFORT_COLUMNS,
@@ -48,8 +51,8 @@ class Recorder:
                                        if c.name in SIGNAL_COLUMNS],
                                       dtype=np.int64)  # signal column of each comfort value
         self.traj = ChunkedTable(out_dir / "trajectories.parquet", TRAJECTORY_COLUMNS,
-                                 chunk_rows=(n + 1) * STEPS_PER_CHUNK,
-                                 labels=list(member_ids) + [VIRTUAL_CAR_ID], progress_column="t",
+                                 chunk_rows=(n + len(vc_ids)) * STEPS_PER_CHUNK,
+                                 labels=list(member_ids) + vc_ids, progress_column="t",
                                  derived=self.formation_of)
         # the members' signal columns (x .. friction_usage) are consecutive float64 columns
         self._sig_block = self.traj.block(SIGNAL_COLUMNS)
@@ -60,6 +63,7 @@ class Recorder:
         self._vc_at = np.array([self._floats.index(c) for c in _VC_COLUMNS])
         self.codes = np.arange(n, dtype=np.int32)
         self.vc_code = n
+        self.vc_codes = np.arange(n, n + len(vc_ids), dtype=np.int32)  # one per formation
         self.events = ChunkedTable(out_dir / "events.parquet", EVENT_COLUMNS, chunk_rows=2000, labels=[""],
                                    derived=self.formation_of)
         self.background = None
@@ -215,7 +219,7 @@ class Recorder:
         (events), or a part ends inside the step."""
         n, tr, cf = len(self.codes), self.traj, self.comfort
         at, c_at = tr.rows_buffered, cf.rows_buffered
-        if (self._any_out or at + n + 1 > tr.chunk_rows or c_at + n > cf.chunk_rows
+        if (self._any_out or at + n + len(self.vc_codes) > tr.chunk_rows or c_at + n > cf.chunk_rows
                 or (mask is not None and mask.tobytes() != self._all_in)):
             return None
         return (self._sig_limits, self._float_block, self._traj_ids, at, self._cf_block,
@@ -225,8 +229,8 @@ class Recorder:
                  written: bool = False) -> None:
         """The rows of one recorded step at t [s]: what :meth:`add_signal_rows` (t, sig, extra,
         mask), :meth:`add_comfort_rows` (t, sig, mask) and :meth:`add_vc` (t, the virtual car
-        ``truth`` = Reference.truth, its s) write in that order, with one write per block of
-        columns; ``written``: member_signals wrote the members' signal rows already (at
+        ``truth`` = Reference.truth, its s; (k, 8) with k formations: one row for each virtual
+        car) write in that order, with one write per block of columns; ``written``: member_signals wrote the members' signal rows already (at
         :meth:`signal_rows`). Those three calls do it when a member is out of the run, a
         signal is (or was) out of range (events) or a part ends inside the step."""
         n, tr, cf, bad = len(self.codes), self.traj, self.comfort, self._bad
@@ -239,8 +243,8 @@ class Recorder:
                     or self.signal_rows(mask) is None):
                 self.add_signal_rows(t, sig, extra, mask)
                 self.add_comfort_rows(t, sig, mask)
-                vc = truth.tolist()
-                self.add_vc(t, LeaderState(*vc[:7]), vc[7])
+                for code, vc in zip(self.vc_codes.tolist(), np.atleast_2d(truth).tolist()):
+                    self.add_vc(t, LeaderState(*vc[:7]), vc[7], code=code)
                 return
             self._sig_block[:, at:e] = sig.T
             blk[0, at:e] = t
@@ -250,10 +254,16 @@ class Recorder:
             self._cf_vals[1:, c_at:c_at + n] = sig[:, self._acc].T
             self._cf_ids[c_at:c_at + n] = self.codes
         self._extras(extra, self._extra_block[:, at:e])
-        x, y, theta, v, omega, v_dot, _, s = truth.tolist()
-        blk[:, e] = self._vc_row(t, x, y, theta, v, omega, v_dot, s)
-        self._traj_ids[e] = self.vc_code
-        tr.commit(n + 1)
+        if truth.ndim == 1:
+            x, y, theta, v, omega, v_dot, _, s = truth.tolist()
+            blk[:, e] = self._vc_row(t, x, y, theta, v, omega, v_dot, s)
+            self._traj_ids[e] = self.vc_code
+            tr.commit(n + 1)
+        else:  # several formations: one row per virtual car
+            for j, (x, y, theta, v, omega, v_dot, _, s) in enumerate(truth.tolist()):
+                blk[:, e + j] = self._vc_row(t, x, y, theta, v, omega, v_dot, s)
+            self._traj_ids[e:e + len(truth)] = self.vc_codes
+            tr.commit(n + len(truth))
         cf.commit(n)
 
     def _extras(self, extra: dict, out: np.ndarray) -> None:
@@ -302,13 +312,14 @@ class Recorder:
         self._out_of_range = bad
         self._any_out = bool(bad.any())
 
-    def add_vc(self, t, vc, s=np.nan):
-        """One row for the virtual car; the member-only columns stay NaN."""
+    def add_vc(self, t, vc, s=np.nan, code: int | None = None):
+        """One row for a virtual car (``code``: its vehicle_id code, default the first
+        formation's); the member-only columns stay NaN."""
         vec = self._vc_row(t, vc.x, vc.y, vc.theta, vc.v, vc.omega, vc.v_dot, s)
         tr = self.traj
         sl = tr.rows(1)
         self._float_block[:, sl.start] = vec
-        tr.column("vehicle_id")[sl.start] = self.vc_code
+        tr.column("vehicle_id")[sl.start] = self.vc_code if code is None else code
         tr.commit(1)
 
     def _vc_row(self, t, x, y, theta, v, omega, v_dot, s) -> np.ndarray:

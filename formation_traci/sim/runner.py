@@ -25,6 +25,8 @@ from ..scenario.schema import Scenario
 from ..versions import installed_versions, platform_name
 from ..comm.link import with_comm
 from .loop import ModelRangeError, check_finite, free_space_run, step_loop  # noqa: F401
+from ..scenario.formations import formation_views
+from .formation import virtual_car_id
 from .recorder import Recorder
 from .setup import member_vehicles, road_mu
 
@@ -58,9 +60,19 @@ RESERVE_BYTES = 1 << 18
 write the final run.json when the disk is full [B]."""
 
 
-def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
+def _members_meta(sc: Scenario, formation_id: str) -> list[dict]:
+    """run.json's entries of one formation's members (``sc`` as that formation sees it)."""
     bodies = [{"length": v.length, "width": v.width, "a": v.a, "front_overhang": v.front_overhang}
               for v in member_vehicles(sc)]  # [m], analysis footprints read it
+    return [{"id": m.id, "formation_id": formation_id,
+             "offset": list(m.offset) if m.offset is not None else [m.slot.along, m.slot.across],
+             "lanes": None if m.slot is None else m.slot.lanes,
+             "frame": "vehicle" if m.offset is not None else "road", "body": bodies[i],
+             "preset": m.preset or sc.vehicle.preset}
+            for i, m in enumerate(sc.members)]
+
+
+def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
     return {
         "schema": RUN_SCHEMA,
         "status": "running",
@@ -72,12 +84,7 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
         "mu": road_mu(sc),
         "record_step": sc.run.step,
         "duration": sc.run.duration,
-        "members": [{"id": m.id,
-                     "offset": list(m.offset) if m.offset is not None else [m.slot.along, m.slot.across],
-                     "lanes": None if m.slot is None else m.slot.lanes,
-                     "frame": "vehicle" if m.offset is not None else "road", "body": bodies[i],
-                     "preset": m.preset or sc.vehicle.preset}
-                    for i, m in enumerate(sc.members)],
+        "members": [m for fid, view in formation_views(sc) for m in _members_meta(view, fid)],
         "versions": versions(),
         "started": _now(),
         "finished": None,
@@ -135,8 +142,7 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
     meta_path = out_dir / "run.json"
     _reserve(out_dir)
     atomic_write_json(meta_path, meta)
-    rec = Recorder(out_dir, [m.id for m in sc.members], with_sumo=sc.road is not None,
-                   periods_per_step=int(round(sc.run.step / sc.run.control_step)))
+    rec = _recorder(sc, out_dir)
     n_steps = int(round(sc.run.duration / sc.run.step))
 
     status, reason, t, k = "completed", None, 0.0, 0
@@ -247,10 +253,24 @@ def _write_final(meta_path: Path, meta: dict) -> None:
         reserve.unlink(missing_ok=True)
 
 
+def _recorder(sc: Scenario, out_dir: Path) -> Recorder:
+    """The run's tables: every formation's members, then one virtual car each."""
+    views = formation_views(sc)
+    vc_ids = [virtual_car_id(fid, len(views)) for fid, _ in views]
+    formation_of = {m.id: fid for fid, view in views for m in view.members}
+    formation_of.update({vc: fid for vc, (fid, _) in zip(vc_ids, views)})
+    return Recorder(out_dir, [m.id for _, view in views for m in view.members],
+                    with_sumo=sc.road is not None,
+                    periods_per_step=int(round(sc.run.step / sc.run.control_step)),
+                    formation_of=formation_of, vc_ids=vc_ids)
+
+
 def _with_transforms(build, transforms):
     def built():
         parts = build()
-        parts.transforms.extend(transforms)
+        if transforms and len(parts.formations) > 1:
+            raise ValueError("transforms= apply to a run of one formation")
+        parts.formations[0].transforms.extend(transforms)
         return parts
     return built
 

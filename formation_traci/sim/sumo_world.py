@@ -351,7 +351,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     """World, reference generator and fleet of a road run (loop.step_loop runs them)."""
     from ..control.reference_road import GovernorLimits, RoadReference
     from .fleet import Fleet, initial_state
-    from .loop import RunParts
+    from .loop import one_formation
     from .road_load import road_load_part
     from .setup import build_fleet, profile, road_mu
     from .sumo_plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
@@ -379,8 +379,8 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
                         "governor": 0.0, "control_model": 0.0, "record": 0.0}
     load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, line)
     if not sc.maneuvers:
-        return RunParts(world, RoadReference(*args), fleet, state, timing=meta["timing_s"],
-                        road_load=load)
+        return one_formation(world, RoadReference(*args), fleet, state, timing=meta["timing_s"],
+                             road_load=load)
     from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
     from ..control.maneuvers.planner import ManeuverPlanner
     from .road_setup import road_room
@@ -392,5 +392,5 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
                               np.array([v.cog_to_front_bumper for v in plan.vehicles]))
     gen = ManeuverRoadReference(*args, planner=planner, on_event=rec.add_event, length=lengths,
                                 on_release=world.release, on_join=world.take_over)
-    return RunParts(world, gen, fleet, state, transforms=[PlanSlots(planner)],
-                    timing=meta["timing_s"], road_load=load)
+    return one_formation(world, gen, fleet, state, transforms=[PlanSlots(planner)],
+                         timing=meta["timing_s"], road_load=load)

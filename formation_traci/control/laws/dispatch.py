@@ -21,7 +21,11 @@ def law_input_at(code, kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, t
 
 def runtime_dispatch(code, kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy,
                      tax, tay, v_cap_i, a_cap_i, pred_i):
-    """The dispatch of a law registered at run time: compiled per law with ``LAW`` bound to
-    its ``input_at`` (kernels.rebind; sim/fleet.py)."""
+    """The dispatch of a fleet with a law registered at run time (code -1): compiled per law
+    with ``LAW`` bound to its ``input_at`` and ``builtin`` to :func:`law_input_at`
+    (kernels.rebind; sim/fleet.py)."""
+    if code >= 0:
+        return builtin(code, kind, x, i, theta_star_i, speed_in_i, L, gains, px, py,  # noqa: F821
+                       tvx, tvy, tax, tay, v_cap_i, a_cap_i, pred_i)
     return LAW(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy,  # noqa: F821
                tax, tay, v_cap_i, a_cap_i, pred_i)
