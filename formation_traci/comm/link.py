@@ -36,7 +36,6 @@ from ..kernels import kernel
 from ..road.leader import road_leader_at
 from .channel import Channel, build_channel, link_params
 from .predict import predict_planar
-from ..scenario.formations import formation_views
 
 N_VC = 8  # x, y, theta, v, omega, v_dot, omega_dot, s (control/reference.py VC_FIELDS)
 
@@ -116,15 +115,6 @@ class CommChannel:
         self.v_hold = np.zeros(n)
         self._seen = None
 
-    @classmethod
-    def from_scenario(cls, sc, n_ctrl: int) -> "CommChannel":
-        from ..sim.setup import vehicle_params
-
-        ids = [m.id for m in sc.members]
-        ch = build_channel([link_params(sc.comm, i) for i in ids], sc.run.seed, sc.run.duration,
-                           sc.run.control_step, sc.comm.beacon_hz)
-        return cls(ch, ids, n_ctrl, sc.comm.timeout_s, vehicle_params(sc), sc.leader)
-
     def sense(self, k: int, t: float, sensed, kin, rec) -> None:
         """What the world sensed at step k (time t [s]); ``kin`` the members' (pos (n, 2) [m],
         velocity (n, 2) [m/s], heading (n,) [rad]); ``rec`` the run's Recorder."""
@@ -197,17 +187,3 @@ class CommChannel:
                                      float(ld.min_gap), float(ld.decel_emergency))
             v_cap[i], a_cap[i] = min(v_cap[i], vc_i), min(a_cap[i], ac_i)
         return v_cap, a_cap
-
-
-def with_comm(sc, parts, baseline: bool = False):
-    """``parts`` (sim/loop.py RunParts) with each formation's [comm] channel as the first of
-    its transforms."""
-    if baseline:
-        return parts
-    n_ctrl = int(round(sc.run.step / sc.run.control_step))
-    views = dict(formation_views(sc))
-    for f in parts.formations:
-        view = views[f.id]
-        if view.comm is not None:
-            f.transforms.insert(0, CommChannel.from_scenario(view, n_ctrl))
-    return parts

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kernels import clip, kernel, maximum, wrap_angle as _wrap
+from ..states import LeaderState, Targets  # noqa: F401 (re-exported)
 
 V_EPS = 0.5
 """Floor of the commanded speed in the denominators of (2.9) and of v dot [m/s] (ours)."""
@@ -24,28 +25,6 @@ K_WAIT = 10.0
 COS_WAIT = 0.2
 """The seed's law acts unchanged while (x~, y~) is within acos(0.2) = 78 deg of the heading;
 towards 90 deg and beyond it fades linearly into waiting."""
-
-
-@dataclass(frozen=True, slots=True)
-class LeaderState:
-    """Virtual car kinematics at one instant (eq 2.3) and the rates the controller needs."""
-
-    x: float  # [m]
-    y: float  # [m]
-    theta: float  # heading [rad], counter-clockwise from +x
-    v: float  # [m/s]
-    omega: float  # [rad/s]
-    v_dot: float  # [m/s^2]
-    omega_dot: float  # [rad/s^2]
-
-
-@dataclass(frozen=True, slots=True)
-class Targets:
-    """Desired position, velocity and acceleration of every member, shape (n, 2) each."""
-
-    p: np.ndarray  # [m]
-    v: np.ndarray  # [m/s]
-    a: np.ndarray  # [m/s^2]
 
 
 @dataclass(frozen=True, slots=True)

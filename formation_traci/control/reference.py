@@ -22,7 +22,7 @@ from typing import Callable
 import numpy as np
 
 from ..kernels import kernel
-from .formation import LeaderState
+from ..states import LeaderState
 
 VC_FIELDS = ("x", "y", "theta", "v", "omega", "v_dot", "omega_dot", "s")
 """Columns of Reference.vc (last axis)."""

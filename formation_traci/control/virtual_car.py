@@ -13,7 +13,7 @@ import numpy as np
 
 from ..kernels import kernel, substeps
 from ..models.integrator import KINEMATIC, rk4_row
-from .formation import LeaderState
+from ..states import LeaderState
 
 
 @kernel

@@ -1,7 +1,7 @@
 """The virtual car driving along a road reference line (eq 2.3 constrained to the road)."""
 from __future__ import annotations
 
-from ..control.formation import LeaderState
+from ..states import LeaderState
 from ..kernels import kernel
 from .fast_line import frame_at
 from .line_pack import packed

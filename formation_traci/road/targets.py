@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..control.formation import Targets
+from ..states import Targets
 from ..kernels import kernel
 from .fast_line import frame_at
 from .line_pack import packed

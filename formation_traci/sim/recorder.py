@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..control.formation import LeaderState
+from ..states import LeaderState
 from ..record.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, DEFAULT_FORMATION_ID,
                               EVENT_COLUMNS, FILLED_BY_CALLER, SIGNAL_COLUMNS, TRAJECTORY_COLUMNS,
                               VIRTUAL_CAR_ID)

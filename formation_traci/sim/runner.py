@@ -23,12 +23,11 @@ from ..record.writer import atomic_write_json
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
 from ..versions import installed_versions, platform_name
-from ..comm.link import with_comm
 from .loop import ModelRangeError, check_finite, free_space_run, step_loop  # noqa: F401
 from ..scenario.formations import formation_views
 from .formation import virtual_car_id
 from .recorder import Recorder
-from .setup import member_vehicles, road_mu
+from .setup import member_vehicles, road_mu, with_comm
 
 
 @dataclass(frozen=True)

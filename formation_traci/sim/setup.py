@@ -11,6 +11,9 @@ from ..control.virtual_car import FreeLeader, Profile
 from ..models.linear import stable_blend_speed
 from ..models.params import (LOW_SPEED_DEFAULT, SURFACES, VEHICLE_PRESETS, VehicleParams,
                              bicycle_params, make_tires, stack)
+from ..comm.channel import build_channel, link_params
+from ..comm.link import CommChannel
+from ..scenario.formations import formation_views
 from ..scenario.schema import GainSpec, ProfileSpec, Scenario
 from .fleet import FleetConfig, FleetState, initial_state
 
@@ -110,3 +113,25 @@ def build_initial_state(sc: Scenario, cfg: FleetConfig, vc: LeaderState) -> Flee
     yaw_rate = np.deg2rad([m.yaw_rate_deg_s for m in sc.members])
     steer = np.deg2rad([m.steer_deg for m in sc.members])
     return initial_state(cfg, pos, heading, speed, yaw_rate, steer, rigid_targets(vc, offsets(sc)))
+
+
+def comm_channel(sc: Scenario, n_ctrl: int) -> CommChannel:
+    """The [comm] radio of the formation ``sc`` sees (comm/link.py), drawn from the run's seed."""
+    ids = [m.id for m in sc.members]
+    ch = build_channel([link_params(sc.comm, i) for i in ids], sc.run.seed, sc.run.duration,
+                       sc.run.control_step, sc.comm.beacon_hz)
+    return CommChannel(ch, ids, n_ctrl, sc.comm.timeout_s, vehicle_params(sc), sc.leader)
+
+
+def with_comm(sc: Scenario, parts, baseline: bool = False):
+    """``parts`` (sim/loop.py RunParts) with each formation's [comm] channel as the first of
+    its transforms (none in a baseline twin: no formation)."""
+    if baseline:
+        return parts
+    n_ctrl = int(round(sc.run.step / sc.run.control_step))
+    views = dict(formation_views(sc))
+    for f in parts.formations:
+        view = views[f.id]
+        if view.comm is not None:
+            f.transforms.insert(0, comm_channel(view, n_ctrl))
+    return parts
