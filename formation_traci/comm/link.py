@@ -34,7 +34,7 @@ from ..control.reference import Reference
 from ..control.virtual_car import along_line_advance
 from ..kernels import kernel
 from ..road.leader import road_leader_at
-from .channel import Channel, build_channel, link_params
+from .channel import Channel
 from .predict import predict_planar
 
 N_VC = 8  # x, y, theta, v, omega, v_dot, omega_dot, s (control/reference.py VC_FIELDS)

@@ -39,11 +39,13 @@ class FreeReference:
         self._next = None
 
     def reference(self, t: float, sensed=None) -> Reference:
-        """The reference of the step starting at t [s] (from the current pose)."""
+        """The reference of the step starting at t [s] (from the current pose); the members
+        in the run are those the world ``sensed`` (sim/world.py), all without it."""
         vc = np.empty((self.n_ctrl, len(self.frame), 8))
         self._next = free_vc_rows(self.prof, float(t), *self.pose, self.dt_c, self.n_sub, vc)
         truth = vc[0, 0].copy() if len(self.frame) else np.array([*self.pose, 0, 0, 0, 0, np.nan])
-        return Reference(float(t), self.dt_c, vc, self.slots, self.frame, self.active,
+        active = self.active if sensed is None else sensed.active
+        return Reference(float(t), self.dt_c, vc, self.slots, self.frame, active,
                          self.no_cap, self.no_cap, truth=truth)
 
     def commit(self) -> None:

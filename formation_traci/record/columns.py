@@ -82,7 +82,7 @@ TRAJECTORY_FLOAT_COLUMNS: tuple[str, ...] = tuple(
 EVENT_COLUMNS: tuple[Column, ...] = (
     Column("t", "float64", "s", "simulated time (formation clock)"),
     Column("kind", "string", "-", "collision | teleport | member_removed | move_refused | lane_change | "
-                                  "cut_in | cleared_at_insertion | emergency_brake | emergency_end | end_of_road | placement_mismatch | model_range | "
+                                  "cut_in | cleared_at_insertion | member_retired | emergency_brake | emergency_end | end_of_road | placement_mismatch | model_range | "
                                   "maneuver_start | maneuver_end | maneuver_postponed | maneuver_cancelled | "
                                   "comm_timeout | comm_restored"),
     Column("vehicle_id", "string", "-", "the vehicle the event is about"),

@@ -327,6 +327,7 @@ class Fleet:
             self.kind, self.P = KINEMATIC, np.zeros((n, N_PARAMS))
         else:
             raise ValueError(f"unknown model {cfg.model!r}")
+        self.k = _f64(np.broadcast_to(np.asarray(cfg.k, dtype=float), (n,)))  # eq 2.7, theta*(0)
         self.law, self.L, runtime = _pack_laws(cfg)
         self.pred = np.array(cfg.pred if cfg.pred is not None else (-1,) * n, dtype=np.int64)
         self._step, self._signals = _law_kernels(runtime)

@@ -47,6 +47,7 @@ def take_over(world, t: float, i: int, vid: str, sensed) -> None:
     world.adapter.take_over(vid, world.mtypes[i], world.route_id)
     world.sumo_ids[i] = vid
     world.active[i] = True
+    world.in_sumo[i] = True
     world.adopting.append((i, x, y, psi, v))
     m_s, m_d = world.line.to_frenet(np.array([[x, y]]))
     sensed.m_s[i], sensed.m_d[i], sensed.v_m[i] = m_s[0], m_d[0], v

@@ -67,7 +67,7 @@ def check_finite(state: FleetState, ids, t) -> None:
         raise ModelRangeError(f"vehicle state became non-finite for {bad} at t = {t:.3f} s")
 
 
-def free_space_run(sc: Scenario) -> RunParts:
+def free_space_run(sc: Scenario, rec=None) -> RunParts:
     """World, references and fleet of a free-space run (no [road]): one formation per
     scenario/formations.py ``formation_views`` entry."""
     run = sc.run
@@ -84,7 +84,7 @@ def free_space_run(sc: Scenario) -> RunParts:
         cfgs.append(cfg)
         at += cfg.n
     vehicles = [v for _, fsc in views for v in member_vehicles(fsc)]
-    return RunParts(FreeSpace(at), Fleet(join_configs(cfgs)), join_states(states), forms,
+    return RunParts(FreeSpace(at, rec), Fleet(join_configs(cfgs)), join_states(states), forms,
                     road_load=road_load_part(sc, vehicles))
 
 

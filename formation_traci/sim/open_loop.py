@@ -22,7 +22,6 @@ from typing import Iterator
 import numpy as np
 
 from ..control.schedule import apply as p_law
-from ..kernels import substeps
 from ..models import bicycle
 from ..models.bicycle import S, traction_from_acceleration_at
 from ..models.linear import lateral_ab, linear_params

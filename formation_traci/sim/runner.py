@@ -155,7 +155,7 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
             steps = open_loop_steps(sc, rec, out_dir)
         else:
             if sc.road is None:
-                build = lambda: with_comm(sc, free_space_run(sc))  # noqa: E731
+                build = lambda: with_comm(sc, free_space_run(sc, rec))  # noqa: E731
             else:
                 from .sumo_world import road_run
                 build = lambda: with_comm(sc, road_run(sc, plan, rec, out_dir, meta, baseline,  # noqa: E731

@@ -2,13 +2,13 @@
 
 sense: read back where SUMO put the members (removed, placement mismatch, lane changes)
 and the vehicles near them; observe: traffic events and background rows; actuate: insert
-the members at the first step, then place them with moveToXY; step: SUMO's step, then tell
+the members spawned since the last step (every member of the run before its first step),
+place the others with moveToXY; retire: members out of SUMO at once; step: SUMO's step, then tell
 SUMO the members' true speed and acceleration. A baseline twin (``baseline=True``) runs the
 same traffic without the formation: no member enters SUMO, every vehicle is recorded.
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +18,6 @@ from ..road.line_pack import FastLine, packed
 from ..scenario.schema import Scenario
 from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch,
                      TrafficWatch, log_sumo_events)
-from .road_setup import rectangles_overlap
 from .demand import measure_plan, traffic_meta
 from .join import adopt, enter, take_over
 from .messages import sumo_outputs_meta
@@ -26,7 +25,8 @@ from .sumo_adapter import SumoAdapter, SumoError
 from .sumo_neighbours import NOBODY
 from .sumo_sense import NeighbourGuess, PackedLanes, sense_step
 from .sumo_types import Neighbours
-from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
+from .sumo_members import clear_insertion_zone, middle_member, subscribe_context
+from .sumo_plan import MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import CAR, flow_vehicles_per_hour, write_routes
 from .world import Sensed
 
@@ -49,11 +49,13 @@ class SumoWorld:
         n = len(self.ids)
         self.line = FastLine(float(plan.road.line.length), packed(plan.road.line))  # packed once per line
         self.out_dir, self.sumo_dir = out_dir, out_dir / "sumo"
-        self.active = np.ones(n, dtype=bool)
+        self.active = np.ones(n, dtype=bool)  # members in the run
+        self.in_sumo = np.zeros(n, dtype=bool)  # members SUMO has (inserted, not removed)
         self._every = np.arange(n)
         for mv in sc.maneuvers:  # a joining member enters when it takes a vehicle over
             if mv.kind == "join":
                 self.active[self.ids.index(mv.member)] = False
+        self.pending = np.flatnonzero(self.active)  # spawned, inserted at the next actuate
         self.sumo_ids = list(self.ids)  # SUMO's vehicle of each member (join: the one taken over)
         self.adopting = []  # take-overs to write into the fleet state (sim/join.py)
         self.route_id = MEMBER_ROUTE
@@ -182,8 +184,9 @@ class SumoWorld:
         of the run or no longer in SUMO, who are reported removed), then the recorded lane
         index and :meth:`MemberWatch.lane_changes`' arguments."""
         n = len(self.ids)
-        every = self.active.all()
-        idx_act = self._every if every else np.flatnonzero(self.active)
+        here_now = self.active & self.in_sumo
+        every = here_now.all()
+        idx_act = self._every if every else np.flatnonzero(here_now)
         front, ang, lanes, lane_idx, lat, lane_pos, present = self.adapter.read_members(
             self.sumo_ids if every else [self.sumo_ids[i] for i in idx_act])
         here = present.all()
@@ -250,6 +253,24 @@ class SumoWorld:
             self.traffic(t, sensed.nb, info["lead_idx"], info["gap"], sensed.v_m, self.active)
             self.rec.add_background(t, sensed.nb, sensed.nb_s, sensed.nb_d)
 
+    def spawn(self, t: float, rows) -> None:
+        """Members ``rows`` join the run; SUMO gets them at the next :meth:`actuate`, where
+        their state puts them (vehicles standing there are cleared first)."""
+        rows = np.atleast_1d(rows)
+        self.active[rows] = True
+        self.pending = np.union1d(self.pending, rows).astype(np.int64)
+
+    def retire(self, t: float, rows, why: str) -> None:
+        """Members ``rows`` leave the run and SUMO now (an event ``member_retired``)."""
+        for i in np.atleast_1d(rows):
+            if not self.active[i]:
+                continue
+            if self.in_sumo[i] and not self.baseline:
+                self.adapter.remove_vehicle(self.sumo_ids[i])
+            self.active[i] = self.in_sumo[i] = False
+            self.rec.add_event(t, "member_retired", self.ids[i], "", why)
+        self.pending = np.setdiff1d(self.pending, rows).astype(np.int64)
+
     def stop_reason(self, t: float):
         if not self.active.any():
             return None, "", f"no member left in SUMO at t = {t:.2f} s"
@@ -263,17 +284,11 @@ class SumoWorld:
         self.v_after = v_after
         if self.baseline:
             return  # the formation stays out of SUMO
-        act_idx = np.flatnonzero(self.active)
         ids, ad = self.ids, self.adapter
-        if not self.inserted:
-            ld = self.sc.leader
-            a = act_idx
-            clear_insertion_zone(ad, self.rec, t_next, pos[a], heading[a], v_after[a],
-                                 [self.plan.vehicles[i] for i in a],
-                                 ld.min_gap + ld.time_gap * v_after[a])
-            for i in act_idx:
-                ad.insert_member(ids[i], MEMBER_ROUTE, self.mtypes[i], pos[i, 0], pos[i, 1],
-                                 heading[i], v_after[i])
+        act_idx = np.flatnonzero(self.active & self.in_sumo)
+        if len(self.pending):
+            self._insert(t_next, self.pending, pos, heading, v_after)
+        if not len(act_idx):
             return
         if len(act_idx) == len(ids):  # every member in the run: no copies
             refused = dict(ad.place(self.sumo_ids, pos[:, 0], pos[:, 1], heading))
@@ -281,6 +296,19 @@ class SumoWorld:
             refused = dict(ad.place([self.sumo_ids[i] for i in act_idx], pos[act_idx, 0],
                                     pos[act_idx, 1], heading[act_idx]))
         self.refusals(t_next, act_idx, refused, self.active, ad)
+
+    def _insert(self, t_next, rows, pos, heading, v_after) -> None:
+        """SUMO gets the spawned members ``rows`` at their poses, vehicles standing there (or
+        in their time gap ahead) cleared first."""
+        ld, ad = self.sc.leader, self.adapter
+        clear_insertion_zone(ad, self.rec, t_next, pos[rows], heading[rows], v_after[rows],
+                             [self.plan.vehicles[i] for i in rows],
+                             ld.min_gap + ld.time_gap * v_after[rows])
+        for i in rows:
+            ad.insert_member(self.ids[i], MEMBER_ROUTE, self.mtypes[i], pos[i, 0], pos[i, 1],
+                             heading[i], v_after[i])
+        self.in_sumo[rows] = True
+        self.pending = self.pending[:0]
 
     def step(self, k: int, t_next: float) -> None:
         ad = self.adapter
@@ -291,10 +319,11 @@ class SumoWorld:
             ad.subscribe_departed()
             self.inserted = True  # reads neighbours (every vehicle) from now on
             return
-        if self.active.all():
+        here_now = self.active & self.in_sumo
+        if here_now.all():
             ad.set_true_speeds(self.sumo_ids, self.v_after, self.a_mean)
         else:
-            act_idx = np.flatnonzero(self.active)
+            act_idx = np.flatnonzero(here_now)
             ad.set_true_speeds([self.sumo_ids[i] for i in act_idx], self.v_after[act_idx],
                                self.a_mean[act_idx])
         if not self.all_bg and self.active.any() and (
@@ -307,43 +336,6 @@ class SumoWorld:
         if ad.gui and self.active.any() and (self.followed is None or not self.active[self.followed]):
             self.followed = middle_member(self.active, self.along, self.slot_d_0)
             ad.follow(self.sumo_ids[self.followed])
-
-
-def middle_member(active, along, across) -> int:
-    """Index of the active member nearest the middle of the formation."""
-    idx = np.flatnonzero(active)
-    centre = np.array([along[idx].mean(), across[idx].mean()])
-    return int(idx[np.argmin(np.hypot(along[idx] - centre[0], across[idx] - centre[1]))])
-
-
-def subscribe_context(adapter, ids, active, along, across, radius):
-    """One context subscription for the whole formation: on the active member nearest the
-    middle of the formation, with the radius grown by the formation's extent around it.
-    Returns that member's index."""
-    idx = np.flatnonzero(active)
-    owner = middle_member(active, along, across)
-    extent = float(np.max(np.hypot(along[idx] - along[owner], across[idx] - across[owner])))
-    adapter.subscribe_neighbours(ids[owner], radius + extent)
-    return owner
-
-
-def clear_insertion_zone(adapter, rec, t, pos, heading, v, vehicles, front):
-    """Remove SUMO vehicles that stand where a member (chassis ``vehicles[i]``) is inserted,
-    or inside its time gap ahead (``front`` [m]) or within INSERT_CLEAR_TIME of its speed
-    behind it."""
-    ids, x, y, psi, length, width = adapter.vehicle_bodies()
-    for j, vid in enumerate(ids):
-        for i in range(len(pos)):
-            back = max(2.0, v[i] * INSERT_CLEAR_TIME)
-            veh = vehicles[i]
-            zone_len = veh.length + front[i] + back
-            shift = (front[i] - back) / 2
-            zc = pos[i] + shift * np.array([math.cos(heading[i]), math.sin(heading[i])])
-            if rectangles_overlap(zc, heading[i], np.array([x[j], y[j]]), psi[j], zone_len, veh.width + 0.6,
-                                  length[j], width[j]):
-                adapter.remove_vehicle(vid)
-                rec.add_event(t, "cleared_at_insertion", vid, "", "removed: it stood where a member is inserted")
-                break
 
 
 def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,

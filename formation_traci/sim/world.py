@@ -4,6 +4,11 @@ Per step: ``sense`` (what the world reports at the start of the step, for the re
 generator and the recorder) -> ``observe`` (events and surroundings once the reference is
 known) -> ``stop_reason`` -> ``actuate`` (the members' new poses) -> ``step`` (the world's
 own time step). ``start`` before the first step, ``close`` always at the end.
+
+Members enter and leave at any step: ``spawn(t, rows)`` puts the fleet rows ``rows`` into the
+run (they enter the world where their state says at the next ``actuate``; every member of a
+run is spawned before its first step), ``retire(t, rows, why)`` takes them out of the run and
+the world at once (an event ``member_retired`` says why).
 """
 from __future__ import annotations
 
@@ -47,6 +52,10 @@ class World(Protocol):
 
     def step(self, k: int, t_next: float) -> None: ...
 
+    def spawn(self, t: float, rows: np.ndarray) -> None: ...
+
+    def retire(self, t: float, rows: np.ndarray, why: str) -> None: ...
+
     def close(self) -> None: ...
 
 
@@ -55,8 +64,19 @@ class FreeSpace:
 
     records_members = True
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, rec=None):
         self.sensed = Sensed(active=np.ones(n, dtype=bool))
+        self.rec = rec  # sim/recorder.py Recorder, for the events (None: none recorded)
+
+    def spawn(self, t, rows) -> None:
+        self.sensed.active[rows] = True
+
+    def retire(self, t, rows, why: str) -> None:
+        act = self.sensed.active
+        for i in np.atleast_1d(rows):
+            if act[i] and self.rec is not None:
+                self.rec.add_event(t, "member_retired", self.rec.member_ids[i], "", why)
+            act[i] = False
 
     def start(self) -> None:
         pass
