@@ -17,7 +17,7 @@ member a delayed virtual car) may replace it before sim/fleet.py's kernels run
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Callable
+from typing import Callable, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -68,6 +68,48 @@ class Reference:
 
 
 Transform = Callable[[Reference], Reference]
+
+
+@runtime_checkable
+class SensingTransform(Protocol):
+    """A transform told what the world sensed before it is applied (comm/link.py): the step
+    index, its time [s], the formation's Sensed, its members' (pos, vel, heading) and the
+    recorder. With ``error_against_truth = True`` the formation error is recorded against
+    the true virtual car (sim/formation.py Formation.true_error)."""
+
+    def sense(self, k: int, t: float, sensed, kinematics, rec) -> None: ...
+
+    def __call__(self, ref: Reference) -> Reference: ...
+
+
+@dataclass(frozen=True)
+class WorldCommand:
+    """What a reference generator asks of the world before its step's reference
+    (control/maneuvers: a leave or a join), handed over by the loop (sim/world.py
+    ``command``): ``release`` member i to the world's own driver (``vehicle``: the exit edge,
+    or ""), ``take_over`` the world's vehicle ``vehicle`` as member i, or ``enter``: member i's
+    own vehicle enters the road under the world's driver at ``where`` = (s, d, v); or
+    ``record`` the planner's event ``event`` (a maneuver started, ended, ...) with ``detail``,
+    in the order the planner gave them."""
+
+    kind: str
+    member: int = -1
+    vehicle: str = ""
+    where: tuple | None = None
+    event: str = ""
+    detail: str = ""
+
+
+class ReferenceGenerator(Protocol):
+    """A formation's reference generator (control/reference_free.py, reference_road.py)."""
+
+    def plan(self, t: float, sensed) -> list[WorldCommand]: ...
+
+    def reference(self, t: float, sensed) -> Reference: ...
+
+    def commit(self) -> None: ...
+
+    def stop_reason(self, t: float) -> tuple[str, str, str] | None: ...
 
 
 def constant_slots(offsets: np.ndarray, n_ctrl: int) -> np.ndarray:

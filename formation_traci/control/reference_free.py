@@ -38,6 +38,10 @@ class FreeReference:
         self.no_cap = np.full(n, np.inf)
         self._next = None
 
+    def plan(self, t: float, sensed=None) -> list:
+        """Nothing to ask of the world (control/reference.py WorldCommand)."""
+        return []
+
     def reference(self, t: float, sensed=None) -> Reference:
         """The reference of the step starting at t [s] (from the current pose); the members
         in the run are those the world ``sensed`` (sim/world.py), all without it."""

@@ -122,6 +122,11 @@ class RoadReference:
         self._v_prev = np.zeros(len(self.frame))  # members' speed at the previous step [m/s]
         self._has_prev = False
 
+    def plan(self, t: float, sensed) -> list:
+        """What the world must do before this step's reference (control/reference.py
+        WorldCommand): nothing without maneuvers."""
+        return []
+
     def request_limit(self, t: float, sensed) -> float:
         """An upper bound on the virtual car's requested acceleration [m/s^2] for the step
         starting at t [s] (inf: none); a maneuver's generator bounds it and moves the slots."""

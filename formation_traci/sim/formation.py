@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..control.reference import Reference
+from ..control.reference import Reference, SensingTransform
 from ..record.columns import VIRTUAL_CAR_ID
 from .fleet import FleetConfig, FleetState
 from .world import Sensed
@@ -33,7 +33,7 @@ class Formation:
     @property
     def sensing(self) -> list:
         """Its transforms that are told what the world sensed first (comm/link.py)."""
-        return [tr for tr in self.transforms if hasattr(tr, "sense")]
+        return [tr for tr in self.transforms if isinstance(tr, SensingTransform)]
 
     @property
     def true_error(self) -> bool:

@@ -88,31 +88,34 @@ def free_space_run(sc: Scenario, rec=None) -> RunParts:
                     road_load=road_load_part(sc, vehicles))
 
 
-def _references(forms, k, t, sensed, fleet, state, rec):
+def _references(forms, world, k, t, sensed, fleet, state, rec):
     """The step's reference of every formation, joined for the fleet: (reference before the
-    transforms, after them, the one to record the error against)."""
+    transforms, after them, the one to record the error against). ``forms``: (formation,
+    its sensing transforms, its true_error) each."""
     kin = None
     if len(forms) == 1:
-        f = forms[0]
-        for tr in f.sensing:
+        f, sensing, true_error = forms[0]
+        for tr in sensing:
             kin = fleet.kinematics(state) if kin is None else kin  # once for every transform
             tr.sense(k, t, sensed, kin, rec)
+        world.command(t, f.generator.plan(t, sensed), sensed, f.vc_id)
         ref0 = f.generator.reference(t, sensed)
         ref = apply(ref0, f.transforms)
-        return ref0, ref, (ref0 if f.true_error and ref.vc is not ref0.vc else ref)
+        return ref0, ref, (ref0 if true_error and ref.vc is not ref0.vc else ref)
     raw, out, err = [], [], []
-    for f in forms:
+    for f, sensing, true_error in forms:
         part = sensed_of(sensed, f.members)
-        if f.sensing:
+        if sensing:
             kin = fleet.kinematics(state) if kin is None else kin
-            for tr in f.sensing:
+            for tr in sensing:
                 tr.sense(k, t, part, tuple(a[f.members] for a in kin), rec)
             merge_extra(sensed, part, f.members)
+        world.command(t, f.generator.plan(t, part), part, f.vc_id)
         ref0 = f.generator.reference(t, part)
         ref = apply(ref0, f.transforms)
         raw.append(ref0)
         out.append(ref)
-        err.append(ref0 if f.true_error and ref.vc is not ref0.vc else ref)
+        err.append(ref0 if true_error and ref.vc is not ref0.vc else ref)
     ref = join_references(out)
     truth_ref = ref if all(e is o for e, o in zip(err, out)) else join_references(err)
     return join_references(raw), ref, truth_ref
@@ -132,7 +135,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
     err_cols = [SIGNAL_COLUMNS.index(c) for c in ERROR_COLUMNS]
     perfect = np.zeros(fleet.cfg.n)  # leader_age_s without a channel
     clock = PhaseClock({} if parts.timing is None else parts.timing)
-    adopt = getattr(world, "adopt", None)
+    plans = [(f, f.sensing, f.true_error) for f in forms]  # the transforms are fixed now
     try:
         world.start()  # inside: a signal or a failure during SUMO's start or warm-up closes SUMO
         for k in range(n_steps + 1):
@@ -141,9 +144,8 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             sensed = world.sense(k, t, state)
             sensed.extra.setdefault("leader_age_s", perfect)
             clock.lap("sumo_read")
-            ref0, ref, ref_err = _references(forms, k, t, sensed, fleet, state, rec)
-            if adopt is not None:  # vehicles the world handed to the formation (join)
-                state = adopt(state, ref)
+            ref0, ref, ref_err = _references(plans, world, k, t, sensed, fleet, state, rec)
+            state = world.adopt(state, ref)  # vehicles the world handed to the formation (join)
             clock.lap("governor")
             world.observe(t, sensed, ref)
             if parts.road_load is not None:  # drag ratio and grade, held over the step

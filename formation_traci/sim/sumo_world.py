@@ -236,6 +236,18 @@ class SumoWorld:
         else:
             enter(self, t, i, *where)
 
+    def command(self, t: float, commands, sensed, vc_id: str) -> None:
+        """A formation's requests of this step (control/reference.py WorldCommand: leave,
+        join, its events, recorded as the virtual car ``vc_id``'s), carried out in order
+        before its reference."""
+        for c in commands:
+            if c.kind == "record":
+                self.rec.add_event(t, c.event, vc_id, "", c.detail)
+            elif c.kind == "release":
+                self.release(t, c.member, c.vehicle)
+            else:
+                self.take_over(t, c.member, c.vehicle, sensed, c.where)
+
     def adopt(self, state, ref):
         """The fleet state with the vehicles taken over in this step written in (sim/join.py)."""
         if self.adopting:
@@ -382,7 +394,6 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
                               lengths, widths, list(world.ids), road_room(plan.road),
                               (ld.time_gap, ld.min_gap),
                               np.array([v.cog_to_front_bumper for v in plan.vehicles]))
-    gen = ManeuverRoadReference(*args, planner=planner, on_event=rec.add_event, length=lengths,
-                                on_release=world.release, on_join=world.take_over)
+    gen = ManeuverRoadReference(*args, planner=planner, length=lengths)
     return one_formation(world, gen, fleet, state, transforms=[PlanSlots(planner)],
                          timing=meta["timing_s"], road_load=load)

@@ -5,7 +5,9 @@ generator and the recorder) -> ``observe`` (events and surroundings once the ref
 known) -> ``stop_reason`` -> ``actuate`` (the members' new poses) -> ``step`` (the world's
 own time step). ``start`` before the first step, ``close`` always at the end.
 
-Members enter and leave at any step: ``spawn(t, rows)`` puts the fleet rows ``rows`` into the
+``command`` carries out what a reference generator asks before its reference (a maneuver's
+leave or join, control/reference.py WorldCommand); ``adopt`` writes vehicles the world handed
+to the formation into the fleet state. Members enter and leave at any step: ``spawn(t, rows)`` puts the fleet rows ``rows`` into the
 run (they enter the world where their state says at the next ``actuate``; every member of a
 run is spawned before its first step), ``retire(t, rows, why)`` takes them out of the run and
 the world at once (an event ``member_retired`` says why).
@@ -52,6 +54,10 @@ class World(Protocol):
 
     def step(self, k: int, t_next: float) -> None: ...
 
+    def command(self, t: float, commands: list, sensed: Sensed, vc_id: str) -> None: ...
+
+    def adopt(self, state, ref): ...
+
     def spawn(self, t: float, rows: np.ndarray) -> None: ...
 
     def retire(self, t: float, rows: np.ndarray, why: str) -> None: ...
@@ -67,6 +73,13 @@ class FreeSpace:
     def __init__(self, n: int, rec=None):
         self.sensed = Sensed(active=np.ones(n, dtype=bool))
         self.rec = rec  # sim/recorder.py Recorder, for the events (None: none recorded)
+
+    def command(self, t, commands, sensed, vc_id) -> None:
+        if commands:
+            raise ValueError(f"free space cannot carry out {[c.kind for c in commands]}")
+
+    def adopt(self, state, ref):
+        return state
 
     def spawn(self, t, rows) -> None:
         self.sensed.active[rows] = True

@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from ..governor import LATERAL_MARGIN, time_gap_accel
-from ..reference import Reference
+from ..reference import Reference, WorldCommand
 from ..reference_road import RoadReference
 from .gap import Others
 from .planner import ManeuverPlanner, Situation
@@ -82,34 +82,36 @@ def room_accel(goal, s_vc_front, v_vc, half_w, length, active, o_rear, o_d, o_ha
 class ManeuverRoadReference(RoadReference):
     """RoadReference whose slots follow the maneuver planner (see the module docstring)."""
 
-    def __init__(self, *args, planner: ManeuverPlanner, on_event, length: float,
-                 on_release=None, on_join=None, **kw):
+    def __init__(self, *args, planner: ManeuverPlanner, length: float, **kw):
         super().__init__(*args, **kw)
-        self.planner, self.on_event = planner, on_event
+        self.planner = planner
         self.body_length = np.asarray(length, float)  # [m], one or one per member
-        self.on_release = on_release  # on_release(t, i, exit_edge): hand member i over to the world
-        # on_join(t, i, vehicle, sensed[, where]): the world's vehicle becomes member i, or
-        # (where = (s, d, v)) member i's own vehicle enters the road under the world's driver
-        self.on_join = on_join
 
-    def request_limit(self, t: float, sensed) -> float:
-        """The maneuver planner's step (its events; the slots of this step), then the
-        room-making deceleration towards the next goal [m/s^2] (:func:`room_accel`; inf when
-        there is no goal or nobody near)."""
+    def plan(self, t: float, sensed) -> list[WorldCommand]:
+        """The maneuver planner's step: what the world must do now (a leave releases a member,
+        a join takes a vehicle over or lets one enter; the maneuver events to record), which
+        the loop hands to the world before this step's reference."""
         others = NO_OTHERS
         nb = sensed.nb
         if nb is not None and len(nb.ids):
             others = Others(tuple(nb.ids), sensed.nb_s, sensed.nb_d, nb.length, nb.width, nb.v)
+        commands = []
         for ev in self.planner.step(Situation(float(t), self.s, sensed.m_s, sensed.m_d,
                                               sensed.v_m, sensed.active, others, self.v)):
             if ev.kind == "release":
-                self.on_release(t, ev.member, ev.name)
+                commands.append(WorldCommand("release", ev.member, ev.name))
             elif ev.kind == "take_over":  # the world drops it from sensed.nb
-                self.on_join(t, ev.member, ev.name, sensed)
+                commands.append(WorldCommand("take_over", ev.member, ev.name))
             elif ev.kind == "enter":
-                self.on_join(t, ev.member, "", sensed, ev.where)
+                commands.append(WorldCommand("enter", ev.member, "", ev.where))
             else:
-                self.on_event(t, ev.kind, "vc", "", ev.detail)
+                commands.append(WorldCommand("record", event=ev.kind, detail=ev.detail))
+        return commands
+
+    def request_limit(self, t: float, sensed) -> float:
+        """The slots of this step (the planner stepped in :meth:`plan`), then the room-making
+        deceleration towards the next goal [m/s^2] (:func:`room_accel`; inf when there is no
+        goal or nobody near)."""
         now = self.planner.slots(t)
         self.along, self.slot_d = np.ascontiguousarray(now[:, 0]), np.ascontiguousarray(now[:, 1])
         sensed.extra["slot"] = self.planner.slot_of.astype(float)
