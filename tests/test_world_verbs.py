@@ -79,3 +79,9 @@ def test_sumo_member_leaves_the_road_and_is_inserted_again_later(tmp_path, monke
     # back in SUMO where our model has it: SUMO's CoG within a few cm of ours
     assert (c.sumo_gap < 0.1).all() and c.sumo_gap.notna().all()
     assert not (ev.kind == "member_removed").any()  # the world took it out, not SUMO
+    # a road run's formation: its members' and its virtual car's rows and events carry its id
+    assert set(traj.formation_id) == {"f0"}
+    mine = ev.vehicle_id.isin(["right", "centre", "left", "vc"])
+    assert (ev.formation_id[mine] == "f0").all() and (ev.formation_id[~mine] == "").all()
+    cf = pd.read_parquet(tmp_path / "run" / "comfort.parquet")
+    assert set(cf.formation_id) == {"f0"}
