@@ -20,7 +20,7 @@ import formation_traci.record.columns as _contract
 from analysis.run_files import (REQUIRED_META_KEYS, RUN_JSON, TRAJECTORIES, DamagedPartWarning, Issue,
                                 describe_issues, read_meta, read_table)
 from analysis.run_members import Member, run_members
-from formation_traci.record.columns import TRAJECTORY_COLUMNS
+from formation_traci.record.columns import TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID
 
 __all__ = [
     "RUN_JSON",
@@ -184,6 +184,8 @@ def load_run(run_dir: str | Path) -> RunData:
 
     traj, missing, c_issues = _clean_trajectories(traj, run_dir)
     issues += c_issues
+    traj, meta, f_issues = _first_formation(traj, meta)
+    issues += f_issues
     dt, dt_issues = _sample_spacing(traj, meta)
     issues += dt_issues
     issues += _coverage_issues(traj, dt, meta)
@@ -240,6 +242,26 @@ def _clean_trajectories(traj: pd.DataFrame,
     traj = traj.reset_index(drop=True)
 
     return traj, missing, issues
+
+
+def _first_formation(traj: pd.DataFrame, meta: dict[str, Any]):
+    """A run of several formations (``formation_id``) analysed as its first formation: its
+    rows, its virtual car as 'vc', its members in run.json, and a warning naming the others
+    (the metrics of a run's other formations are not computed by this version)."""
+    if "formation_id" not in traj.columns:
+        return traj, meta, []
+    fids = [f for f in pd.unique(traj["formation_id"].astype(str)) if f]
+    if len(fids) <= 1:
+        return traj, meta, []
+    first = fids[0]
+    traj = traj.loc[traj["formation_id"].astype(str) == first].copy()
+    traj.loc[traj["vehicle_id"] == f"{VIRTUAL_CAR_ID}:{first}", "vehicle_id"] = VIRTUAL_CAR_ID
+    meta = dict(meta, members=[m for m in meta.get("members", [])
+                               if isinstance(m, dict) and m.get("formation_id", first) == first])
+    return traj.reset_index(drop=True), meta, [Issue(
+        "warning", "several_formations", "formation_id",
+        f"the run has {len(fids)} formations ({', '.join(fids)}); this analysis covers "
+        f"formation '{first}' only")]
 
 
 def _optional_tables(run_dir: Path) -> tuple[dict[str, pd.DataFrame | None], list[Issue]]:

@@ -80,3 +80,19 @@ def test_formation_ids_and_member_ids_are_unique(tmp_path):
                  + EAST_LIST.format(law="virtual_structure").replace('id = "east"', 'id = "f0"'))
     with pytest.raises(ScenarioError, match="ids must be unique"):
         load_scenario(p)
+
+
+def test_analysis_of_several_formations_covers_the_first_and_says_so(tmp_path):
+    """Until per-formation metrics exist, a run of several formations is analysed as its first
+    formation: its members only, its own virtual car, and a warning naming the others."""
+    from analysis.api import analyze_run
+    _run(tmp_path, "both", RUN.format(model="kinematic") + WEST
+         + EAST_LIST.format(law="virtual_structure"))
+    _run(tmp_path, "west", RUN.format(model="kinematic") + WEST)
+    both = analyze_run(tmp_path / "both", figures=False)
+    west = analyze_run(tmp_path / "west", figures=False)
+    assert sorted(both.members.index) == ["a", "b"]
+    pd.testing.assert_frame_equal(both.members, west.members)
+    warn = both.issues[both.issues.kind == "several_formations"]
+    assert len(warn) == 1 and "east" in warn.detail.iloc[0]
+    assert not (west.issues.kind == "several_formations").any()
