@@ -26,6 +26,7 @@ from ..kernels import kernel, maximum, rebind, substeps
 from ..models import bicycle, kinematic
 from ..models.integrator import HELD, rk4_row
 from ..models.params import _DRAG, _GRADE, BicycleParams, N_PARAMS, pack_params
+from ..models.bicycle import S
 from ..models.state import DYNAMIC, KINEMATIC, motion_at
 from ..record.columns import SIGNAL_COLUMNS
 
@@ -77,11 +78,11 @@ def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, target
     n = cfg.n
     if cfg.model == "kinematic":
         x = np.zeros((n, kinematic.N_STATES))
-        x[:, 0], x[:, 1], x[:, 2] = pos[:, 0], pos[:, 1], heading
+        x[:, S.X], x[:, S.Y], x[:, S.PSI] = pos[:, 0], pos[:, 1], heading
     else:
         x = np.zeros((n, bicycle.N_STATES))
-        x[:, 0], x[:, 1], x[:, 2] = pos[:, 0], pos[:, 1], heading
-        x[:, 3], x[:, 5], x[:, 6] = speed, yaw_rate, steer
+        x[:, S.X], x[:, S.Y], x[:, S.PSI] = pos[:, 0], pos[:, 1], heading
+        x[:, S.V], x[:, S.R], x[:, S.DELTA] = speed, yaw_rate, steer
     theta0 = initial_theta_star(targets, pos, heading, cfg.k)
     return FleetState(x, theta0, np.asarray(speed, dtype=float) * np.ones(n))
 
@@ -150,8 +151,8 @@ def _comfort_values(kind, x, i, P, res, out, j):
         out[j, i, 2] = vk * res[1]
         return
     a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_at(
-        x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6], res[0], res[1], P, i)
-    out[j, i, 0] = x[i, 3]
+        x[i, S.PSI], x[i, S.V], x[i, S.BETA], x[i, S.R], x[i, S.DELTA], res[0], res[1], P, i)
+    out[j, i, 0] = x[i, S.V]
     out[j, i, 1] = a_lon
     out[j, i, 2] = a_lat
 
@@ -160,9 +161,9 @@ def _comfort_values(kind, x, i, P, res, out, j):
 def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
     """The recorded signals of member i (vals, _KERNEL_SIGNALS order; NaN where the
     kinematic model has no value)."""
-    vals[0] = x[i, 0]
-    vals[1] = x[i, 1]
-    vals[2] = x[i, 2]
+    vals[0] = x[i, S.X]
+    vals[1] = x[i, S.Y]
+    vals[2] = x[i, S.PSI]
     ex = res[6]
     ey = res[7]
     vals[7] = ex
@@ -183,14 +184,14 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
             vals[q] = np.nan
         return
     a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_at(
-        x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6], u0, u1, P, i)
-    vals[3] = x[i, 3]
-    vals[4] = x[i, 5]
+        x[i, S.PSI], x[i, S.V], x[i, S.BETA], x[i, S.R], x[i, S.DELTA], u0, u1, P, i)
+    vals[3] = x[i, S.V]
+    vals[4] = x[i, S.R]
     vals[5] = a_lon
     vals[6] = a_lat
-    vals[15] = x[i, 6]
+    vals[15] = x[i, S.DELTA]
     vals[16] = rate
-    vals[17] = x[i, 4]
+    vals[17] = x[i, S.BETA]
     vals[18] = sf
     vals[19] = sr
     vals[20] = f_lf
@@ -253,11 +254,11 @@ def kinematics_rows(x, speed_in, kind):
     hd = np.empty(n)
     for i in range(n):
         v, r, course = motion_at(kind, x, i, speed_in[i])
-        pos[i, 0] = x[i, 0]
-        pos[i, 1] = x[i, 1]
+        pos[i, 0] = x[i, S.X]
+        pos[i, 1] = x[i, S.Y]
         vel[i, 0] = v * np.cos(course)
         vel[i, 1] = v * np.sin(course)
-        hd[i] = x[i, 2]
+        hd[i] = x[i, S.PSI]
     return pos, vel, hd
 
 
@@ -394,4 +395,4 @@ class Fleet:
 
     def speed(self, state: FleetState) -> np.ndarray:
         """Speed of every member [m/s] (the unicycle's applied speed input)."""
-        return state.x[:, 3].copy() if self.kind == DYNAMIC else state.speed_in.copy()
+        return state.x[:, S.V].copy() if self.kind == DYNAMIC else state.speed_in.copy()

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..control.formation import initial_theta_star_at
 from ..control.targets import desired_point_at
+from ..models.bicycle import S
 from ..models.state import KINEMATIC
 from .traffic import CAR
 
@@ -82,11 +83,11 @@ def adopt(fleet, state, ref, adopting: list) -> None:
     for i, x, y, psi, v in adopting:
         row = state.x[i]
         row[:] = 0.0
-        row[0], row[1], row[2] = x, y, psi
+        row[S.X], row[S.Y], row[S.PSI] = x, y, psi
         if kind == KINEMATIC:
             state.speed_in[i] = v
         else:
-            row[3] = v
+            row[S.V] = v
         px, py, tvx, tvy, _, _ = desired_point_at(ref.frame[i], ref.line, ref.vc, ref.slots, 0, i)
         state.theta_star[i] = initial_theta_star_at(px, py, tvx, tvy, x, y, psi, fleet.k[i])
     adopting.clear()

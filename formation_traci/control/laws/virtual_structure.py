@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...kernels import kernel, minimum
+from ...models.bicycle import S
 from ...models.state import KINEMATIC, motion_at
 from ..formation import formation_at
 from ..schedule import p_law
@@ -27,8 +28,8 @@ def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, t
     and omega_ref (unicycle). ``pred_i`` (the member ahead) is not used by this law."""
     v, r, course = motion_at(kind, x, i, speed_in_i)
     vr, om, tsd, vrd, ex, ey, he = formation_at(
-        px, py, tvx, tvy, tax, tay, x[i, 0], x[i, 1], v * np.cos(course), v * np.sin(course),
-        x[i, 2], theta_star_i, L[i, 0], L[i, 1])
+        px, py, tvx, tvy, tax, tay, x[i, S.X], x[i, S.Y], v * np.cos(course), v * np.sin(course),
+        x[i, S.PSI], theta_star_i, L[i, 0], L[i, 1])
     vr = minimum(vr, v_cap_i)
     if kind == KINEMATIC:
         return vr, om, vr, om, tsd, vrd, ex, ey, he
