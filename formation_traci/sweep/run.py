@@ -120,7 +120,8 @@ def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str]) -> 
 
 
 def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None = None,
-              workers: int | None = None, progress: bool = True) -> SweepResult:
+              workers: int | None = None, progress: bool = True, baseline: bool = False,
+              sets: dict | None = None) -> SweepResult:
     """Run every case of a sweep file that is not done yet and summarise them.
 
     Parameters
@@ -139,6 +140,13 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         Local pool only: cases run at once (default ``os.cpu_count()``).
     progress : bool
         Show a progress bar (cases done, failed, remaining).
+    baseline : bool
+        Also run each case's twin (same scenario and seed, no formation) into
+        ``twins/<id>/``, analyse the case against it (the ``twin_*`` and ``fx_*`` summary
+        columns: docs/sweeps.md) and, over the seeds, write ``effects.csv``.
+    sets : dict, optional
+        Dotted path -> value set in every case (the command line's ``--set``), checked
+        against the base scenario before anything is created.
 
     Returns
     -------
@@ -154,7 +162,7 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     KeyboardInterrupt
         On Ctrl-C, after the running cases stopped and the summary was written.
     """
-    sweep = load_sweep(sweep_path)
+    sweep = load_sweep(sweep_path, sets)
     out = Path(out_dir).resolve()
     if out.exists() and not out.is_dir():
         raise SweepError(out, [("(directory)", "exists and is a file, not a directory")])
@@ -213,7 +221,7 @@ def _sweep_meta(sweep: Sweep, swept: dict[str, str], scheduler: str | None, work
     return {"schema": SCHEMA, "status": "running", "sweep_file": str(sweep.path),
             "sweep_text": sweep.path.read_text(encoding="utf-8"), "sweep": sweep.raw,
             "base": str(sweep.base), "swept": sweep.spec.swept(), "grid_keys": list(sweep.spec.grid),
-            "random_keys": list(sweep.random_keys), "dtypes": swept,
+            "random_keys": list(sweep.random_keys), "sets": sweep.sets, "dtypes": swept,
             "metrics": {k: {"unit": u, "meaning": m} for k, (u, m) in METRICS.items()},
             "executor": {"kind": "dask" if scheduler else "local", "scheduler": scheduler,
                          "workers": None if scheduler else (workers or os.cpu_count())},
