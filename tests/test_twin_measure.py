@@ -69,3 +69,121 @@ def test_sweep_set_reaches_every_case_and_bad_set_refuses_the_sweep(tmp_path):
     assert code == 0, text
     for c in cases:
         assert json.loads((out / "cases" / c.id / "run.json").read_text())["duration"] == 0.5
+
+
+# --- the twin meets the same vehicles; sections time them over the whole stretch ----------
+LUST = ROOT.parent / "shared" / "realnet" / "LuSTMotorway.net.xml"
+LUST_TOML = f"""
+name = "lust-twin"
+[run]
+duration = 30.0
+seed = 1
+[road]
+net = "{LUST}"
+route = {{ from = "-30668#1", to = "-30668#6" }}
+lane = 1
+start = 200.0
+[leader]
+speed = 30.0
+[[members]]
+id = "right"
+slot = {{ along = 0.0, lanes = -1 }}
+[[members]]
+id = "centre"
+slot = {{ along = 0.0, lanes = 0 }}
+[[members]]
+id = "left"
+slot = {{ along = 0.0, lanes = 1 }}
+[traffic]
+warmup = 60.0
+[[traffic.flows]]
+id = "main"
+veh_per_hour_per_lane = 1200
+[[traffic.flows]]
+id = "ramp"
+veh_per_hour = 300
+route = {{ from = "-31316", to = "-30668#6" }}
+"""
+
+
+@pytest.fixture(scope="module")
+def lust_pair(tmp_path_factory):
+    """The LuST motorway at 1,200 veh/h/lane: a formation run, its twin and the twin again
+    (a run without the formation), the run analysed against the twin."""
+    if not LUST.is_file():
+        pytest.skip("needs ../shared/realnet beside the checkout")
+    from analysis.api import analyze_run
+    from formation_traci.scenario import load_scenario
+    from formation_traci.sim.runner import run_scenario
+
+    d = tmp_path_factory.mktemp("lust_twin")
+    p = d / "lust.toml"
+    p.write_text(LUST_TOML)
+    sc = load_scenario(p)
+    for name, base in (("run", False), ("twin", True), ("twin2", True)):
+        assert run_scenario(sc, d / name, scenario_path=p, progress=False, baseline=base).status == "completed"
+    res = analyze_run(d / "run", baseline=d / "twin", figures=False)
+    return d, res
+
+
+def _tables(d: Path, name: str):
+    import pandas as pd
+
+    return (pd.read_parquet(d / name / "departures.parquet"), pd.read_parquet(d / name / "events.parquet"),
+            json.loads((d / name / "run.json").read_text()))
+
+
+def test_twin_clears_the_same_vehicles_and_inserts_the_same_ones(lust_pair):
+    """Both runs remove the same SUMO cars at the same step where the members are put; the
+    vehicles inserted are the same ids in both, and departure times differ only for the
+    counted exceptions the report lists (insertions the formation's queue delayed)."""
+    d, res = lust_pair
+    dep_r, ev_r, _ = _tables(d, "run")
+    dep_t, ev_t, _ = _tables(d, "twin")
+    clr = [sorted(map(tuple, e.loc[e.kind == "cleared_at_insertion", ["t", "vehicle_id"]].values.tolist()))
+           for e in (ev_r, ev_t)]
+    assert clr[0] and clr[0] == clr[1]  # this scenario does clear cars at insertion
+    assert set(dep_r.vehicle_id) == set(dep_t.vehicle_id)
+    m = dep_r.merge(dep_t, on="vehicle_id", suffixes=("_r", "_t"))
+    differ = int((m.depart_r != m.depart_t).sum())
+    doc = json.loads((d / "run" / "metrics.json").read_text())["traffic"]["run"]
+    dd = doc["twin_detail"]["departures"]
+    assert dd["only_run"] == dd["only_twin"] == 0
+    assert dd["later_in_run"] + dd["earlier_in_run"] == differ == doc["twin_departures_later"]
+    assert doc["twin_cleared_both"] == len(clr[0])
+
+
+def test_lust_stretch_is_timed_whole_in_both_runs(lust_pair):
+    """>= 90 % of the background vehicles in the measured stretch are timed from the same
+    first section to the last one in both runs; every one of them is matched by id; the
+    measures name their population; signs of delay and stretch speed agree (same vehicles)."""
+    d, res = lust_pair
+    doc = json.loads((d / "run" / "metrics.json").read_text())["traffic"]
+    run = doc["run"]
+    assert 0.0 <= run["matched_share"] <= 1.0 and 0.0 <= run["stretch_coverage"] <= 1.0
+    assert run["stretch_coverage"] >= 0.9 and run["matched_share"] == 1.0
+    assert run["stretch_population"] >= 40
+    assert run["twin_n_timed"] == round(run["stretch_coverage"] * run["stretch_population"])
+    assert set(run["twin_detail"]["populations"]) >= {"stretch", "timed", "downstream"}
+    if run["twin_delay_total_s"] != 0:
+        assert (run["twin_delay_total_s"] > 0) == (run["twin_speed_delta_mps"] < 0)
+    import pandas as pd
+
+    v = pd.read_csv(d / "run" / "twin.csv")
+    assert len(v) == run["stretch_population"] and v.reason.notna().sum() == len(v) - v.timed.sum()
+
+
+def test_a_run_without_the_formation_has_exactly_zero_effect(lust_pair):
+    """Against a run where the formation is absent from the road (the twin run again):
+    every vehicle matched and timed, and every formation-minus-twin effect exactly 0."""
+    from analysis.twin_sections import EFFECTS, read_sections, twin_comparison
+
+    d, _ = lust_pair
+    _, _, meta = _tables(d, "twin")
+    a, b = read_sections(d / "twin2", meta), read_sections(d / "twin", meta)
+    m, v, detail = twin_comparison(a, b, meta["sections"]["sections"])
+    assert m["stretch_coverage"] == 1.0 and m["matched_share"] == 1.0 and m["twin_n_timed"] >= 40
+    assert m["twin_departures_later"] == 0
+    for key in EFFECTS.values():
+        assert m[key] == 0, key
+    assert (v.delay_s == 0).all()

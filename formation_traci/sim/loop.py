@@ -120,14 +120,14 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             yield k, t
             clock.lap("record")  # the caller's share: the step's end, part files, progress (sim/runner.py)
             if k == n_steps:
-                return
+                break
             stop = gen.stop_reason(t) or world.stop_reason(t)
             if stop is not None:
                 kind, detail, why = stop
                 if kind:
                     rec.add_event(t, kind, "vc", "", detail)
                 meta["stopped_early"] = why
-                return
+                break
             clock.start()
             v_before = fleet.speed(state)
             if world.records_members:
@@ -143,6 +143,8 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             clock.lap("sumo_place")
             world.step(k, t + step)
             clock.lap("sumo_step")
+        if hasattr(world, "drain"):  # a run that ended normally: the measurement sections' drain
+            world.drain()
     finally:
         world.close()
 

@@ -19,6 +19,10 @@ from ..scenario.schema import Scenario
 from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch,
                      TrafficWatch, log_sumo_events)
 from .road_setup import rectangles_overlap
+from .sections import drain as drain_stretch
+from .sections import plan_sections
+from .sections import sumo_options as section_options
+from .sections import write_tables as write_sections
 from .demand import measure_plan, traffic_meta
 from .join import adopt, enter, take_over
 from .messages import sumo_outputs_meta
@@ -59,6 +63,7 @@ class SumoWorld:
         self.route_id = MEMBER_ROUTE
         self.slot_index = np.arange(n, dtype=float)  # the 'slot' column; maneuvers change it
         self.inserted = False
+        self.sections = None  # the measurement sections (sim/sections.py), set at start
         self.all_bg = sc.traffic.record_radius is None or baseline
         self.ctx_owner = None
         self.m_s = np.full(n, np.nan)  # members' arc length at the last sense [m] (NaN: none yet)
@@ -96,9 +101,15 @@ class SumoWorld:
         routes = write_routes(self.sumo_dir / "traffic.rou.xml", flows, t_sumo_end)
         self.flows = [(f, e, vph, f.end if f.end is not None else t_sumo_end) for f, e, vph in flows]
         self.measure = measure_plan(sc, road, self.sumo_dir)
-        args = sumo_args(sc, road.net_file, routes, self.sumo_dir, t_sumo_end)
-        if self.measure is not None:
-            args += ["-a", str(self.measure["file"])]
+        self.sections = plan_sections(sc, road, self.sumo_dir)
+        drain_s = sc.traffic.sections.drain_max if self.sections is not None else 0.0
+        args = sumo_args(sc, road.net_file, routes, self.sumo_dir, t_sumo_end + drain_s)
+        adds = [str(self.measure["file"])] if self.measure is not None else []
+        if self.sections is not None:
+            adds.append(str(self.sections["file"]))
+        if adds:
+            args += ["-a", ",".join(adds)]
+        args += section_options(self.sections)
         meta, plan = self.meta, self.plan
         meta["sumo"] = {"args": args, "warmup": self.t0, "net": str(road.net_file),
                         "route": road.route, "reference_lane": sc.road.lane}
@@ -122,17 +133,36 @@ class SumoWorld:
         for _ in range(warm_steps):
             ad.simulation_step()
 
+    def drain(self) -> None:
+        """After the formation's last step (a run that ended normally): the sections' drain
+        (sim/sections.py): the members leave SUMO, SUMO runs on until the stretch is empty.
+        What the run reports of its traffic stays the formation's part (the tables, the
+        demand, the detectors, SUMO's messages and conflicts up to now)."""
+        if self.sections is None or not self.adapter._started:
+            return
+        ad = self.adapter
+        self._end = (ad.time, dict(ad.departed))
+        t_end = ad.time - self.t0
+        if self.rec.ssm is not None:
+            self.rec.ssm.t_max = t_end
+        members = [] if self.baseline else [v for v, a in zip(self.sumo_ids, self.active) if a]
+        self.meta["sections"] = {"t_end": t_end, **drain_stretch(
+            ad, self.sections, members, self.sc.traffic.sections.drain_max, self.sc.run.step)}
+
     def close(self) -> None:
         t0 = getattr(self, "t0", 0.0)
         t_sumo = self.adapter.time if self.adapter._started else t0
+        t_sumo, departed = getattr(self, "_end", (t_sumo, self.adapter.departed))
         try:
             self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
         finally:
             if hasattr(self, "flows"):
-                traffic_meta(self.meta, self.rec, self.flows, self.adapter.departed, t_sumo, t0,
-                             self.measure)
+                traffic_meta(self.meta, self.rec, self.flows, departed, t_sumo, t0, self.measure)
                 sumo_outputs_meta(self.meta, self.sc, self.rec, self.sumo_dir, t0,
-                                  {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)})
+                                  {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)},
+                                  t_sumo - t0)
+                self.meta.setdefault("sections", {}).update(write_sections(
+                    self.out_dir, self.sections, self.adapter.departures, t0, set(self.ids)))
 
     # ------------------------------------------------------------------------- sense
     def _kinematics(self, state):
@@ -261,20 +291,22 @@ class SumoWorld:
         v_after = self.fleet.speed(state)
         self.a_mean = (v_after - v_before) / self.sc.run.step
         self.v_after = v_after
-        if self.baseline:
-            return  # the formation stays out of SUMO
         act_idx = np.flatnonzero(self.active)
         ids, ad = self.ids, self.adapter
         if not self.inserted:
             ld = self.sc.leader
-            a = act_idx
+            a = act_idx  # the twin clears the same vehicles at the same step (same state, same SUMO)
             clear_insertion_zone(ad, self.rec, t_next, pos[a], heading[a], v_after[a],
                                  [self.plan.vehicles[i] for i in a],
                                  ld.min_gap + ld.time_gap * v_after[a])
+            if self.baseline:
+                return  # the formation stays out of SUMO
             for i in act_idx:
                 ad.insert_member(ids[i], MEMBER_ROUTE, self.mtypes[i], pos[i, 0], pos[i, 1],
                                  heading[i], v_after[i])
             return
+        if self.baseline:
+            return  # the formation stays out of SUMO
         if len(act_idx) == len(ids):  # every member in the run: no copies
             refused = dict(ad.place(self.sumo_ids, pos[:, 0], pos[:, 1], heading))
         else:
