@@ -187,3 +187,43 @@ def test_a_run_without_the_formation_has_exactly_zero_effect(lust_pair):
     for key in EFFECTS.values():
         assert m[key] == 0, key
     assert (v.delay_s == 0).all()
+
+
+# --- twins in sweeps, paired effects over seeds --------------------------------------------
+def test_sweep_with_twins_summarises_paired_effects_with_confidence_intervals(tmp_path):
+    """`sweep --baseline`: every case's twin runs (twins/<id>, a baseline run), the summary's
+    paired columns are the case's formation-minus-twin values, and effects.csv gives per grid
+    point the mean over the seeds with its Student-t 95 % interval; one seed is flagged."""
+    import math
+
+    import numpy as np
+    import pandas as pd
+
+    from formation_traci.sweep.effects import paired_effects
+    from formation_traci.sweep.row import EFFECT_KEYS
+
+    sweep = tmp_path / "s.toml"
+    sweep.write_text(f'base = "{os.path.relpath(HIGHWAY, tmp_path)}"\nseeds = [1, 2]\n'
+                     '[overrides]\n"run.duration" = 3.0\n"traffic.warmup" = 20.0\n')
+    out = tmp_path / "out"
+    code, text = cli("sweep", sweep, "--out", out, "--no-progress", "--workers", "2", "--baseline")
+    assert code == 0, text
+    df = pd.read_parquet(out / "summary.parquet")
+    assert (df.status == "completed").all() and {"stretch_coverage", "matched_share", *EFFECT_KEYS} <= set(df)
+    for _, r in df.iterrows():
+        assert json.loads((out / "twins" / r.case_id / "run.json").read_text())["baseline"] is True
+        tr = json.loads((out / "cases" / r.case_id / "metrics.json").read_text())["traffic"]["run"]
+        assert r.fx_delay_total_s == pytest.approx(tr["twin_delay_total_s"])
+        assert r.fx_speed_mps == pytest.approx(tr["twin_speed_delta_mps"])
+        assert 0.0 <= r.stretch_coverage <= 1.0 and 0.0 <= r.matched_share <= 1.0
+    eff = pd.read_csv(out / "effects.csv")
+    assert list(eff.columns[:6]) == ["metric", "mean", "se", "ci95_lo", "ci95_hi", "n_seeds"]
+    row = eff.set_index("metric").loc["fx_delay_total_s"]
+    x = df.fx_delay_total_s.to_numpy(float)
+    half = 12.706204736 * x.std(ddof=1) / math.sqrt(2)  # t(0.975, 1 dof)
+    assert row.n_seeds == 2 and row["mean"] == pytest.approx(x.mean())
+    assert (row.ci95_lo, row.ci95_hi) == pytest.approx((x.mean() - half, x.mean() + half))
+    assert bool(row.distinguishable) == (x.mean() - half > 0 or x.mean() + half < 0)
+    one = paired_effects(df[df.seed == 1], [])
+    assert (one.note == "no confidence interval").all() and one.ci95_lo.isna().all()
+    assert (one.n_seeds == 1).all() and np.isfinite(one["mean"]).any()
