@@ -161,6 +161,26 @@ def _html(meta: dict, df: pd.DataFrame, stats: pd.DataFrame, metrics: list[str],
             f"<style>{css}</style></head><body>{''.join(parts)}</body></html>")
 
 
+def _effects(meta: dict, df: pd.DataFrame, swept: list[str], out_dir: Path, figs: dict,
+             files: dict) -> pd.DataFrame:
+    """A sweep with twins: ``effects.csv`` from the summary and its figure (added to
+    ``figs`` and ``files``); returns the effects table."""
+    from formation_traci.sweep.effects import write_effects
+
+    effects = write_effects(df, swept, out_dir / EFFECTS_CSV)
+    files["effects_csv"] = out_dir / EFFECTS_CSV
+    if (df["status"] == "completed").any():
+        from analysis.sweep_figures import effects_figure
+
+        fig = effects_figure(effects, swept, {k: u for k, (u, _) in METRICS.items()}, swept_labels(meta))
+        if fig is not None:
+            (out_dir / FIGURES_DIR).mkdir(parents=True, exist_ok=True)
+            figs[EFFECTS_FIGURE] = out_dir / FIGURES_DIR / f"{EFFECTS_FIGURE}.png"
+            fig.savefig(figs[EFFECTS_FIGURE], dpi=100)
+            files[f"figure:{EFFECTS_FIGURE}"] = figs[EFFECTS_FIGURE]
+    return effects
+
+
 def analyze_sweep(sweep_dir: str | Path, metrics: list[str] | None = None,
                   out: str | Path | None = None, spread: str = "minmax") -> SweepReport:
     """Plot metrics of a sweep against its swept values and write an HTML summary.
@@ -231,22 +251,7 @@ def analyze_sweep(sweep_dir: str | Path, metrics: list[str] | None = None,
         notes.append("no completed case: nothing to plot")
     stats.to_csv(out_dir / STATS_CSV, index=False)
     files["stats_csv"] = out_dir / STATS_CSV
-    effects = None
-    if meta.get("baseline"):  # a sweep with twins: the paired effects over the seeds
-        from formation_traci.sweep.effects import write_effects
-
-        effects = write_effects(df, swept, out_dir / EFFECTS_CSV)
-        files["effects_csv"] = out_dir / EFFECTS_CSV
-        if len(done):
-            from analysis.sweep_figures import effects_figure
-
-            fig = effects_figure(effects, swept, {k: u for k, (u, _) in METRICS.items()},
-                                 swept_labels(meta))
-            if fig is not None:
-                (out_dir / FIGURES_DIR).mkdir(parents=True, exist_ok=True)
-                figs[EFFECTS_FIGURE] = out_dir / FIGURES_DIR / f"{EFFECTS_FIGURE}.png"
-                fig.savefig(figs[EFFECTS_FIGURE], dpi=100)
-                files[f"figure:{EFFECTS_FIGURE}"] = figs[EFFECTS_FIGURE]
+    effects = _effects(meta, df, swept, out_dir, figs, files) if meta.get("baseline") else None
     page = _html(meta, df, stats, chosen, figs, fig_errors, notes, effects)
     (out_dir / REPORT_HTML).write_text(page, encoding="utf-8")
     files["report_html"] = out_dir / REPORT_HTML

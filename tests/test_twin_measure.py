@@ -72,38 +72,12 @@ def test_sweep_set_reaches_every_case_and_bad_set_refuses_the_sweep(tmp_path):
 
 
 # --- the twin meets the same vehicles; sections time them over the whole stretch ----------
-LUST = ROOT.parent / "shared" / "realnet" / "LuSTMotorway.net.xml"
-LUST_TOML = f"""
-name = "lust-twin"
-[run]
-duration = 30.0
-seed = 1
-[road]
-net = "{LUST}"
-route = {{ from = "-30668#1", to = "-30668#6" }}
-lane = 1
-start = 200.0
-[leader]
-speed = 30.0
-[[members]]
-id = "right"
-slot = {{ along = 0.0, lanes = -1 }}
-[[members]]
-id = "centre"
-slot = {{ along = 0.0, lanes = 0 }}
-[[members]]
-id = "left"
-slot = {{ along = 0.0, lanes = 1 }}
-[traffic]
-warmup = 60.0
-[[traffic.flows]]
-id = "main"
-veh_per_hour_per_lane = 1200
-[[traffic.flows]]
-id = "ramp"
-veh_per_hour = 300
-route = {{ from = "-31316", to = "-30668#6" }}
-"""
+from test_realnet import LUST, SCENARIO as LUST_SCENARIO  # noqa: E402 (the LuST ring, 3 abreast)
+
+LUST_TOML = (LUST_SCENARIO.replace('name = "lust"', 'name = "lust-twin"')
+             .replace("duration = 120.0", "duration = 30.0").replace("warmup = 30.0", "warmup = 60.0")
+             .replace("veh_per_hour_per_lane = 600", "veh_per_hour_per_lane = 1200"))
+"""30 s of formation at 1,200 veh/h/lane after 60 s of warm-up, on-ramp flow 300 veh/h."""
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,6 @@ same traffic without the formation: no member enters SUMO, every vehicle is reco
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +17,7 @@ from ..road.line_pack import FastLine, packed
 from ..scenario.schema import Scenario
 from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch,
                      TrafficWatch, log_sumo_events)
-from .road_setup import rectangles_overlap
+from .sumo_zone import clear_insertion_zone, middle_member, subscribe_context
 from .sections import drain as drain_stretch
 from .sections import plan_sections
 from .sections import sumo_options as section_options
@@ -30,7 +29,7 @@ from .sumo_adapter import SumoAdapter, SumoError
 from .sumo_neighbours import NOBODY
 from .sumo_sense import NeighbourGuess, PackedLanes, sense_step
 from .sumo_types import Neighbours
-from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
+from .sumo_plan import MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import CAR, flow_vehicles_per_hour, write_routes
 from .world import Sensed
 
@@ -339,43 +338,6 @@ class SumoWorld:
         if ad.gui and self.active.any() and (self.followed is None or not self.active[self.followed]):
             self.followed = middle_member(self.active, self.along, self.slot_d_0)
             ad.follow(self.sumo_ids[self.followed])
-
-
-def middle_member(active, along, across) -> int:
-    """Index of the active member nearest the middle of the formation."""
-    idx = np.flatnonzero(active)
-    centre = np.array([along[idx].mean(), across[idx].mean()])
-    return int(idx[np.argmin(np.hypot(along[idx] - centre[0], across[idx] - centre[1]))])
-
-
-def subscribe_context(adapter, ids, active, along, across, radius):
-    """One context subscription for the whole formation: on the active member nearest the
-    middle of the formation, with the radius grown by the formation's extent around it.
-    Returns that member's index."""
-    idx = np.flatnonzero(active)
-    owner = middle_member(active, along, across)
-    extent = float(np.max(np.hypot(along[idx] - along[owner], across[idx] - across[owner])))
-    adapter.subscribe_neighbours(ids[owner], radius + extent)
-    return owner
-
-
-def clear_insertion_zone(adapter, rec, t, pos, heading, v, vehicles, front):
-    """Remove SUMO vehicles that stand where a member (chassis ``vehicles[i]``) is inserted,
-    or inside its time gap ahead (``front`` [m]) or within INSERT_CLEAR_TIME of its speed
-    behind it."""
-    ids, x, y, psi, length, width = adapter.vehicle_bodies()
-    for j, vid in enumerate(ids):
-        for i in range(len(pos)):
-            back = max(2.0, v[i] * INSERT_CLEAR_TIME)
-            veh = vehicles[i]
-            zone_len = veh.length + front[i] + back
-            shift = (front[i] - back) / 2
-            zc = pos[i] + shift * np.array([math.cos(heading[i]), math.sin(heading[i])])
-            if rectangles_overlap(zc, heading[i], np.array([x[j], y[j]]), psi[j], zone_len, veh.width + 0.6,
-                                  length[j], width[j]):
-                adapter.remove_vehicle(vid)
-                rec.add_event(t, "cleared_at_insertion", vid, "", "removed: it stood where a member is inserted")
-                break
 
 
 def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,

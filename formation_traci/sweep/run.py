@@ -117,11 +117,18 @@ def _versions() -> dict[str, str]:
     return versions(("dask", "distributed"))
 
 
-def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str]) -> pd.DataFrame:
+def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str],
+                   effects: Path | None = None) -> pd.DataFrame:
+    """summary.parquet (atomically); with ``effects``, the paired effects over the seeds
+    there too (sweeps with twins, sweep/effects.py)."""
     df = summary_frame(list(rows.values()), swept)
     tmp = path.with_name(f".{path.name}.tmp")
     df.to_parquet(tmp, index=False)
     os.replace(tmp, path)
+    if effects is not None:
+        from .effects import write_effects
+
+        write_effects(df, list(swept), effects)
     return df
 
 
@@ -147,9 +154,8 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     progress : bool
         Show a progress bar (cases done, failed, remaining).
     baseline : bool
-        Also run each case's twin (same scenario and seed, no formation) into
-        ``twins/<id>/``, analyse the case against it (the ``twin_*`` and ``fx_*`` summary
-        columns: docs/sweeps.md) and, over the seeds, write ``effects.csv``.
+        Also run each case's twin (no formation) into ``twins/<id>/``, analyse the case
+        against it (the paired ``fx_*`` summary columns) and write ``effects.csv``.
     sets : dict, optional
         Dotted path -> value set in every case (the command line's ``--set``), checked
         against the base scenario before anything is created.
@@ -196,21 +202,16 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         finally:
             if bar is not None:
                 bar.close()
-            df = _write_summary(summary_path, rows, swept)
+            df = _write_summary(summary_path, rows, swept, out / EFFECTS_CSV if baseline else None)
             n_ok = int((df["status"] == "completed").sum())
-            if baseline:
-                from .effects import write_effects
-
-                write_effects(df, [k for k in sweep.spec.swept()], out / EFFECTS_CSV)
             _finish_meta(meta, df, interrupted, on_row.ok + on_row.failed, len(specs))
             atomic_write_json(out / SWEEP_JSON, meta)
     if interrupted:
         raise KeyboardInterrupt(f"sweep interrupted; {summary_path} holds the {len(df)} cases with a result")
-    return SweepResult(out_dir=out, summary=df, n_cases=len(specs), n_completed=n_ok,
-                       n_failed=len(df) - n_ok, n_skipped=n_skipped,
-                       n_run=on_row.ok + on_row.failed,
-                       files={"sweep_json": out / SWEEP_JSON, "summary": summary_path,
-                              **({"effects": out / EFFECTS_CSV} if baseline else {})})
+    files = {"sweep_json": out / SWEEP_JSON, "summary": summary_path, "effects": out / EFFECTS_CSV}
+    return SweepResult(out_dir=out, summary=df, n_cases=len(specs), n_completed=n_ok, n_failed=len(df) - n_ok,
+                       n_skipped=n_skipped, n_run=on_row.ok + on_row.failed,
+                       files={k: v for k, v in files.items() if k != "effects" or baseline})
 
 
 def _resume(specs: list[CaseSpec]) -> tuple[dict[str, dict], list[CaseSpec]]:
