@@ -61,7 +61,20 @@ class SectionTables:
 
 
 def read_sections(run_dir: str | Path, meta: dict) -> SectionTables | None:
-    """The section tables of a run, None when it has none (sections off, an older run)."""
+    """The section tables of a run.
+
+    Parameters
+    ----------
+    run_dir : str or Path
+        Run directory (``sections.parquet``, ``departures.parquet``, ``events.parquet``).
+    meta : dict
+        Its run.json (``sections``: whether they were on, the formation's end ``t_end``).
+
+    Returns
+    -------
+    SectionTables or None
+        None when the run has none (sections off, a run of an older version).
+    """
     d = Path(run_dir)
     p, _ = read_table(d / "sections.parquet")
     dep, _ = read_table(d / "departures.parquet")
@@ -130,6 +143,17 @@ def _throughput(p: pd.DataFrame, last: int, t_end: float) -> float | None:
 def twin_comparison(run: SectionTables, twin: SectionTables, sections: list[dict],
                     ttc_s: float = 3.0) -> tuple[dict[str, Any], pd.DataFrame, dict[str, Any]]:
     """The formation run against its twin at the sections.
+
+    Parameters
+    ----------
+    run : SectionTables
+        The formation run's tables (:func:`read_sections`).
+    twin : SectionTables
+        Its twin's.
+    sections : list of dict
+        run.json ``sections.sections``: index, role, ``s_m`` of each, upstream first.
+    ttc_s : float
+        Time to collision [s] below which a section passage is a conflict.
 
     Returns
     -------
