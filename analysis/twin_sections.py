@@ -19,7 +19,7 @@ __all__ = ["SectionTables", "read_sections", "twin_comparison", "TWIN_METRICS", 
 
 TWIN_METRICS: dict[str, str] = {
     "stretch_m": "m", "stretch_population": "-", "matched_share": "-", "stretch_coverage": "-",
-    "twin_n_timed": "-", "twin_cleared_both": "-", "twin_departures_same": "-", "twin_departures_later": "-",
+    "twin_n_timed": "-", "twin_cleared_both": "-", "twin_departures_same": "-", "twin_departures_moved": "-",
     "twin_depart_delay_total_s": "s",
     "twin_tt_run_mean_s": "s", "twin_tt_twin_mean_s": "s", "twin_delay_mean_s": "s",
     "twin_delay_total_s": "s", "twin_exit_delay_total_s": "s",
@@ -177,17 +177,7 @@ def twin_comparison(run: SectionTables, twin: SectionTables, sections: list[dict
     v["matched"] = v["entry_run"].notna() & v["entry_twin"].notna()
     v["timed"] = v["matched"] & (v["entry_run"] == v["entry_twin"]) & v["t_exit_run"].notna() \
         & v["t_exit_twin"].notna()
-    reason = pd.Series("", index=v.index, dtype=object)
-    for vid in v.index[~v["matched"]]:
-        reason[vid] = (_reasons(vid, "twin", twin, run) if pd.isna(v.at[vid, "entry_twin"])
-                       else _reasons(vid, "formation run", run, twin))
-    for vid in v.index[v["matched"] & ~v["timed"]]:
-        if v.at[vid, "entry_run"] != v.at[vid, "entry_twin"]:
-            reason[vid] = "entered the stretch at different sections"
-        else:
-            side = "formation run" if pd.isna(v.at[vid, "t_exit_run"]) else "twin"
-            reason[vid] = f"did not reach the last section in the {side} (drain ended)"
-    v["reason"] = reason
+    v["reason"] = _why_not(v, run, twin)
     T = v[v["timed"]].copy()
     T["length_m"] = s_of[last] - T["entry_run"].map(s_of)
     T["tt_run_s"] = T["t_exit_run"] - T["t_entry_run"]
@@ -201,20 +191,9 @@ def twin_comparison(run: SectionTables, twin: SectionTables, sections: list[dict
              twin_cleared_both=len(cleared),
              matched_share=float(v["matched"].mean()) if n else None,
              stretch_coverage=float(v["timed"].mean()) if n else None, twin_n_timed=int(len(T)))
-    dep = run.departures.merge(twin.departures, on="vehicle_id", how="outer", suffixes=("_run", "_twin"))
-    both = dep.dropna()
-    later = both["depart_run"] - both["depart_twin"]
-    m.update(twin_departures_same=int((later == 0).sum()), twin_departures_later=int((later != 0).sum()),
-             twin_depart_delay_total_s=float(later.sum()))
     detail = {"unmatched_reasons": v.loc[~v["matched"], "reason"].value_counts().to_dict(),
               "untimed_reasons": v.loc[v["matched"] & ~v["timed"], "reason"].value_counts().to_dict(),
-              "departures": {"run": int(dep["depart_run"].notna().sum()),
-                             "twin": int(dep["depart_twin"].notna().sum()),
-                             "only_run": int(dep["depart_twin"].isna().sum()),
-                             "only_twin": int(dep["depart_run"].isna().sum()),
-                             "same_time": m["twin_departures_same"],
-                             "later_in_run": int((later > 0).sum()),
-                             "earlier_in_run": int((later < 0).sum())}}
+              "departures": _departures(run, twin, m)}
     if len(T):
         m.update(twin_tt_run_mean_s=float(T["tt_run_s"].mean()), twin_tt_twin_mean_s=float(T["tt_twin_s"].mean()),
                  twin_delay_mean_s=float(T["delay_s"].mean()), twin_delay_total_s=float(T["delay_s"].sum()),
@@ -228,6 +207,35 @@ def twin_comparison(run: SectionTables, twin: SectionTables, sections: list[dict
     if m["twin_throughput_run_veh_h"] is not None and m["twin_throughput_twin_veh_h"] is not None:
         m["twin_throughput_delta_veh_h"] = m["twin_throughput_run_veh_h"] - m["twin_throughput_twin_veh_h"]
     return m, v.reset_index(), detail
+
+
+def _why_not(v: pd.DataFrame, run: SectionTables, twin: SectionTables) -> pd.Series:
+    """Per vehicle of the population: why it is not matched or not timed ("" when it is)."""
+    reason = pd.Series("", index=v.index, dtype=object)
+    for vid in v.index[~v["matched"]]:
+        reason[vid] = (_reasons(vid, "twin", twin, run) if pd.isna(v.at[vid, "entry_twin"])
+                       else _reasons(vid, "formation run", run, twin))
+    for vid in v.index[v["matched"] & ~v["timed"]]:
+        if v.at[vid, "entry_run"] != v.at[vid, "entry_twin"]:
+            reason[vid] = "entered the stretch at different sections"
+        else:
+            side = "formation run" if pd.isna(v.at[vid, "t_exit_run"]) else "twin"
+            reason[vid] = f"did not reach the last section in the {side} (drain ended)"
+    return reason
+
+
+def _departures(run: SectionTables, twin: SectionTables, m: dict[str, Any]) -> dict[str, int]:
+    """The two runs' insertions compared by id: fills the ``twin_departures_*`` metrics of
+    ``m``; returns the counts of ``twin_detail.departures``."""
+    dep = run.departures.merge(twin.departures, on="vehicle_id", how="outer", suffixes=("_run", "_twin"))
+    both = dep.dropna()
+    later = both["depart_run"] - both["depart_twin"]
+    m.update(twin_departures_same=int((later == 0).sum()), twin_departures_moved=int((later != 0).sum()),
+             twin_depart_delay_total_s=float(later.sum()))
+    return {"run": int(dep["depart_run"].notna().sum()), "twin": int(dep["depart_twin"].notna().sum()),
+            "only_run": int(dep["depart_twin"].isna().sum()), "only_twin": int(dep["depart_run"].isna().sum()),
+            "same_time": m["twin_departures_same"], "later_in_run": int((later > 0).sum()),
+            "earlier_in_run": int((later < 0).sum())}
 
 
 def _spot_and_events(run, twin, T, ttc_s, detail, sections) -> dict[str, Any]:

@@ -123,7 +123,7 @@ def test_twin_clears_the_same_vehicles_and_inserts_the_same_ones(lust_pair):
     doc = json.loads((d / "run" / "metrics.json").read_text())["traffic"]["run"]
     dd = doc["twin_detail"]["departures"]
     assert dd["only_run"] == dd["only_twin"] == 0
-    assert dd["later_in_run"] + dd["earlier_in_run"] == differ == doc["twin_departures_later"]
+    assert dd["later_in_run"] + dd["earlier_in_run"] == differ == doc["twin_departures_moved"]
     assert doc["twin_cleared_both"] == len(clr[0])
 
 
@@ -157,7 +157,7 @@ def test_a_run_without_the_formation_has_exactly_zero_effect(lust_pair):
     a, b = read_sections(d / "twin2", meta), read_sections(d / "twin", meta)
     m, v, detail = twin_comparison(a, b, meta["sections"]["sections"])
     assert m["stretch_coverage"] == 1.0 and m["matched_share"] == 1.0 and m["twin_n_timed"] >= 40
-    assert m["twin_departures_later"] == 0
+    assert m["twin_departures_moved"] == 0
     for key in EFFECTS.values():
         assert m[key] == 0, key
     assert (v.delay_s == 0).all()
