@@ -139,6 +139,8 @@ def test_lust_stretch_is_timed_whole_in_both_runs(lust_pair):
     assert run["stretch_population"] >= 40
     assert run["twin_n_timed"] == round(run["stretch_coverage"] * run["stretch_population"])
     assert set(run["twin_detail"]["populations"]) >= {"stretch", "timed", "downstream"}
+    page = (d / "run" / "report.html").read_text()
+    assert "Against the twin at the measurement sections" in page and "populations" in page
     if run["twin_delay_total_s"] != 0:
         assert (run["twin_delay_total_s"] > 0) == (run["twin_speed_delta_mps"] < 0)
     import pandas as pd
