@@ -106,10 +106,12 @@ def _inside(plan: dict, edge: str, pos: float) -> bool:
     return i < j or (i == j and pos < last["pos_m"])
 
 
-def drain(adapter, plan: dict, members: list[str], max_s: float, step: float) -> dict:
-    """After the run: take ``members`` out of SUMO and step SUMO until no vehicle that is
-    inside the stretch now has passed its last section, at most ``max_s`` [s]. Returns
-    what run.json records (``drain_s``, ``left_inside``: vehicles still inside at the end)."""
+def drain(adapter, plan: dict, members: list[str], max_s: float, step: float,
+          should_stop=None) -> dict:
+    """After the run: take ``members`` out of SUMO and step SUMO until every vehicle that is
+    inside the stretch now has passed its last section, at most ``max_s`` [s] (or until
+    ``should_stop()``, polled every :data:`CHECK_EVERY_S`, says so: Ctrl-C). Returns what
+    run.json records (``drain_s``, ``left_inside``: vehicles still inside at the end)."""
     api = adapter.api
     for vid in members:
         try:
@@ -124,6 +126,8 @@ def drain(adapter, plan: dict, members: list[str], max_s: float, step: float) ->
         adapter.simulation_step()
         k += 1
         if k % every == 0:
+            if should_stop is not None and should_stop():
+                break
             present = set(api.vehicle.getIDList())
             pending = {v for v in pending if v in present
                        and _inside(plan, api.vehicle.getRoadID(v), api.vehicle.getLanePosition(v))}

@@ -63,6 +63,7 @@ class SumoWorld:
         self.slot_index = np.arange(n, dtype=float)  # the 'slot' column; maneuvers change it
         self.inserted = False
         self.sections = None  # the measurement sections (sim/sections.py), set at start
+        self.should_stop = None  # polled by the drain (the run's stop flag: Ctrl-C ends it)
         self.all_bg = sc.traffic.record_radius is None or baseline
         self.ctx_owner = None
         self.m_s = np.full(n, np.nan)  # members' arc length at the last sense [m] (NaN: none yet)
@@ -146,7 +147,8 @@ class SumoWorld:
             self.rec.ssm.t_max = t_end
         members = [] if self.baseline else [v for v, a in zip(self.sumo_ids, self.active) if a]
         self.meta["sections"] = {"t_end": t_end, **drain_stretch(
-            ad, self.sections, members, self.sc.traffic.sections.drain_max, self.sc.run.step)}
+            ad, self.sections, members, self.sc.traffic.sections.drain_max, self.sc.run.step,
+            self.should_stop)}
 
     def close(self) -> None:
         t0 = getattr(self, "t0", 0.0)
@@ -341,7 +343,7 @@ class SumoWorld:
 
 
 def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
-             baseline: bool = False, step_hook=None):
+             baseline: bool = False, step_hook=None, should_stop=None):
     """World, reference generator and fleet of a road run (loop.step_loop runs them)."""
     from ..control.reference_road import GovernorLimits, RoadReference
     from .fleet import Fleet, initial_state
@@ -365,6 +367,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     yaw0 = plan.speed0 * line.curvature(line.to_frenet(plan.pos0)[0])
     state = initial_state(cfg, plan.pos0, plan.heading0, plan.speed0, yaw0, np.zeros(cfg.n), tg0)
     world = SumoWorld(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
+    world.should_stop = should_stop
     args = (world.line.G, world.line.length, plan.slots, plan.rigid, plan.is_road, s0, v0,
             speed_profile, limits, np.array([v.width / 2 for v in plan.vehicles]),
             np.array([v.cog_to_front_bumper for v in plan.vehicles]),
