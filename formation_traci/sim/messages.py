@@ -99,9 +99,11 @@ def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_f
     ``sumo.messages``), the FCD in the formation's frame if asked for, and which clock and
     frame each output uses."""
     meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, rec.add_event, sc.run.step, t_max)
-    if sc.sumo.fcd and sc.sumo.fcd_frame == "formation":
-        from .fcd import to_formation_frame
-        to_formation_frame(sumo_dir / "fcd.parquet", t0, member_d_front, sc.run.step)
+    if sc.sumo.fcd:
+        from .fcd import cut_fcd, to_formation_frame
+        cut_fcd(sumo_dir / "fcd.parquet", t0, sc.run.step, t_max)  # the formation's part only
+        if sc.sumo.fcd_frame == "formation":
+            to_formation_frame(sumo_dir / "fcd.parquet", t0, member_d_front, sc.run.step)
     meta["sumo"]["clock"] = ("trajectories, background, events, ssm: formation time t = SUMO time - warmup, "
                              "centre of gravity; sumo/*.log, sumo/*.xml: SUMO time; sumo/fcd.parquet: "
                              f"{'formation' if sc.sumo.fcd_frame == 'formation' else 'SUMO'} frame")
