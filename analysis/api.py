@@ -47,6 +47,7 @@ METRICS_JSON = "metrics.json"
 METRICS_CSV = "metrics.csv"
 REPORT_HTML = "report.html"
 BASELINE_CSV = "baseline.csv"
+TWIN_CSV = "twin.csv"
 COMM_AGE_CSV = "comm_age.csv"
 """Error and comfort per leader-age bin and member (analysis/comm.py)."""
 FIGURES_DIR = "figures"
@@ -231,6 +232,13 @@ def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures:
         files["comm_age_csv"] = p_comm
     else:
         (out / COMM_AGE_CSV).unlink(missing_ok=True)
+    twin_tab = a.traffic.twin if a.traffic is not None else None
+    p_twin = out / TWIN_CSV
+    if twin_tab is not None:
+        twin_tab.to_csv(p_twin, index=False)
+        files["twin_csv"] = p_twin
+    else:
+        p_twin.unlink(missing_ok=True)
     base_tab = a.traffic.baseline if a.traffic is not None else None
     p_base = out / BASELINE_CSV
     if base_tab is not None:

@@ -141,3 +141,33 @@ def baseline_section(baseline: BaselineData, data: RunData, M: pd.DataFrame, bg_
                 run["baseline_bg_speed_delta_near_mps"] = (
                     run["bg_speed_mean_near_mps"] - run["baseline_bg_speed_mean_near_mps"])
     return base_tab
+
+
+def twin_section(baseline: BaselineData, data: RunData, st: AnalysisSettings, run: dict[str, Any],
+                 issues: list[Issue], unavailable: dict[str, str]) -> pd.DataFrame | None:
+    """The comparison at the measurement sections (analysis/twin_sections.py): fills the
+    twin keys of ``run`` (``stretch_coverage``, ``matched_share``, ``twin_*``) and
+    ``run["twin_detail"]`` (reasons, departures, sections, populations); returns the
+    per-vehicle table, None when either run has no sections."""
+    from analysis.twin_sections import POPULATIONS, read_sections, twin_comparison
+
+    a = read_sections(data.run_dir, data.meta)
+    b = read_sections(baseline.run_dir, baseline.meta)
+    secs = (data.meta.get("sections") or {}).get("sections")
+    if a is None or b is None or not secs:
+        unavailable["twin_sections"] = ("no measurement sections in "
+                                        + ("this run" if a is None or not secs else "the twin")
+                                        + " (traffic.sections off, or a run of an older version)")
+        return None
+    if secs != (baseline.meta.get("sections") or {}).get("sections"):
+        issues.append(Issue("warning", "baseline_mismatch", "baseline:sections",
+                            "the twin's sections are not this run's: compared by section index"))
+    m, veh, detail = twin_comparison(a, b, secs, st.ssm_ttc_warning_s)
+    run.update(m)
+    run["twin_detail"] = {**detail, "populations": POPULATIONS}
+    if m["stretch_coverage"] is not None and m["stretch_coverage"] < 0.9:
+        issues.append(Issue("warning", "stretch_coverage", "sections",
+                            f"only {100 * m['stretch_coverage']:.0f} % of the vehicles entering the "
+                            "stretch are timed over it in both runs: the effects are over a partial "
+                            "population"))
+    return veh

@@ -118,6 +118,16 @@ def _traffic_html(analysis: RunAnalysis) -> str:
         parts.append("<h3>Against the baseline twin (largest delay first, "
                      f"{min(n, BASELINE_ROWS)} of {n} vehicles; all in baseline.csv)</h3>"
                      + _table(list(b.columns), b.head(BASELINE_ROWS).values.tolist(), left=1))
+    detail = run.get("twin_detail")
+    if detail:
+        pops = "".join(f"<li><b>{_e(k)}</b>: {_e(v)}</li>" for k, v in detail["populations"].items())
+        why = [[f"not matched: {k}", v] for k, v in detail["unmatched_reasons"].items()]
+        why += [[f"not timed: {k}", v] for k, v in detail["untimed_reasons"].items()]
+        parts.append("<h3>Against the twin at the measurement sections (twin_* metrics; "
+                     "all vehicles in twin.csv)</h3><p>Formation run minus twin, over these "
+                     f"populations:</p><ul>{pops}</ul>"
+                     + _table(["vehicles left out", "count"], why or [["none", 0]], left=1)
+                     + _table(["departures", "count"], list(map(list, detail["departures"].items())), left=1))
     if t.unavailable:
         parts.append("<h3>Traffic metrics not computed</h3>"
                      + _table(["group", "why"], [[k, v] for k, v in t.unavailable.items()],

@@ -142,3 +142,59 @@ def metric_figure(done: pd.DataFrame, swept: list[str], grid_keys: list[str], me
     fig.suptitle(f"{metric}: mean over seeds, bars {'min-max' if spread == 'minmax' else '±1 std'}",
                  fontsize=10)
     return fig
+
+
+EFFECT_PANELS: tuple[str, ...] = ("fx_delay_mean_s", "fx_speed_mps", "fx_spot_speed_mps",
+                                  "fx_throughput_veh_h")
+"""The paired effects drawn by :func:`effects_figure` (those with values)."""
+
+
+def effects_figure(eff: pd.DataFrame, swept: list[str], units: dict[str, str],
+                   labels: dict[str, str] | None = None):
+    """Paired effects (formation run minus its twin) against the first swept field: the mean
+    over the seeds with its 95 % confidence interval as the bar (one seed: the point alone),
+    the zero line drawn; one panel per effect of :data:`EFFECT_PANELS` with a value.
+
+    Parameters
+    ----------
+    eff : effects.csv as a DataFrame (formation_traci/sweep/effects.py)
+    swept : the swept fields (the first is the x axis; the others one line each)
+    units : effect -> unit
+    labels : field -> axis label
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None (no effect with a value), not saved
+    """
+    from matplotlib.figure import Figure
+
+    panels = [m for m in EFFECT_PANELS if eff.loc[eff["metric"] == m, "mean"].notna().any()]
+    if not panels:
+        return None
+    labels = labels or {}
+    x_key = swept[0] if swept else None
+    others = swept[1:]
+    fig = Figure(figsize=(3.6 * len(panels), 3.2), layout="constrained")
+    axes = fig.subplots(1, len(panels), squeeze=False)[0]
+    for ax, m in zip(axes, panels):
+        e = eff[eff["metric"] == m]
+        groups = list(e.groupby(others, sort=True)) if others else [(None, e)]
+        for key, g in groups[:MAX_LINES]:
+            g = g.sort_values(x_key) if x_key else g
+            x = g[x_key].to_numpy(float) if x_key else np.arange(len(g), dtype=float)
+            y = g["mean"].to_numpy(float)
+            lo, hi = g["ci95_lo"].to_numpy(float), g["ci95_hi"].to_numpy(float)
+            err = np.vstack([np.where(np.isfinite(lo), y - lo, 0.0), np.where(np.isfinite(hi), hi - y, 0.0)])
+            ax.errorbar(x, y, yerr=err, marker="o", capsize=3,
+                        label=None if key is None else f"{', '.join(map(str, np.atleast_1d(key)))}")
+        ax.axhline(0.0, color="0.5", lw=0.8)
+        unit = units.get(m, "")
+        ax.set_title(m, fontsize=9)
+        ax.set_ylabel(f"[{unit}]" if unit and unit != "-" else "")
+        if x_key:
+            ax.set_xlabel(labels.get(x_key, x_key))
+        if others:
+            ax.legend(fontsize=7)
+    n = int(eff["n_seeds"].max()) if len(eff) else 0
+    fig.suptitle(f"formation minus twin: mean over {n} seeds, bars 95 % confidence interval", fontsize=10)
+    return fig

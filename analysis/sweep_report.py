@@ -20,6 +20,8 @@ DEFAULT_METRICS: tuple[str, ...] = ("e_rms_m", "e_max_settled_m", "a_lat_peak_mp
 REPORT_HTML = "sweep_report.html"
 STATS_CSV = "sweep_stats.csv"
 FIGURES_DIR = "sweep_figures"
+EFFECTS_CSV = "effects.csv"
+EFFECTS_FIGURE = "effects"
 MAX_TABLE_ROWS = 200
 
 
@@ -95,8 +97,28 @@ def swept_labels(meta: dict) -> dict[str, str]:
     return {k: given.get(k) or k.split(".")[-1] for k in meta.get("swept", [])}
 
 
+def _effects_html(eff: pd.DataFrame, fig: Path | None) -> str:
+    """The paired effects' section: what is compared, over which vehicles, the table."""
+    from analysis.twin_sections import POPULATIONS
+
+    n = int(eff["n_seeds"].max()) if len(eff) else 0
+    text = (f"<h2>Paired effects: formation run minus its twin</h2><p>Each case's formation run "
+            f"against its twin (same traffic and seed, no formation), paired by seed: the mean over "
+            f"the seeds (up to {n}), its standard error and the 95 % confidence interval (Student t, "
+            f"n - 1 degrees of freedom); <b>distinguishable</b>: the interval excludes 0. One seed "
+            f"gives no confidence interval. Populations: delay, speed, spot speeds, lane changes and "
+            f"conflicts are over the <i>timed</i> vehicles ({_e(POPULATIONS['timed'])}; the "
+            f"<i>stretch</i> population: {_e(POPULATIONS['stretch'])}); throughput over "
+            f"{_e(POPULATIONS['downstream'])}.</p>")
+    if fig is not None:
+        data = base64.b64encode(fig.read_bytes()).decode("ascii")
+        text += f'<img alt="effects" src="data:image/png;base64,{data}">'
+    return text + _table(eff.head(MAX_TABLE_ROWS))
+
+
 def _html(meta: dict, df: pd.DataFrame, stats: pd.DataFrame, metrics: list[str],
-          figs: dict[str, Path], fig_errors: dict[str, str], notes: list[str]) -> str:
+          figs: dict[str, Path], fig_errors: dict[str, str], notes: list[str],
+          effects: pd.DataFrame | None = None) -> str:
     raw = meta.get("sweep", {})
     counts = df["status"].value_counts().to_dict()
     n_cases = len(meta.get("cases", []))
@@ -125,6 +147,8 @@ def _html(meta: dict, df: pd.DataFrame, stats: pd.DataFrame, metrics: list[str],
                          f'<img alt="{_e(m)}" src="data:image/png;base64,{data}">')
         elif m in fig_errors:
             parts.append(f"<p>figure {_e(m)} failed: {_e(fig_errors[m])}</p>")
+    if effects is not None:
+        parts.append(_effects_html(effects, figs.get(EFFECTS_FIGURE)))
     shown = stats.head(MAX_TABLE_ROWS)
     cols = [c for c in shown.columns if not c.endswith(("_n", "_std"))]
     parts.append("<h2>Statistics over seeds (completed runs)</h2>" + _table(shown[cols])
@@ -135,6 +159,26 @@ def _html(meta: dict, df: pd.DataFrame, stats: pd.DataFrame, metrics: list[str],
            "th{background:#f3f3f3}img{max-width:100%}")
     return (f"<!doctype html><html><head><meta charset='utf-8'><title>sweep report</title>"
             f"<style>{css}</style></head><body>{''.join(parts)}</body></html>")
+
+
+def _effects(meta: dict, df: pd.DataFrame, swept: list[str], out_dir: Path, figs: dict,
+             files: dict) -> pd.DataFrame:
+    """A sweep with twins: ``effects.csv`` from the summary and its figure (added to
+    ``figs`` and ``files``); returns the effects table."""
+    from formation_traci.sweep.effects import write_effects
+
+    effects = write_effects(df, swept, out_dir / EFFECTS_CSV)
+    files["effects_csv"] = out_dir / EFFECTS_CSV
+    if (df["status"] == "completed").any():
+        from analysis.sweep_figures import effects_figure
+
+        fig = effects_figure(effects, swept, {k: u for k, (u, _) in METRICS.items()}, swept_labels(meta))
+        if fig is not None:
+            (out_dir / FIGURES_DIR).mkdir(parents=True, exist_ok=True)
+            figs[EFFECTS_FIGURE] = out_dir / FIGURES_DIR / f"{EFFECTS_FIGURE}.png"
+            fig.savefig(figs[EFFECTS_FIGURE], dpi=100)
+            files[f"figure:{EFFECTS_FIGURE}"] = figs[EFFECTS_FIGURE]
+    return effects
 
 
 def analyze_sweep(sweep_dir: str | Path, metrics: list[str] | None = None,
@@ -207,7 +251,8 @@ def analyze_sweep(sweep_dir: str | Path, metrics: list[str] | None = None,
         notes.append("no completed case: nothing to plot")
     stats.to_csv(out_dir / STATS_CSV, index=False)
     files["stats_csv"] = out_dir / STATS_CSV
-    page = _html(meta, df, stats, chosen, figs, fig_errors, notes)
+    effects = _effects(meta, df, swept, out_dir, figs, files) if meta.get("baseline") else None
+    page = _html(meta, df, stats, chosen, figs, fig_errors, notes, effects)
     (out_dir / REPORT_HTML).write_text(page, encoding="utf-8")
     files["report_html"] = out_dir / REPORT_HTML
     return SweepReport(out_dir=out_dir, stats=stats, metrics=chosen, files=files)

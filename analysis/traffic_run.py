@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from analysis import traffic as tr
-from analysis.baseline_run import BaselineData, baseline_section, load_baseline
+from analysis.baseline_run import BaselineData, baseline_section, load_baseline, twin_section
 from analysis.conflict_run import (CONFLICT_MEMBER_METRICS, CONFLICT_RUN_METRICS, SSM_RUN_METRICS,
                                    recorded_section, ssm_section)
 from analysis.conflicts import time_keys
@@ -23,6 +23,7 @@ from analysis.interaction_run import PAIR_CHUNK, _background_rows, member_intera
 from analysis.load import Issue, RunData
 from analysis.near_formation import background_near
 from analysis.settings import AnalysisSettings
+from analysis.twin_sections import TWIN_METRICS
 
 __all__ = [
     "TRAFFIC_MEMBER_METRICS",
@@ -70,6 +71,7 @@ TRAFFIC_RUN_METRICS: dict[str, str] = {
     "baseline_delta_mean_s": "s", "baseline_delta_max_s": "s", "baseline_delta_total_s": "s",
     "baseline_v_run_mps": "m/s", "baseline_v_base_mps": "m/s",
     "baseline_bg_speed_mean_near_mps": "m/s", "baseline_bg_speed_delta_near_mps": "m/s",
+    **TWIN_METRICS,
 }
 """Run-level traffic metrics with their units (``metrics.json`` ``traffic.run``)."""
 
@@ -94,6 +96,7 @@ class TrafficAnalysis:
     ssm_extremes: pd.DataFrame  # SSM records with TTC 0 or an extreme DRAC, with their "class"
     conflicts: pd.DataFrame  # conflicts from the recording (analysis.conflicts.CONFLICT_COLUMNS)
     baseline: pd.DataFrame | None  # per-vehicle comparison with the twin, or None
+    twin: pd.DataFrame | None  # per-vehicle comparison at the sections (twin.csv), or None
     series: pd.DataFrame  # per member sample: t, vehicle_id, clearance_m (to any vehicle),
     # clearance_members_m, clearance_bg_m, ttc2d_s, lat_gap_m, headway_s, follower_headway_s
     unavailable: dict[str, str]  # metric group -> why not computed
@@ -161,16 +164,17 @@ def compute_traffic(data: RunData, settings: AnalysisSettings,
         _event_metrics(ev, ids, near, road_bg, dt, run, mem)
 
     sr, conf_tab = _conflicts(data, M, B, bg_ok, road, st, run, mem, unavailable)
-    base_tab = None
+    base_tab = twin_tab = None
     if baseline is not None:
         base_tab = baseline_section(baseline, data, M, bg_ok, road, win, st, run, issues,
                                     unavailable)
+        twin_tab = twin_section(baseline, data, st, run, issues, unavailable)
     for c in ("ssm_n_conflicts", "conflict_n", "n_cut_ins", "n_lane_changes", "n_collisions",
               "n_teleports"):
         mem[c] = [None if v is None or (isinstance(v, float) and math.isnan(v)) else int(v)
                   for v in mem[c]]
     return TrafficAnalysis(run=run, members=mem, ssm=sr.table, member_conflicts=sr.member_conflicts,
-                           ssm_extremes=sr.extremes, conflicts=conf_tab, baseline=base_tab, series=series, unavailable=unavailable,
+                           ssm_extremes=sr.extremes, conflicts=conf_tab, baseline=base_tab, twin=twin_tab, series=series, unavailable=unavailable,
                            issues=tuple(issues))
 
 

@@ -112,7 +112,7 @@ def scenario(n: int, duration: float, flow_end: float | None, seed: int) -> dict
         "road": {"net": str(long_net()), "route": route_edges(), "lane": 1, "start": START},
         "leader": {"speed": SPEED},
         "members": formation_slots(n),
-        "traffic": {"warmup": 0.0, "flows": [flow]},
+        "traffic": {"warmup": 0.0, "flows": [flow], "sections": {"enabled": False}},  # the loop, no drain
         "sumo": {"ssm": os.environ.get("BENCH_SSM", "members")},
     }
 

@@ -38,7 +38,7 @@ from typing import NamedTuple
 ROOT = Path(__file__).resolve().parents[1]
 CASES = {
     "free space": ("scenarios/thesis/dynamic_case4_straight.toml", {}),
-    "sumo": ("scenarios/highway/straight_3lane_light.toml", {"traffic.warmup": 0.0}),
+    "sumo": ("scenarios/highway/straight_3lane_light.toml", {"traffic.warmup": 0.0, "traffic.sections.enabled": False}),
 }
 CHILD = """
 import sys, tempfile, time

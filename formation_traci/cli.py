@@ -15,6 +15,7 @@ if __name__ == "__main__" or os.path.basename(sys.argv[0]) == "formation-traci":
     exit_130_on_signals()  # (formation_traci/__init__.py did so already, before any import)
 
 import contextlib  # noqa: E402
+import re  # noqa: E402
 import traceback  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Optional  # noqa: E402
@@ -75,6 +76,39 @@ def _outcome():
         raise typer.Exit(1)
 
 
+SET_HELP = ("set a scenario field by its dotted path, e.g. --set run.duration=20 --set "
+            "traffic.flows.0.veh_per_hour_per_lane=1200 (repeatable; VALUE is read as TOML, "
+            "else as text)")
+
+
+def _set_overrides(pairs: Optional[list[str]], source: str) -> dict:
+    """``KEY=VALUE`` strings -> {dotted path: value}; VALUE is a TOML value (``20``, ``1.5``,
+    ``true``, ``"x"``, ``[1, 2]``, ``{ a = 1 }``), else the text itself. A malformed pair
+    raises ScenarioError (exit 2, nothing created); the values are validated by the scenario
+    schema when the scenario is loaded with them."""
+    import tomllib
+
+    from .scenario import ScenarioError
+    from .sweep.spec import DOTTED
+
+    out, problems = {}, []
+    for pair in pairs or []:
+        key, eq, text = pair.partition("=")
+        key = key.strip()
+        if not eq or not re.match(DOTTED, key):
+            problems.append((f"--set {pair}", "expected KEY=VALUE with KEY a dotted scenario path "
+                                              "(e.g. run.duration=20)"))
+            continue
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        out[key] = value
+    if problems:
+        raise ScenarioError(source, problems)
+    return out
+
+
 @app.command()
 def run(
     scenario: Path = typer.Argument(..., help="scenario TOML file"),
@@ -86,15 +120,17 @@ def run(
     progress: bool = typer.Option(True, "--progress/--no-progress", help="show a progress bar"),
     baseline: bool = typer.Option(False, "--baseline", help="road scenarios: the twin run with the same traffic and seed but no formation"),
     gui: bool = typer.Option(False, "--gui", help="road scenarios: watch in sumo-gui (traci backend; the view follows the formation)"),
+    sets: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP),
 ) -> None:
     """Run SCENARIO headless and record it under OUT (run.json, trajectories.parquet, ...)."""
     with _outcome():
         from .scenario import load_scenario
         from .sim.runner import run_scenario
 
-        sc = load_scenario(scenario, **{"run.duration": duration, "run.seed": seed,
-                                        "vehicle.model": model,
-                                        **({"sumo.backend": "traci", "sumo.gui": True} if gui else {})})
+        opts = {"run.duration": duration, "run.seed": seed, "vehicle.model": model,
+                **({"sumo.backend": "traci", "sumo.gui": True} if gui else {})}
+        sc = load_scenario(scenario, **{**_set_overrides(sets, str(scenario)),
+                                        **{k: v for k, v in opts.items() if v is not None}})
         if progress and sc.road is not None and sc.traffic.warmup > 0:
             typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)
         res = run_scenario(sc, out, scenario_path=scenario, force=force, progress=progress, baseline=baseline)
@@ -145,6 +181,8 @@ def sweep(
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler tcp://HOST:PORT or scheduler file"),
     workers: Optional[int] = typer.Option(None, "--workers", min=1, help="local cases at once (default: cores)"),
     progress: bool = typer.Option(True, "--progress/--no-progress"),
+    baseline: bool = typer.Option(False, "--baseline", help="run each case's twin too (same traffic and seed, no formation) and summarise formation minus twin"),
+    sets: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP + "; set in every case"),
 ) -> None:
     """Run every case of a sweep (each in its own process), analyse each, write summary.parquet.
 
@@ -153,7 +191,8 @@ def sweep(
 
     try:
         with _outcome():
-            res = run_sweep(sweep_file, out, scheduler=scheduler, workers=workers, progress=progress)
+            res = run_sweep(sweep_file, out, scheduler=scheduler, workers=workers, progress=progress,
+                            baseline=baseline, sets=_set_overrides(sets, str(sweep_file)))
     except typer.Exit as exc:
         if exc.exit_code == 130:
             typer.echo("run the same command again to finish the sweep", err=True)

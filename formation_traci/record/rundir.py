@@ -29,7 +29,8 @@ TOOL_FILES = frozenset({
     "run.json", "error.txt", "trajectories.parquet", "events.parquet", "background.parquet",
     "ssm.parquet", "sumo", "metrics.json", "metrics.csv", "baseline.csv", "figures",
     "report.html", "case.json", "compare.csv", "compare.json", LOCK_NAME, ".run.json.tmp",
-    ".reserve", "comfort.parquet", "open_loop.parquet", "comm_age.csv"})
+    ".reserve", "comfort.parquet", "open_loop.parquet", "comm_age.csv",
+    "sections.parquet", "departures.parquet", "twin.csv"})
 """Names this tool writes at the top of a run directory: ``--force`` removes only these."""
 
 

@@ -49,6 +49,7 @@ class SsmConverter:
         self._pos = 0
         self._root = None
         self._broken = False
+        self.t_max = math.inf  # conflicts beginning later (formation time [s]) are left out: the drain
 
     def update(self) -> None:
         """Append the conflicts SUMO has written since the last call."""
@@ -88,6 +89,8 @@ class SsmConverter:
     def _append(self, el) -> None:
         t0, table = self.t0, self.table
         ego, foe = el.get("ego", ""), el.get("foe", "")
+        if _num(el.get("begin")) - t0 > self.t_max:
+            return
         ttc, drac, pet = el.find("minTTC"), el.find("maxDRAC"), el.find("PET")
         s, d = _road_point(ttc, self.line)
         table.append({

@@ -58,8 +58,22 @@ class FlowSpec(Strict):
         return self
 
 
+class SectionsSpec(Strict):
+    """Measurement cross-sections along the main route (docs/metrics.md, "Sections"): every
+    background vehicle is timed through each of them in a formation run and in its twin."""
+
+    enabled: bool = Field(True, description="place the sections and drain the stretch after the run")
+    upstream: NonNegFloat = Field(200.0, description="first section this far before road.start [m] (clamped to the route)")
+    downstream: NonNegFloat = Field(200.0, description="last section this far beyond the formation's furthest "
+                                    "reach at its top set speed over run.duration [m] (clamped to the route)")
+    inner: int = Field(3, ge=0, le=20, description="sections spread evenly over the formation's path")
+    drain_max: NonNegFloat = Field(600.0, description="after the formation's last step SUMO runs on, without the "
+                                   "formation, until every vehicle in the stretch has left it, at most this long [s]")
+
+
 class TrafficSpec(Strict):
     flows: list[FlowSpec] = Field(default_factory=list)
+    sections: SectionsSpec = Field(default_factory=SectionsSpec)
     warmup: NonNegFloat = Field(0.0, description="SUMO time simulated before the formation is inserted [s]")
     record_radius: PosFloat | None = Field(300.0, description="record background vehicles within this distance of a member [m]; omit for all")
     measure_at: NonNegFloat | None = Field(1000.0, description="arc length along the main route where flow and "

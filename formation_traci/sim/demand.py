@@ -86,7 +86,7 @@ def write_detectors(path: Path, out: Path, edge: str, n_lanes: int, length: floa
     return a1 - a0
 
 
-def read_detectors(out: Path, t0: float, area_m: float) -> dict | None:
+def read_detectors(out: Path, t0: float, area_m: float, t1: float = float("inf")) -> dict | None:
     """Flow [veh/h] summed over the lanes, density [veh/km] summed over the lanes and
     space-mean speed q/k [m/s] over the detector intervals that begin at or after ``t0`` [s]
     (the formation's part of the run); ``area_m`` is the lane-area detectors' length [m].
@@ -99,7 +99,7 @@ def read_detectors(out: Path, t0: float, area_m: float) -> dict | None:
             if el.tag != "interval":
                 continue
             b, e = float(el.get("begin")), float(el.get("end"))
-            if b < t0 - 1e-6:
+            if b < t0 - 1e-6 or e > t1 + 1e-6:  # the formation's part only (no drain)
                 continue
             det = el.get("id", "")
             if det.startswith("measure_e1_"):
@@ -139,4 +139,4 @@ def traffic_meta(meta, rec, flows, departed, t_sumo, t0, measure) -> None:
     report_shortfall(report, rec.add_event, max(t_sumo - t0, 0.0))
     if measure is not None:
         tr["measured"] = {"edge": measure["edge"], "pos_m": measure["pos"],
-                          **(read_detectors(measure["out"], t0, measure["area_m"]) or {})}
+                          **(read_detectors(measure["out"], t0, measure["area_m"], t_sumo) or {})}

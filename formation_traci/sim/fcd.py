@@ -55,3 +55,18 @@ def to_formation_frame(path: Path, t0: float, member_d_front: dict[str, float], 
     tmp = path.with_suffix(".tmp.parquet")
     out.to_parquet(tmp, index=False)
     tmp.replace(path)
+
+
+def cut_fcd(path: Path, t0: float, step: float, t_max: float) -> None:
+    """Leave out the FCD rows of states after formation time ``t_max`` [s] (the measurement
+    sections' drain after the run), in place, in SUMO's frame (before any
+    :func:`to_formation_frame`)."""
+    if not path.exists() or not np.isfinite(t_max):
+        return
+    df = pd.read_parquet(path)
+    keep = df["timestep_time"].to_numpy(float) + step - t0 <= t_max + 1e-9
+    if keep.all():
+        return
+    tmp = path.with_suffix(".tmp.parquet")
+    df[keep].to_parquet(tmp, index=False)
+    tmp.replace(path)

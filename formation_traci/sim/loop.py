@@ -4,7 +4,7 @@
     -> stop? -> controllers and models (sim/fleet.py) -> actuate -> world step
 
 Free space and SUMO differ only in the World and the reference generator they bring
-(:func:`free_space_run`, sim/sumo_world.py ``road_run``). docs/architecture.md has the
+(:func:`free_space_run`, sim/sumo_run.py ``road_run``). docs/architecture.md has the
 picture and where a maneuver planner or a communication channel plugs in.
 """
 from __future__ import annotations
@@ -164,14 +164,14 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             yield k, t
             clock.lap("record")  # the caller's share: the step's end, part files, progress (sim/runner.py)
             if k == n_steps:
-                return
+                break
             stop = _stop_reason(forms, world, t)
             if stop is not None:
                 vc_id, (kind, detail, why) = stop
                 if kind:
                     rec.add_event(t, kind, vc_id, "", detail)
                 meta["stopped_early"] = why
-                return
+                break
             clock.start()
             v_before = fleet.speed(state)
             if world.records_members:
@@ -188,6 +188,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             clock.lap("sumo_place")
             world.step(k, t + step)
             clock.lap("sumo_step")
+        world.drain()  # a run that ended normally: the measurement sections' drain
     finally:
         world.close()
 

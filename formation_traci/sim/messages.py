@@ -33,7 +33,8 @@ def message_kind(text: str) -> str:
     return "other"
 
 
-def record_messages(path: Path, t0: float, add_event, step: float = 0.0) -> dict:
+def record_messages(path: Path, t0: float, add_event, step: float = 0.0,
+                    t_max: float = float("inf")) -> dict:
     """Turn SUMO's error log into events; returns the counts for run.json.
 
     Parameters
@@ -46,6 +47,8 @@ def record_messages(path: Path, t0: float, add_event, step: float = 0.0) -> dict
         ``add_event(t, kind, vehicle_id, other_id, detail)``.
     step : float
         SUMO's step length [s], added to SUMO's stamp (the start of the step).
+    t_max : float
+        Formation time [s] after which messages are left out (the sections' drain).
     """
     counts = {"warnings": 0, "errors": 0, "during_warmup": 0, "by_kind": {}}
     if not path.exists():
@@ -57,6 +60,8 @@ def record_messages(path: Path, t0: float, add_event, step: float = 0.0) -> dict
         counts["warnings" if level == "Warning" else "errors"] += 1
         m = _TIME.search(text)
         t = float(m.group(1)) + step - t0 if m else -t0
+        if t > t_max + 1e-9:
+            continue
         if t < 0:
             counts["during_warmup"] += 1
         kind = message_kind(text)
@@ -79,22 +84,26 @@ def summary_line(counts: dict) -> str | None:
             f"formation's clock (events.parquet)")
 
 
-def report(path: Path, t0: float, add_event, step: float) -> dict:
+def report(path: Path, t0: float, add_event, step: float, t_max: float = float("inf")) -> dict:
     """:func:`record_messages` and the summary line on stderr."""
-    counts = record_messages(path, t0, add_event, step)
+    counts = record_messages(path, t0, add_event, step, t_max)
     line = summary_line(counts)
     if line:
         print(line, file=sys.stderr)
     return counts
 
 
-def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_front: dict) -> None:
-    """After the run: SUMO's messages as events (run.json ``sumo.messages``), the FCD in the
-    formation's frame if asked for, and which clock and frame each output uses."""
-    meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, rec.add_event, sc.run.step)
-    if sc.sumo.fcd and sc.sumo.fcd_frame == "formation":
-        from .fcd import to_formation_frame
-        to_formation_frame(sumo_dir / "fcd.parquet", t0, member_d_front, sc.run.step)
+def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_front: dict,
+                      t_max: float = float("inf")) -> None:
+    """After the run: SUMO's messages up to formation time ``t_max`` as events (run.json
+    ``sumo.messages``), the FCD in the formation's frame if asked for, and which clock and
+    frame each output uses."""
+    meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, rec.add_event, sc.run.step, t_max)
+    if sc.sumo.fcd:
+        from .fcd import cut_fcd, to_formation_frame
+        cut_fcd(sumo_dir / "fcd.parquet", t0, sc.run.step, t_max)  # the formation's part only
+        if sc.sumo.fcd_frame == "formation":
+            to_formation_frame(sumo_dir / "fcd.parquet", t0, member_d_front, sc.run.step)
     meta["sumo"]["clock"] = ("trajectories, background, events, ssm: formation time t = SUMO time - warmup, "
                              "centre of gravity; sumo/*.log, sumo/*.xml: SUMO time; sumo/fcd.parquet: "
                              f"{'formation' if sc.sumo.fcd_frame == 'formation' else 'SUMO'} frame")

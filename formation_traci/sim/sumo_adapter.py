@@ -78,6 +78,7 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         self._set_previous_speed = v.setPreviousSpeed if fast is None else fast.vehicle_setPreviousSpeed
         self._started = False
         self.departed: dict[str, int] = {}  # flow id -> vehicles SUMO inserted (see count_departures)
+        self.departures: list[tuple[str, float]] = []  # (vehicle id, SUMO time [s]) of every insertion
         self._proc = None  # the SUMO process of the traci backend
 
     # -- lifecycle -------------------------------------------------------------------
@@ -143,7 +144,11 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
 
     def _count_departed(self) -> None:
         counts = self.departed
-        for vid in self.api.simulation.getDepartedIDList():
+        ids = self.api.simulation.getDepartedIDList()
+        if ids:
+            t = self.api.simulation.getTime()
+            self.departures.extend((vid, t) for vid in ids)  # every vehicle: (id, SUMO time [s])
+        for vid in ids:
             flow = vid.rpartition(".")[0]
             if flow in counts and vid not in self.members:
                 counts[flow] += 1

@@ -18,6 +18,11 @@ from ..road.line_pack import FastLine, packed
 from ..scenario.schema import Scenario
 from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch,
                      TrafficWatch, log_sumo_events)
+from .sumo_zone import clear_insertion_zone, middle_member, subscribe_context
+from .sections import drain as drain_stretch
+from .sections import plan_sections
+from .sections import sumo_options as section_options
+from .sections import write_tables as write_sections
 from .demand import measure_plan, traffic_meta
 from .join import adopt, enter, take_over
 from .messages import sumo_outputs_meta
@@ -25,7 +30,6 @@ from .sumo_adapter import SumoAdapter, SumoError
 from .sumo_neighbours import NOBODY
 from .sumo_sense import NeighbourGuess, PackedLanes, sense_step
 from .sumo_types import Neighbours
-from .sumo_members import clear_insertion_zone, middle_member, subscribe_context
 from .sumo_plan import MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import CAR, flow_vehicles_per_hour, write_routes
 from .world import Sensed
@@ -61,6 +65,8 @@ class SumoWorld:
         self.route_id = MEMBER_ROUTE
         self.slot_index = np.arange(n, dtype=float)  # the 'slot' column; maneuvers change it
         self.inserted = False
+        self.sections = None  # the measurement sections (sim/sections.py), set at start
+        self.should_stop = None  # polled by the drain (the run's stop flag: Ctrl-C ends it)
         self.all_bg = sc.traffic.record_radius is None or baseline
         self.ctx_owner = None
         self.m_s = np.full(n, np.nan)  # members' arc length at the last sense [m] (NaN: none yet)
@@ -98,9 +104,15 @@ class SumoWorld:
         routes = write_routes(self.sumo_dir / "traffic.rou.xml", flows, t_sumo_end)
         self.flows = [(f, e, vph, f.end if f.end is not None else t_sumo_end) for f, e, vph in flows]
         self.measure = measure_plan(sc, road, self.sumo_dir)
-        args = sumo_args(sc, road.net_file, routes, self.sumo_dir, t_sumo_end)
-        if self.measure is not None:
-            args += ["-a", str(self.measure["file"])]
+        self.sections = plan_sections(sc, road, self.sumo_dir)
+        drain_s = sc.traffic.sections.drain_max if self.sections is not None else 0.0
+        args = sumo_args(sc, road.net_file, routes, self.sumo_dir, t_sumo_end + drain_s)
+        adds = [str(self.measure["file"])] if self.measure is not None else []
+        if self.sections is not None:
+            adds.append(str(self.sections["file"]))
+        if adds:
+            args += ["-a", ",".join(adds)]
+        args += section_options(self.sections)
         meta, plan = self.meta, self.plan
         meta["sumo"] = {"args": args, "warmup": self.t0, "net": str(road.net_file),
                         "route": road.route, "reference_lane": sc.road.lane}
@@ -124,17 +136,37 @@ class SumoWorld:
         for _ in range(warm_steps):
             ad.simulation_step()
 
+    def drain(self) -> None:
+        """After the formation's last step (a run that ended normally): the sections' drain
+        (sim/sections.py): the members leave SUMO, SUMO runs on until the stretch is empty.
+        What the run reports of its traffic stays the formation's part (the tables, the
+        demand, the detectors, SUMO's messages and conflicts up to now)."""
+        if self.sections is None or not self.adapter._started:
+            return
+        ad = self.adapter
+        self._end = (ad.time, dict(ad.departed))
+        t_end = ad.time - self.t0
+        if self.rec.ssm is not None:
+            self.rec.ssm.t_max = t_end
+        members = [] if self.baseline else [v for v, a in zip(self.sumo_ids, self.active) if a]
+        self.meta["sections"] = {"t_end": t_end, **drain_stretch(
+            ad, self.sections, members, self.sc.traffic.sections.drain_max, self.sc.run.step,
+            self.should_stop)}
+
     def close(self) -> None:
         t0 = getattr(self, "t0", 0.0)
         t_sumo = self.adapter.time if self.adapter._started else t0
+        t_sumo, departed = getattr(self, "_end", (t_sumo, self.adapter.departed))
         try:
             self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
         finally:
             if hasattr(self, "flows"):
-                traffic_meta(self.meta, self.rec, self.flows, self.adapter.departed, t_sumo, t0,
-                             self.measure)
+                traffic_meta(self.meta, self.rec, self.flows, departed, t_sumo, t0, self.measure)
                 sumo_outputs_meta(self.meta, self.sc, self.rec, self.sumo_dir, t0,
-                                  {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)})
+                                  {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)},
+                                  t_sumo - t0)
+                self.meta.setdefault("sections", {}).update(write_sections(
+                    self.out_dir, self.sections, self.adapter.departures, t0, set(self.ids)))
 
     # ------------------------------------------------------------------------- sense
     def _kinematics(self, state):
@@ -294,14 +326,12 @@ class SumoWorld:
         v_after = self.fleet.speed(state)
         self.a_mean = (v_after - v_before) / self.sc.run.step
         self.v_after = v_after
-        if self.baseline:
-            return  # the formation stays out of SUMO
         ids, ad = self.ids, self.adapter
         act_idx = np.flatnonzero(self.active & self.in_sumo)
-        if len(self.pending):
+        if len(self.pending):  # a twin clears the same vehicles at the same step (same state)
             self._insert(t_next, self.pending, pos, heading, v_after)
-        if not len(act_idx):
-            return
+        if self.baseline or not len(act_idx):
+            return  # a twin: the formation stays out of SUMO
         if len(act_idx) == len(ids):  # every member in the run: no copies
             refused = dict(ad.place(self.sumo_ids, pos[:, 0], pos[:, 1], heading))
         else:
@@ -311,16 +341,19 @@ class SumoWorld:
 
     def _insert(self, t_next, rows, pos, heading, v_after) -> None:
         """SUMO gets the spawned members ``rows`` at their poses, vehicles standing there (or
-        in their time gap ahead) cleared first."""
+        in their time gap ahead) cleared first; a twin clears the same vehicles and inserts
+        no member."""
         ld, ad = self.sc.leader, self.adapter
         clear_insertion_zone(ad, self.rec, t_next, pos[rows], heading[rows], v_after[rows],
                              [self.plan.vehicles[i] for i in rows],
                              ld.min_gap + ld.time_gap * v_after[rows])
+        self.pending = self.pending[:0]
+        if self.baseline:
+            return
         for i in rows:
             ad.insert_member(self.ids[i], MEMBER_ROUTE, self.mtypes[i], pos[i, 0], pos[i, 1],
                              heading[i], v_after[i])
         self.in_sumo[rows] = True
-        self.pending = self.pending[:0]
 
     def step(self, k: int, t_next: float) -> None:
         ad = self.adapter
@@ -348,52 +381,3 @@ class SumoWorld:
         if ad.gui and self.active.any() and (self.followed is None or not self.active[self.followed]):
             self.followed = middle_member(self.active, self.along, self.slot_d_0)
             ad.follow(self.sumo_ids[self.followed])
-
-
-def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
-             baseline: bool = False, step_hook=None):
-    """World, reference generator and fleet of a road run (loop.step_loop runs them)."""
-    from ..control.reference_road import GovernorLimits, RoadReference
-    from .fleet import Fleet, initial_state
-    from .loop import one_formation
-    from .road_load import road_load_part
-    from .setup import build_fleet, profile, road_mu
-    from .sumo_plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
-
-    run, ld, veh, line = sc.run, sc.leader, plan.veh, plan.road.line
-    n_ctrl = int(round(run.step / run.control_step))
-    cfg = build_fleet(sc)
-    fleet = Fleet(cfg)
-    speed_profile = profile(ld.speed)
-    # the virtual car never asks for more than the road's adhesion allows the members
-    mu_g = road_mu(sc) * 9.81
-    limits = GovernorLimits(ld.time_gap, ld.min_gap, min(ld.accel_max, ADHESION_SHARE_COMFORT * mu_g),
-                            min(ld.decel_max, ADHESION_SHARE_COMFORT * mu_g),
-                            min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g))
-    s0, v0 = float(sc.road.start), speed_profile(0.0)[0]
-    tg0 = initial_targets(plan.road, plan.slots, plan.rigid, plan.is_road, s0, v0, 0.0)
-    yaw0 = plan.speed0 * line.curvature(line.to_frenet(plan.pos0)[0])
-    state = initial_state(cfg, plan.pos0, plan.heading0, plan.speed0, yaw0, np.zeros(cfg.n), tg0)
-    world = SumoWorld(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
-    args = (world.line.G, world.line.length, plan.slots, plan.rigid, plan.is_road, s0, v0,
-            speed_profile, limits, np.array([v.width / 2 for v in plan.vehicles]),
-            np.array([v.cog_to_front_bumper for v in plan.vehicles]),
-            sc.road.end_margin, run.step / n_ctrl, n_ctrl)
-    meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
-                        "governor": 0.0, "control_model": 0.0, "record": 0.0}
-    load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, line)
-    if not sc.maneuvers:
-        return one_formation(world, RoadReference(*args), fleet, state, timing=meta["timing_s"],
-                             road_load=load)
-    from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
-    from ..control.maneuvers.planner import ManeuverPlanner
-    from .road_setup import road_room
-    lengths = np.array([v.length for v in plan.vehicles])
-    widths = np.array([v.width for v in plan.vehicles])
-    planner = ManeuverPlanner(sc.maneuvers, plan.slots, plan.road.lanes, sc.maneuver_limits,
-                              lengths, widths, list(world.ids), road_room(plan.road),
-                              (ld.time_gap, ld.min_gap),
-                              np.array([v.cog_to_front_bumper for v in plan.vehicles]))
-    gen = ManeuverRoadReference(*args, planner=planner, length=lengths)
-    return one_formation(world, gen, fleet, state, transforms=[PlanSlots(planner)],
-                         timing=meta["timing_s"], road_load=load)

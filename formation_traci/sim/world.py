@@ -62,6 +62,8 @@ class World(Protocol):
 
     def retire(self, t: float, rows: np.ndarray, why: str) -> None: ...
 
+    def drain(self) -> None: ...  # after a run that ended normally (SUMO: the sections' drain)
+
     def close(self) -> None: ...
 
 
@@ -107,6 +109,9 @@ class FreeSpace:
         pass
 
     def step(self, k, t_next) -> None:
+        pass
+
+    def drain(self) -> None:
         pass
 
     def close(self) -> None:

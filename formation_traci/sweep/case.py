@@ -19,7 +19,7 @@ from pydantic import BaseModel, ConfigDict
 
 from ..record.rundir import DirLock, clear_run
 from .expand import Case
-from .row import empty_row, metric_values
+from .row import empty_row, metric_values, twin_values
 
 CASE_JSON = "case.json"
 """Per-case record in the case directory: ``{"spec": ..., "row": ...}``."""
@@ -34,6 +34,7 @@ class CaseSpec(BaseModel):
     base: str  # absolute path of the scenario file
     case_dir: str  # absolute path of DIR/cases/<id>
     log_path: str  # absolute path of DIR/logs/<id>.log (written by the launcher)
+    twin_dir: str | None = None  # absolute path of DIR/twins/<id> when the case's twin runs too
 
 
 def _plain(x: Any) -> Any:
@@ -102,7 +103,8 @@ def run_case(case_spec: dict | CaseSpec) -> dict[str, Any]:
             return row
         res = run_scenario(sc, out, scenario_path=spec.base, force=True, progress=False)
         row.update(status=res.status, reason=res.reason, t_end_s=res.t_end)
-        row.update(_analyse(out, row))
+        twin = _run_twin(sc, spec, row) if spec.twin_dir is not None and res.status == "completed" else None
+        row.update(_analyse(out, row, twin))
     except KeyboardInterrupt as exc:  # SIGINT/SIGTERM before the run stepped (set-up, warm-up)
         row.update(status="interrupted", reason=str(exc) or "SIGINT received",
                    t_end_s=row.get("t_end_s") if row.get("t_end_s") is not None else 0.0)
@@ -114,17 +116,46 @@ def run_case(case_spec: dict | CaseSpec) -> dict[str, Any]:
     return row
 
 
-def _analyse(run_dir: Path, row: dict) -> dict[str, Any]:
+def _run_twin(sc, spec: CaseSpec, row: dict) -> Path | None:
+    """The case's twin (same scenario and seed, no formation) into ``spec.twin_dir``, after
+    the formation run in this process (one libsumo simulation at a time). A twin that does
+    not complete fails the case: its paired columns would be missing."""
+    from ..sim.runner import run_scenario
+
+    twin = Path(spec.twin_dir)
+    if twin.exists():
+        with DirLock(twin):
+            clear_run(twin)
+    res = run_scenario(sc, twin, scenario_path=spec.base, force=True, progress=False, baseline=True)
+    if res.status != "completed":
+        row.update(status="failed", reason=f"twin {res.status}: {res.reason}")
+        return None
+    return twin
+
+
+def _analyse(run_dir: Path, row: dict, twin: Path | None = None) -> dict[str, Any]:
     from analysis.api import analyze_run
     from analysis.load import NoTrajectoryData
 
     try:
-        a = analyze_run(run_dir, figures=False)
+        a = analyze_run(run_dir, figures=False, baseline=twin)
     except NoTrajectoryData as exc:
         return {} if row["status"] != "completed" else {"status": "failed",
                                                         "reason": f"analysis: {exc}"}
     meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-    return metric_values(run_dir, a.members, meta)
+    out = metric_values(run_dir, a.members, meta)
+    if twin is not None:
+        out.update(twin_values(_traffic_run(run_dir)))
+    return out
+
+
+def _traffic_run(run_dir: Path) -> dict:
+    """metrics.json's ``traffic.run`` as written by the analysis."""
+    try:
+        doc = json.loads((run_dir / "metrics.json").read_text(encoding="utf-8"))
+        return (doc.get("traffic") or {}).get("run") or {}
+    except (OSError, ValueError):
+        return {}
 
 
 def main(argv: list[str] | None = None) -> int:

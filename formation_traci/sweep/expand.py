@@ -12,7 +12,7 @@ import itertools
 import json
 import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +48,7 @@ class Sweep:
     base: Path  # resolved scenario file
     cases: tuple[Case, ...]
     random_keys: tuple[str, ...]
+    sets: dict = field(default_factory=dict)  # --set: dotted path -> value, in every case
 
 
 def _labels(keys: list[str], given: dict[str, str]) -> dict[str, str]:
@@ -115,13 +116,17 @@ def _base_doc(path: Path, spec: SweepFile) -> tuple[Path, dict]:
     return base, doc
 
 
-def load_sweep(path: str | Path) -> Sweep:
+def load_sweep(path: str | Path, sets: dict[str, Any] | None = None) -> Sweep:
     """Read, validate and expand a sweep file.
 
     Parameters
     ----------
     path : str or Path
         Sweep TOML file (docs/sweeps.md).
+    sets : dict, optional
+        Dotted path -> value set in every case after ``[overrides]`` (the command line's
+        ``--set``); checked here with the base scenario (values too), so a bad one refuses
+        the whole sweep.
 
     Returns
     -------
@@ -148,8 +153,20 @@ def load_sweep(path: str | Path) -> Sweep:
                 problems.append((f'{where}."{k}"', why))
             elif where == "overrides":
                 _set(doc, k, spec.overrides[k])
+    sets = dict(sets or {})
+    for k in sets:
+        why = _check_path(doc, k)
+        if k == SEED_PATH or k in spec.swept() or any(k.startswith(a + ".") or a.startswith(k + ".")
+                                                       for a in spec.swept()):
+            why = why or "is swept (or is run.seed): it cannot be set for every case"
+        if why:
+            problems.append((f"--set {k}", why))
     if problems:
         raise SweepError(path, problems)
+    if sets:
+        from ..scenario import load_scenario  # the values, as the case will read them
+
+        load_scenario(base, **{**spec.overrides, **sets})
 
     labels = _labels(spec.swept(), spec.labels)
     if len(set(labels.values())) != len(labels):
@@ -170,9 +187,9 @@ def load_sweep(path: str | Path) -> Sweep:
         tags = "".join(f"-{labels[k]}{_fmt(v, k in random_keys)}" for k, v in values.items())
         tags = tags[:MAX_TAGS]  # the index keeps ids unique; directory names stay short
         cases.append(Case(index=i, id=f"c{i:0{width}d}{tags}-s{seed}", seed=seed, values=values,
-                          overrides={**spec.overrides, **values, SEED_PATH: seed}))
+                          overrides={**spec.overrides, **sets, **values, SEED_PATH: seed}))
     return Sweep(path=path, spec=spec, raw=raw, base=base, cases=tuple(cases),
-                 random_keys=random_keys)
+                 random_keys=random_keys, sets=sets)
 
 
 def expand_sweep(path: str | Path) -> list[Case]:

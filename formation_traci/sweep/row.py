@@ -44,8 +44,31 @@ METRICS: dict[str, tuple[str, str]] = {
     "leader_age_mean_s": ("s", "max of each member's mean age of the virtual-car state it held ([comm])"),
     "leader_age_p95_s": ("s", "max of each member's 95th percentile of that age"),
     "comm_timeouts": ("-", "SUMO runs: comm_timeout events (a member fell back: no state for longer than comm.timeout_s)"),
+    "stretch_coverage": ("-", "with twins: share of the background vehicles in the measured stretch timed over all of it in both runs"),
+    "matched_share": ("-", "with twins: share of those vehicles matched by id in the other run"),
+    **{f"fx_{k}": (u, f"with twins: formation run minus its twin, {m}") for k, (u, m) in {
+        "delay_mean_s": ("s", "mean stretch travel-time delay of the timed vehicles"),
+        "delay_total_s": ("s", "summed stretch travel-time delay of the timed vehicles [veh*s]"),
+        "exit_delay_total_s": ("s", "summed later arrival of the timed vehicles at the last section [veh*s]"),
+        "speed_mps": ("m/s", "space-mean speed of the timed vehicles over the stretch"),
+        "spot_speed_mps": ("m/s", "mean speed of the timed vehicles at the sections"),
+        "spot_speed_var_m2ps2": ("m^2/s^2", "variance of those speeds"),
+        "throughput_veh_h": ("veh/h", "vehicles over the downstream section during the run"),
+        "lane_changes": ("-", "lane changes of the timed vehicles in the stretch"),
+        "conflicts": ("-", "passages of the timed vehicles with a TTC below 3 s at a section"),
+    }.items()},
 }
 """Metric columns of ``summary.parquet``: unit and meaning."""
+
+EFFECT_KEYS: dict[str, str] = {
+    "fx_delay_mean_s": "twin_delay_mean_s", "fx_delay_total_s": "twin_delay_total_s",
+    "fx_exit_delay_total_s": "twin_exit_delay_total_s", "fx_speed_mps": "twin_speed_delta_mps",
+    "fx_spot_speed_mps": "twin_spot_speed_delta_mps",
+    "fx_spot_speed_var_m2ps2": "twin_spot_speed_var_delta_m2ps2",
+    "fx_throughput_veh_h": "twin_throughput_delta_veh_h", "fx_lane_changes": "twin_lane_changes_delta",
+    "fx_conflicts": "twin_conflicts_delta",
+}
+"""Paired summary columns -> the analysis' ``traffic.run`` key (analysis/twin_sections.py)."""
 
 COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes", "requested_veh", "inserted_veh",
                            "comm_timeouts"})
@@ -127,6 +150,25 @@ def _energy_metrics(members: pd.DataFrame) -> dict[str, Any]:
         if np.isfinite(alone[ok]).all() and alone[ok].sum() > 0:
             out["energy_saving_vs_alone"] = float(1.0 - e[ok].sum() / alone[ok].sum())
     return out
+
+
+def twin_values(traffic_run: dict) -> dict[str, Any]:
+    """The paired columns of a case analysed against its twin (``traffic.run`` of its
+    metrics.json): ``stretch_coverage``, ``matched_share`` and the ``fx_*`` effects.
+
+    Parameters
+    ----------
+    traffic_run : dict
+        ``metrics.json["traffic"]["run"]``.
+
+    Returns
+    -------
+    dict
+        Column -> float or None.
+    """
+    out = {k: traffic_run.get(k) for k in ("stretch_coverage", "matched_share")}
+    out.update({col: traffic_run.get(key) for col, key in EFFECT_KEYS.items()})
+    return {k: (None if v is None else float(v)) for k, v in out.items()}
 
 
 def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str, Any]:

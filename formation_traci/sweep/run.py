@@ -28,6 +28,8 @@ SWEEP_JSON = "sweep.json"
 SUMMARY = "summary.parquet"
 CASES_DIR = "cases"
 LOGS_DIR = "logs"
+TWINS_DIR = "twins"
+EFFECTS_CSV = "effects.csv"
 LOCK_FILE = ".sweep.lock"
 WRITE_EVERY_S = 2.0
 """The summary is rewritten at most this often while cases finish, and always at the end [s]."""
@@ -64,7 +66,7 @@ def _lock(out: Path):
             fcntl.flock(f, fcntl.LOCK_UN)
 
 
-def case_spec(sweep: Sweep, index: int, out: Path) -> CaseSpec:
+def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool = False) -> CaseSpec:
     """The :class:`CaseSpec` of one case.
 
     Parameters
@@ -75,6 +77,8 @@ def case_spec(sweep: Sweep, index: int, out: Path) -> CaseSpec:
         Case index.
     out : Path
         Sweep directory (absolute).
+    baseline : bool
+        The case's twin runs too, into ``out/twins/<id>``.
 
     Returns
     -------
@@ -83,7 +87,8 @@ def case_spec(sweep: Sweep, index: int, out: Path) -> CaseSpec:
     """
     case = sweep.cases[index]
     return CaseSpec(case=case, base=str(sweep.base), case_dir=str(out / CASES_DIR / case.id),
-                    log_path=str(out / LOGS_DIR / f"{case.id}.log"))
+                    log_path=str(out / LOGS_DIR / f"{case.id}.log"),
+                    twin_dir=str(out / TWINS_DIR / case.id) if baseline else None)
 
 
 def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
@@ -96,7 +101,8 @@ def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
         row = doc["row"]
     except Exception:
         return None, False
-    if old.case != spec.case or old.base != spec.base or row.get("case_id") != spec.case.id:
+    if old.case != spec.case or old.base != spec.base or old.twin_dir != spec.twin_dir \
+            or row.get("case_id") != spec.case.id:
         return None, False
     try:
         run_ok = json.loads((d / "run.json").read_text(encoding="utf-8")).get("status") == "completed"
@@ -111,16 +117,24 @@ def _versions() -> dict[str, str]:
     return versions(("dask", "distributed"))
 
 
-def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str]) -> pd.DataFrame:
+def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str],
+                   effects: Path | None = None) -> pd.DataFrame:
+    """summary.parquet (atomically); with ``effects``, the paired effects over the seeds
+    there too (sweeps with twins, sweep/effects.py)."""
     df = summary_frame(list(rows.values()), swept)
     tmp = path.with_name(f".{path.name}.tmp")
     df.to_parquet(tmp, index=False)
     os.replace(tmp, path)
+    if effects is not None:
+        from .effects import write_effects
+
+        write_effects(df, list(swept), effects)
     return df
 
 
 def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None = None,
-              workers: int | None = None, progress: bool = True) -> SweepResult:
+              workers: int | None = None, progress: bool = True, baseline: bool = False,
+              sets: dict | None = None) -> SweepResult:
     """Run every case of a sweep file that is not done yet and summarise them.
 
     Parameters
@@ -139,6 +153,12 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         Local pool only: cases run at once (default ``os.cpu_count()``).
     progress : bool
         Show a progress bar (cases done, failed, remaining).
+    baseline : bool
+        Also run each case's twin (no formation) into ``twins/<id>/``, analyse the case
+        against it (the paired ``fx_*`` summary columns) and write ``effects.csv``.
+    sets : dict, optional
+        Dotted path -> value set in every case (the command line's ``--set``), checked
+        against the base scenario before anything is created.
 
     Returns
     -------
@@ -154,17 +174,17 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     KeyboardInterrupt
         On Ctrl-C, after the running cases stopped and the summary was written.
     """
-    sweep = load_sweep(sweep_path)
+    sweep = load_sweep(sweep_path, sets)
     out = Path(out_dir).resolve()
     if out.exists() and not out.is_dir():
         raise SweepError(out, [("(directory)", "exists and is a file, not a directory")])
     out.mkdir(parents=True, exist_ok=True)
     with raising_signals(), _lock(out):  # SIGTERM stops the cases like Ctrl-C
-        specs = [case_spec(sweep, i, out) for i in range(len(sweep.cases))]
+        specs = [case_spec(sweep, i, out, baseline) for i in range(len(sweep.cases))]
         swept = swept_dtypes([c.model_dump(mode="json") for c in sweep.cases], sweep.spec.swept())
         rows, todo = _resume(specs)
         n_skipped = len(specs) - len(todo)
-        meta = _sweep_meta(sweep, swept, scheduler, workers, len(specs), n_skipped, len(todo))
+        meta = _sweep_meta(sweep, swept, scheduler, workers, len(specs), n_skipped, len(todo), baseline)
         from ..record.writer import atomic_write_json
 
         atomic_write_json(out / SWEEP_JSON, meta)
@@ -182,16 +202,16 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         finally:
             if bar is not None:
                 bar.close()
-            df = _write_summary(summary_path, rows, swept)
+            df = _write_summary(summary_path, rows, swept, out / EFFECTS_CSV if baseline else None)
             n_ok = int((df["status"] == "completed").sum())
             _finish_meta(meta, df, interrupted, on_row.ok + on_row.failed, len(specs))
             atomic_write_json(out / SWEEP_JSON, meta)
     if interrupted:
         raise KeyboardInterrupt(f"sweep interrupted; {summary_path} holds the {len(df)} cases with a result")
-    return SweepResult(out_dir=out, summary=df, n_cases=len(specs), n_completed=n_ok,
-                       n_failed=len(df) - n_ok, n_skipped=n_skipped,
-                       n_run=on_row.ok + on_row.failed,
-                       files={"sweep_json": out / SWEEP_JSON, "summary": summary_path})
+    files = {"sweep_json": out / SWEEP_JSON, "summary": summary_path, "effects": out / EFFECTS_CSV}
+    return SweepResult(out_dir=out, summary=df, n_cases=len(specs), n_completed=n_ok, n_failed=len(df) - n_ok,
+                       n_skipped=n_skipped, n_run=on_row.ok + on_row.failed,
+                       files={k: v for k, v in files.items() if k != "effects" or baseline})
 
 
 def _resume(specs: list[CaseSpec]) -> tuple[dict[str, dict], list[CaseSpec]]:
@@ -208,12 +228,13 @@ def _resume(specs: list[CaseSpec]) -> tuple[dict[str, dict], list[CaseSpec]]:
 
 
 def _sweep_meta(sweep: Sweep, swept: dict[str, str], scheduler: str | None, workers: int | None,
-                n_cases: int, n_skipped: int, n_todo: int) -> dict:
+                n_cases: int, n_skipped: int, n_todo: int, baseline: bool = False) -> dict:
     """The content of ``sweep.json`` when the sweep starts (status running)."""
     return {"schema": SCHEMA, "status": "running", "sweep_file": str(sweep.path),
             "sweep_text": sweep.path.read_text(encoding="utf-8"), "sweep": sweep.raw,
             "base": str(sweep.base), "swept": sweep.spec.swept(), "grid_keys": list(sweep.spec.grid),
-            "random_keys": list(sweep.random_keys), "dtypes": swept,
+            "random_keys": list(sweep.random_keys), "sets": sweep.sets,
+            "baseline": baseline, "dtypes": swept,
             "metrics": {k: {"unit": u, "meaning": m} for k, (u, m) in METRICS.items()},
             "executor": {"kind": "dask" if scheduler else "local", "scheduler": scheduler,
                          "workers": None if scheduler else (workers or os.cpu_count())},

@@ -1,5 +1,6 @@
-"""Where SUMO's world puts the formation: the member a context subscription and sumo-gui's view
-follow, and the vehicles cleared where members enter the road (sim/sumo_world.py)."""
+"""Where the formation meets SUMO's traffic: the insertion zone cleared of SUMO's cars
+(the same cars, at the same step, in a formation run and its twin) and the one context
+subscription that reads the vehicles around the formation."""
 from __future__ import annotations
 
 import math

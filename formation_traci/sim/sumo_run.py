@@ -1,0 +1,61 @@
+"""The parts of a road run (sim/loop.py RunParts): SUMO's world, the formation's road
+reference generator (with the maneuver planner when the scenario has maneuvers) and the fleet."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..scenario.schema import Scenario
+from .sumo_plan import RoadPlan
+from .sumo_world import SumoWorld
+
+
+def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
+             baseline: bool = False, step_hook=None, should_stop=None):
+    """World, reference generator and fleet of a road run (loop.step_loop runs them)."""
+    from ..control.reference_road import GovernorLimits, RoadReference
+    from .fleet import Fleet, initial_state
+    from .loop import one_formation
+    from .road_load import road_load_part
+    from .setup import build_fleet, profile, road_mu
+    from .sumo_plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
+
+    run, ld, veh, line = sc.run, sc.leader, plan.veh, plan.road.line
+    n_ctrl = int(round(run.step / run.control_step))
+    cfg = build_fleet(sc)
+    fleet = Fleet(cfg)
+    speed_profile = profile(ld.speed)
+    # the virtual car never asks for more than the road's adhesion allows the members
+    mu_g = road_mu(sc) * 9.81
+    limits = GovernorLimits(ld.time_gap, ld.min_gap, min(ld.accel_max, ADHESION_SHARE_COMFORT * mu_g),
+                            min(ld.decel_max, ADHESION_SHARE_COMFORT * mu_g),
+                            min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g))
+    s0, v0 = float(sc.road.start), speed_profile(0.0)[0]
+    tg0 = initial_targets(plan.road, plan.slots, plan.rigid, plan.is_road, s0, v0, 0.0)
+    yaw0 = plan.speed0 * line.curvature(line.to_frenet(plan.pos0)[0])
+    state = initial_state(cfg, plan.pos0, plan.heading0, plan.speed0, yaw0, np.zeros(cfg.n), tg0)
+    world = SumoWorld(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
+    world.should_stop = should_stop
+    args = (world.line.G, world.line.length, plan.slots, plan.rigid, plan.is_road, s0, v0,
+            speed_profile, limits, np.array([v.width / 2 for v in plan.vehicles]),
+            np.array([v.cog_to_front_bumper for v in plan.vehicles]),
+            sc.road.end_margin, run.step / n_ctrl, n_ctrl)
+    meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
+                        "governor": 0.0, "control_model": 0.0, "record": 0.0}
+    load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, line)
+    if not sc.maneuvers:
+        return one_formation(world, RoadReference(*args), fleet, state, timing=meta["timing_s"],
+                             road_load=load)
+    from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
+    from ..control.maneuvers.planner import ManeuverPlanner
+    from .road_setup import road_room
+    lengths = np.array([v.length for v in plan.vehicles])
+    widths = np.array([v.width for v in plan.vehicles])
+    planner = ManeuverPlanner(sc.maneuvers, plan.slots, plan.road.lanes, sc.maneuver_limits,
+                              lengths, widths, list(world.ids), road_room(plan.road),
+                              (ld.time_gap, ld.min_gap),
+                              np.array([v.cog_to_front_bumper for v in plan.vehicles]))
+    gen = ManeuverRoadReference(*args, planner=planner, length=lengths)
+    return one_formation(world, gen, fleet, state, transforms=[PlanSlots(planner)],
+                         timing=meta["timing_s"], road_load=load)
