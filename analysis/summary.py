@@ -14,6 +14,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from formation_traci.record.columns import INCIDENT_KEYS
+
 from analysis import formation, iso2631
 from analysis.energy import ENERGY_MEMBER_METRICS, ENERGY_RUN_METRICS, EnergyAnalysis, compute_energy
 from analysis.load import GAP_FACTOR, Issue, Member, RunData
@@ -49,6 +51,7 @@ communication ones (:data:`analysis.comm.COMM_MEMBER_METRICS`), then the traffic
 
 RUN_METRICS: dict[str, str] = {
     "status": "-", "reason": "-", "model": "-", "mu": "-", "t_end_s": "s",
+    **{k: "-" for k in INCIDENT_KEYS},
     "record_step_s": "s", "dt_s": "s", "sample_rate_hz": "Hz",
     "t_first_s": "s", "t_last_s": "s", "duration_s": "s",
     "n_members": "-", "n_members_with_data": "-",
@@ -244,6 +247,7 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
                             if math.isfinite(dt) else [slice(0, np.unique(t_all).size)]),
         n_members=len(members), n_members_with_data=int(mdf["n_samples"].notna().sum()),
         **shape_res, **energy.run,
+        **{k: (meta.get("incidents") or {}).get(k) for k in INCIDENT_KEYS},
     )
     if len(ss):
         run.update(string_stable=bool(not ss["amplifies"].any()),

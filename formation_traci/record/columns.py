@@ -12,6 +12,14 @@ VIRTUAL_CAR_ID = "vc"
 """``vehicle_id`` of the virtual car (virtual leader, eq 2.3) in the trajectory table."""
 
 
+INCIDENT_VERDICT: tuple[str, ...] = ("member_collisions", "member_removed", "emergency_brakes",
+                                     "stranded")
+"""run.json ``incidents`` that make a run that reached its end ``completed_with_incidents``
+(sim/incidents.py defines each)."""
+INCIDENT_KEYS: tuple[str, ...] = INCIDENT_VERDICT + ("sumo_collision_artefacts",)
+"""run.json ``incidents``: a count of each (fixed names)."""
+
+
 @dataclass(frozen=True, slots=True)
 class Column:
     name: str

@@ -14,7 +14,7 @@ import gc
 import os
 import platform
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..interrupt import Interrupted, stop_on_signals
@@ -25,6 +25,7 @@ from ..scenario.schema import Scenario
 from ..versions import installed_versions, platform_name
 from ..comm.link import with_comm
 from .loop import ModelRangeError, check_finite, free_space_run, step_loop  # noqa: F401
+from .incidents import Incidents, verdict
 from .recorder import Recorder
 from .setup import member_vehicles, road_mu
 
@@ -32,10 +33,12 @@ from .setup import member_vehicles, road_mu
 @dataclass(frozen=True)
 class RunResult:
     out_dir: Path
-    status: str  # completed | interrupted | failed
+    status: str  # completed | completed_with_incidents | interrupted | failed
     reason: str | None
     t_end: float  # last simulated time [s]
     steps_done: int
+    incidents: dict = field(default_factory=dict)  # run.json 'incidents' (sim/incidents.py)
+    incident_summary: str | None = None  # one line, None: no incident of the verdict
 
 
 def _now() -> str:
@@ -137,6 +140,7 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
     atomic_write_json(meta_path, meta)
     rec = Recorder(out_dir, [m.id for m in sc.members], with_sumo=sc.road is not None,
                    periods_per_step=int(round(sc.run.step / sc.run.control_step)))
+    rec.incidents = Incidents(rec, [m.id for m in sc.members], member_vehicles(sc))
     n_steps = int(round(sc.run.duration / sc.run.step))
 
     status, reason, t, k = "completed", None, 0.0, 0
@@ -185,7 +189,8 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
         if bar is not None:
             bar.close()
         status, reason = _finish(meta_path, meta, rec, steps, status, reason, t, k)
-    return RunResult(out_dir, status, reason, float(meta["t_end"]), int(meta["steps_done"]))
+    return RunResult(out_dir, status, reason, float(meta["t_end"]), int(meta["steps_done"]),
+                     meta["incidents"], meta["incident_summary"])
 
 
 def _finish(meta_path, meta, rec, steps, status, reason, t, k):
@@ -207,8 +212,11 @@ def _finish(meta_path, meta, rec, steps, status, reason, t, k):
             t = min([d for d in done if d is not None], default=0.0)
             k = int(round(t / meta["record_step"]))
             reason += f"; the tables on disk are complete up to t = {t:.2f} s (run.json 'tables')"
+    incidents = rec.incidents.counts()
+    status, summary = verdict(status, incidents)  # completed -> completed_with_incidents
     meta.update(status=status, reason=reason, finished=_now(), t_end=float(t),
                 steps_done=int(k), rows_written=rec.traj.rows_on_disk)
+    meta["incidents"], meta["incident_summary"] = incidents, summary
     meta["tables"] = on_disk
     meta["event_counts"] = rec.event_counts
     _write_final(meta_path, meta)

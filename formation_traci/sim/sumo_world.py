@@ -18,6 +18,7 @@ from ..road.line_pack import FastLine, packed
 from ..scenario.schema import Scenario
 from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch,
                      TrafficWatch, log_sumo_events)
+from .incidents import clearance_lookup
 from .road_setup import rectangles_overlap
 from .demand import measure_plan, traffic_meta
 from .join import adopt, enter, take_over
@@ -163,17 +164,19 @@ class SumoWorld:
             sensed.extra.update(sumo_gap=gap, lane_index=rows[5])
             self.members.placement(t, gap, n_off)
             self.members.lane_changes(t, *rows[6:])
-        ev = self.ev
-        if ev is not None and (ev.collisions or ev.teleports):
-            log_sumo_events(self.rec, t, ev, self._id_set, self.joined_names())
         if nb_rows is None:
             sensed.nb = NOBODY
-            return sensed
-        ids, types, _, _, v, a, length, width, lane_ids, lane_index = nb_rows
-        x, y, psi, sensed.nb_rear, sensed.nb_half_w = nb_out
-        sensed.nb = Neighbours(ids, types, x, y, psi, v, a, length, width, lane_ids, lane_index)
-        sensed.nb_s, sensed.nb_d, sensed.nb_v = s[n:], d[n:], v
-        self._nb_guess.keep(ids, sensed.nb_s)
+        else:
+            ids, types, _, _, v, a, length, width, lane_ids, lane_index = nb_rows
+            x, y, psi, sensed.nb_rear, sensed.nb_half_w = nb_out
+            sensed.nb = Neighbours(ids, types, x, y, psi, v, a, length, width, lane_ids, lane_index)
+            sensed.nb_s, sensed.nb_d, sensed.nb_v = s[n:], d[n:], v
+            self._nb_guess.keep(ids, sensed.nb_s)
+        ev = self.ev
+        if ev is not None and (ev.collisions or ev.teleports):
+            log_sumo_events(self.rec, t, ev, self._id_set, self.joined_names(),
+                            clearance_lookup(self.rec.incidents, self.ids, self.active,
+                                             pos, heading, sensed.nb))
         return sensed
 
     def _member_rows(self, t):
