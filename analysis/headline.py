@@ -65,6 +65,11 @@ def verdicts(members: pd.DataFrame, run: dict, issues) -> list[tuple[str, bool |
     if w:
         out.append((f"ISO 2631 weighted lateral acceleration a_w at most {w[1]:.3f} m/s^2 "
                     f"(worst member: {w[0]})", None))
+    high = [f"{mid} ({ax})" for mid, r in members.iterrows() for ax in ("lon", "lat")
+            if str(r.get(f"aw_crest_over_9_{ax}")) == "True"]  # bool or numpy bool
+    if high:
+        out.append((f"ISO 2631 crest factor above 9 for {', '.join(high)}: the basic r.m.s. may "
+                     "underestimate shocks; MTVV and VDV (clause 6.3) in the members table", False))
     for col, what in (("friction_over_s", "friction circle (eq 3.16)"),
                       ("traction_over_s", "traction limit (eq 3.14)"),
                       ("slip_over_s", "tire slip limit")):

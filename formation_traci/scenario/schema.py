@@ -102,6 +102,10 @@ class LeaderSpec(Strict):
     accel_max: PosFloat = Field(1.5, description="largest acceleration of the virtual car [m/s^2] (road)")
     decel_max: PosFloat = Field(3.0, description="comfortable deceleration of the virtual car [m/s^2] (road)")
     decel_emergency: PosFloat = Field(7.0, description="deceleration allowed to avoid a collision [m/s^2] (road)")
+    accel_within_step: Literal["ramp", "hold"] = Field(
+        "ramp", description="road: how the virtual car's acceleration and the members' acceleration caps, "
+        "planned once per step, pass within the step: 'ramp' from the last step's value to this step's "
+        "(continuous accelerations, issue 32), 'hold' constant over the step (before issue 32)")
 
     @field_validator("speed")
     @classmethod

@@ -17,7 +17,7 @@ from typing import Literal
 import numpy as np
 
 from ..control.formation import formation_at, initial_theta_star
-from ..control.reference import Reference
+from ..control.reference import Reference, cap_at
 from ..control.schedule import GainSchedule, p_law
 from ..control.targets import desired_point_at
 from ..kernels import kernel, maximum, minimum, substeps
@@ -110,7 +110,7 @@ def member_input_at(kind, x, i, theta_star_i, speed_in_i, k_i, k_theta_i, gains,
 
 @kernel
 def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, vc, slots,
-                 v_cap, a_cap, dt_c, n_sub, comfort, t0, table, table_ids, at):
+                 v_cap, a_cap, a_cap_from, dt_c, n_sub, comfort, t0, table, table_ids, at):
     """One step: for each of the vc.shape[0] control periods of dt_c [s], every member's
     input from the reference, held over RK4 in n_sub sub-steps. Inputs are not modified;
     returns (x, theta_star, speed_in) after the step. When ``comfort`` has a row per
@@ -132,7 +132,8 @@ def step_members(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, 
         for i in range(n):
             px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, j, i)
             res = member_input_at(kind, x, i, theta_star[i], speed_in[i], k[i], k_theta[i],
-                                  gains, px, py, tvx, tvy, tax, tay, v_cap[i], a_cap[i])
+                                  gains, px, py, tvx, tvy, tax, tay, v_cap[i],
+                                  cap_at(a_cap_from[i], a_cap[i], j, vc.shape[0]))
             U0[i] = res[0]
             U1[i] = res[1]
             tsd[i] = res[4]
@@ -226,8 +227,8 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
 
 @kernel
 def member_signals(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame, vc, slots,
-                   v_cap, a_cap, cols, out, t, limits, traj, traj_ids, at, comfort, comfort_ids,
-                   c_at, comfort_cols):
+                   v_cap, a_cap, a_cap_from, cols, out, t, limits, traj, traj_ids, at, comfort,
+                   comfort_ids, c_at, comfort_cols):
     """The recorded signals at the start of a step (the first control period's reference)
     into out[i, cols[q]]; e_lon / e_lat in the frame of the member's virtual car.
 
@@ -241,7 +242,8 @@ def member_signals(x, theta_star, speed_in, kind, P, k, k_theta, gains, G, frame
     for i in range(n):
         px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, 0, i)
         res = member_input_at(kind, x, i, theta_star[i], speed_in[i], k[i], k_theta[i], gains,
-                              px, py, tvx, tvy, tax, tay, v_cap[i], a_cap[i])
+                              px, py, tvx, tvy, tax, tay, v_cap[i],
+                              cap_at(a_cap_from[i], a_cap[i], 0, vc.shape[0]))
         th = vc[0, i, 2]
         _signal_values(kind, x, i, P, res[0], res[1], res, px, py, np.cos(th), np.sin(th),
                        vals)
@@ -292,6 +294,11 @@ _NO_ROWS = (np.empty(0), np.empty((0, 0)), np.empty(0, dtype=np.int32), -1, np.e
 """member_signals' table-row arguments when no rows are written."""
 _NO_PERIOD_ROWS = (np.empty((0, 0)), np.empty(0, dtype=np.int32), -1)
 """step_members' table-row arguments when no rows are written."""
+
+def _cap_from(ref: Reference) -> np.ndarray:
+    """The members' caps at the start of the step [m/s^2] (period 0's: cap_at)."""
+    return _f64(ref.a_cap if ref.a_cap_from is None else ref.a_cap_from)
+
 
 def _f64(a) -> np.ndarray:
     """a as a C-contiguous, writeable float64 array (no copy when it already is one)."""
@@ -355,7 +362,7 @@ class Fleet:
         x, ts, sp = step_members(
             _f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self.kind, self.P,
             self.k, self.k_theta, self.gains, ref.line, ref.frame, ref.vc, ref.slots,
-            _f64(ref.v_cap), _f64(ref.a_cap), float(ref.dt), self.n_sub(ref.dt),
+            _f64(ref.v_cap), _f64(ref.a_cap), _cap_from(ref), float(ref.dt), self.n_sub(ref.dt),
             _NO_COMFORT if comfort is None else comfort, float(ref.t),
             *(_NO_PERIOD_ROWS if rows is None else rows))
         return FleetState(x, ts, sp)
@@ -375,6 +382,7 @@ class Fleet:
         return member_signals(_f64(state.x), _f64(state.theta_star), _f64(state.speed_in),
                               self.kind, self.P, self.k, self.k_theta, self.gains, ref.line,
                               ref.frame, ref.vc, ref.slots, _f64(ref.v_cap), _f64(ref.a_cap),
+                              _cap_from(ref),
                               self.cols, out, float(t), *(_NO_ROWS if rows is None else rows))
 
     def kinematics(self, state: FleetState):

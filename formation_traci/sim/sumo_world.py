@@ -381,8 +381,9 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
                         "governor": 0.0, "control_model": 0.0, "record": 0.0}
     load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, line)
+    ramp = sc.leader.accel_within_step == "ramp"  # docs/model.md, "Accelerations within a step"
     if not sc.maneuvers:
-        return RunParts(world, RoadReference(*args), fleet, state, timing=meta["timing_s"],
+        return RunParts(world, RoadReference(*args, ramp=ramp), fleet, state, timing=meta["timing_s"],
                         road_load=load)
     from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
     from ..control.maneuvers.planner import ManeuverPlanner
@@ -393,7 +394,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
                               lengths, widths, list(world.ids), road_room(plan.road),
                               (ld.time_gap, ld.min_gap),
                               np.array([v.cog_to_front_bumper for v in plan.vehicles]))
-    gen = ManeuverRoadReference(*args, planner=planner, on_event=rec.add_event, length=lengths,
+    gen = ManeuverRoadReference(*args, ramp=ramp, planner=planner, on_event=rec.add_event, length=lengths,
                                 on_release=world.release, on_join=world.take_over)
     return RunParts(world, gen, fleet, state, transforms=[PlanSlots(planner)],
                     timing=meta["timing_s"], road_load=load)
