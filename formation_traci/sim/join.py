@@ -20,6 +20,8 @@ import numpy as np
 from ..control.formation import initial_theta_star_at
 from ..control.targets import desired_point_at
 from .integrate import KINEMATIC
+from .road_setup import rectangles_overlap
+from .sumo_plan import INSERT_CLEAR_TIME
 from .traffic import CAR
 
 
@@ -89,3 +91,22 @@ def adopt(fleet, state, ref, adopting: list) -> None:
         px, py, tvx, tvy, _, _ = desired_point_at(ref.frame[i], ref.line, ref.vc, ref.slots, 0, i)
         state.theta_star[i] = initial_theta_star_at(px, py, tvx, tvy, x, y, psi, fleet.k[i])
     adopting.clear()
+
+
+def clear_insertion_zone(adapter, rec, t, pos, heading, v, vehicles, front):
+    """Remove SUMO vehicles that stand where a member (chassis ``vehicles[i]``) is inserted,
+    or inside its time gap ahead (``front`` [m]) or within INSERT_CLEAR_TIME of its speed
+    behind it."""
+    ids, x, y, psi, length, width = adapter.vehicle_bodies()
+    for j, vid in enumerate(ids):
+        for i in range(len(pos)):
+            back = max(2.0, v[i] * INSERT_CLEAR_TIME)
+            veh = vehicles[i]
+            zone_len = veh.length + front[i] + back
+            shift = (front[i] - back) / 2
+            zc = pos[i] + shift * np.array([math.cos(heading[i]), math.sin(heading[i])])
+            if rectangles_overlap(zc, heading[i], np.array([x[j], y[j]]), psi[j], zone_len, veh.width + 0.6,
+                                  length[j], width[j]):
+                adapter.remove_vehicle(vid)
+                rec.add_event(t, "cleared_at_insertion", vid, "", "removed: it stood where a member is inserted")
+                break

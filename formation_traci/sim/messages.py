@@ -88,13 +88,15 @@ def report(path: Path, t0: float, add_event, step: float) -> dict:
     return counts
 
 
-def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_front: dict) -> None:
+def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_front: dict,
+                      member_v: dict | None = None) -> None:
     """After the run: SUMO's messages as events (run.json ``sumo.messages``), the FCD in the
     formation's frame if asked for, and which clock and frame each output uses."""
     meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, rec.add_event, sc.run.step)
-    if sc.sumo.fcd and sc.sumo.fcd_frame == "formation":
-        from .fcd import to_formation_frame
-        to_formation_frame(sumo_dir / "fcd.parquet", t0, member_d_front, sc.run.step)
+    if sc.sumo.fcd:  # one naming of the columns in both frames, units in the metadata
+        from .fcd import rewrite_fcd
+        rewrite_fcd(sumo_dir / "fcd.parquet", sc.sumo.fcd_frame, t0, member_d_front, sc.run.step,
+                    member_v)
     meta["sumo"]["clock"] = ("trajectories, background, events, ssm: formation time t = SUMO time - warmup, "
                              "centre of gravity; sumo/*.log, sumo/*.xml: SUMO time; sumo/fcd.parquet: "
                              f"{'formation' if sc.sumo.fcd_frame == 'formation' else 'SUMO'} frame")

@@ -8,7 +8,6 @@ same traffic without the formation: no member enters SUMO, every vehicle is reco
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -19,15 +18,14 @@ from ..scenario.schema import Scenario
 from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch,
                      TrafficWatch, log_sumo_events)
 from .incidents import clearance_lookup
-from .road_setup import rectangles_overlap
 from .demand import measure_plan, traffic_meta
-from .join import adopt, enter, take_over
+from .join import adopt, clear_insertion_zone, enter, take_over
 from .messages import sumo_outputs_meta
 from .sumo_adapter import SumoAdapter, SumoError
 from .sumo_neighbours import NOBODY
 from .sumo_sense import NeighbourGuess, PackedLanes, sense_step
 from .sumo_types import Neighbours
-from .sumo_plan import INSERT_CLEAR_TIME, MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
+from .sumo_plan import MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import CAR, flow_vehicles_per_hour, write_routes
 from .world import Sensed
 
@@ -66,6 +64,7 @@ class SumoWorld:
         self.packed_lanes = PackedLanes(plan.road.shapes)
         self._nb_guess = NeighbourGuess()
         self.ev = None
+        self.true_v = {} if sc.sumo.fcd and sc.sumo.fcd_frame == "formation" else None  # k -> v [m/s]
         self._kin = None  # (state, pos, vel, heading) of the state last placed
         self.along = np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])
         self.slot_d_0 = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
@@ -133,7 +132,8 @@ class SumoWorld:
                 traffic_meta(self.meta, self.rec, self.flows, self.adapter.departed, t_sumo, t0,
                              self.measure)
                 sumo_outputs_meta(self.meta, self.sc, self.rec, self.sumo_dir, t0,
-                                  {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)})
+                                  {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)},
+                                  true_speeds(self.true_v, self.ids))
 
     # ------------------------------------------------------------------------- sense
     def _kinematics(self, state):
@@ -264,6 +264,8 @@ class SumoWorld:
         v_after = self.fleet.speed(state)
         self.a_mean = (v_after - v_before) / self.sc.run.step
         self.v_after = v_after
+        if self.true_v is not None:  # the members' true speeds for the FCD (sim/fcd.py)
+            self.true_v[int(round(t_next / self.sc.run.step))] = np.where(self.active, v_after, np.nan)
         if self.baseline:
             return  # the formation stays out of SUMO
         act_idx = np.flatnonzero(self.active)
@@ -312,6 +314,17 @@ class SumoWorld:
             ad.follow(self.sumo_ids[self.followed])
 
 
+def true_speeds(by_step: dict | None, ids) -> dict | None:
+    """Member id -> its speed [m/s] at every step index (NaN: not recorded) from
+    ``by_step`` (step index -> the members' speeds), for sim/fcd.py."""
+    if not by_step:
+        return None
+    v = np.full((max(by_step) + 1, len(ids)), np.nan)
+    for k, row in by_step.items():
+        v[k] = row
+    return {m: v[:, i] for i, m in enumerate(ids)}
+
+
 def middle_member(active, along, across) -> int:
     """Index of the active member nearest the middle of the formation."""
     idx = np.flatnonzero(active)
@@ -328,25 +341,6 @@ def subscribe_context(adapter, ids, active, along, across, radius):
     extent = float(np.max(np.hypot(along[idx] - along[owner], across[idx] - across[owner])))
     adapter.subscribe_neighbours(ids[owner], radius + extent)
     return owner
-
-
-def clear_insertion_zone(adapter, rec, t, pos, heading, v, vehicles, front):
-    """Remove SUMO vehicles that stand where a member (chassis ``vehicles[i]``) is inserted,
-    or inside its time gap ahead (``front`` [m]) or within INSERT_CLEAR_TIME of its speed
-    behind it."""
-    ids, x, y, psi, length, width = adapter.vehicle_bodies()
-    for j, vid in enumerate(ids):
-        for i in range(len(pos)):
-            back = max(2.0, v[i] * INSERT_CLEAR_TIME)
-            veh = vehicles[i]
-            zone_len = veh.length + front[i] + back
-            shift = (front[i] - back) / 2
-            zc = pos[i] + shift * np.array([math.cos(heading[i]), math.sin(heading[i])])
-            if rectangles_overlap(zc, heading[i], np.array([x[j], y[j]]), psi[j], zone_len, veh.width + 0.6,
-                                  length[j], width[j]):
-                adapter.remove_vehicle(vid)
-                rec.add_event(t, "cleared_at_insertion", vid, "", "removed: it stood where a member is inserted")
-                break
 
 
 def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
