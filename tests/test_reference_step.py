@@ -34,7 +34,8 @@ def composed(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, ha
     slot_s = s + along
     a_gov, gap, lead, v_cap, a_cap_req = governor_step(
         m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v, v_set, v_set_dot,
-        nb_rear, nb_d, nb_half_w, nb_v, LIM.time_gap, LIM.min_gap, LIM.accel_max, LIM.decel_emergency)
+        nb_rear, nb_d, nb_half_w, nb_v, LIM.time_gap, LIM.min_gap, LIM.accel_max, LIM.decel_emergency, LIM.decel_follow,
+        LIM.decel_max)
     v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
     a_request = min(a_gov, a_limit)
     dt = DT_C * N_CTRL

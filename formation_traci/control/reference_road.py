@@ -76,7 +76,8 @@ def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, 
     slot_s = s + along
     a_gov, gap, lead_idx, v_cap, a_cap_req = governor_step(
         m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v, v_set, v_set_dot,
-        nb_rear, nb_d, nb_half_w, nb_v, lim[0], lim[1], lim[2], lim[3])
+        nb_rear, nb_d, nb_half_w, nb_v, lim[0], lim[1], lim[2], lim[3], lim[4],
+        lim[5])
     v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
     a_request = a_limit if a_limit < a_gov else a_gov  # Python's min(a_gov, a_limit)
     dt = dt_c * vc.shape[0]
@@ -113,10 +114,15 @@ class GovernorLimits:
     accel_max: float  # [m/s^2]
     decel_max: float  # comfortable [m/s^2]
     decel_emergency: float  # [m/s^2]
+    decel_follow: float = math.inf
+    """Largest braking of the virtual car outside emergencies [m/s^2]: what every member's
+    speed loop can follow (sim/setup.py follow_limit; inf: not limiting)."""
 
     def packed(self) -> np.ndarray:
-        """(time_gap, min_gap, accel_max, decel_emergency) for :func:`road_reference_step`."""
-        return np.array([self.time_gap, self.min_gap, self.accel_max, self.decel_emergency])
+        """(time_gap, min_gap, accel_max, decel_emergency, decel_follow, decel_max) for
+        :func:`road_reference_step`."""
+        return np.array([self.time_gap, self.min_gap, self.accel_max, self.decel_emergency,
+                         self.decel_follow, self.decel_max])
 
 
 class RoadReference:

@@ -102,6 +102,10 @@ class LeaderSpec(Strict):
     accel_max: PosFloat = Field(1.5, description="largest acceleration of the virtual car [m/s^2] (road)")
     decel_max: PosFloat = Field(3.0, description="comfortable deceleration of the virtual car [m/s^2] (road)")
     decel_emergency: PosFloat = Field(7.0, description="deceleration allowed to avoid a collision [m/s^2] (road)")
+    bound_by_members: bool = Field(
+        True, description="road: the virtual car's acceleration and its braking outside emergencies "
+        "at most 90 % of the weakest member's speed law (a truck's Table 3.6 gains: 0.46 m/s^2; issue 32); "
+        "false: only accel_max and decel_max (before issue 32)")
     accel_within_step: Literal["ramp", "hold"] = Field(
         "ramp", description="road: how the virtual car's acceleration and the members' acceleration caps, "
         "planned once per step, pass within the step: 'ramp' from the last step's value to this step's "

@@ -350,7 +350,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     from .fleet import Fleet, initial_state
     from .loop import RunParts
     from .road_load import road_load_part
-    from .setup import build_fleet, profile, road_mu
+    from .setup import build_fleet, follow_limit, profile, road_mu
     from .sumo_plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
 
     run, ld, veh, line = sc.run, sc.leader, plan.veh, plan.road.line
@@ -359,10 +359,12 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     fleet = Fleet(cfg)
     speed_profile = profile(ld.speed)
     # the virtual car never asks for more than the road's adhesion allows the members
-    mu_g = road_mu(sc) * 9.81
-    limits = GovernorLimits(ld.time_gap, ld.min_gap, min(ld.accel_max, ADHESION_SHARE_COMFORT * mu_g),
+    mu_g = road_mu(sc) * 9.81  # and never more than every member's speed law can follow
+    follow = follow_limit(sc, fleet.gains, speed_profile, meta)
+    limits = GovernorLimits(ld.time_gap, ld.min_gap,
+                            min(ld.accel_max, ADHESION_SHARE_COMFORT * mu_g, follow),
                             min(ld.decel_max, ADHESION_SHARE_COMFORT * mu_g),
-                            min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g))
+                            min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g), follow)
     s0, v0 = float(sc.road.start), speed_profile(0.0)[0]
     tg0 = initial_targets(plan.road, plan.slots, plan.rigid, plan.is_road, s0, v0, 0.0)
     yaw0 = plan.speed0 * line.curvature(line.to_frenet(plan.pos0)[0])
