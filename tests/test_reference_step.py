@@ -35,7 +35,7 @@ def composed(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, ha
     a_gov, gap, lead, v_cap, a_cap_req = governor_step(
         m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v, v_set, v_set_dot,
         nb_rear, nb_d, nb_half_w, nb_v, LIM.time_gap, LIM.min_gap, LIM.accel_max, LIM.decel_emergency, LIM.decel_follow,
-        LIM.decel_max)
+        LIM.decel_max, np.zeros(0, np.bool_))
     v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
     a_request = min(a_gov, a_limit)
     dt = DT_C * N_CTRL
@@ -45,11 +45,12 @@ def composed(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, ha
     p = planner.p  # the planner's step before it was fused (plan_accel, then plan_caps)
     a_vc0, a_cap_from = planner.a_vc, planner.a_cap.copy()
     a_vc, planner.emergency_vc = plan_accel(planner.a_vc, float(a_request), dt, p.tau, p.jerk_max,
-                                            p.jerk_emergency, p.decel_comfort)
+                                            p.jerk_emergency, p.decel_comfort, p.jerk_release)
     planner.a_vc = a_vc
     a_cap = np.empty_like(planner.a_cap)
     plan_caps(planner.a_cap, v_c, a_c, v_m, a_m, dt, p.tau, p.jerk_max, p.jerk_emergency,
-              p.decel_comfort, p.tau_speed_cap, p.lift_margin, a_cap, planner.emergency)
+              p.decel_comfort, p.tau_speed_cap, p.lift_margin, a_cap, planner.emergency,
+              p.jerk_release)
     planner.a_cap = a_cap
     a_cap[off] = np.inf
     vc = np.empty((N_CTRL, len(v_m), 8))
@@ -94,7 +95,8 @@ def test_fused_reference_step_equals_the_laws_composed(seed, ramp):
         vc, cap_from = np.empty((N_CTRL, n, 8)), np.empty(n)
         got = road_reference_step(G, prof, t, s, v, a_limit, along, slot_d, is_road, d_front,
                                   half_w, *sensed, LIM.packed(), PP.packed(), new.a_vc, new.a_cap,
-                                  v_prev_new, has_prev, new.emergency, DT_C, vc, ramp, cap_from)
+                                  v_prev_new, has_prev, new.emergency, DT_C, vc, ramp, cap_from,
+                                  np.zeros(0, np.bool_))
         new.a_vc, has_prev = got[1], True
         for w, g in zip(want[:9], got):
             assert np.asarray(w).tobytes() == np.asarray(g).tobytes()

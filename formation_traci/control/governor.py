@@ -175,7 +175,7 @@ def member_caps(gap, v_lead, v, time_gap, min_gap, decel_emergency):
 @kernel(error_model="python")
 def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
                   o_s_rear, o_d, o_half_w, o_v, time_gap, min_gap, accel_max, decel_emergency,
-                  decel_follow, decel_comfort):
+                  decel_follow, decel_comfort, o_in_formation):
     """One step of the governor over all members (compiled; the laws are the functions above).
 
     Members at their front bumpers (``m_s_front`` [m], ``m_d`` [m]) and their slots
@@ -184,10 +184,19 @@ def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_v
     [m/s^2] (:func:`leader_accel` over the slots' :func:`time_gap_accel` at the virtual car's
     speed ``v_vc``; braking that is not an emergency, i.e. not below ``-decel_comfort``, at most
     ``decel_follow`` [m/s^2]), each member's gap [m], leader index (-1: none), speed cap [m/s] and
-    acceleration cap [m/s^2] (:func:`member_caps`)."""
+    acceleration cap [m/s^2] (:func:`member_caps`). Vehicles flagged ``o_in_formation`` (a
+    mask as long as the others, or empty: none) are not seen by the slots' laws (a released
+    member inside the formation: the virtual car braking for it would brake the members ahead
+    of it, which it follows), only by the members' caps."""
     n = m_s_front.shape[0]
     gap, v_lead, index = _vehicles_ahead(m_s_front, m_d, half_w, o_s_rear, o_d, o_half_w, o_v)
-    gap_slot, v_lead_slot, _ = _vehicles_ahead(slot_s_front, slot_d, half_w, o_s_rear, o_d, o_half_w, o_v)
+    slot_rear = o_s_rear
+    if o_in_formation.shape[0] == o_s_rear.shape[0]:
+        slot_rear = o_s_rear.copy()
+        for j in range(o_s_rear.shape[0]):
+            if o_in_formation[j]:
+                slot_rear[j] = np.inf
+    gap_slot, v_lead_slot, _ = _vehicles_ahead(slot_s_front, slot_d, half_w, slot_rear, o_d, o_half_w, o_v)
     acc_slot = np.empty(n)
     v_cap = np.empty(n)
     a_cap = np.empty(n)

@@ -51,7 +51,7 @@ def ramp_advance(s, v, a, jerk, dt):
 def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, half_w,
                         m_s, m_d, v_m, active, nb_rear, nb_d, nb_half_w, nb_v, lim, pp,
                         a_vc_prev, a_cap_prev, v_prev, has_prev, emergency, dt_c, vc, ramp,
-                        a_cap_from):
+                        a_cap_from, nb_in_formation):
     """One step of the road reference in one compiled call: the governor over the members and
     their neighbours (:func:`governor_step`, :func:`column_caps`; slot ``along`` the line
     ahead of the virtual car at ``s`` [m], across it ``slot_d_road`` [m] for road-frame slots,
@@ -77,7 +77,7 @@ def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, 
     a_gov, gap, lead_idx, v_cap, a_cap_req = governor_step(
         m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v, v_set, v_set_dot,
         nb_rear, nb_d, nb_half_w, nb_v, lim[0], lim[1], lim[2], lim[3], lim[4],
-        lim[5])
+        lim[5], nb_in_formation)
     v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
     a_request = a_limit if a_limit < a_gov else a_gov  # Python's min(a_gov, a_limit)
     dt = dt_c * vc.shape[0]
@@ -131,7 +131,8 @@ class RoadReference:
 
     def __init__(self, G, length: float, slots, rigid, is_road, s0: float, v0: float,
                  speed_profile, limits: GovernorLimits, half_w, d_front,
-                 end_margin: float, dt_c: float, n_ctrl: int, ramp: bool = True):
+                 end_margin: float, dt_c: float, n_ctrl: int, ramp: bool = True,
+                 release: bool = True):
         self.G, self.length = G, float(length)
         self.is_road = np.asarray(is_road, dtype=bool)
         self.frame = np.where(self.is_road, FRAME_ROAD, FRAME_VEHICLE).astype(np.int64)
@@ -150,7 +151,8 @@ class RoadReference:
         self.end_margin = float(end_margin)
         self.dt_c, self.n_ctrl = float(dt_c), int(n_ctrl)
         self._next = None
-        self.longitudinal = LongitudinalPlanner(len(self.frame), PlannerParams(decel_comfort=limits.decel_max))
+        self.longitudinal = LongitudinalPlanner(len(self.frame), PlannerParams(
+            decel_comfort=limits.decel_max, jerk_release=PlannerParams.jerk_release if release else 0.0))
         self._v_prev = np.zeros(len(self.frame))  # members' speed at the previous step [m/s]
         self._has_prev = False
         self.ramp = bool(ramp)  # leader.accel_within_step == "ramp" (docs/model.md)
@@ -171,7 +173,8 @@ class RoadReference:
             self.G, self.prof, float(t), self.s, self.v, a_limit, self.along, self.slot_d,
             self.is_road, self.d_front, self.half_w, sensed.m_s, sensed.m_d, sensed.v_m,
             sensed.active, sensed.nb_rear, sensed.nb_d, sensed.nb_half_w, sensed.nb_v, self.lim,
-            pl.pp, pl.a_vc, pl.a_cap, self._v_prev, self._has_prev, pl.emergency, self.dt_c, vc, self.ramp, a_cap_from)
+            pl.pp, pl.a_vc, pl.a_cap, self._v_prev, self._has_prev, pl.emergency, self.dt_c, vc, self.ramp, a_cap_from,
+            sensed.nb_in_formation)
         self._has_prev = True
         self._next = (s_next, v_next)
         truth = vc[0, 0].copy()  # period 0: road_leader_at(G, s, v, a_vc) and s

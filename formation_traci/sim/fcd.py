@@ -68,6 +68,17 @@ def rewrite_fcd(path: Path, frame: str, t0: float, member_d_front: dict[str, flo
     _write(df[order], path, frame)
 
 
+def true_speeds(by_step: dict | None, ids) -> dict | None:
+    """Member id -> its speed [m/s] at every step index (NaN: not recorded) from
+    ``by_step`` (step index -> the members' speeds), for sim/fcd.py."""
+    if not by_step:
+        return None
+    v = np.full((max(by_step) + 1, len(ids)), np.nan)
+    for k, row in by_step.items():
+        v[k] = row
+    return {m: v[:, i] for i, m in enumerate(ids)}
+
+
 def _formation(df: pd.DataFrame, t0: float, member_d_front, step: float, member_v) -> pd.DataFrame:
     ids = df["vehicle_id"].astype(str)
     types = df["type"].astype(str) if "type" in df else pd.Series([""] * len(df))

@@ -19,7 +19,7 @@ from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWat
                      TrafficWatch, log_sumo_events)
 from .incidents import clearance_lookup
 from .demand import measure_plan, traffic_meta
-from .join import adopt, clear_insertion_zone, enter, take_over
+from .join import adopt, clear_insertion_zone, enter, inside_formation, take_over
 from .messages import sumo_outputs_meta
 from .sumo_adapter import SumoAdapter, SumoError
 from .sumo_neighbours import NOBODY
@@ -64,6 +64,7 @@ class SumoWorld:
         self.packed_lanes = PackedLanes(plan.road.shapes)
         self._nb_guess = NeighbourGuess()
         self.ev = None
+        self.released: set[str] = set()  # SUMO ids of members handed over by a leave
         self.true_v = {} if sc.sumo.fcd and sc.sumo.fcd_frame == "formation" else None  # k -> v [m/s]
         self._kin = None  # (state, pos, vel, heading) of the state last placed
         self.along = np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])
@@ -129,6 +130,7 @@ class SumoWorld:
             self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
         finally:
             if hasattr(self, "flows"):
+                from .fcd import true_speeds  # pandas: imported only to end a run
                 traffic_meta(self.meta, self.rec, self.flows, self.adapter.departed, t_sumo, t0,
                              self.measure)
                 sumo_outputs_meta(self.meta, self.sc, self.rec, self.sumo_dir, t0,
@@ -172,6 +174,9 @@ class SumoWorld:
             sensed.nb = Neighbours(ids, types, x, y, psi, v, a, length, width, lane_ids, lane_index)
             sensed.nb_s, sensed.nb_d, sensed.nb_v = s[n:], d[n:], v
             self._nb_guess.keep(ids, sensed.nb_s)
+            if self.released:  # released members inside the formation (sim/join.py)
+                sensed.nb_in_formation = inside_formation(self.released, sensed, m_s + self.d_front,
+                                                          self.plan.vehicles, self.active)
         ev = self.ev
         if ev is not None and (ev.collisions or ev.teleports):
             log_sumo_events(self.rec, t, ev, self._id_set, self.joined_names(),
@@ -222,6 +227,7 @@ class SumoWorld:
         except SumoError as exc:
             lane, way = "?", f", not routed to the exit: {exc}"
         self.active[i] = False
+        self.released.add(vid)
         self.rec.add_event(t, "handover", self.ids[i], vid if vid != self.ids[i] else "",
                            f"leave: released to SUMO at {v:.2f} m/s on lane {lane}{way}")
 
@@ -314,17 +320,6 @@ class SumoWorld:
             ad.follow(self.sumo_ids[self.followed])
 
 
-def true_speeds(by_step: dict | None, ids) -> dict | None:
-    """Member id -> its speed [m/s] at every step index (NaN: not recorded) from
-    ``by_step`` (step index -> the members' speeds), for sim/fcd.py."""
-    if not by_step:
-        return None
-    v = np.full((max(by_step) + 1, len(ids)), np.nan)
-    for k, row in by_step.items():
-        v[k] = row
-    return {m: v[:, i] for i, m in enumerate(ids)}
-
-
 def middle_member(active, along, across) -> int:
     """Index of the active member nearest the middle of the formation."""
     idx = np.flatnonzero(active)
@@ -377,9 +372,10 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
                         "governor": 0.0, "control_model": 0.0, "record": 0.0}
     load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, line)
-    ramp = sc.leader.accel_within_step == "ramp"  # docs/model.md, "Accelerations within a step"
+    # docs/model.md, "Accelerations within a step" and "Leave without stranding"
+    ramp, release = sc.leader.accel_within_step == "ramp", sc.leader.emergency_release
     if not sc.maneuvers:
-        return RunParts(world, RoadReference(*args, ramp=ramp), fleet, state, timing=meta["timing_s"],
+        return RunParts(world, RoadReference(*args, ramp=ramp, release=release), fleet, state, timing=meta["timing_s"],
                         road_load=load)
     from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
     from ..control.maneuvers.planner import ManeuverPlanner
@@ -390,7 +386,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
                               lengths, widths, list(world.ids), road_room(plan.road),
                               (ld.time_gap, ld.min_gap),
                               np.array([v.cog_to_front_bumper for v in plan.vehicles]))
-    gen = ManeuverRoadReference(*args, ramp=ramp, planner=planner, on_event=rec.add_event, length=lengths,
+    gen = ManeuverRoadReference(*args, ramp=ramp, release=release, planner=planner, on_event=rec.add_event, length=lengths,
                                 on_release=world.release, on_join=world.take_over)
     return RunParts(world, gen, fleet, state, transforms=[PlanSlots(planner)],
                     timing=meta["timing_s"], road_load=load)
