@@ -116,7 +116,7 @@ def leader_accel(v_vc, v_set, v_set_dot, member_accels, accel_max, decel_emergen
 @kernel(error_model="python")
 def _leader_law(v_vc, v_set, v_set_dot, member_accels, use, accel_max, decel_emergency,
                 decel_follow, decel_comfort):
-    a = K_SPEED * (v_set - v_vc) + v_set_dot
+    a = max(K_SPEED * (v_set - v_vc) + v_set_dot, -decel_follow)  # the set speed: never an emergency
     for i in range(member_accels.shape[0]):
         if use[i]:
             a = min(a, member_accels[i])

@@ -56,7 +56,7 @@ class Reference:
     info: dict = field(default_factory=dict, repr=False)  # generator diagnostics (events)
     a_cap_from: np.ndarray | None = field(default=None, repr=False)  # (n,) the caps at the
     # start of the step: period j's cap goes from it to a_cap (j / n_ctrl; sim/fleet.py
-    # cap_at); None: a_cap held over the step
+    # cap_at); None: a_cap held over the step. A transform that changes a_cap changes it too
 
     @property
     def n_ctrl(self) -> int:

@@ -179,7 +179,8 @@ class RoadReference:
         self._next = (s_next, v_next)
         truth = vc[0, 0].copy()  # period 0: road_leader_at(G, s, v, a_vc) and s
         return Reference(float(t), self.dt_c, vc, self.slots, self.frame, sensed.active, pl.v_cap,
-                         a_cap, line=self.G, truth=truth, a_cap_from=a_cap_from,
+                         a_cap, line=self.G, truth=truth,
+                         a_cap_from=a_cap_from if self.ramp else None,
                          info={"a_vc": pl.a_vc, "gap": gap, "lead_idx": lead_idx,
                                "a_request": a_request, "a_cap_request": a_cap_req,
                                "emergency": pl.emergency_vc,
