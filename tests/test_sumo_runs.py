@@ -36,7 +36,9 @@ def test_bundled_highway_scenario_runs_to_the_end(tmp_path, path):
     the jerk check below failed (p95 1.7 m/s^3; docs/scenarios.md, "Joining dense traffic")."""
     from test_golden import SUMO_TOL_M, compare, golden
     res, meta, traj, events, out = run(tmp_path, path, **golden.HIGHWAY_OVERRIDES)
-    assert res.status == "completed", res.reason
+    # traffic's cut-ins may make emergency brakes, the run's incidents (issue 32); nothing else
+    assert res.status in ("completed", "completed_with_incidents"), res.reason
+    assert not any(meta["incidents"][k] for k in ("member_collisions", "member_removed", "stranded"))
     assert meta["t_end"] == pytest.approx(golden.HIGHWAY_OVERRIDES["run.duration"])
     compare("highway", path.stem, traj, SUMO_TOL_M)
     assert meta["sumo"]["version"].startswith("SUMO 1.28")

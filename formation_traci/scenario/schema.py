@@ -23,6 +23,9 @@ class RunSpec(Strict):
     control_step: PosFloat = Field(0.01, description="controller sampling period [s]; divides step")
     physics_step: PosFloat = Field(0.01, le=0.01, description="largest RK4 sub-step [s]; at most 0.01")
     seed: int = Field(0, ge=0, description="random seed (SUMO's --seed; recorded in run.json)")
+    independent_members: bool = Field(
+        False, description="free space: the members are independent experiments overlaid in one run "
+        "(gain studies): their bodies overlapping is no member collision (ignored on a road)")
 
     @model_validator(mode="after")
     def _ratios(self):

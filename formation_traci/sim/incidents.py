@@ -108,9 +108,10 @@ class Incidents:
     with the collisions SUMO reported for the step (sim/sumo_world.py); :meth:`counts` for
     run.json."""
 
-    def __init__(self, rec, ids, vehicles):
+    def __init__(self, rec, ids, vehicles, pairs: bool = True):
         n = len(ids)
         self.rec, self.ids = rec, list(ids)
+        self.pairs = bool(pairs)  # False: independent members (run.independent_members)
         self.length = np.array([v.length for v in vehicles], dtype=float)
         self.width = np.array([v.width for v in vehicles], dtype=float)
         self.shift = np.array([v.cog_to_front_bumper - 0.5 * v.length for v in vehicles], dtype=float)
@@ -123,10 +124,11 @@ class Incidents:
         self.n = dict.fromkeys(("member_collisions", "stranded", "sumo_collision_artefacts"), 0)
 
     def step(self, t: float, sig: np.ndarray, active: np.ndarray) -> None:
-        worst = member_clearances(sig, _X, _Y, _H, self.shift, self.length, self.width, active,
-                                  self.clear)
-        if worst < 0.0 or self.contact.any():
-            self._contacts(t)
+        if self.pairs:
+            worst = member_clearances(sig, _X, _Y, _H, self.shift, self.length, self.width,
+                                      active, self.clear)
+            if worst < 0.0 or self.contact.any():
+                self._contacts(t)
         v, v_ref = sig[:, _V], sig[:, _VREF]
         slow = active & (v < STRANDED_SPEED) & (v_ref > STRANDED_V_REF)
         if slow.any() or self.is_stranded.any():

@@ -140,7 +140,8 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
     atomic_write_json(meta_path, meta)
     rec = Recorder(out_dir, [m.id for m in sc.members], with_sumo=sc.road is not None,
                    periods_per_step=int(round(sc.run.step / sc.run.control_step)))
-    rec.incidents = Incidents(rec, [m.id for m in sc.members], member_vehicles(sc))
+    rec.incidents = Incidents(rec, [m.id for m in sc.members], member_vehicles(sc),
+                              pairs=not (sc.run.independent_members and sc.road is None))
     n_steps = int(round(sc.run.duration / sc.run.step))
 
     status, reason, t, k = "completed", None, 0.0, 0
@@ -214,6 +215,8 @@ def _finish(meta_path, meta, rec, steps, status, reason, t, k):
             reason += f"; the tables on disk are complete up to t = {t:.2f} s (run.json 'tables')"
     incidents = rec.incidents.counts()
     status, summary = verdict(status, incidents)  # completed -> completed_with_incidents
+    if meta.get("baseline"):  # no member in the twin: the ghost virtual car's brakes are no incident
+        status, summary = ("completed" if status == "completed_with_incidents" else status), None
     meta.update(status=status, reason=reason, finished=_now(), t_end=float(t),
                 steps_done=int(k), rows_written=rec.traj.rows_on_disk)
     meta["incidents"], meta["incident_summary"] = incidents, summary
