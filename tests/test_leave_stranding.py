@@ -11,7 +11,6 @@ is 15 m ahead, inside the time gap); it falls 57 m behind its slot and, aligning
 with the virtual car's 50 m ahead on the curve, drifts off the road (removed at t = 54.6 s of
 a 60 s run); the run here ends at 50 s."""
 import json
-from pathlib import Path
 
 import pandas as pd
 import pytest

@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from ..kernels import kernel
-from ..record.columns import INCIDENT_KEYS, INCIDENT_VERDICT as VERDICT, SIGNAL_COLUMNS  # noqa: F401
+from ..record.columns import INCIDENT_VERDICT as VERDICT, SIGNAL_COLUMNS
 
 
 STRANDED_SPEED = 0.5
