@@ -46,7 +46,7 @@ def _share(members: pd.DataFrame, col: str, inside: bool) -> tuple[str, float] |
 
 def verdicts(members: pd.DataFrame, run: dict, issues) -> list[tuple[str, bool | None]]:
     """The summary lines of one run (see the module docstring)."""
-    out: list[tuple[str, bool | None]] = []
+    out: list[tuple[str, bool | None]] = [incident_headline(run)]
     s = _share(members, "t_lat_comfortable_s", inside=True)
     if s:
         out.append((f"lateral acceleration within the comfortable band (|a_lat| < "
@@ -65,6 +65,11 @@ def verdicts(members: pd.DataFrame, run: dict, issues) -> list[tuple[str, bool |
     if w:
         out.append((f"ISO 2631 weighted lateral acceleration a_w at most {w[1]:.3f} m/s^2 "
                     f"(worst member: {w[0]})", None))
+    high = [f"{mid} ({ax})" for mid, r in members.iterrows() for ax in ("lon", "lat")
+            if str(r.get(f"aw_crest_over_9_{ax}")) == "True"]  # bool or numpy bool
+    if high:
+        out.append((f"ISO 2631 crest factor above 9 for {', '.join(high)}: the basic r.m.s. may "
+                     "underestimate shocks; MTVV and VDV (clause 6.3) in the members table", False))
     for col, what in (("friction_over_s", "friction circle (eq 3.16)"),
                       ("traction_over_s", "traction limit (eq 3.14)"),
                       ("slip_over_s", "tire slip limit")):
@@ -78,6 +83,29 @@ def verdicts(members: pd.DataFrame, run: dict, issues) -> list[tuple[str, bool |
     n_err = sum((i["severity"] if isinstance(i, dict) else i.severity) == "error" for i in issues)
     out.append((describe_issues(issues), n_err == 0))
     return out
+
+
+INCIDENT_WORDS = {"member_collisions": "member collision(s) (bodies overlap)",
+                  "member_removed": "member(s) removed from the run",
+                  "emergency_brakes": "emergency brake(s)",
+                  "stranded": "member(s) stranded (standing while v_ref > 2 m/s)",
+                  "sumo_collision_artefacts": "SUMO collision report(s) our clearance refutes "
+                                              "(lane-touching artefacts, not counted)"}
+
+
+def incident_headline(run: dict) -> tuple[str, bool | None]:
+    """The first summary line: the run's safety incidents (run.json 'incidents')."""
+    counts = {k: run.get(k) for k in INCIDENT_WORDS}
+    if all(v is None for v in counts.values()):
+        return ("safety incidents: not recorded (a run.json without 'incidents')", None)
+    bad = [f"{int(counts[k])} {w}" for k, w in INCIDENT_WORDS.items()
+           if k != "sumo_collision_artefacts" and (counts[k] or 0) > 0]
+    art = counts["sumo_collision_artefacts"] or 0
+    tail = f"; {int(art)} {INCIDENT_WORDS['sumo_collision_artefacts']}" if art else ""
+    if bad:
+        return ("INCIDENTS: " + ", ".join(bad) + " (events.parquet)" + tail, False)
+    return ("no safety incident: no member collision, removal, emergency brake or stranded "
+            "member" + tail, True)
 
 
 def _error_headline(members: pd.DataFrame) -> tuple[str, bool | None]:

@@ -41,6 +41,10 @@ __all__ = [
     "weight",
     "weighted_rms",
     "vibration_total_value",
+    "CREST_FACTOR_LIMIT",
+    "MTVV_TAU_S",
+    "running_rms_max",
+    "vibration_dose_value",
 ]
 
 
@@ -52,6 +56,14 @@ MIN_DURATION_S = 10.0
 """Shortest record for a weighted r.m.s. [s]: five periods of the 0.5 Hz lower edge of
 the ISO range (our choice; ISO 2631-1 5.5 asks for a duration giving reasonable
 statistical precision)."""
+
+CREST_FACTOR_LIMIT = 9.0
+"""Crest factor above which the basic r.m.s. method may underestimate the effect of
+occasional shocks (ISO 2631-1:1997 6.2.1): then the additional methods of 6.3 (MTVV, VDV)
+are reported with it [-]."""
+
+MTVV_TAU_S = 1.0
+"""Integration time of the running r.m.s. of the MTVV (ISO 2631-1:1997 6.3.1: 1 s) [s]."""
 
 COMFORT_K_XY = 1.0
 """Multiplying factor k for x and y at the seat surface for comfort [-]
@@ -67,6 +79,8 @@ class WeightedRMS:
     band_hz: tuple[float, float]  # Hz, band in which the digital Wd is within tolerance
     full_band: bool  # the band reaches the ISO upper limit of 80 Hz
     reason: str | None  # why ``value`` is NaN or partial, None if fully compliant
+    mtvv: float | np.ndarray = np.nan  # m/s^2, maximum transient vibration value (6.3.1)
+    vdv: float | np.ndarray = np.nan  # m/s^1.75, fourth power vibration dose value (6.3.2)
 
 
 def weight(a, dt: float, axis: int = -1, p: WeightingParams = WD) -> np.ndarray:
@@ -161,12 +175,74 @@ def weighted_rms(a, dt: float, axis: int = -1, p: WeightingParams = WD) -> Weigh
     value = np.sqrt(np.mean(aw * aw, axis=axis))
     with np.errstate(divide="ignore", invalid="ignore"):
         crest = np.max(np.abs(aw), axis=axis) / value
+    mtvv = running_rms_max(aw, dt, axis=axis)
+    vdv = vibration_dose_value(aw, dt, axis=axis)
     reason = None if full else (
         f"partial band {band[0]:g}-{band[1]:.3g} Hz: sample rate {fs:g} Hz is below the "
         f"{min_sample_rate(ISO_FREQ_RANGE_HZ[1], p):.0f} Hz needed for the full "
         f"{ISO_FREQ_RANGE_HZ[0]:g}-{ISO_FREQ_RANGE_HZ[1]:g} Hz ISO band; content above "
         f"{band[1]:.3g} Hz is under-weighted")
-    return WeightedRMS(value[()], crest[()], band, full, reason)
+    return WeightedRMS(value[()], crest[()], band, full, reason, mtvv, vdv)
+
+
+def running_rms_max(aw, dt: float, tau: float = MTVV_TAU_S, axis: int = -1):
+    """Maximum transient vibration value, MTVV (ISO 2631-1:1997 6.3.1, eq 3-4).
+
+    Parameters
+    ----------
+    aw : array_like
+        Frequency-weighted acceleration a_w(t) [m/s^2], uniformly sampled.
+    dt : float
+        Sample spacing [s].
+    tau : float
+        Integration time of the running r.m.s. [s]; the standard's 1 s.
+    axis : int
+        Time axis.
+
+    Returns
+    -------
+    ndarray or float
+        ``max over t0 of sqrt(1/tau * integral_{t0 - tau}^{t0} a_w(t)^2 dt)`` [m/s^2], the
+        linear (rectangular window) running r.m.s.; over a record shorter than tau, its r.m.s.
+
+    Examples
+    --------
+    >>> float(running_rms_max(np.r_[np.zeros(500), np.full(100, 2.0), np.zeros(500)], 0.01))
+    2.0
+    """
+    a = np.moveaxis(np.asarray(aw, dtype=float), axis, -1)
+    n = max(1, int(round(tau / dt)))
+    if a.shape[-1] <= n:
+        return np.sqrt(np.mean(a * a, axis=-1))[()]
+    c = np.cumsum(np.concatenate([np.zeros(a.shape[:-1] + (1,)), a * a], axis=-1), axis=-1)
+    win = (c[..., n:] - c[..., :-n]) / n
+    return np.sqrt(np.maximum(np.max(win, axis=-1), 0.0))[()]
+
+
+def vibration_dose_value(aw, dt: float, axis: int = -1):
+    """Fourth power vibration dose value, VDV (ISO 2631-1:1997 6.3.2, eq 5).
+
+    Parameters
+    ----------
+    aw : array_like
+        Frequency-weighted acceleration a_w(t) [m/s^2], uniformly sampled.
+    dt : float
+        Sample spacing [s].
+    axis : int
+        Time axis.
+
+    Returns
+    -------
+    ndarray or float
+        ``(integral a_w(t)^4 dt)^(1/4)`` [m/s^1.75] over the record (rectangle rule).
+
+    Examples
+    --------
+    >>> round(float(vibration_dose_value(np.ones(1600), 0.01)), 6)  # 16 s of 1 m/s^2: 16^(1/4)
+    2.0
+    """
+    a = np.asarray(aw, dtype=float)
+    return (np.sum(a ** 4, axis=axis) * dt) ** 0.25
 
 
 def vibration_total_value(awx, awy, kx: float = COMFORT_K_XY, ky: float = COMFORT_K_XY):

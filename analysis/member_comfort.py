@@ -50,12 +50,15 @@ def _weighted(a: np.ndarray, segs: list[slice], dt: float) -> iso2631.WeightedRM
     n_tot = sum(n for n, _ in ok)
     value = math.sqrt(sum(n * float(r.value) ** 2 for n, r in ok) / n_tot)
     crest = max(float(r.crest_factor) for _, r in ok)
+    mtvv = max(float(r.mtvv) for _, r in ok)  # the largest running r.m.s. of any segment
+    vdv = sum(float(r.vdv) ** 4 for _, r in ok) ** 0.25  # doses add (ISO 2631-1 6.3.2)
     reason = ok[0][1].reason
     if len(ok) < len(results):
         reason = ((reason + "; ") if reason else "") + (
             f"{len(results) - len(ok)} of {len(results)} record segments too short or "
             "invalid, left out")
-    return iso2631.WeightedRMS(value, crest, ok[0][1].band_hz, ok[0][1].full_band, reason)
+    return iso2631.WeightedRMS(value, crest, ok[0][1].band_hz, ok[0][1].full_band, reason,
+                               mtvv, vdv)
 
 
 def _jerk_1s_peak(data: RunData, member_id: str, t: np.ndarray, a: np.ndarray, segs,
@@ -113,6 +116,10 @@ def comfort_metrics(data: RunData, member_id: str, m: _Member, t: np.ndarray, se
         aw[axis_name] = w
         out[f"aw_{axis_name}_mps2"] = _f(w.value)
         out[f"aw_crest_{axis_name}"] = _f(w.crest_factor)
+        high = bool(np.isfinite(w.crest_factor) and w.crest_factor > iso2631.CREST_FACTOR_LIMIT)
+        out[f"aw_crest_over_9_{axis_name}"] = high if np.isfinite(w.crest_factor) else None
+        out[f"mtvv_{axis_name}_mps2"] = _f(w.mtvv)
+        out[f"vdv_{axis_name}_mps175"] = _f(w.vdv)
         if w.reason and not np.isfinite(w.value) and not w.reason.startswith("sample rate"):
             m.unavailable[f"ISO 2631 {axis_name}"] = w.reason
     if "lon" in aw and "lat" in aw:

@@ -158,7 +158,7 @@ def read_meta(run_dir: str | Path) -> tuple[dict[str, Any], list[Issue]]:
     issues = [Issue("error", "missing_meta_key", f"{RUN_JSON}:{k}", f"key '{k}' is missing")
               for k in REQUIRED_META_KEYS if k not in meta]
     status = meta.get("status")
-    if status is not None and status != "completed":
+    if status is not None and status not in ("completed", "completed_with_incidents"):
         why = {"interrupted": "the run was interrupted",
                "failed": "the run failed",
                "running": "the run has not finished (or died without writing its status)"}

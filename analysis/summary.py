@@ -14,6 +14,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from formation_traci.record.columns import INCIDENT_KEYS
+
 from analysis import formation, iso2631
 from analysis.energy import ENERGY_MEMBER_METRICS, ENERGY_RUN_METRICS, EnergyAnalysis, compute_energy
 from analysis.load import GAP_FACTOR, Issue, Member, RunData
@@ -49,6 +51,7 @@ communication ones (:data:`analysis.comm.COMM_MEMBER_METRICS`), then the traffic
 
 RUN_METRICS: dict[str, str] = {
     "status": "-", "reason": "-", "model": "-", "mu": "-", "t_end_s": "s",
+    **{k: "-" for k in INCIDENT_KEYS},
     "record_step_s": "s", "dt_s": "s", "sample_rate_hz": "Hz",
     "t_first_s": "s", "t_last_s": "s", "duration_s": "s",
     "n_members": "-", "n_members_with_data": "-",
@@ -177,6 +180,27 @@ def _iso2631_band(run: dict[str, Any], fs: float, dt: float) -> list[Issue]:
     return []
 
 
+def _crest_issues(mdf: pd.DataFrame) -> list[Issue]:
+    """A warning per member and axis whose ISO 2631 crest factor exceeds 9 (clause 6.2.1),
+    with the additional methods' values (clause 6.3) and their ratios to the basic value."""
+    out = []
+    for mid, r in mdf.iterrows():
+        for ax in ("lon", "lat"):
+            flag = r.get(f"aw_crest_over_9_{ax}")
+            if not (isinstance(flag, (bool, np.bool_)) and flag):
+                continue
+            aw, dur = r.get(f"aw_{ax}_mps2"), r.get("duration_s")
+            mtvv, vdv = r.get(f"mtvv_{ax}_mps2"), r.get(f"vdv_{ax}_mps175")
+            ratio_v = vdv / (aw * dur ** 0.25) if aw and dur else math.nan
+            out.append(Issue(
+                "warning", "iso2631_crest_factor", f"{mid} a_{ax}",
+                f"crest factor {r.get(f'aw_crest_{ax}'):.1f} > {iso2631.CREST_FACTOR_LIMIT:g}: the "
+                f"basic r.m.s. a_w = {aw:.3g} m/s^2 may underestimate shocks (ISO 2631-1 6.2.1); "
+                f"MTVV {mtvv:.3g} m/s^2 (MTVV / a_w = {mtvv / aw:.2f}, 6.3.3: 1.5), VDV "
+                f"{vdv:.3g} m/s^1.75 (VDV / (a_w T^1/4) = {ratio_v:.2f}, 6.3.3: 1.75)"))
+    return out
+
+
 def _worst(mdf: pd.DataFrame) -> dict[str, float | None]:
     """Largest value over the members of every KEY_METRICS column (None: no data)."""
     worst = {}
@@ -228,6 +252,7 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
     comm_members, comm_age = comm_analysis(traj, signals, [m.id for m in members])
     mdf = mdf.join(energy.members, how="left").join(tra.members, how="left") \
         .join(comm_members, how="left")[list(MEMBER_METRICS)]
+    issues += _crest_issues(mdf)
     shape_res, shape_df, shape_issues = _shape(data, members)
     issues += shape_issues
     ss = _string_stability(members, signals, settings)
@@ -244,6 +269,7 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
                             if math.isfinite(dt) else [slice(0, np.unique(t_all).size)]),
         n_members=len(members), n_members_with_data=int(mdf["n_samples"].notna().sum()),
         **shape_res, **energy.run,
+        **{k: (meta.get("incidents") or {}).get(k) for k in INCIDENT_KEYS},
     )
     if len(ss):
         run.update(string_stable=bool(not ss["amplifies"].any()),

@@ -13,6 +13,9 @@ import pandas as pd
 from formation_traci.sweep.row import METRICS
 from formation_traci.sweep.spec import SweepError
 
+FINISHED = ("completed", "completed_with_incidents")
+"""Statuses of a case whose run reached its end (in the statistics and figures)."""
+
 DEFAULT_METRICS: tuple[str, ...] = ("e_rms_m", "e_max_settled_m", "a_lat_peak_mps2",
                                     "jerk_lat_rms_mps3", "t_lat_above_comfort_s",
                                     "collisions", "min_ttc_s")
@@ -133,11 +136,16 @@ def _html(meta: dict, df: pd.DataFrame, stats: pd.DataFrame, metrics: list[str],
                        f"({'grid' if k in meta.get('grid_keys', []) else 'random'})</li>"
                        for k in meta.get("swept", []))
              + f"<li>seeds: {_e(raw.get('seeds'))}</li></ul>"]
-    bad = df[df["status"] != "completed"]
+    bad = df[~df["status"].isin(FINISHED)]
     if len(bad):
         rows = bad[["case_id", "status", "reason"]].copy()
         rows["reason"] = rows["reason"].fillna("").map(lambda r: r.strip().splitlines()[-1][:300] if r.strip() else "")
         parts.append("<h2>Cases without a completed run</h2>" + _table(rows))
+    inc = df[df["status"] == "completed_with_incidents"]
+    if len(inc):  # completed, in the statistics, and named: a sweep never hides an incident
+        cols = [c for c in ("case_id", "member_collisions", "member_removed", "emergency_brakes",
+                            "stranded") if c in inc.columns]
+        parts.append('<h2 class="bad">Cases completed with incidents</h2>' + _table(inc[cols]))
     parts += [f"<p><em>{_e(n)}</em></p>" for n in notes]
     parts.append("<h2>Figures</h2>")
     for m in metrics:
@@ -219,7 +227,7 @@ def analyze_sweep(sweep_dir: str | Path, metrics: list[str] | None = None,
     if spread not in ("minmax", "std"):
         raise SweepError(d, [("spread", f"expected 'minmax' or 'std' (got {spread!r})")])
     swept = list(meta.get("swept", []))
-    done = df[df["status"] == "completed"]
+    done = df[df["status"].isin(FINISHED)]
     numeric = [c for c in df.columns if c not in swept and c not in ("case_index", "pid", "seed")
                and pd.api.types.is_numeric_dtype(df[c])]
     notes = []

@@ -51,12 +51,12 @@ def main() -> None:
             st = initial_state(cfg, tg.p + 0.5, np.arctan2(tg.v[:, 1], tg.v[:, 0]),
                                np.full(n, 24.0), np.zeros(n), np.zeros(n), tg)
             vc = np.empty((N_CTRL, n, 8))
-            road_vc_rows(G, 900.0, 25.0, 0.3, DT_C, vc)
+            road_vc_rows(G, 900.0, 25.0, 0.3, 0.3, DT_C, vc)
             ref = Reference(0.0, DT_C, vc, constant_slots(offs, N_CTRL),
                             np.full(n, FRAME_ROAD), np.ones(n, bool), np.full(n, np.inf),
                             np.full(n, np.inf), line=G, truth=vc[0, 0])
             out = np.full((n, len(SIGNAL_COLUMNS)), np.nan)
-            t_vc = per_call(lambda: road_vc_rows(G, 900.0, 25.0, 0.3, DT_C, vc))
+            t_vc = per_call(lambda: road_vc_rows(G, 900.0, 25.0, 0.3, 0.3, DT_C, vc))
             t_sig = per_call(lambda: fleet.signals(st, ref, out))
             t_step = per_call(lambda: fleet.step(st, ref))
             print(f"  {model:9s} n={n:2d}: reference {t_vc * 1e6:6.1f} + signals "

@@ -121,8 +121,12 @@ def run(
     baseline: bool = typer.Option(False, "--baseline", help="road scenarios: the twin run with the same traffic and seed but no formation"),
     gui: bool = typer.Option(False, "--gui", help="road scenarios: watch in sumo-gui (traci backend; the view follows the formation)"),
     sets: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP),
+    strict: bool = typer.Option(False, "--strict", help="exit 1 when the run completed with incidents (a member collision, removed, stranded member or emergency brake)"),
 ) -> None:
-    """Run SCENARIO headless and record it under OUT (run.json, trajectories.parquet, ...)."""
+    """Run SCENARIO headless and record it under OUT (run.json, trajectories.parquet, ...).
+
+    Exit 0 for ``completed`` and ``completed_with_incidents`` (1 with --strict), 1 for
+    ``failed``, 130 for ``interrupted`` (docs/reliability.md)."""
     with _outcome():
         from .scenario import load_scenario
         from .sim.runner import run_scenario
@@ -135,8 +139,12 @@ def run(
             typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)
         res = run_scenario(sc, out, scenario_path=scenario, force=force, progress=progress, baseline=baseline)
     typer.echo(f"{res.status}: t_end={res.t_end:.2f} s, steps={res.steps_done}, out={res.out_dir}"
-               + (f"\nreason: {res.reason}" if res.reason else ""))
-    if res.status != "completed":
+               + (f"\nreason: {res.reason}" if res.reason else "")
+               + (f"\nINCIDENTS: {res.incident_summary} (run.json 'incidents', events.parquet)"
+                  if res.incident_summary else ""))
+    if res.status == "completed_with_incidents" and strict:
+        raise typer.Exit(1)
+    if res.status not in ("completed", "completed_with_incidents"):
         raise typer.Exit(1 if res.status == "failed" else 130)
 
 
@@ -197,8 +205,11 @@ def sweep(
         if exc.exit_code == 130:
             typer.echo("run the same command again to finish the sweep", err=True)
         raise
+    n_inc = int((res.summary["status"] == "completed_with_incidents").sum()) if len(res.summary) else 0
     typer.echo(f"{res.n_cases} cases: {res.n_completed} completed, {res.n_failed} not completed "
-               f"({res.n_run} run now, {res.n_skipped} done before); summary: {res.files['summary']}")
+               f"({res.n_run} run now, {res.n_skipped} done before); summary: {res.files['summary']}"
+               + (f"\nINCIDENTS: {n_inc} of the completed cases completed with incidents (summary "
+                  "columns member_collisions, member_removed, emergency_brakes, stranded)" if n_inc else ""))
     if res.n_failed:
         raise typer.Exit(1)
 

@@ -52,7 +52,9 @@ def _run(tmp: Path, mode: str) -> Path:
     path.write_text(SCENARIO % mode)
     out = tmp / mode
     res = run_scenario(load_scenario(path), out, scenario_path=path, progress=False, force=True)
-    assert res.status == "completed", res.reason
+    # vehicles close in as designed: at t = 0.75 s main.12 runs into the centre member from
+    # behind (our clearance down to -1.8 m): a true collision, the run's incident (issue 32)
+    assert res.status in ("completed", "completed_with_incidents"), res.reason
     return out
 
 

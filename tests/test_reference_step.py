@@ -24,15 +24,18 @@ DT_C, N_CTRL = 0.01, 5
 
 
 def composed(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, half_w, sensed,
-             planner, v_prev):
-    """The pre-fusion reference step: governor, column caps, limit, planner, virtual-car rows."""
+             planner, v_prev, ramp=False):
+    """The pre-fusion reference step: governor, column caps, limit, planner, virtual-car rows
+    (``ramp``: the virtual car's acceleration from the last step's to this step's within the
+    step, and the members' caps of the last step returned to ramp from)."""
     m_s, m_d, v_m, active, nb_rear, nb_d, nb_half_w, nb_v = sensed
     slot_d = np.where(is_road, slot_d_road, m_d)
     v_set, v_set_dot = knot_profile_at(prof, 0, float(t))
     slot_s = s + along
     a_gov, gap, lead, v_cap, a_cap_req = governor_step(
         m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v, v_set, v_set_dot,
-        nb_rear, nb_d, nb_half_w, nb_v, LIM.time_gap, LIM.min_gap, LIM.accel_max, LIM.decel_emergency)
+        nb_rear, nb_d, nb_half_w, nb_v, LIM.time_gap, LIM.min_gap, LIM.accel_max, LIM.decel_emergency, LIM.decel_follow,
+        LIM.decel_max, np.zeros(0, np.bool_))
     v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
     a_request = min(a_gov, a_limit)
     dt = DT_C * N_CTRL
@@ -40,17 +43,20 @@ def composed(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, ha
     v_c, a_c = np.where(off, np.inf, v_cap), np.where(off, np.inf, a_cap_req)
     a_m = np.zeros(len(v_m)) if v_prev is None else (v_m - v_prev) / dt
     p = planner.p  # the planner's step before it was fused (plan_accel, then plan_caps)
+    a_vc0, a_cap_from = planner.a_vc, planner.a_cap.copy()
     a_vc, planner.emergency_vc = plan_accel(planner.a_vc, float(a_request), dt, p.tau, p.jerk_max,
-                                            p.jerk_emergency, p.decel_comfort)
+                                            p.jerk_emergency, p.decel_comfort, p.jerk_release)
     planner.a_vc = a_vc
     a_cap = np.empty_like(planner.a_cap)
     plan_caps(planner.a_cap, v_c, a_c, v_m, a_m, dt, p.tau, p.jerk_max, p.jerk_emergency,
-              p.decel_comfort, p.tau_speed_cap, p.lift_margin, a_cap, planner.emergency)
+              p.decel_comfort, p.tau_speed_cap, p.lift_margin, a_cap, planner.emergency,
+              p.jerk_release)
     planner.a_cap = a_cap
     a_cap[off] = np.inf
     vc = np.empty((N_CTRL, len(v_m), 8))
-    s1, v1 = road_vc_rows(G, s, v, a_vc, DT_C, vc)
-    return a_request, a_vc, planner.emergency_vc, s1, v1, gap, lead, a_cap_req, a_cap, vc
+    s1, v1 = road_vc_rows(G, s, v, a_vc0 if ramp else a_vc, a_vc, DT_C, vc)
+    return (a_request, a_vc, planner.emergency_vc, s1, v1, gap, lead, a_cap_req, a_cap, vc,
+            a_cap_from if ramp else a_cap)
 
 
 def scene(rng, n, k):
@@ -65,8 +71,9 @@ def scene(rng, n, k):
     return (m_s, m_d, v_m, active, nb_s - 2.5, nb_d, np.full(k, 0.9), rng.uniform(10, 35, k))
 
 
+@pytest.mark.parametrize("ramp", [False, True])
 @pytest.mark.parametrize("seed", [pytest.param(0, marks=pytest.mark.jit_off), 1, 2, 3])  # 0: also as plain Python
-def test_fused_reference_step_equals_the_laws_composed(seed):
+def test_fused_reference_step_equals_the_laws_composed(seed, ramp):
     rng = np.random.default_rng(seed)
     G = packed(reference_line_from_net(net_path("curved3"), ["entry", "main"], 1))
     prof = profile(ProfileSpec(t=[0.0, 20.0, 40.0], values=[25.0, 30.0, 28.0], interp="smooth")).packed()
@@ -83,16 +90,18 @@ def test_fused_reference_step_equals_the_laws_composed(seed):
         sensed = scene(rng, n, int(rng.integers(0, 12)))
         a_limit = math.inf if step % 3 else float(rng.uniform(-4, 1))
         want = composed(G, prof, t, s, v, a_limit, along, slot_d, is_road, d_front, half_w,
-                        sensed, old, v_prev_old)
+                        sensed, old, v_prev_old, ramp)
         v_prev_old = sensed[2].copy()
-        vc = np.empty((N_CTRL, n, 8))
+        vc, cap_from = np.empty((N_CTRL, n, 8)), np.empty(n)
         got = road_reference_step(G, prof, t, s, v, a_limit, along, slot_d, is_road, d_front,
                                   half_w, *sensed, LIM.packed(), PP.packed(), new.a_vc, new.a_cap,
-                                  v_prev_new, has_prev, new.emergency, DT_C, vc)
+                                  v_prev_new, has_prev, new.emergency, DT_C, vc, ramp, cap_from,
+                                  np.zeros(0, np.bool_))
         new.a_vc, has_prev = got[1], True
         for w, g in zip(want[:9], got):
             assert np.asarray(w).tobytes() == np.asarray(g).tobytes()
         assert vc.tobytes() == want[9].tobytes()
+        assert cap_from.tobytes() == want[10].tobytes()
         assert new.a_cap.tobytes() == old.a_cap.tobytes()
         assert new.emergency.tobytes() == old.emergency.tobytes()
         s, v = got[3], got[4]

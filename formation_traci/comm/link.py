@@ -133,10 +133,12 @@ class CommChannel:
         vc = np.empty_like(ref.vc)
         views(ref.line, road, self.NB, self.AGE, self.beacons, self.fb, self.fb_rows, ref.dt, vc)
         sensed.extra["leader_age_s"] = age
-        v_cap, a_cap = ref.v_cap, ref.a_cap
+        v_cap, a_cap, cap_from = ref.v_cap, ref.a_cap, ref.a_cap_from
         if self.fb.any():
             v_cap, a_cap = self._gap_caps(ref, road, sensed, pos, heading, v_m)
-        return ref.with_(vc=vc, v_cap=v_cap, a_cap=a_cap)
+            if cap_from is not None:  # a cap tightened here holds from the step's start
+                cap_from = np.minimum(cap_from, a_cap)
+        return ref.with_(vc=vc, v_cap=v_cap, a_cap=a_cap, a_cap_from=cap_from)
 
     def _timeouts(self, t, age, v_m, active, rec) -> None:
         late = (age > self.timeout) & active

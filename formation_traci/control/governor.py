@@ -102,19 +102,26 @@ def _gap_laws(gap, v, v_lead, time_gap, min_gap, out):
         out[i] = _gap_law(gap[i], v[i], v_lead[i], time_gap, min_gap)
 
 
-def leader_accel(v_vc, v_set, v_set_dot, member_accels, accel_max, decel_emergency):
-    """The virtual car's acceleration [m/s^2]: free-road law, limited by every member's gap law."""
+def leader_accel(v_vc, v_set, v_set_dot, member_accels, accel_max, decel_emergency,
+                 decel_follow=np.inf, decel_comfort=np.inf):
+    """The virtual car's acceleration [m/s^2]: free-road law, limited by every member's gap
+    law; braking that is not an emergency (not below ``-decel_comfort``) at most
+    ``decel_follow``: what every member's speed loop can follow (a mixed formation)."""
     acc = np.ascontiguousarray(member_accels, dtype=np.float64)
     return _leader_law(float(v_vc), float(v_set), float(v_set_dot), acc, np.ones(acc.shape[0], np.bool_),
-                       float(accel_max), float(decel_emergency))
+                       float(accel_max), float(decel_emergency), float(decel_follow),
+                       float(decel_comfort))
 
 
 @kernel(error_model="python")
-def _leader_law(v_vc, v_set, v_set_dot, member_accels, use, accel_max, decel_emergency):
-    a = K_SPEED * (v_set - v_vc) + v_set_dot
+def _leader_law(v_vc, v_set, v_set_dot, member_accels, use, accel_max, decel_emergency,
+                decel_follow, decel_comfort):
+    a = max(K_SPEED * (v_set - v_vc) + v_set_dot, -decel_follow)  # the set speed: never an emergency
     for i in range(member_accels.shape[0]):
         if use[i]:
             a = min(a, member_accels[i])
+    if a >= -decel_comfort:  # not an emergency: no harder than every member can follow
+        a = max(a, -decel_follow)
     a = min(max(a, -decel_emergency), accel_max)
     if v_vc <= 0.0 and a < 0.0:
         a = 0.0
@@ -167,25 +174,37 @@ def member_caps(gap, v_lead, v, time_gap, min_gap, decel_emergency):
 
 @kernel(error_model="python")
 def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
-                  o_s_rear, o_d, o_half_w, o_v, time_gap, min_gap, accel_max, decel_emergency):
+                  o_s_rear, o_d, o_half_w, o_v, time_gap, min_gap, accel_max, decel_emergency,
+                  decel_follow, decel_comfort, o_in_formation):
     """One step of the governor over all members (compiled; the laws are the functions above).
 
     Members at their front bumpers (``m_s_front`` [m], ``m_d`` [m]) and their slots
     (``slot_s_front``, ``slot_d``), half widths [m], speeds ``v_m`` [m/s], ``active`` mask;
     the other vehicles as in :func:`vehicles_ahead`. Returns the virtual car's acceleration
     [m/s^2] (:func:`leader_accel` over the slots' :func:`time_gap_accel` at the virtual car's
-    speed ``v_vc``), each member's gap [m], leader index (-1: none), speed cap [m/s] and
-    acceleration cap [m/s^2] (:func:`member_caps`)."""
+    speed ``v_vc``; braking that is not an emergency, i.e. not below ``-decel_comfort``, at most
+    ``decel_follow`` [m/s^2]), each member's gap [m], leader index (-1: none), speed cap [m/s] and
+    acceleration cap [m/s^2] (:func:`member_caps`). Vehicles flagged ``o_in_formation`` (a
+    mask as long as the others, or empty: none) are not seen by the slots' laws (a released
+    member inside the formation: the virtual car braking for it would brake the members ahead
+    of it, which it follows), only by the members' caps."""
     n = m_s_front.shape[0]
     gap, v_lead, index = _vehicles_ahead(m_s_front, m_d, half_w, o_s_rear, o_d, o_half_w, o_v)
-    gap_slot, v_lead_slot, _ = _vehicles_ahead(slot_s_front, slot_d, half_w, o_s_rear, o_d, o_half_w, o_v)
+    slot_rear = o_s_rear
+    if o_in_formation.shape[0] == o_s_rear.shape[0]:
+        slot_rear = o_s_rear.copy()
+        for j in range(o_s_rear.shape[0]):
+            if o_in_formation[j]:
+                slot_rear[j] = np.inf
+    gap_slot, v_lead_slot, _ = _vehicles_ahead(slot_s_front, slot_d, half_w, slot_rear, o_d, o_half_w, o_v)
     acc_slot = np.empty(n)
     v_cap = np.empty(n)
     a_cap = np.empty(n)
     for i in range(n):
         acc_slot[i] = _gap_law(gap_slot[i], v_vc, v_lead_slot[i], time_gap, min_gap)
         v_cap[i], a_cap[i] = member_caps(gap[i], v_lead[i], v_m[i], time_gap, min_gap, decel_emergency)
-    a_vc = _leader_law(v_vc, v_set, v_set_dot, acc_slot, active, accel_max, decel_emergency)
+    a_vc = _leader_law(v_vc, v_set, v_set_dot, acc_slot, active, accel_max, decel_emergency,
+                       decel_follow, decel_comfort)
     return a_vc, gap, index, v_cap, a_cap
 
 

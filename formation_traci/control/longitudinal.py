@@ -57,26 +57,36 @@ class PlannerParams:
     lift_margin: float = 0.3
     """A lifted cap this far above the member's acceleration no longer binds: it goes [m/s^2]
     (above the speed loop's lag behind a cap rising at jerk_max, ~0.1 m/s^2)."""
+    jerk_release: float = 20.0
+    """Rate at which braking harder than ``decel_comfort`` is released once the emergency is
+    over [m/s^3] (up to -decel_comfort, then the lag and jerk_max again; issue 32: released at
+    jerk_max, a member braked at 8 m/s^2 for a car 15 m ahead went on braking to a standstill).
+    0: released at jerk_max like any change (``leader.emergency_release = false``)."""
 
     def packed(self) -> np.ndarray:
-        """(tau, jerk_max, jerk_emergency, decel_comfort, tau_speed_cap, lift_margin) for
-        :func:`plan_step`."""
+        """(tau, jerk_max, jerk_emergency, decel_comfort, tau_speed_cap, lift_margin,
+        jerk_release) for :func:`plan_step`."""
         return np.array([self.tau, self.jerk_max, self.jerk_emergency, self.decel_comfort,
-                         self.tau_speed_cap, self.lift_margin])
+                         self.tau_speed_cap, self.lift_margin, self.jerk_release])
 
 
 @kernel
-def plan_accel(a_prev, a_request, dt, tau, jerk_max, jerk_emergency, decel_comfort):
+def plan_accel(a_prev, a_request, dt, tau, jerk_max, jerk_emergency, decel_comfort,
+               jerk_release=0.0):
     """Next acceleration [m/s^2] from ``a_prev`` towards ``a_request`` over ``dt`` [s].
 
     Returns ``(a, emergency)``. Outside emergencies the change is the first-order lag
     ``(a_request - a_prev) (1 - exp(-dt / tau))`` bounded by ``jerk_max dt``; in an emergency
     (``a_request < -decel_comfort``) the change is the whole difference bounded by
     ``jerk_emergency dt``. An infinite request (no constraint) leaves ``a_prev`` unchanged.
+    With ``jerk_release`` > 0, braking harder than ``decel_comfort`` that the request no
+    longer asks is released at that rate up to -decel_comfort (the end of an emergency).
     """
     if not math.isfinite(a_request):
         return a_prev, False
     emergency = a_request < -decel_comfort
+    if jerk_release > 0.0 and not emergency and a_prev < -decel_comfort:
+        return a_prev + min(-decel_comfort - a_prev, jerk_release * dt), False
     if emergency:
         da, lim = a_request - a_prev, jerk_emergency * dt
     else:
@@ -86,7 +96,7 @@ def plan_accel(a_prev, a_request, dt, tau, jerk_max, jerk_emergency, decel_comfo
 
 @kernel
 def plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, tau, jerk_max, jerk_emergency,
-              decel_comfort, tau_speed_cap, lift_margin, a_out, emergency):
+              decel_comfort, tau_speed_cap, lift_margin, a_out, emergency, jerk_release=0.0):
     """Smoothed acceleration caps [m/s^2] of every member, in place.
 
     The request is ``min(a_cap, (v_cap - v_member) / tau_speed_cap)`` (inf: no cap). A cap
@@ -100,11 +110,14 @@ def plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, tau, jerk_max, j
         if not math.isfinite(req):
             prev = a_cap_prev[i]
             binds = math.isfinite(prev) and prev < a_member[i] + lift_margin
-            a_out[i], emergency[i] = (prev + jerk_max * dt) if binds else np.inf, False
+            rise = prev + jerk_max * dt
+            if jerk_release > 0.0 and prev < -decel_comfort:  # the end of an emergency
+                rise = prev + min(-decel_comfort - prev, jerk_release * dt)
+            a_out[i], emergency[i] = rise if binds else np.inf, False
         else:
             start = a_cap_prev[i] if math.isfinite(a_cap_prev[i]) else max(req, a_member[i])
             a_out[i], emergency[i] = plan_accel(start, req, dt, tau, jerk_max, jerk_emergency,
-                                                decel_comfort)
+                                                decel_comfort, jerk_release)
 
 
 @kernel
@@ -115,9 +128,9 @@ def plan_step(a_vc_prev, a_request, a_cap_prev, v_cap, a_cap, v_member, a_member
     and ``emergency``). ``pp``: the :class:`PlannerParams` as :meth:`PlannerParams.packed`."""
     tau, jerk_max, jerk_emergency, decel_comfort = pp[0], pp[1], pp[2], pp[3]
     a_vc, emergency_vc = plan_accel(a_vc_prev, a_request, dt, tau, jerk_max, jerk_emergency,
-                                    decel_comfort)
+                                    decel_comfort, pp[6])
     plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, tau, jerk_max, jerk_emergency,
-              decel_comfort, pp[4], pp[5], a_out, emergency)
+              decel_comfort, pp[4], pp[5], a_out, emergency, pp[6])
     return a_vc, emergency_vc
 
 

@@ -16,6 +16,8 @@ member a delayed virtual car) may replace it before sim/fleet.py's kernels run
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field, replace
 from typing import Callable, Protocol, runtime_checkable
 
@@ -52,6 +54,9 @@ class Reference:
     line: np.ndarray = field(default_factory=lambda: NO_LINE, repr=False)  # road/fast_line.py G
     truth: np.ndarray = field(default=None, repr=False)  # (8,) the virtual car itself at t
     info: dict = field(default_factory=dict, repr=False)  # generator diagnostics (events)
+    a_cap_from: np.ndarray | None = field(default=None, repr=False)  # (n,) the caps at the
+    # start of the step: period j's cap goes from it to a_cap (j / n_ctrl; sim/fleet.py
+    # cap_at); None: a_cap held over the step. A transform that changes a_cap changes it too
 
     @property
     def n_ctrl(self) -> int:
@@ -125,6 +130,17 @@ def apply(ref: Reference, transforms) -> Reference:
     for tr in transforms:
         ref = tr(ref)
     return ref
+
+
+@kernel
+def cap_at(a_from, a_to, j, n_ctrl):
+    """Acceleration cap [m/s^2] of control period j of n_ctrl: from the step's start value
+    ``a_from`` to its end value ``a_to`` in proportion to j (Reference.a_cap_from: the caps
+    change once per outer step, the members' caps change continuously); ``a_to`` when either
+    is not finite (a cap that appears or lifts) or when the two are equal (held)."""
+    if math.isfinite(a_from) and math.isfinite(a_to):
+        return a_from + (a_to - a_from) * j / n_ctrl
+    return a_to
 
 
 @kernel

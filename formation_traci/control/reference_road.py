@@ -18,27 +18,50 @@ from .virtual_car import along_line_advance, knot_profile_at
 
 
 @kernel
-def road_vc_rows(G, s, v, a, dt_c, vc):
+def road_vc_rows(G, s, v, a0, a, dt_c, vc):
     """Fill vc (n_ctrl, n, 8) with the virtual car on line G at the start of every control
-    period (constant acceleration a over the step); returns (s, v) at the end of the step."""
-    for j in range(vc.shape[0]):
-        X, Y, th, vv, om, vd, omd = road_leader_at(G, s, v, a)
+    period; returns (s, v) at the end of the step. Its acceleration goes from ``a0`` at the
+    start of the step to ``a`` at its end at constant jerk (:func:`ramp_advance`: the
+    acceleration is continuous from step to step); ``a0 == a``: constant acceleration a
+    over the step, as before issue 32 (``leader.accel_within_step = "hold"`` passes a0 = a)."""
+    n_ctrl = vc.shape[0]
+    jerk = (a - a0) / (dt_c * n_ctrl)
+    for j in range(n_ctrl):
+        a_j = a0 + (a - a0) * j / n_ctrl if jerk != 0.0 else a
+        X, Y, th, vv, om, vd, omd = road_leader_at(G, s, v, a_j)
         set_vc_period(vc, j, X, Y, th, vv, om, vd, omd, s)
-        s, v = along_line_advance(s, v, a, dt_c)
+        s, v = ramp_advance(s, v, a_j, jerk, dt_c)
     return s, v
+
+
+@kernel
+def ramp_advance(s, v, a, jerk, dt):
+    """Arc length [m] and speed [m/s] after dt [s] from acceleration a [m/s^2] changing at
+    ``jerk`` [m/s^3]; jerk 0 (or a stop within dt): :func:`along_line_advance` at constant
+    acceleration (the mean over dt for a stop: the car never reverses)."""
+    if jerk == 0.0:
+        return along_line_advance(s, v, a, dt)
+    v1 = v + a * dt + 0.5 * jerk * dt * dt
+    if v1 < 0.0:
+        return along_line_advance(s, v, a + 0.5 * jerk * dt, dt)
+    return s + v * dt + 0.5 * a * dt * dt + jerk * dt * dt * dt / 6.0, v1
 
 
 @kernel(error_model="python")
 def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, half_w,
                         m_s, m_d, v_m, active, nb_rear, nb_d, nb_half_w, nb_v, lim, pp,
-                        a_vc_prev, a_cap_prev, v_prev, has_prev, emergency, dt_c, vc):
+                        a_vc_prev, a_cap_prev, v_prev, has_prev, emergency, dt_c, vc, ramp,
+                        a_cap_from, nb_in_formation):
     """One step of the road reference in one compiled call: the governor over the members and
     their neighbours (:func:`governor_step`, :func:`column_caps`; slot ``along`` the line
     ahead of the virtual car at ``s`` [m], across it ``slot_d_road`` [m] for road-frame slots,
     the member's own ``m_d`` otherwise), its request capped by ``a_limit`` [m/s^2] (inf: none;
     a maneuver's room-making deceleration), the jerk-limited planner (:func:`plan_step`;
     members not in the run get no caps) and the virtual car's rows into ``vc``
-    (:func:`road_vc_rows`, control period ``dt_c`` [s]). ``lim``: :meth:`GovernorLimits.packed`;
+    (:func:`road_vc_rows`, control period ``dt_c`` [s]). With ``ramp`` the virtual car's
+    acceleration goes from the last step's value to this step's within the step and
+    ``a_cap_from`` receives the caps of the last step (the members' caps ramp the same way in
+    sim/fleet.py); without, both are held over the step. ``lim``: :meth:`GovernorLimits.packed`;
     ``pp``: :meth:`PlannerParams.packed`. The members' acceleration is their mean over the
     previous step (``v_prev`` [m/s], updated in place; zero at the first step, ``has_prev``
     False). One call instead of six: issue 18.
@@ -53,7 +76,8 @@ def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, 
     slot_s = s + along
     a_gov, gap, lead_idx, v_cap, a_cap_req = governor_step(
         m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v, v_set, v_set_dot,
-        nb_rear, nb_d, nb_half_w, nb_v, lim[0], lim[1], lim[2], lim[3])
+        nb_rear, nb_d, nb_half_w, nb_v, lim[0], lim[1], lim[2], lim[3], lim[4],
+        lim[5], nb_in_formation)
     v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
     a_request = a_limit if a_limit < a_gov else a_gov  # Python's min(a_gov, a_limit)
     dt = dt_c * vc.shape[0]
@@ -68,13 +92,16 @@ def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, 
             a_m[i] = (v_m[i] - v_prev[i]) / dt
     v_prev[:] = v_m
     a_cap = np.empty(n)
+    a_cap_from[:] = a_cap_prev
     a_vc, emergency_vc = plan_step(a_vc_prev, a_request, a_cap_prev, v_cap, a_cap_in, v_m, a_m,
                                    dt, pp, a_cap, emergency)
     for i in range(n):
         if not active[i]:  # a cap being eased out goes with its member
             a_cap[i] = np.inf
     a_cap_prev[:] = a_cap
-    s_next, v_next = road_vc_rows(G, s, v, a_vc, dt_c, vc)
+    if not ramp:
+        a_cap_from[:] = a_cap
+    s_next, v_next = road_vc_rows(G, s, v, a_vc_prev if ramp else a_vc, a_vc, dt_c, vc)
     return a_request, a_vc, emergency_vc, s_next, v_next, gap, lead_idx, a_cap_req, a_cap
 
 
@@ -87,10 +114,15 @@ class GovernorLimits:
     accel_max: float  # [m/s^2]
     decel_max: float  # comfortable [m/s^2]
     decel_emergency: float  # [m/s^2]
+    decel_follow: float = math.inf
+    """Largest braking of the virtual car outside emergencies [m/s^2]: what every member's
+    speed loop can follow (sim/setup.py follow_limit; inf: not limiting)."""
 
     def packed(self) -> np.ndarray:
-        """(time_gap, min_gap, accel_max, decel_emergency) for :func:`road_reference_step`."""
-        return np.array([self.time_gap, self.min_gap, self.accel_max, self.decel_emergency])
+        """(time_gap, min_gap, accel_max, decel_emergency, decel_follow, decel_max) for
+        :func:`road_reference_step`."""
+        return np.array([self.time_gap, self.min_gap, self.accel_max, self.decel_emergency,
+                         self.decel_follow, self.decel_max])
 
 
 class RoadReference:
@@ -99,7 +131,8 @@ class RoadReference:
 
     def __init__(self, G, length: float, slots, rigid, is_road, s0: float, v0: float,
                  speed_profile, limits: GovernorLimits, half_w, d_front,
-                 end_margin: float, dt_c: float, n_ctrl: int):
+                 end_margin: float, dt_c: float, n_ctrl: int, ramp: bool = True,
+                 release: bool = True):
         self.G, self.length = G, float(length)
         self.is_road = np.asarray(is_road, dtype=bool)
         self.frame = np.where(self.is_road, FRAME_ROAD, FRAME_VEHICLE).astype(np.int64)
@@ -118,9 +151,11 @@ class RoadReference:
         self.end_margin = float(end_margin)
         self.dt_c, self.n_ctrl = float(dt_c), int(n_ctrl)
         self._next = None
-        self.longitudinal = LongitudinalPlanner(len(self.frame), PlannerParams(decel_comfort=limits.decel_max))
+        self.longitudinal = LongitudinalPlanner(len(self.frame), PlannerParams(
+            decel_comfort=limits.decel_max, jerk_release=PlannerParams.jerk_release if release else 0.0))
         self._v_prev = np.zeros(len(self.frame))  # members' speed at the previous step [m/s]
         self._has_prev = False
+        self.ramp = bool(ramp)  # leader.accel_within_step == "ramp" (docs/model.md)
 
     def plan(self, t: float, sensed) -> list:
         """What the world must do before this step's reference (control/reference.py
@@ -137,17 +172,20 @@ class RoadReference:
         a_limit = self.request_limit(t, sensed)
         pl = self.longitudinal
         vc = np.empty((self.n_ctrl, len(self.frame), 8))
+        a_cap_from = np.empty(len(self.frame))
         (a_request, pl.a_vc, pl.emergency_vc, s_next, v_next, gap, lead_idx, a_cap_req,
          a_cap) = road_reference_step(
             self.G, self.prof, float(t), self.s, self.v, a_limit, self.along, self.slot_d,
             self.is_road, self.d_front, self.half_w, sensed.m_s, sensed.m_d, sensed.v_m,
             sensed.active, sensed.nb_rear, sensed.nb_d, sensed.nb_half_w, sensed.nb_v, self.lim,
-            pl.pp, pl.a_vc, pl.a_cap, self._v_prev, self._has_prev, pl.emergency, self.dt_c, vc)
+            pl.pp, pl.a_vc, pl.a_cap, self._v_prev, self._has_prev, pl.emergency, self.dt_c, vc, self.ramp, a_cap_from,
+            sensed.nb_in_formation)
         self._has_prev = True
         self._next = (s_next, v_next)
         truth = vc[0, 0].copy()  # period 0: road_leader_at(G, s, v, a_vc) and s
         return Reference(float(t), self.dt_c, vc, self.slots, self.frame, sensed.active, pl.v_cap,
                          a_cap, line=self.G, truth=truth,
+                         a_cap_from=a_cap_from if self.ramp else None,
                          info={"a_vc": pl.a_vc, "gap": gap, "lead_idx": lead_idx,
                                "a_request": a_request, "a_cap_request": a_cap_req,
                                "emergency": pl.emergency_vc,

@@ -55,6 +55,22 @@ def p_law(reference, actual, g_min, g_max, k_min):
     return scheduled_gain(e, g_min, g_max, k_min) * e
 
 
+FOLLOW_ERROR_MAX = 5.0
+"""Largest speed error [m/s] over which a member's speed law is asked for its acceleration
+(:func:`law_peak`): a reference the member can follow only further behind is not followed."""
+FOLLOW_SHARE = 0.9
+"""Share of a speed law's peak output the virtual car may ask of the members [-]: at the peak
+the member's speed error would have no room left to grow."""
+
+
+def law_peak(g_min: float, g_max: float, k_min: float, e_max: float = FOLLOW_ERROR_MAX) -> float:
+    """Largest |K(e) e| of the scheduled law (3.34) for speed errors |e| <= ``e_max`` [m/s]:
+    the largest acceleration [m/s^2] the law asks while the member lags or leads its speed
+    reference by at most e_max (Table 3.6's truck: 0.513 m/s^2 at e = 1.12 m/s, docs/model.md)."""
+    e = np.linspace(0.0, e_max, 50001)
+    return float(np.max(np.abs(scheduled_gain(e, g_min, g_max, k_min) * e)))
+
+
 def as_float(x):
     """x as a float64 array (numba compiles one signature for arrays, one for floats)."""
     a = np.asarray(x, dtype=np.float64)

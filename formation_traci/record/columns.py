@@ -15,6 +15,14 @@ DEFAULT_FORMATION_ID = "f0"
 """``formation_id`` of a scenario's one formation given by its top-level leader and members."""
 
 
+INCIDENT_VERDICT: tuple[str, ...] = ("member_collisions", "member_removed", "emergency_brakes",
+                                     "stranded")
+"""run.json ``incidents`` that make a run that reached its end ``completed_with_incidents``
+(sim/incidents.py defines each)."""
+INCIDENT_KEYS: tuple[str, ...] = INCIDENT_VERDICT + ("sumo_collision_artefacts",)
+"""run.json ``incidents``: a count of each (fixed names)."""
+
+
 @dataclass(frozen=True, slots=True)
 class Column:
     name: str
@@ -110,6 +118,26 @@ BACKGROUND_COLUMNS: tuple[Column, ...] = (
     Column("d", "float64", "m", "lateral offset of the centre from the reference line, left positive"),
 )
 """Columns of ``background.parquet``: SUMO's vehicles near the formation, one row per vehicle per step."""
+
+FCD_COLUMNS: tuple[Column, ...] = (
+    Column("t", "float64", "s", "formation time of the state (the trajectories' t); sumo frame: SUMO's time label"),
+    Column("vehicle_id", "string", "-", "SUMO vehicle id (members: the member id)"),
+    Column("type", "string", "-", "SUMO vType id"),
+    Column("x", "float64", "m", "centre of gravity (members) / body centre; sumo frame: front bumper"),
+    Column("y", "float64", "m", "centre of gravity (members) / body centre; sumo frame: front bumper"),
+    Column("heading", "float64", "rad", "counter-clockwise from +x; sumo frame: degrees clockwise from north"),
+    Column("v", "float64", "m/s", "speed; members in the formation frame: their true speed (the model's)"),
+    Column("lane", "string", "-", "SUMO lane id"),
+    Column("edge", "string", "-", "SUMO edge id (from the lane where SUMO leaves it empty)"),
+    Column("lane_pos", "float64", "m", "SUMO's position of the front bumper along the lane"),
+    Column("slope", "float64", "deg", "road slope"),
+)
+"""Columns of ``sumo/fcd.parquet`` (sim/fcd.py), one naming in both ``sumo.fcd_frame`` s; the
+formation frame's units (the sumo frame's differ: :data:`FCD_SUMO_UNITS`)."""
+
+FCD_SUMO_UNITS = {"t": "s (SUMO time)", "x": "m (front bumper)", "y": "m (front bumper)",
+                  "heading": "deg (clockwise from north)"}
+"""Units of ``sumo/fcd.parquet`` columns in SUMO's frame where they differ."""
 
 SSM_COLUMNS: tuple[Column, ...] = (
     Column("begin", "float64", "s", "encounter start (formation clock)"),

@@ -22,6 +22,9 @@ from pathlib import Path
 from typing import Iterable
 
 RUN_SCHEMA = "formation-traci/run/1"
+RUN_FINISHED = ("completed", "completed_with_incidents")
+"""Statuses of a run that reached its end (``completed_with_incidents``: with a member
+collision, removal, emergency brake or stranded member, sim/incidents.py)."""
 """``run.json["schema"]``: marks a directory as a run of this tool."""
 LOCK_NAME = ".formation-traci.lock"
 """Lock file inside an output directory; holds the pid, host and command of the holder."""

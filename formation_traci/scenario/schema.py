@@ -26,6 +26,9 @@ class RunSpec(Strict):
     control_step: PosFloat = Field(0.01, description="controller sampling period [s]; divides step")
     physics_step: PosFloat = Field(0.01, le=0.01, description="largest RK4 sub-step [s]; at most 0.01")
     seed: int = Field(0, ge=0, description="random seed (SUMO's --seed; recorded in run.json)")
+    independent_members: bool = Field(
+        False, description="free space: the members are independent experiments overlaid in one run "
+        "(gain studies): their bodies overlapping is no member collision (ignored on a road)")
 
     @model_validator(mode="after")
     def _ratios(self):
@@ -114,6 +117,17 @@ class LeaderSpec(Strict):
     accel_max: PosFloat = Field(1.5, description="largest acceleration of the virtual car [m/s^2] (road)")
     decel_max: PosFloat = Field(3.0, description="comfortable deceleration of the virtual car [m/s^2] (road)")
     decel_emergency: PosFloat = Field(7.0, description="deceleration allowed to avoid a collision [m/s^2] (road)")
+    bound_by_members: bool = Field(
+        True, description="road: the virtual car's acceleration and its braking outside emergencies "
+        "at most 90 % of the weakest member's speed law (a truck's Table 3.6 gains: 0.46 m/s^2; issue 32); "
+        "false: only accel_max and decel_max (before issue 32)")
+    emergency_release: bool = Field(
+        True, description="road: braking harder than decel_max is released at 20 m/s^3 once the emergency "
+        "is over (issue 32); false: at the planner's 0.8 m/s^3 like any change (before issue 32)")
+    accel_within_step: Literal["ramp", "hold"] = Field(
+        "ramp", description="road: how the virtual car's acceleration and the members' acceleration caps, "
+        "planned once per step, pass within the step: 'ramp' from the last step's value to this step's "
+        "(continuous accelerations, issue 32), 'hold' constant over the step (before issue 32)")
 
     @field_validator("speed")
     @classmethod

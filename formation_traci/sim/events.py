@@ -1,7 +1,8 @@
 """Event detectors of road runs: each watches one thing and writes rows to the recorder.
 
 Kinds (docs/outputs.md): member_removed, placement_mismatch, lane_change, cut_in,
-collision, teleport, emergency_brake, emergency_end, move_refused, end_of_road, cleared_at_insertion.
+collision, collision_artefact, member_collision, stranded (sim/incidents.py), teleport, emergency_brake,
+emergency_end, move_refused, end_of_road, cleared_at_insertion.
 """
 from __future__ import annotations
 
@@ -68,15 +69,21 @@ class MemberWatch:
         self._settled = list(lanes) if every else None
 
 
-def log_sumo_events(rec, t, ev, members: set[str], names: dict | None = None) -> None:
+def log_sumo_events(rec, t, ev, members: set[str], names: dict | None = None,
+                    clearance_of=None) -> None:
     """Collisions and teleports SUMO reported for the last step (``names``: SUMO id -> member
-    id of vehicles taken over by a join)."""
+    id of vehicles taken over by a join). Collisions go to the recorder's incidents
+    (sim/incidents.py), classified by ``clearance_of(a, b)``: our signed body clearance [m]."""
     names = names or {}
     if ev is None:
         return
-    for collider, victim, lane in ev.collisions:
-        rec.add_event(t, "collision", names.get(collider, collider), names.get(victim, victim),
-                      f"lane {lane}")
+    if ev.collisions and rec.incidents is None:  # a recorder outside a run (tests)
+        for c, v, lane in ev.collisions:
+            rec.add_event(t, "collision", names.get(c, c), names.get(v, v), f"lane {lane}")
+    elif ev.collisions:
+        rec.incidents.sumo_collisions(t, [(names.get(c, c), names.get(v, v), lane)
+                                          for c, v, lane in ev.collisions],
+                                      clearance_of or (lambda a, b: np.nan))
     for vid in ev.teleports:
         vid = names.get(vid, vid)
         rec.add_event(t, "teleport", vid, "", "member" if vid in members else "")

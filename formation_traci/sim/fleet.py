@@ -17,9 +17,9 @@ from typing import Literal
 import numpy as np
 
 from ..control.formation import initial_theta_star
-from ..control.laws import DEFAULT_LAW, law_code, law_module
+from ..control.laws import DEFAULT_LAW, law_module, pack_laws
 from ..control.laws.dispatch import law_input_at, runtime_dispatch
-from ..control.reference import Reference
+from ..control.reference import Reference, cap_at
 from ..control.schedule import GainSchedule
 from ..control.targets import desired_point_at
 from ..kernels import kernel, maximum, rebind, substeps
@@ -91,7 +91,7 @@ def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, target
 
 @kernel
 def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame, vc, slots,
-                 v_cap, a_cap, dt_c, n_sub, comfort, t0, table, table_ids, at):
+                 v_cap, a_cap, a_cap_from, dt_c, n_sub, comfort, t0, table, table_ids, at):
     """One step: for each of the vc.shape[0] control periods of dt_c [s], every member's
     input from the reference under its control law (``law``: control/laws dispatch code,
     ``L`` the per-member law parameters, ``pred`` the member ahead), held over RK4 in n_sub
@@ -116,7 +116,8 @@ def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame
         for i in range(n):
             px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, j, i)
             res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py,
-                               tvx, tvy, tax, tay, v_cap[i], a_cap[i], pred[i])
+                               tvx, tvy, tax, tay, v_cap[i],
+                               cap_at(a_cap_from[i], a_cap[i], j, vc.shape[0]), pred[i])
             U0[i] = res[0]
             U1[i] = res[1]
             tsd[i] = res[4]
@@ -204,8 +205,8 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
 
 @kernel
 def member_signals(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame, vc, slots,
-                   v_cap, a_cap, cols, out, t, limits, traj, traj_ids, at, comfort, comfort_ids,
-                   c_at, comfort_cols):
+                   v_cap, a_cap, a_cap_from, cols, out, t, limits, traj, traj_ids, at, comfort,
+                   comfort_ids, c_at, comfort_cols):
     """The recorded signals at the start of a step (the first control period's reference)
     into out[i, cols[q]]; e_lon / e_lat in the frame of the member's virtual car.
 
@@ -219,7 +220,8 @@ def member_signals(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, fra
     for i in range(n):
         px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, 0, i)
         res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py, tvx,
-                           tvy, tax, tay, v_cap[i], a_cap[i], pred[i])
+                           tvy, tax, tay, v_cap[i], cap_at(a_cap_from[i], a_cap[i], 0, vc.shape[0]),
+                           pred[i])
         th = vc[0, i, 2]
         _signal_values(kind, x, i, P, res[0], res[1], res, px, py, np.cos(th), np.sin(th),
                        vals)
@@ -271,6 +273,11 @@ _NO_ROWS = (np.empty(0), np.empty((0, 0)), np.empty(0, dtype=np.int32), -1, np.e
 _NO_PERIOD_ROWS = (np.empty((0, 0)), np.empty(0, dtype=np.int32), -1)
 """step_members' table-row arguments when no rows are written."""
 
+def _cap_from(ref: Reference) -> np.ndarray:
+    """The members' caps at the start of the step [m/s^2] (period 0's: cap_at)."""
+    return _f64(ref.a_cap if ref.a_cap_from is None else ref.a_cap_from)
+
+
 def _f64(a) -> np.ndarray:
     """a as a C-contiguous, writeable float64 array (no copy when it already is one)."""
     if (type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous
@@ -280,21 +287,6 @@ def _f64(a) -> np.ndarray:
 
 
 _RUNTIME_KERNELS: dict = {}
-
-
-def _pack_laws(cfg: FleetConfig):
-    """Every member's law code (n,), the law parameters (n, most PARAMS of its laws) and the
-    one law registered at run time among them (or None)."""
-    laws = cfg.law if isinstance(cfg.law, (tuple, list)) else (cfg.law,) * cfg.n
-    codes = np.array([law_code(name) for name in laws], dtype=np.int64)
-    runtime = sorted({name for name, c in zip(laws, codes) if c < 0})
-    if len(runtime) > 1:
-        raise ValueError(f"one fleet runs at most one law registered at run time, not {runtime}")
-    packs = {name: np.asarray(law_module(name).pack(cfg), dtype=float) for name in set(laws)}
-    L = np.zeros((cfg.n, max(p.shape[1] for p in packs.values())))
-    for i, name in enumerate(laws):
-        L[i, :packs[name].shape[1]] = packs[name][i]
-    return codes, L, (runtime[0] if runtime else None)
 
 
 def _law_kernels(law: str | None):
@@ -329,7 +321,7 @@ class Fleet:
         else:
             raise ValueError(f"unknown model {cfg.model!r}")
         self.k = _f64(np.broadcast_to(np.asarray(cfg.k, dtype=float), (n,)))  # eq 2.7, theta*(0)
-        self.law, self.L, runtime = _pack_laws(cfg)
+        self.law, self.L, runtime = pack_laws(cfg)
         self.pred = np.array(cfg.pred if cfg.pred is not None else (-1,) * n, dtype=np.int64)
         self._step, self._signals = _law_kernels(runtime)
         sg, yg = (g if isinstance(g, (tuple, list)) else (g,) * n
@@ -367,7 +359,7 @@ class Fleet:
         x, ts, sp = self._step(
             _f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self.kind, self.P,
             self.law, self.L, self.gains, self.pred, ref.line, ref.frame, ref.vc, ref.slots,
-            _f64(ref.v_cap), _f64(ref.a_cap), float(ref.dt), self.n_sub(ref.dt),
+            _f64(ref.v_cap), _f64(ref.a_cap), _cap_from(ref), float(ref.dt), self.n_sub(ref.dt),
             _NO_COMFORT if comfort is None else comfort, float(ref.t),
             *(_NO_PERIOD_ROWS if rows is None else rows))
         return FleetState(x, ts, sp)
@@ -387,6 +379,7 @@ class Fleet:
         return self._signals(_f64(state.x), _f64(state.theta_star), _f64(state.speed_in),
                               self.kind, self.P, self.law, self.L, self.gains, self.pred, ref.line,
                               ref.frame, ref.vc, ref.slots, _f64(ref.v_cap), _f64(ref.a_cap),
+                              _cap_from(ref),
                               self.cols, out, float(t), *(_NO_ROWS if rows is None else rows))
 
     def kinematics(self, state: FleetState):

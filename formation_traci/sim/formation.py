@@ -132,4 +132,6 @@ def join_references(refs: list[Reference]) -> Reference:
         np.concatenate([r.slots for r in refs], axis=1),
         np.concatenate([r.frame for r in refs]), np.concatenate([r.active for r in refs]),
         np.concatenate([r.v_cap for r in refs]), np.concatenate([r.a_cap for r in refs]),
-        line=first.line, truth=np.stack([r.truth for r in refs]), info=info)
+        line=first.line, truth=np.stack([r.truth for r in refs]), info=info,
+        a_cap_from=(None if all(r.a_cap_from is None for r in refs) else np.concatenate(
+            [r.a_cap if r.a_cap_from is None else r.a_cap_from for r in refs])))

@@ -34,6 +34,27 @@ def drop_neighbour(sensed, j: int) -> None:
     sensed.nb = replace(nb, **lists, **arrays)
     for f in ("nb_s", "nb_d", "nb_rear", "nb_half_w", "nb_v"):
         setattr(sensed, f, getattr(sensed, f)[keep])
+    if len(sensed.nb_in_formation) == len(keep):
+        sensed.nb_in_formation = sensed.nb_in_formation[keep]
+
+
+def inside_formation(released: set, sensed, m_front, vehicles, active) -> np.ndarray:
+    """Which neighbours in ``sensed`` are released members still inside the formation: behind
+    the front bumper (``m_front``, arc length [m]) of an active member whose lateral band they
+    overlap (members' chassis ``vehicles``). The virtual car's slot law ignores them
+    (control/governor.py governor_step): braking for a released member that follows a member
+    ahead of it would brake that member, which it follows, down to a standstill (issue 32)."""
+    nb = sensed.nb
+    out = np.zeros(len(nb.ids), dtype=np.bool_)
+    for j, vid in enumerate(nb.ids):
+        if vid not in released:
+            continue
+        for i in np.flatnonzero(active):
+            if m_front[i] > sensed.nb_rear[j] and abs(sensed.m_d[i] - sensed.nb_d[j]) < \
+                    0.5 * vehicles[i].width + sensed.nb_half_w[j]:
+                out[j] = True
+                break
+    return out
 
 
 def take_over(world, t: float, i: int, vid: str, sensed) -> None:

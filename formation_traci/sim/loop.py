@@ -158,6 +158,8 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
                     fleet.signals(state, ref.with_(vc=ref_err.vc), out=sig_true)
                     sig[:, err_cols] = sig_true[:, err_cols]
                 rec.add_step(t, sig, sensed.extra, ref.active, ref.truth, written)
+                if rec.incidents is not None:  # collisions between members, stranded members
+                    rec.incidents.step(t, sig, ref.active)
             else:
                 rec.add_vc(t, ref.leader(), s=float(ref.truth[7]))
             clock.lap("record")

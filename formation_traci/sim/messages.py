@@ -94,16 +94,16 @@ def report(path: Path, t0: float, add_event, step: float, t_max: float = float("
 
 
 def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_front: dict,
-                      t_max: float = float("inf")) -> None:
+                      t_max: float = float("inf"), member_v: dict | None = None) -> None:
     """After the run: SUMO's messages up to formation time ``t_max`` as events (run.json
-    ``sumo.messages``), the FCD in the formation's frame if asked for, and which clock and
-    frame each output uses."""
+    ``sumo.messages``), the FCD up to then in the frame asked for (one naming of the columns
+    in both frames, units in the metadata), and which clock and frame each output uses."""
     meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, rec.add_event, sc.run.step, t_max)
     if sc.sumo.fcd:
-        from .fcd import cut_fcd, to_formation_frame
+        from .fcd import cut_fcd, rewrite_fcd
         cut_fcd(sumo_dir / "fcd.parquet", t0, sc.run.step, t_max)  # the formation's part only
-        if sc.sumo.fcd_frame == "formation":
-            to_formation_frame(sumo_dir / "fcd.parquet", t0, member_d_front, sc.run.step)
+        rewrite_fcd(sumo_dir / "fcd.parquet", sc.sumo.fcd_frame, t0, member_d_front, sc.run.step,
+                    member_v)
     meta["sumo"]["clock"] = ("trajectories, background, events, ssm: formation time t = SUMO time - warmup, "
                              "centre of gravity; sumo/*.log, sumo/*.xml: SUMO time; sumo/fcd.parquet: "
                              f"{'formation' if sc.sumo.fcd_frame == 'formation' else 'SUMO'} frame")

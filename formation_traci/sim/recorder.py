@@ -73,6 +73,7 @@ class Recorder:
             self.background = ChunkedTable(out_dir / "background.parquet", BACKGROUND_COLUMNS,
                                            chunk_rows=BACKGROUND_CHUNK_ROWS)
         self.event_counts: dict[str, int] = {}
+        self.incidents = None  # sim/incidents.py Incidents: set by the runner (sim/runner.py)
         self.ssm = None  # record.ssm.SsmConverter: set by sim/sumo_world.py when SUMO's SSM device is on
         self._latest: dict[str, float] = {}
         self._reported = -np.inf

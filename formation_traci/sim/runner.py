@@ -14,7 +14,7 @@ import gc
 import os
 import platform
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..interrupt import Interrupted, stop_on_signals
@@ -26,6 +26,7 @@ from ..versions import installed_versions, platform_name
 from .loop import ModelRangeError, check_finite, free_space_run, step_loop  # noqa: F401
 from ..scenario.formations import formation_views
 from .formation import virtual_car_id
+from .incidents import Incidents, verdict
 from .recorder import Recorder
 from .setup import member_vehicles, road_mu, with_comm
 
@@ -33,10 +34,12 @@ from .setup import member_vehicles, road_mu, with_comm
 @dataclass(frozen=True)
 class RunResult:
     out_dir: Path
-    status: str  # completed | interrupted | failed
+    status: str  # completed | completed_with_incidents | interrupted | failed
     reason: str | None
     t_end: float  # last simulated time [s]
     steps_done: int
+    incidents: dict = field(default_factory=dict)  # run.json 'incidents' (sim/incidents.py)
+    incident_summary: str | None = None  # one line, None: no incident of the verdict
 
 
 def _now() -> str:
@@ -190,7 +193,8 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
         if bar is not None:
             bar.close()
         status, reason = _finish(meta_path, meta, rec, steps, status, reason, t, k)
-    return RunResult(out_dir, status, reason, float(meta["t_end"]), int(meta["steps_done"]))
+    return RunResult(out_dir, status, reason, float(meta["t_end"]), int(meta["steps_done"]),
+                     meta["incidents"], meta["incident_summary"])
 
 
 def _finish(meta_path, meta, rec, steps, status, reason, t, k):
@@ -212,8 +216,13 @@ def _finish(meta_path, meta, rec, steps, status, reason, t, k):
             t = min([d for d in done if d is not None], default=0.0)
             k = int(round(t / meta["record_step"]))
             reason += f"; the tables on disk are complete up to t = {t:.2f} s (run.json 'tables')"
+    incidents = rec.incidents.counts()
+    status, summary = verdict(status, incidents)  # completed -> completed_with_incidents
+    if meta.get("baseline"):  # no member in the twin: the ghost virtual car's brakes are no incident
+        status, summary = ("completed" if status == "completed_with_incidents" else status), None
     meta.update(status=status, reason=reason, finished=_now(), t_end=float(t),
                 steps_done=int(k), rows_written=rec.traj.rows_on_disk)
+    meta["incidents"], meta["incident_summary"] = incidents, summary
     meta["tables"] = on_disk
     meta["event_counts"] = rec.event_counts
     _write_final(meta_path, meta)
@@ -258,10 +267,13 @@ def _recorder(sc: Scenario, out_dir: Path) -> Recorder:
     vc_ids = [virtual_car_id(fid, len(views)) for fid, _ in views]
     formation_of = {m.id: fid for fid, view in views for m in view.members}
     formation_of.update({vc: fid for vc, (fid, _) in zip(vc_ids, views)})
-    return Recorder(out_dir, [m.id for _, view in views for m in view.members],
-                    with_sumo=sc.road is not None,
-                    periods_per_step=int(round(sc.run.step / sc.run.control_step)),
-                    formation_of=formation_of, vc_ids=vc_ids)
+    ids = [m.id for _, view in views for m in view.members]
+    rec = Recorder(out_dir, ids, with_sumo=sc.road is not None,
+                   periods_per_step=int(round(sc.run.step / sc.run.control_step)),
+                   formation_of=formation_of, vc_ids=vc_ids)
+    rec.incidents = Incidents(rec, ids, [v for _, view in views for v in member_vehicles(view)],
+                              pairs=not (sc.run.independent_members and sc.road is None))
+    return rec
 
 
 def _with_transforms(build, transforms):

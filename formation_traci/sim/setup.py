@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..control.formation import LeaderState, rigid_targets
-from ..control.schedule import GAIN_PRESETS, GainSchedule
+from ..control.schedule import FOLLOW_SHARE, GAIN_PRESETS, GainSchedule, law_peak
 from ..control.virtual_car import FreeLeader, Profile
 from ..models.linear import stable_blend_speed
 from ..models.params import (LOW_SPEED_DEFAULT, SURFACES, VEHICLE_PRESETS, VehicleParams,
@@ -62,6 +62,34 @@ def profile(spec, scale: float = 1.0) -> Profile:
     if isinstance(spec, ProfileSpec):
         return Profile(tuple(spec.t), tuple(v * scale for v in spec.values), spec.interp)
     return Profile.constant(spec * scale)
+
+
+def follow_limit(sc: Scenario, gains: np.ndarray, speed_profile: Profile, meta: dict) -> float:
+    """The largest acceleration and braking [m/s^2] the virtual car may ask of every member on a
+    road: FOLLOW_SHARE of the smallest peak of the members' speed laws (control/schedule.py
+    law_peak; ``gains`` (n, 6) as sim/fleet.py Fleet.gains; inf for the kinematic model, which
+    has no speed loop). When the leader's speed profile asks more, a warning goes to stderr
+    and run.json ``warnings``: the virtual car follows the profile more slowly (with
+    ``leader.bound_by_members = false`` it does not: inf, the warning says the formation may not
+    hold)."""
+    if sc.vehicle.model != "dynamic":
+        return float("inf")
+    peaks = [law_peak(*g[:3]) for g in np.asarray(gains)]
+    limit = FOLLOW_SHARE * min(peaks)
+    t = np.arange(0.0, sc.run.duration + 1e-9, 0.05)
+    asked = max(abs(float(speed_profile(float(ti))[1])) for ti in t)
+    if asked > limit:
+        who = sc.members[int(np.argmin(peaks))].id
+        then = (f"the virtual car changes speed at most {limit:.3f} m/s^2, slower than the "
+                "profile" if sc.leader.bound_by_members else "leader.bound_by_members = false: "
+                f"{who} cannot hold its slot")
+        text = (f"leader.speed asks up to {asked:.2f} m/s^2; member {who}'s speed law (its "
+                f"speed_gains) gives at most {min(peaks):.3f} m/s^2: {then} (docs/model.md, "
+                "'Mixed formations')")
+        meta.setdefault("warnings", []).append(text)
+        import sys
+        print(f"warning: {text}", file=sys.stderr)
+    return limit if sc.leader.bound_by_members else float("inf")
 
 
 def build_fleet(sc: Scenario) -> FleetConfig:

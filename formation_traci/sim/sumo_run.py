@@ -18,7 +18,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     from .fleet import Fleet, initial_state
     from .loop import one_formation
     from .road_load import road_load_part
-    from .setup import build_fleet, profile, road_mu
+    from .setup import build_fleet, follow_limit, profile, road_mu
     from .sumo_plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
 
     run, ld, veh, line = sc.run, sc.leader, plan.veh, plan.road.line
@@ -27,10 +27,12 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     fleet = Fleet(cfg)
     speed_profile = profile(ld.speed)
     # the virtual car never asks for more than the road's adhesion allows the members
-    mu_g = road_mu(sc) * 9.81
-    limits = GovernorLimits(ld.time_gap, ld.min_gap, min(ld.accel_max, ADHESION_SHARE_COMFORT * mu_g),
+    mu_g = road_mu(sc) * 9.81  # and never more than every member's speed law can follow
+    follow = follow_limit(sc, fleet.gains, speed_profile, meta)
+    limits = GovernorLimits(ld.time_gap, ld.min_gap,
+                            min(ld.accel_max, ADHESION_SHARE_COMFORT * mu_g, follow),
                             min(ld.decel_max, ADHESION_SHARE_COMFORT * mu_g),
-                            min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g))
+                            min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g), follow)
     s0, v0 = float(sc.road.start), speed_profile(0.0)[0]
     tg0 = initial_targets(plan.road, plan.slots, plan.rigid, plan.is_road, s0, v0, 0.0)
     yaw0 = plan.speed0 * line.curvature(line.to_frenet(plan.pos0)[0])
@@ -44,9 +46,11 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
                         "governor": 0.0, "control_model": 0.0, "record": 0.0}
     load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, line)
+    # docs/model.md, "Accelerations within a step" and "Leave without stranding"
+    ramp, release = sc.leader.accel_within_step == "ramp", sc.leader.emergency_release
     if not sc.maneuvers:
-        return one_formation(world, RoadReference(*args), fleet, state, timing=meta["timing_s"],
-                             road_load=load)
+        return one_formation(world, RoadReference(*args, ramp=ramp, release=release), fleet,
+                             state, timing=meta["timing_s"], road_load=load)
     from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
     from ..control.maneuvers.planner import ManeuverPlanner
     from .road_setup import road_room
@@ -56,6 +60,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
                               lengths, widths, list(world.ids), road_room(plan.road),
                               (ld.time_gap, ld.min_gap),
                               np.array([v.cog_to_front_bumper for v in plan.vehicles]))
-    gen = ManeuverRoadReference(*args, planner=planner, length=lengths)
+    gen = ManeuverRoadReference(*args, ramp=ramp, release=release, planner=planner,
+                                length=lengths)
     return one_formation(world, gen, fleet, state, transforms=[PlanSlots(planner)],
                          timing=meta["timing_s"], road_load=load)

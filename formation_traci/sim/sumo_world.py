@@ -23,8 +23,9 @@ from .sections import drain as drain_stretch
 from .sections import plan_sections
 from .sections import sumo_options as section_options
 from .sections import write_tables as write_sections
+from .incidents import clearance_lookup
 from .demand import measure_plan, traffic_meta
-from .join import adopt, enter, take_over
+from .join import adopt, enter, inside_formation, take_over
 from .messages import sumo_outputs_meta
 from .sumo_adapter import SumoAdapter, SumoError
 from .sumo_neighbours import NOBODY
@@ -73,6 +74,8 @@ class SumoWorld:
         self.packed_lanes = PackedLanes(plan.road.shapes)
         self._nb_guess = NeighbourGuess()
         self.ev = None
+        self.released: set[str] = set()  # SUMO ids of members handed over by a leave
+        self.true_v = {} if sc.sumo.fcd and sc.sumo.fcd_frame == "formation" else None  # k -> v [m/s]
         self._kin = None  # (state, pos, vel, heading) of the state last placed
         self.along = np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])
         self.slot_d_0 = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
@@ -161,10 +164,11 @@ class SumoWorld:
             self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
         finally:
             if hasattr(self, "flows"):
+                from .fcd import true_speeds  # pandas: imported only to end a run
                 traffic_meta(self.meta, self.rec, self.flows, departed, t_sumo, t0, self.measure)
                 sumo_outputs_meta(self.meta, self.sc, self.rec, self.sumo_dir, t0,
                                   {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)},
-                                  t_sumo - t0)
+                                  t_sumo - t0, true_speeds(self.true_v, self.ids))
                 self.meta.setdefault("sections", {}).update(write_sections(
                     self.out_dir, self.sections, self.adapter.departures, t0, set(self.ids)))
 
@@ -197,17 +201,22 @@ class SumoWorld:
             sensed.extra.update(sumo_gap=gap, lane_index=rows[5])
             self.members.placement(t, gap, n_off)
             self.members.lane_changes(t, *rows[6:])
-        ev = self.ev
-        if ev is not None and (ev.collisions or ev.teleports):
-            log_sumo_events(self.rec, t, ev, self._id_set, self.joined_names())
         if nb_rows is None:
             sensed.nb = NOBODY
-            return sensed
-        ids, types, _, _, v, a, length, width, lane_ids, lane_index = nb_rows
-        x, y, psi, sensed.nb_rear, sensed.nb_half_w = nb_out
-        sensed.nb = Neighbours(ids, types, x, y, psi, v, a, length, width, lane_ids, lane_index)
-        sensed.nb_s, sensed.nb_d, sensed.nb_v = s[n:], d[n:], v
-        self._nb_guess.keep(ids, sensed.nb_s)
+        else:
+            ids, types, _, _, v, a, length, width, lane_ids, lane_index = nb_rows
+            x, y, psi, sensed.nb_rear, sensed.nb_half_w = nb_out
+            sensed.nb = Neighbours(ids, types, x, y, psi, v, a, length, width, lane_ids, lane_index)
+            sensed.nb_s, sensed.nb_d, sensed.nb_v = s[n:], d[n:], v
+            self._nb_guess.keep(ids, sensed.nb_s)
+            if self.released:  # released members inside the formation (sim/join.py)
+                sensed.nb_in_formation = inside_formation(self.released, sensed, m_s + self.d_front,
+                                                          self.plan.vehicles, self.active)
+        ev = self.ev
+        if ev is not None and (ev.collisions or ev.teleports):
+            log_sumo_events(self.rec, t, ev, self._id_set, self.joined_names(),
+                            clearance_lookup(self.rec.incidents, self.ids, self.active,
+                                             pos, heading, sensed.nb))
         return sensed
 
     def _member_rows(self, t):
@@ -254,6 +263,7 @@ class SumoWorld:
         except SumoError as exc:
             lane, way = "?", f", not routed to the exit: {exc}"
         self.active[i] = False
+        self.released.add(vid)
         self.rec.add_event(t, "handover", self.ids[i], vid if vid != self.ids[i] else "",
                            f"leave: released to SUMO at {v:.2f} m/s on lane {lane}{way}")
 
@@ -326,6 +336,8 @@ class SumoWorld:
         v_after = self.fleet.speed(state)
         self.a_mean = (v_after - v_before) / self.sc.run.step
         self.v_after = v_after
+        if self.true_v is not None:  # the members' true speeds for the FCD (sim/fcd.py)
+            self.true_v[int(round(t_next / self.sc.run.step))] = np.where(self.active, v_after, np.nan)
         ids, ad = self.ids, self.adapter
         act_idx = np.flatnonzero(self.active & self.in_sumo)
         if len(self.pending):  # a twin clears the same vehicles at the same step (same state)

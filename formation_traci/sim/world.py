@@ -37,6 +37,10 @@ class Sensed:
     nb_rear: np.ndarray = field(default_factory=lambda: _EMPTY)  # neighbours' rear arc length [m]
     nb_half_w: np.ndarray = field(default_factory=lambda: _EMPTY)  # neighbours' half width [m]
     nb_v: np.ndarray = field(default_factory=lambda: _EMPTY)  # neighbours' speed [m/s]
+    # neighbours that are released members still inside the formation (behind the front of a
+    # member in their lane): the virtual car's slot law does not brake for them, the members
+    # behind them do (issue 32; empty: none)
+    nb_in_formation: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
 
 
 class World(Protocol):

@@ -17,7 +17,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict
 
-from ..record.rundir import DirLock, clear_run
+from ..record.rundir import RUN_FINISHED, DirLock, clear_run
 from .expand import Case
 from .row import empty_row, metric_values, twin_values
 
@@ -140,7 +140,7 @@ def _analyse(run_dir: Path, row: dict, twin: Path | None = None) -> dict[str, An
     try:
         a = analyze_run(run_dir, figures=False, baseline=twin)
     except NoTrajectoryData as exc:
-        return {} if row["status"] != "completed" else {"status": "failed",
+        return {} if row["status"] not in RUN_FINISHED else {"status": "failed",
                                                         "reason": f"analysis: {exc}"}
     meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
     out = metric_values(run_dir, a.members, meta)

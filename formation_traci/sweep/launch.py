@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-from ..record.rundir import is_locked
+from ..record.rundir import RUN_FINISHED, is_locked
 from .case import CASE_JSON, CaseSpec, write_case_json
 from .row import empty_row
 
@@ -181,7 +181,7 @@ def launch_case(case_spec: dict | CaseSpec, should_stop: Callable[[], bool] | No
         if timed_out:
             row.update(status="failed", reason=f"timeout: still running after {timeout_s:g} s; "
                                                f"{row['reason'] or 'stopped'}")
-        elif stopped and row["status"] != "completed":
+        elif stopped and row["status"] not in RUN_FINISHED:
             row.update(status="interrupted", reason=f"sweep interrupted; {row['reason'] or 'stopped'}")
     row.update(wall_s=time.monotonic() - t0, host=socket.gethostname(), pid=pid)
     try:

@@ -32,7 +32,11 @@ METRICS: dict[str, tuple[str, str]] = {
     "slip_over_s": ("s", "max time over the tire slip limit (dynamic model; NaN for kinematic)"),
     "traction_over_s": ("s", "max time over the traction limit (dynamic model; NaN for kinematic)"),
     "friction_over_s": ("s", "max time outside the friction circle"),
-    "collisions": ("-", "SUMO runs: collision events involving a member (NaN in free space)"),
+    "member_collisions": ("-", "run.json incidents: member collisions (our body clearance < 0, or a SUMO collision with a SUMO vehicle our clearance confirms; one per pair and contact)"),
+    "member_removed": ("-", "run.json incidents: members SUMO no longer has or that were taken out"),
+    "stranded": ("-", "run.json incidents: members standing (< 0.5 m/s for > 5 s) while their v_ref is above 2 m/s"),
+    "sumo_collision_artefacts": ("-", "run.json incidents: SUMO collision reports of a member our clearance refutes (not in the verdict)"),
+    "collisions": ("-", "SUMO runs: collision events involving a member (SUMO's reports our clearance does not refute; NaN in free space)"),
     "min_ttc_s": ("s", "SUMO runs: smallest SSM time to collision of a conflict involving a member"),
     "emergency_brakes": ("-", "SUMO runs: emergency_brake events (the virtual car or a member braking harder than comfortable)"),
     "requested_veh": ("-", "SUMO runs: vehicles the flows asked for up to the run's end (warm-up included)"),
@@ -70,7 +74,8 @@ EFFECT_KEYS: dict[str, str] = {
 }
 """Paired summary columns -> the analysis' ``traffic.run`` key (analysis/twin_sections.py)."""
 
-COUNT_METRICS = frozenset({"n_unsettled", "collisions", "emergency_brakes", "requested_veh", "inserted_veh",
+COUNT_METRICS = frozenset({"n_unsettled", "collisions", "member_collisions", "member_removed",
+                           "stranded", "sumo_collision_artefacts", "emergency_brakes", "requested_veh", "inserted_veh",
                            "comm_timeouts"})
 
 
@@ -82,7 +87,7 @@ def empty_row(case: dict, status: str, reason: str | None) -> dict[str, Any]:
     case : dict
         ``Case.model_dump(mode="json")``.
     status : str
-        ``completed``, ``failed`` or ``interrupted``.
+        ``completed``, ``completed_with_incidents``, ``failed`` or ``interrupted``.
     reason : str or None
         Why not completed.
 
@@ -213,10 +218,18 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
         "leader_age_mean_s": _max(_col(members, "leader_age_mean_s")),
         "leader_age_p95_s": _max(_col(members, "leader_age_p95_s")),
         "comm_timeouts": None,
+        **_incidents(meta),
     }
     if (meta.get("scenario") or {}).get("road") is not None:
         out.update(_sumo_metrics(run_dir, set(map(str, members.index)), meta))
     return out
+
+
+def _incidents(meta: dict) -> dict[str, Any]:
+    """run.json ``incidents`` (sim/incidents.py; None for a run recorded without them)."""
+    inc = meta.get("incidents") or {}
+    return {k: (int(inc[k]) if k in inc else None)
+            for k in ("member_collisions", "member_removed", "stranded", "sumo_collision_artefacts")}
 
 
 def summary_frame(rows: list[dict], swept: dict[str, str]) -> pd.DataFrame:

@@ -17,6 +17,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..interrupt import raising_signals
+from ..record.rundir import RUN_FINISHED
 from .case import CASE_JSON, CaseSpec
 from .executors import run_dask, run_local
 from .expand import Sweep, load_sweep
@@ -105,10 +106,10 @@ def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
             or row.get("case_id") != spec.case.id:
         return None, False
     try:
-        run_ok = json.loads((d / "run.json").read_text(encoding="utf-8")).get("status") == "completed"
+        run_ok = json.loads((d / "run.json").read_text(encoding="utf-8")).get("status") in RUN_FINISHED
     except (OSError, ValueError):
         run_ok = False
-    return row, bool(run_ok and row.get("status") == "completed")
+    return row, bool(run_ok and row.get("status") in RUN_FINISHED)
 
 
 def _versions() -> dict[str, str]:
@@ -203,7 +204,7 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
             if bar is not None:
                 bar.close()
             df = _write_summary(summary_path, rows, swept, out / EFFECTS_CSV if baseline else None)
-            n_ok = int((df["status"] == "completed").sum())
+            n_ok = int(df["status"].isin(RUN_FINISHED).sum())
             _finish_meta(meta, df, interrupted, on_row.ok + on_row.failed, len(specs))
             atomic_write_json(out / SWEEP_JSON, meta)
     if interrupted:
@@ -258,7 +259,8 @@ def _finish_meta(meta: dict, df: pd.DataFrame, interrupted: bool | None, n_run: 
                 finished=_now())
     meta["counts"].update(run=n_run, pending=n_cases - len(df),
                           **{s: int((df["status"] == s).sum())
-                             for s in ("completed", "failed", "interrupted")})
+                             for s in ("completed", "completed_with_incidents", "failed",
+                                       "interrupted")})
 
 
 class _RowSink:
@@ -274,7 +276,7 @@ class _RowSink:
 
     def __call__(self, spec: CaseSpec, row: dict) -> None:
         self.rows[spec.case.id] = row
-        if row["status"] == "completed":
+        if row["status"] in RUN_FINISHED:
             self.ok += 1
         else:
             self.failed += 1

@@ -41,7 +41,7 @@ def trajectory(path: Path, kind: str, out_dir: Path) -> pd.DataFrame:
 
     sc = load_scenario(path, **overrides(kind))
     res = run_scenario(sc, out_dir, scenario_path=path, progress=False, force=True)
-    if res.status != "completed":
+    if res.status not in ("completed", "completed_with_incidents"):  # the run reached its end
         raise RuntimeError(f"{path.name}: {res.status}: {res.reason}")
     df = pd.read_parquet(out_dir / "trajectories.parquet")
     return df[["vehicle_id", *COLUMNS]].sort_values(["t", "vehicle_id"], kind="stable") \

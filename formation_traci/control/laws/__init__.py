@@ -21,6 +21,8 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
+import numpy as np
+
 DEFAULT_LAW = "virtual_structure"
 """The seed's law: the virtual structure, eqs 2.4-2.11, with the loops 3.32-3.38."""
 
@@ -60,3 +62,19 @@ def law_module(name: str) -> ModuleType:
 def law_code(name: str) -> int:
     """The dispatch code of a built-in law, -1 for one registered at run time."""
     return BUILTIN[name][1] if name in BUILTIN else -1
+
+
+def pack_laws(cfg):
+    """Every member's law code (n,), the law parameters (n, most PARAMS of its laws) and the
+    one law registered at run time among them (or None), for a sim/fleet.py FleetConfig
+    (``law``: one name, or one per member)."""
+    laws = cfg.law if isinstance(cfg.law, (tuple, list)) else (cfg.law,) * cfg.n
+    codes = np.array([law_code(name) for name in laws], dtype=np.int64)
+    runtime = sorted({name for name, c in zip(laws, codes) if c < 0})
+    if len(runtime) > 1:
+        raise ValueError(f"one fleet runs at most one law registered at run time, not {runtime}")
+    packs = {name: np.asarray(law_module(name).pack(cfg), dtype=float) for name in set(laws)}
+    L = np.zeros((cfg.n, max(p.shape[1] for p in packs.values())))
+    for i, name in enumerate(laws):
+        L[i, :packs[name].shape[1]] = packs[name][i]
+    return codes, L, (runtime[0] if runtime else None)

@@ -1,0 +1,231 @@
+"""Incidents of a run: what makes its status ``completed_with_incidents`` (docs/reliability.md).
+
+* ``member_collisions``: a member's body overlaps another member's by our own geometry (the
+  signed body clearance of :func:`signed_clearance` < 0 at a recorded step; one per pair and
+  contact, counted when it starts), or a collision SUMO reports between a member and a SUMO
+  vehicle that our clearance confirms;
+* ``member_removed``: a member SUMO no longer has or that was taken out after refused moves;
+* ``emergency_brakes``: the virtual car or a member starts braking harder than comfortable
+  (``emergency_brake`` events, sim/events.py EmergencyWatch);
+* ``stranded``: a member in the run below :data:`STRANDED_SPEED` for more than
+  :data:`STRANDED_TIME` while its speed reference (eq 2.6) is above :data:`STRANDED_V_REF`:
+  it stands while the formation wants it to drive;
+* ``sumo_collision_artefacts``: collisions SUMO reports for a member where our clearance is
+  >= 0 (SUMO checks collisions per lane: a body that reaches into the next lane "collides"
+  with a vehicle there it does not touch). Counted, recorded as ``collision_artefact``
+  events, not in the verdict.
+
+Contacts and SUMO's reports are counted once per pair and contact: a pair reported at
+consecutive recorded steps is one incident.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..kernels import kernel
+from ..record.columns import INCIDENT_VERDICT as VERDICT, SIGNAL_COLUMNS
+
+
+STRANDED_SPEED = 0.5
+"""A member below this speed [m/s] ... """
+STRANDED_TIME = 5.0
+"""... for longer than this [s] ..."""
+STRANDED_V_REF = 2.0
+"""... while its speed reference v_ref (eq 2.6) is above this [m/s] is stranded."""
+
+_X, _Y, _H = (SIGNAL_COLUMNS.index(c) for c in ("x", "y", "heading"))
+_V, _VREF = SIGNAL_COLUMNS.index("v"), SIGNAL_COLUMNS.index("v_ref")
+
+
+@kernel
+def _point_to_box(cx, cy, c, s, hl, hw, px, py):
+    """Distance [m] from point (px, py) to the rectangle of centre (cx, cy), heading (c, s) =
+    (cos, sin), half length hl and half width hw (0 inside)."""
+    dx, dy = px - cx, py - cy
+    u, v = abs(c * dx + s * dy) - hl, abs(-s * dx + c * dy) - hw
+    return math.hypot(max(u, 0.0), max(v, 0.0))
+
+
+@kernel
+def signed_clearance(xa, ya, ha, la, wa, xb, yb, hb, lb, wb):
+    """Signed clearance [m] between two rectangles (centre x, y [m], heading [rad CCW from
+    +x], length, width [m]): the distance between the outlines when apart (a corner of one to
+    the other: the closest pair of disjoint convex polygons always has a corner), minus the
+    smallest overlap over the four edge normals when they overlap (separating-axis test)."""
+    ca, sa, cb, sb = math.cos(ha), math.sin(ha), math.cos(hb), math.sin(hb)
+    hla, hwa, hlb, hwb = 0.5 * la, 0.5 * wa, 0.5 * lb, 0.5 * wb
+    dx, dy = xb - xa, yb - ya
+    depth = math.inf
+    for k in range(4):
+        nx, ny = (ca, sa) if k == 0 else (-sa, ca) if k == 1 else (cb, sb) if k == 2 else (-sb, cb)
+        ra = hla * abs(ca * nx + sa * ny) + hwa * abs(-sa * nx + ca * ny)
+        rb = hlb * abs(cb * nx + sb * ny) + hwb * abs(-sb * nx + cb * ny)
+        depth = min(depth, ra + rb - abs(dx * nx + dy * ny))
+    if depth >= 0.0:
+        return -depth
+    best = math.inf
+    for k in range(4):
+        su = 1.0 if k == 0 or k == 3 else -1.0
+        sv = 1.0 if k < 2 else -1.0
+        best = min(best, _point_to_box(xa, ya, ca, sa, hla, hwa,
+                                       xb + cb * su * hlb - sb * sv * hwb,
+                                       yb + sb * su * hlb + cb * sv * hwb))
+        best = min(best, _point_to_box(xb, yb, cb, sb, hlb, hwb,
+                                       xa + ca * su * hla - sa * sv * hwa,
+                                       ya + sa * su * hla + ca * sv * hwa))
+    return best
+
+
+@kernel
+def member_clearances(sig, x_col, y_col, h_col, shift, length, width, active, out):
+    """Signed clearance [m] of every pair of active members into ``out`` (n, n), upper
+    triangle (i < j; +inf for pairs with a member out of the run). ``sig``: the members'
+    signal rows (CoG x, y, heading in columns x_col, y_col, h_col); ``shift``: CoG to body
+    centre along the heading [m]. Returns the smallest clearance (+inf: fewer than two)."""
+    n = sig.shape[0]
+    worst = math.inf
+    for i in range(n):
+        for j in range(i + 1, n):
+            out[i, j] = math.inf
+            if not (active[i] and active[j]):
+                continue
+            hi, hj = sig[i, h_col], sig[j, h_col]
+            c = signed_clearance(sig[i, x_col] + shift[i] * math.cos(hi),
+                                 sig[i, y_col] + shift[i] * math.sin(hi), hi, length[i], width[i],
+                                 sig[j, x_col] + shift[j] * math.cos(hj),
+                                 sig[j, y_col] + shift[j] * math.sin(hj), hj, length[j], width[j])
+            out[i, j] = c
+            worst = min(worst, c)
+    return worst
+
+
+class Incidents:
+    """Counts the incidents of a run (module docstring) and records their events.
+
+    :meth:`step` at every recorded step (the members' signal rows); :meth:`sumo_collisions`
+    with the collisions SUMO reported for the step (sim/sumo_world.py); :meth:`counts` for
+    run.json."""
+
+    def __init__(self, rec, ids, vehicles, pairs: bool = True):
+        n = len(ids)
+        self.rec, self.ids = rec, list(ids)
+        self.pairs = bool(pairs)  # False: independent members (run.independent_members)
+        self.length = np.array([v.length for v in vehicles], dtype=float)
+        self.width = np.array([v.width for v in vehicles], dtype=float)
+        self.shift = np.array([v.cog_to_front_bumper - 0.5 * v.length for v in vehicles], dtype=float)
+        self.clear = np.full((n, n), np.inf)
+        self.contact = np.zeros((n, n), dtype=bool)
+        self.slow_since = np.full(n, np.nan)  # since when each member stands while its v_ref does not [s]
+        self.is_stranded = np.zeros(n, dtype=bool)
+        self._sumo_prev: set = set()  # (collider, victim) SUMO reported at the last report
+        self._standing = False  # any member in slow_since
+        self.n = dict.fromkeys(("member_collisions", "stranded", "sumo_collision_artefacts"), 0)
+
+    def step(self, t: float, sig: np.ndarray, active: np.ndarray) -> None:
+        if self.pairs:
+            worst = member_clearances(sig, _X, _Y, _H, self.shift, self.length, self.width,
+                                      active, self.clear)
+            if worst < 0.0 or self.contact.any():
+                self._contacts(t)
+        v, v_ref = sig[:, _V], sig[:, _VREF]
+        slow = active & (v < STRANDED_SPEED) & (v_ref > STRANDED_V_REF)
+        if slow.any() or self.is_stranded.any():
+            self._stranded(t, slow, v, v_ref)
+        elif self._standing:
+            self.slow_since[:] = np.nan
+            self._standing = False
+
+    def _contacts(self, t):
+        n = len(self.ids)
+        for i in range(n):
+            for j in range(i + 1, n):
+                c = self.clear[i, j]
+                if c < 0.0 and not self.contact[i, j]:
+                    self.n["member_collisions"] += 1
+                    self.rec.add_event(t, "member_collision", self.ids[i], self.ids[j],
+                                       f"the bodies overlap by {-c:.2f} m (our geometry)")
+                self.contact[i, j] = c < 0.0
+
+    def _stranded(self, t, slow, v, v_ref):
+        since = np.where(slow, np.where(np.isnan(self.slow_since), t, self.slow_since), np.nan)
+        self.slow_since, self._standing = since, bool(slow.any())
+        now = slow & (t - np.where(slow, since, t) > STRANDED_TIME + 1e-9)
+        for i in np.flatnonzero(now & ~self.is_stranded):
+            self.n["stranded"] += 1
+            self.rec.add_event(t, "stranded", self.ids[i], "",
+                               f"v = {v[i]:.2f} m/s for {t - since[i]:.2f} s with v_ref = "
+                               f"{v_ref[i]:.2f} m/s")
+        self.is_stranded = now
+
+    def sumo_collisions(self, t, collisions, clearance_of) -> None:
+        """SUMO's collision reports of a step, ``collisions``: (collider, victim, lane) with
+        member ids where a member is involved. ``clearance_of(a, b)``: our signed clearance of
+        the two [m] (NaN: not known, e.g. no member or a vehicle out of sight). A report with a
+        member and our clearance >= 0 is a ``collision_artefact``; the others stay
+        ``collision`` events, and one with a SUMO vehicle our clearance confirms is a member
+        collision (a member pair is counted by :meth:`step`)."""
+        members = set(self.ids)
+        now = set()
+        for a, b, lane in collisions:
+            c = clearance_of(a, b)
+            key = (a, b)
+            now.add(key)
+            new = key not in self._sumo_prev
+            if c == c and c >= 0.0:
+                self.rec.add_event(t, "collision_artefact", a, b,
+                                   f"lane {lane}; our body clearance {c:.2f} m")
+                self.n["sumo_collision_artefacts"] += new
+                continue
+            known = "" if c != c else f"; our body clearance {c:.2f} m"
+            self.rec.add_event(t, "collision", a, b, f"lane {lane}{known}")
+            if new and (a in members) != (b in members):  # not refuted: counted
+                self.n["member_collisions"] += 1
+        self._sumo_prev = now
+
+    def counts(self) -> dict[str, int]:
+        """run.json ``incidents`` (INCIDENT_KEYS)."""
+        ev = self.rec.event_counts
+        return {"member_collisions": int(self.n["member_collisions"]),
+                "member_removed": int(ev.get("member_removed", 0)),
+                "emergency_brakes": int(ev.get("emergency_brake", 0)),
+                "stranded": int(self.n["stranded"]),
+                "sumo_collision_artefacts": int(self.n["sumo_collision_artefacts"])}
+
+
+def clearance_lookup(inc: Incidents | None, ids, active, pos, heading, nb):
+    """``clearance_of(a, b)`` for :meth:`Incidents.sumo_collisions`: our signed body clearance
+    [m] of two vehicles by id (members: our CoG ``pos`` and ``heading``; SUMO's vehicles: their
+    body as sensed, ``nb``: sim/sumo_types.py Neighbours; NaN for one out of the run or out of
+    sight)."""
+    index = {m: i for i, m in enumerate(ids)}
+    nb_index = {} if nb is None else {vid: j for j, vid in enumerate(nb.ids)}
+
+    def body(vid):
+        i = index.get(vid)
+        if i is not None:
+            if inc is None or not active[i]:
+                return None
+            h = float(heading[i])
+            return (float(pos[i, 0]) + inc.shift[i] * math.cos(h),
+                    float(pos[i, 1]) + inc.shift[i] * math.sin(h), h, inc.length[i], inc.width[i])
+        j = nb_index.get(vid)
+        if j is None:
+            return None
+        return (float(nb.x[j]), float(nb.y[j]), float(nb.heading[j]), float(nb.length[j]),
+                float(nb.width[j]))
+
+    def clearance_of(a, b):
+        ba, bb = body(a), body(b)
+        return np.nan if ba is None or bb is None else float(signed_clearance(*ba, *bb))
+    return clearance_of
+
+
+def verdict(status: str, incidents: dict) -> tuple[str, str | None]:
+    """``completed`` becomes ``completed_with_incidents`` when any verdict incident is > 0;
+    returns the status and a one-line summary of the incidents (None: none)."""
+    named = [f"{incidents[k]} {k.replace('_', ' ')}" for k in VERDICT if incidents.get(k, 0) > 0]
+    if not named:
+        return status, None
+    return ("completed_with_incidents" if status == "completed" else status), ", ".join(named)
