@@ -50,6 +50,14 @@ def _bad_input_types() -> tuple[type, ...]:
     return ScenarioError, RunDirError, SweepError, NoTrajectoryData
 
 
+def _nonempty(value):
+    """Typer callback of --out and directory arguments: an empty string is not the working
+    directory (bad input, exit 2)."""
+    if value is not None and str(value) == "":
+        raise typer.BadParameter("is empty: give a directory")
+    return value
+
+
 @contextlib.contextmanager
 def _outcome():
     """Map what a command raises to its exit code and a one-paragraph message; inside,
@@ -78,7 +86,7 @@ def _outcome():
 @app.command()
 def run(
     scenario: Path = typer.Argument(..., help="scenario TOML file"),
-    out: Path = typer.Option(..., "--out", "-o", help="run directory to create"),
+    out: str = typer.Option(..., "--out", "-o", help="run directory to create", callback=_nonempty),
     duration: Optional[float] = typer.Option(None, help="override run.duration [s]"),
     seed: Optional[int] = typer.Option(None, help="override run.seed"),
     model: Optional[str] = typer.Option(None, help="override vehicle.model: dynamic | kinematic"),
@@ -97,7 +105,7 @@ def run(
                                         **({"sumo.backend": "traci", "sumo.gui": True} if gui else {})})
         if progress and sc.road is not None and sc.traffic.warmup > 0:
             typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)
-        res = run_scenario(sc, out, scenario_path=scenario, force=force, progress=progress, baseline=baseline)
+        res = run_scenario(sc, Path(out), scenario_path=scenario, force=force, progress=progress, baseline=baseline)
     typer.echo(f"{res.status}: t_end={res.t_end:.2f} s, steps={res.steps_done}, out={res.out_dir}"
                + (f"\nreason: {res.reason}" if res.reason else ""))
     if res.status != "completed":
@@ -107,7 +115,8 @@ def run(
 @app.command()
 def analyze(
     run_dir: Path = typer.Argument(..., help="run directory (run.json, trajectories.parquet)"),
-    out: Optional[Path] = typer.Option(None, "--out", "-o", help="where to write; default RUN_DIR"),
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="where to write; default RUN_DIR",
+                                      callback=_nonempty),
     figures: bool = typer.Option(True, "--figures/--no-figures", help="write PNG figures and report.html"),
     baseline: Optional[Path] = typer.Option(None, "--baseline", help="twin run from `run --baseline` (same traffic and seed, no formation)"),
 ) -> None:
@@ -115,7 +124,7 @@ def analyze(
     with _outcome():
         from analysis.api import analyze_run
 
-        res = analyze_run(run_dir, out, figures=figures, baseline=baseline)
+        res = analyze_run(run_dir, None if out is None else Path(out), figures=figures, baseline=baseline)
     for name, path in res.files.items():
         typer.echo(f"{name}: {path}")
     if len(res.issues):
@@ -127,13 +136,18 @@ def analyze(
 @app.command()
 def compare(
     run_dirs: list[Path] = typer.Argument(..., help="two or more run directories"),
-    out: Path = typer.Option(..., "--out", "-o", help="directory for compare.csv, figures and report.html"),
+    out: str = typer.Option(..., "--out", "-o", help="directory for compare.csv, figures and report.html",
+                            callback=_nonempty),
 ) -> None:
     """Overlay several runs (e.g. kinematic vs dynamic model) and tabulate key metrics."""
     with _outcome():
         from analysis.api import compare_runs
+        from .record.rundir import RunDirError
 
-        res = compare_runs(run_dirs, out)
+        if len(run_dirs) < 2:
+            raise RunDirError(f"compare needs two or more run directories (got {len(run_dirs)})")
+
+        res = compare_runs(run_dirs, Path(out))
     for name, path in res.files.items():
         typer.echo(f"{name}: {path}")
 
@@ -141,7 +155,8 @@ def compare(
 @app.command()
 def sweep(
     sweep_file: Path = typer.Argument(..., help="sweep TOML file (docs/sweeps.md)"),
-    out: Path = typer.Option(..., "--out", "-o", help="study directory (summary.parquet, cases/)"),
+    out: str = typer.Option(..., "--out", "-o", help="study directory (summary.parquet, cases/)",
+                            callback=_nonempty),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler tcp://HOST:PORT or scheduler file"),
     workers: Optional[int] = typer.Option(None, "--workers", min=1, help="local cases at once (default: cores)"),
     progress: bool = typer.Option(True, "--progress/--no-progress"),
@@ -153,7 +168,7 @@ def sweep(
 
     try:
         with _outcome():
-            res = run_sweep(sweep_file, out, scheduler=scheduler, workers=workers, progress=progress)
+            res = run_sweep(sweep_file, Path(out), scheduler=scheduler, workers=workers, progress=progress)
     except typer.Exit as exc:
         if exc.exit_code == 130:
             typer.echo("run the same command again to finish the sweep", err=True)
@@ -168,14 +183,15 @@ def sweep(
 def analyze_sweep_cmd(
     sweep_dir: Path = typer.Argument(..., help="study directory written by `sweep`"),
     metric: Optional[list[str]] = typer.Option(None, "--metric", "-m", help="metric column(s) to plot"),
-    out: Optional[Path] = typer.Option(None, "--out", "-o", help="where to write; default SWEEP_DIR"),
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="where to write; default SWEEP_DIR",
+                                      callback=_nonempty),
     spread: str = typer.Option("minmax", help="spread over seeds: minmax | std"),
 ) -> None:
     """Plot metrics against the swept values (spread over seeds) and write sweep_report.html."""
     with _outcome():
         from analysis.sweep_report import analyze_sweep
 
-        rep = analyze_sweep(sweep_dir, metrics=metric or None, out=out, spread=spread)
+        rep = analyze_sweep(sweep_dir, metrics=metric or None, out=None if out is None else Path(out), spread=spread)
     for name, path in rep.files.items():
         typer.echo(f"{name}: {path}")
 

@@ -120,3 +120,121 @@ def test_types_are_strict_for_every_field(tmp_path, field, value):
     assert field in [f for f, _ in err.value.problems], err.value.problems
     ints = tomllib.loads(road(tmp_path).read_text().replace("duration = 1.0", "duration = 1"))
     assert parse_scenario(ints).run.duration == 1.0  # an integer is still a number of seconds
+
+
+# -- 3. nothing written through a symbolic link or outside the run ---------------------------------
+def _victim(tmp_path) -> Path:
+    v = tmp_path / "victim.txt"
+    v.write_bytes(b"a user's file\n")
+    return v
+
+
+@pytest.mark.parametrize("force", [False, True], ids=["fresh", "force"])
+def test_a_symlinked_lock_file_is_never_followed(tmp_path, force):
+    victim = _victim(tmp_path)
+    out = previous_run(tmp_path) if force else tmp_path / "run"
+    out.mkdir(exist_ok=True)
+    (out / ".formation-traci.lock").unlink(missing_ok=True)
+    (out / ".formation-traci.lock").symlink_to(victim)
+    before = tree(tmp_path)
+    code, text = cli("run", free(tmp_path, 0.5, "f.toml"), "--out", out, "--no-progress",
+                     *(["--force"] if force else []))
+    assert code == 2 and "symbolic link" in text and "Traceback" not in text, text
+    assert victim.read_bytes() == b"a user's file\n"
+    assert tree(tmp_path) == {**before, "f.toml": (tmp_path / "f.toml").read_bytes()}
+
+
+@pytest.mark.parametrize("name", ["metrics.json", "report.html", "metrics.csv", "figures",
+                                  ".formation-traci.lock"])
+def test_analyze_never_writes_through_a_symlink_in_the_run(tmp_path, name):
+    run = previous_run(tmp_path)
+    victim = _victim(tmp_path)
+    target = victim
+    if name == "figures":
+        target = tmp_path / "my_pictures"
+        target.mkdir()
+    (run / name).unlink(missing_ok=True)
+    (run / name).symlink_to(target)
+    before = tree(tmp_path)
+    code, text = cli("analyze", run)
+    assert code == 2 and "symbolic link" in text and "Traceback" not in text, text
+    assert tree(tmp_path) == before and victim.read_bytes() == b"a user's file\n"
+    assert not list(target.iterdir()) if target.is_dir() else True
+
+
+def test_analyze_never_creates_anything_in_a_directory_that_is_not_a_run(tmp_path):
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    (plain / "notes.txt").write_text("mine")
+    code, text = cli("analyze", plain, "--no-figures")
+    assert code == 2 and "not a run directory" in text and "Traceback" not in text, text
+    assert sorted(p.name for p in plain.iterdir()) == ["notes.txt"]
+    code, text = cli("analyze", tmp_path / "empty_dir_missing", "--no-figures")
+    assert code == 2 and not (tmp_path / "empty_dir_missing").exists()
+
+
+@pytest.mark.parametrize("where", ["sumo/my_notes.txt", "trajectories.parquet/README.txt",
+                                   "figures/my_plot.svg", "trajectories.parquet/sub/x.parquet"])
+def test_force_never_deletes_a_users_file_inside_the_tools_folders(tmp_path, where):
+    prev = previous_run(tmp_path)
+    victim = prev / where
+    victim.parent.mkdir(parents=True, exist_ok=True)
+    victim.write_text("mine")
+    before = tree(prev)
+    code, text = cli("run", free(tmp_path, 0.5, "g.toml"), "--out", prev, "--force", "--no-progress")
+    assert code == 2 and "/".join(where.split("/")[:2]) in text and "Traceback" not in text, text
+    assert tree(prev) == before
+
+
+def test_force_still_replaces_a_road_run_with_its_named_sumo_outputs(tmp_path):
+    out = tmp_path / "run"
+    sc = road(tmp_path, options='["--summary-output", "summary.xml"]')
+    code, text = cli("run", sc, "--out", out, "--no-progress")
+    assert code == 0 and (out / "sumo" / "summary.xml").is_file(), text
+    code, text = cli("analyze", out)
+    assert code == 0, text
+    code, text = cli("run", sc, "--out", out, "--force", "--no-progress")
+    assert code == 0, text
+
+
+def _sweep_file(tmp_path) -> Path:
+    path = tmp_path / "sweep.toml"
+    path.write_text(f'base = "{free(tmp_path, 0.5)}"\nseeds = [1]\n')
+    return path
+
+
+def test_sweep_out_is_checked_like_run_out(tmp_path):
+    sweep = _sweep_file(tmp_path)
+    prev = previous_run(tmp_path)
+    thesis = tmp_path / "thesis"
+    thesis.mkdir()
+    (thesis / "thesis.tex").write_text("years of work")
+    (tmp_path / "afile").write_text("x")
+    for out in (prev, thesis, tmp_path / "afile", tmp_path / "afile" / "sub"):
+        before = tree(tmp_path)
+        code, text = cli("sweep", sweep, "--out", out, "--no-progress", "--workers", "1")
+        assert code == 2 and "Traceback" not in text, (out, text)
+        assert tree(tmp_path) == before, out
+    # an earlier sweep is finished by a rerun; a user's file in it is refused
+    code, text = cli("sweep", sweep, "--out", tmp_path / "sw", "--no-progress", "--workers", "1")
+    assert code == 0, text
+    code, text = cli("sweep", sweep, "--out", tmp_path / "sw", "--no-progress", "--workers", "1")
+    assert code == 0 and "done before" in text, text
+    (tmp_path / "sw" / "mine.txt").write_text("mine")
+    code, text = cli("sweep", sweep, "--out", tmp_path / "sw", "--no-progress", "--workers", "1")
+    assert code == 2 and "mine.txt" in text, text
+
+
+@pytest.mark.parametrize("args", [("run", "{sc}", "--out", ""), ("compare", "{prev}", "--out", "{tmp}/cmp"),
+                                  ("analyze", "{prev}", "--baseline", "{tmp}/nope", "--no-figures"),
+                                  ("run", "{sc}", "--out", "{tmp}/" + "d" * 300)],
+                         ids=["empty-out", "compare-one", "missing-baseline", "long-out"])
+def test_small_command_line_mistakes_exit_2_and_create_nothing(tmp_path, args):
+    prev = previous_run(tmp_path)
+    sc = free(tmp_path, 0.5, "h.toml")
+    work = tmp_path / "work"
+    work.mkdir()
+    before = tree(tmp_path)
+    code, text = cli(*[a.format(sc=sc, prev=prev, tmp=tmp_path) for a in args], cwd=work)
+    assert code == 2 and "Traceback" not in text, text
+    assert tree(tmp_path) == before

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Sequence
@@ -46,16 +47,28 @@ def _arrow_strings(labels: Sequence[str]):
 
 
 def atomic_write_text(path: Path, text: str) -> None:
-    """Write text to ``path`` via a temporary file and a rename (never half-written)."""
-    tmp = path.with_name(f".{path.name}.tmp")
+    """Write text to ``path`` via a new temporary file beside it and a rename: never
+    half-written, never through a symbolic link at ``path`` (the rename replaces the link,
+    its target is untouched) and no temporary file left behind on failure (disk full)."""
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """:func:`atomic_write_text` for bytes."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
             f.flush()
             os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)
         os.replace(tmp, path)
     except BaseException:
-        tmp.unlink(missing_ok=True)  # e.g. disk full: no half-written temporary left behind
+        try:
+            os.unlink(tmp)  # e.g. disk full: no half-written temporary left behind
+        except OSError:
+            pass
         raise
 
 

@@ -51,9 +51,47 @@ def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
+SWEEP_FILES = frozenset({SWEEP_JSON, SUMMARY, CASES_DIR, LOGS_DIR, LOCK_FILE, "sweep_report.html",
+                         "sweep_stats.csv", "sweep_figures"})
+"""Names a sweep (and ``analyze-sweep``) writes at the top of its directory."""
+
+
+def check_sweep_dir(out: Path) -> Path:
+    """``out`` (absolute) if a sweep may write there: missing, empty, or an earlier sweep of
+    this tool holding only its files (a rerun finishes it); else SweepError, nothing written."""
+    from ..record.rundir import TOOL_TEMP, RunDirError, check_path
+
+    try:
+        absolute = check_path(out)
+    except RunDirError as exc:
+        raise SweepError(out, [("--out", str(exc))]) from None
+    if not absolute.is_dir():
+        return absolute
+    entries = sorted(absolute.iterdir())
+    if not [p for p in entries if p.name != LOCK_FILE]:
+        return absolute
+    try:
+        ours = json.loads((absolute / SWEEP_JSON).read_text(encoding="utf-8")).get("schema") == SCHEMA
+    except (OSError, ValueError, AttributeError):
+        ours = False
+    if not ours:
+        raise SweepError(out, [("--out", "is not empty and not an earlier sweep of formation-traci (no "
+                                         "sweep.json written by it): nothing written; choose another directory")])
+    foreign = [p.name for p in entries if p.is_symlink() or (p.name not in SWEEP_FILES and not TOOL_TEMP.match(p.name))]
+    if foreign:
+        raise SweepError(out, [("--out", f"holds files formation-traci did not write ({', '.join(foreign[:5])}): "
+                                         "nothing written; choose another directory")])
+    return absolute.resolve()
+
+
 @contextlib.contextmanager
 def _lock(out: Path):
-    with open(out / LOCK_FILE, "a+") as f:
+    try:
+        fd = os.open(out / LOCK_FILE, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, 0o644)
+    except OSError as exc:
+        raise SweepError(out, [("(directory)", f"cannot open {LOCK_FILE}: {exc.strerror} (a symbolic "
+                                               "link is never followed)")]) from None
+    with os.fdopen(fd, "a+") as f:
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -155,10 +193,11 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         On Ctrl-C, after the running cases stopped and the summary was written.
     """
     sweep = load_sweep(sweep_path)
-    out = Path(out_dir).resolve()
-    if out.exists() and not out.is_dir():
-        raise SweepError(out, [("(directory)", "exists and is a file, not a directory")])
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_sweep_dir(Path(out_dir))
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SweepError(out, [("(directory)", f"cannot be created: {exc.strerror}")]) from None
     with raising_signals(), _lock(out):  # SIGTERM stops the cases like Ctrl-C
         specs = [case_spec(sweep, i, out) for i in range(len(sweep.cases))]
         swept = swept_dtypes([c.model_dump(mode="json") for c in sweep.cases], sweep.spec.swept())
