@@ -238,3 +238,75 @@ def test_small_command_line_mistakes_exit_2_and_create_nothing(tmp_path, args):
     code, text = cli(*[a.format(sc=sc, prev=prev, tmp=tmp_path) for a in args], cwd=work)
     assert code == 2 and "Traceback" not in text, text
     assert tree(tmp_path) == before
+
+
+# -- 4. full disk: honest records ------------------------------------------------------------------
+def _many_members(tmp_path, n) -> Path:
+    from run_helpers import free_toml
+    head = free_toml(400.0, name="many").split("[[members]]")[0]
+    rows = "".join(f'[[members]]\nid = "m{i}"\noffset = [{-10.0 * (i // 4)}, {3.5 * (i % 4)}]\n'
+                   f'position = [{-10.0 * (i // 4)}, {3.5 * (i % 4)}]\n' for i in range(n))
+    p = tmp_path / "many.toml"
+    p.write_text(head + rows)
+    return p
+
+
+def _t_on_disk(meta) -> float:
+    return min(0.0 if v["complete_to_s"] is None else v["complete_to_s"] for v in meta["tables"].values())
+
+
+def test_a_full_disk_with_many_members_still_gives_a_final_run_json(tmp_path):
+    sc = _many_members(tmp_path, 500)  # the final run.json (~350 kB) is above the old 256 kB reserve
+    disk = tmpfs(tmp_path / "disk", "size=1m")
+    try:
+        out = disk / "run"
+        code, text = cli("run", sc, "--out", out, "--no-progress")
+        assert code == 1 and "Traceback" not in text, text
+        meta = meta_of(out)
+        assert meta["status"] == "failed" and "disk full" in meta["reason"], meta.get("status")
+        assert meta["t_end"] == pytest.approx(_t_on_disk(meta))
+        assert not (out / ".reserve").exists() and not list(out.rglob(".*.tmp"))
+    finally:
+        subprocess.run(["umount", str(disk)], capture_output=True)
+
+
+def test_t_end_is_the_minimum_over_the_tables_actually_on_disk(tmp_path):
+    disk = tmpfs(tmp_path / "disk", "size=300k")
+    try:
+        out = disk / "run"
+        code, text = cli("run", free(tmp_path, 5.0), "--out", out, "--no-progress")
+        assert code == 1, text
+        meta = meta_of(out)
+        assert meta["status"] == "failed" and "disk full" in meta["reason"]
+        assert meta["t_end"] == pytest.approx(_t_on_disk(meta))
+        assert f"complete up to t = {meta['t_end']:.2f} s" in meta["reason"]
+        import pandas as pd
+        for name, info in meta["tables"].items():
+            if info["parts"]:
+                assert len(pd.read_parquet(out / f"{name}.parquet")) == info["rows"]
+    finally:
+        subprocess.run(["umount", str(disk)], capture_output=True)
+
+
+def test_analyze_on_a_full_disk_names_the_file_and_leaves_no_empty_output(tmp_path):
+    disk = tmpfs(tmp_path / "disk", "size=400k")
+    try:
+        run = disk / "run"
+        code, text = cli("run", free(tmp_path, 5.0), "--out", tmp_path / "src", "--no-progress")
+        assert code == 0, text
+        subprocess.run(["cp", "-r", str(tmp_path / "src"), str(run)], check=True)
+        fd = os.open(disk / "fill", os.O_WRONLY | os.O_CREAT)
+        try:  # the disk is full: not one more page fits
+            while True:
+                os.write(fd, b"\0" * 4096)
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
+        code, text = cli("analyze", run)
+        assert code == 1 and "No space left" in text and str(run) in text and "Traceback" not in text, text
+        for p in run.rglob("*"):
+            assert not (p.is_file() and p.stat().st_size == 0 and p.name != ".formation-traci.lock"), p
+        assert not list(run.rglob(".*.tmp"))
+    finally:
+        subprocess.run(["umount", str(disk)], capture_output=True)
