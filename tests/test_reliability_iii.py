@@ -310,3 +310,39 @@ def test_analyze_on_a_full_disk_names_the_file_and_leaves_no_empty_output(tmp_pa
         assert not list(run.rglob(".*.tmp"))
     finally:
         subprocess.run(["umount", str(disk)], capture_output=True)
+
+
+# -- 5. analysis of damaged inputs: describe the damage, compute the rest ---------------------------
+@pytest.mark.parametrize("key, value", [("members", 5), ("members", [5, "x"]), ("mu", "x"),
+                                        ("record_step", "0.05"), ("t_end", [1]), ("scenario", 3),
+                                        ("status", 7)], ids=lambda v: str(v))
+def test_run_json_of_wrong_types_is_described_and_the_rest_computed(tmp_path, key, value):
+    run = previous_run(tmp_path)
+    meta = meta_of(run)
+    meta[key] = value
+    (run / "run.json").write_text(json.dumps(meta))
+    code, text = cli("analyze", run, "--no-figures")
+    assert code == 0 and "Traceback" not in text, text
+    doc = json.loads((run / "metrics.json").read_text())
+    assert any(i["kind"] == "invalid_meta_value" and key in i["what"] for i in doc["issues"]), doc["issues"]
+    assert doc["run"]["n_members_with_data"] == 1
+    code, text = cli("compare", run, previous_run(tmp_path, "other"), "--out", tmp_path / "cmp")
+    assert code == 0 and "Traceback" not in text, text
+
+
+def test_infinite_values_in_the_trajectories_are_damage_not_a_crash(tmp_path):
+    import pandas as pd
+    run = previous_run(tmp_path)
+    part = next((run / "trajectories.parquet").glob("part-*.parquet"))
+    df = pd.read_parquet(part)
+    df.loc[df.index[3:6], "x"] = float("inf")
+    df.loc[df.index[7], "v"] = float("-inf")
+    df.to_parquet(part, index=False)
+    code, text = cli("analyze", run)
+    assert code == 0 and "Traceback" not in text, text
+    doc = json.loads((run / "metrics.json").read_text())
+    kinds = {(i["kind"], i["what"]) for i in doc["issues"]}
+    assert ("non_finite_values", "x") in kinds and ("non_finite_values", "v") in kinds
+    assert doc["run"]["n_members_with_data"] == 1 and doc["damaged"]
+    code, text = cli("compare", run, previous_run(tmp_path, "other"), "--out", tmp_path / "cmp")
+    assert code == 0 and "Traceback" not in text, text
