@@ -39,6 +39,14 @@ def _group(debug: bool = typer.Option(False, "--debug", help="show the traceback
                                         help="print the version and exit")) -> None:
     """Formation control experiments: run scenarios, analyse recordings."""
     _DEBUG["on"] = debug
+    import warnings
+
+    warnings.showwarning = _one_line_warning
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings (e.g. a damaged part file) as one line on stderr, without Python's source line."""
+    typer.echo(f"warning: {message}", err=True)
 
 
 def _bad_input_types() -> tuple[type, ...]:

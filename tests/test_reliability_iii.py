@@ -346,3 +346,45 @@ def test_infinite_values_in_the_trajectories_are_damage_not_a_crash(tmp_path):
     assert doc["run"]["n_members_with_data"] == 1 and doc["damaged"]
     code, text = cli("compare", run, previous_run(tmp_path, "other"), "--out", tmp_path / "cmp")
     assert code == 0 and "Traceback" not in text, text
+
+
+# -- 6. signals and messages -------------------------------------------------------------------------
+def test_sighup_ends_a_run_as_interrupted_like_sigterm(tmp_path):
+    out = tmp_path / "run"
+    proc = spawn("run", free(tmp_path, 3000.0), "--out", out, "--no-progress")
+    try:
+        assert wait_for(lambda: meta_of(out).get("t_end", 0) > 0 or (out / "trajectories.parquet").is_dir())
+    finally:
+        proc.send_signal(signal.SIGHUP)
+        _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    meta = meta_of(out)
+    assert meta["status"] == "interrupted" and "SIGHUP" in meta["reason"]
+
+
+def test_sigterm_to_a_sweep_is_named_sigterm(tmp_path):
+    path = tmp_path / "sweep.toml"
+    path.write_text(f'base = "{free(tmp_path, 1.0)}"\nseeds = [1]\n[overrides]\n"run.duration" = 200000.0\n')
+    out = tmp_path / "out"
+    proc = spawn("sweep", path, "--out", out, "--workers", "1", "--no-progress")
+    try:
+        assert wait_for(lambda: any(meta_of(d).get("status") == "running" for d in (out / "cases").glob("*")))
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=90)
+    assert proc.returncode == 130, err
+    assert "SIGTERM received" in err and "SIGINT" not in err, err
+    assert json.loads((out / "sweep.json").read_text())["reason"] == "SIGTERM received"
+
+
+def test_a_damage_warning_is_one_line_without_a_source_line(tmp_path):
+    run = previous_run(tmp_path)
+    part = next((run / "trajectories.parquet").glob("part-*.parquet"))
+    data = part.read_bytes()
+    (run / "trajectories.parquet" / "part-00001.parquet").write_bytes(data[: len(data) // 2])
+    proc = subprocess.run([*__import__("run_helpers").CLI, "analyze", str(run), "--no-figures"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    lines = [x for x in proc.stderr.splitlines() if "part-00001" in x]
+    assert lines and all(x.startswith("warning: ") for x in lines), proc.stderr
+    assert "warnings.warn(" not in proc.stderr and "Warning:" not in proc.stderr, proc.stderr

@@ -226,7 +226,8 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
             _finish_meta(meta, df, interrupted, on_row.ok + on_row.failed, len(specs))
             atomic_write_json(out / SWEEP_JSON, meta)
     if interrupted:
-        raise KeyboardInterrupt(f"sweep interrupted; {summary_path} holds the {len(df)} cases with a result")
+        from ..interrupt import Interrupted
+        raise Interrupted(interrupted if isinstance(interrupted, str) else "SIGINT")
     return SweepResult(out_dir=out, summary=df, n_cases=len(specs), n_completed=n_ok,
                        n_failed=len(df) - n_ok, n_skipped=n_skipped,
                        n_run=on_row.ok + on_row.failed,
@@ -268,12 +269,14 @@ def _progress_bar(sweep: Sweep, n_cases: int, n_skipped: int):
                 desc=sweep.spec.name or sweep.path.stem)
 
 
-def _finish_meta(meta: dict, df: pd.DataFrame, interrupted: bool | None, n_run: int,
+def _finish_meta(meta: dict, df: pd.DataFrame, interrupted: bool | str | None, n_run: int,
                  n_cases: int) -> None:
     """``sweep.json`` at the end: final status (error when the executor raised), finish
     time and counts per status."""
-    meta.update(status={True: "interrupted", False: "completed"}.get(interrupted, "error"),
+    meta.update(status="error" if interrupted is None else "interrupted" if interrupted else "completed",
                 finished=_now())
+    if interrupted:
+        meta["reason"] = f"{interrupted if isinstance(interrupted, str) else 'SIGINT'} received"
     meta["counts"].update(run=n_run, pending=n_cases - len(df),
                           **{s: int((df["status"] == s).sum())
                              for s in ("completed", "failed", "interrupted")})
