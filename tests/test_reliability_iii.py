@@ -388,3 +388,20 @@ def test_a_damage_warning_is_one_line_without_a_source_line(tmp_path):
     lines = [x for x in proc.stderr.splitlines() if "part-00001" in x]
     assert lines and all(x.startswith("warning: ") for x in lines), proc.stderr
     assert "warnings.warn(" not in proc.stderr and "Warning:" not in proc.stderr, proc.stderr
+
+
+def test_attach_to_a_closed_port_fails_fast_in_one_line(tmp_path):
+    import socket
+    with socket.socket() as so:
+        so.bind(("127.0.0.1", 0))
+        port = so.getsockname()[1]  # closed again: nothing listens there
+    sc = road(tmp_path)
+    sc.write_text(sc.read_text().split("[[traffic.flows]]")[0]
+                  + f'[sumo]\nbackend = "traci"\nattach_port = {port}\n')
+    t0 = time.monotonic()
+    proc = subprocess.run([*__import__("run_helpers").CLI, "run", str(sc), "--out", str(tmp_path / "run"),
+                           "--no-progress"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1 and "could not attach" in proc.stdout + proc.stderr, proc.stderr
+    assert "Retrying" not in proc.stdout + proc.stderr and "Could not connect to TraCI" not in proc.stdout
+    assert time.monotonic() - t0 < 45, "took a minute of retries"
+    assert meta_of(tmp_path / "run")["status"] == "failed"
