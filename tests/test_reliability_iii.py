@@ -405,3 +405,24 @@ def test_attach_to_a_closed_port_fails_fast_in_one_line(tmp_path):
     assert "Retrying" not in proc.stdout + proc.stderr and "Could not connect to TraCI" not in proc.stdout
     assert time.monotonic() - t0 < 45, "took a minute of retries"
     assert meta_of(tmp_path / "run")["status"] == "failed"
+
+
+# -- 7. the lock holds from the moment the directory is claimed, against --force ------------------
+def test_force_is_refused_from_the_claim_through_the_warm_up(tmp_path):
+    out = tmp_path / "run"
+    proc = spawn("run", road(tmp_path, duration=10.0, warmup=3000.0, vph=2400), "--out", out, "--no-progress")
+    try:
+        assert wait_for(lambda: (out / "run.json").exists(), every=0.01)  # claimed: compiling or starting
+        started = meta_of(out).get("started")
+        for moment in ("claimed", "warm-up"):
+            if moment == "warm-up":
+                assert wait_for(lambda: (out / "sumo" / "sumo.log").exists())
+                time.sleep(1.0)
+            code, text = cli("run", road(tmp_path, duration=2.0, name="b.toml"), "--out", out, "--force",
+                             "--no-progress")
+            assert code == 2 and f"pid {proc.pid}" in text, (moment, text)
+            assert meta_of(out)["started"] == started and proc.poll() is None, moment
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=120)
+    assert meta_of(out)["status"] == "interrupted" and meta_of(out)["started"] == started
