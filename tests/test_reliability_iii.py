@@ -2,6 +2,7 @@
 --force cannot race, bad values refused before SUMO starts, honest records on a full disk,
 damaged analysis inputs described. Each test reproduces one finding of the probe (it failed on
 the code before the fix) with real SUMO and real processes; docs/reliability.md maps them."""
+import contextlib
 import json
 import os
 import signal
@@ -255,42 +256,45 @@ def _t_on_disk(meta) -> float:
     return min(0.0 if v["complete_to_s"] is None else v["complete_to_s"] for v in meta["tables"].values())
 
 
-def test_a_full_disk_with_many_members_still_gives_a_final_run_json(tmp_path):
-    sc = _many_members(tmp_path, 500)  # the final run.json (~350 kB) is above the old 256 kB reserve
-    disk = tmpfs(tmp_path / "disk", "size=1m")
+@contextlib.contextmanager
+def small_disk(tmp_path, size: str):
+    """A tmpfs of ``size`` (e.g. "1m"), unmounted afterwards."""
+    disk = tmpfs(tmp_path / "disk", f"size={size}")
     try:
-        out = disk / "run"
-        code, text = cli("run", sc, "--out", out, "--no-progress")
-        assert code == 1 and "Traceback" not in text, text
-        meta = meta_of(out)
-        assert meta["status"] == "failed" and "disk full" in meta["reason"], meta.get("status")
-        assert meta["t_end"] == pytest.approx(_t_on_disk(meta))
-        assert not (out / ".reserve").exists() and not list(out.rglob(".*.tmp"))
+        yield disk
     finally:
         subprocess.run(["umount", str(disk)], capture_output=True)
+
+
+def _run_to_full_disk(disk: Path, sc: Path) -> tuple[Path, dict]:
+    """Run ``sc`` into ``disk``: it must fail as disk full with t_end the time every table has."""
+    out = disk / "run"
+    code, text = cli("run", sc, "--out", out, "--no-progress")
+    assert code == 1 and "Traceback" not in text, text
+    meta = meta_of(out)
+    assert meta["status"] == "failed" and "disk full" in meta["reason"], meta.get("status")
+    assert meta["t_end"] == pytest.approx(_t_on_disk(meta))
+    assert not (out / ".reserve").exists() and not list(out.rglob(".*.tmp"))
+    return out, meta
+
+
+def test_a_full_disk_with_many_members_still_gives_a_final_run_json(tmp_path):
+    with small_disk(tmp_path, "1m") as disk:  # the final run.json (~350 kB) is above the old 256 kB reserve
+        _run_to_full_disk(disk, _many_members(tmp_path, 500))
 
 
 def test_t_end_is_the_minimum_over_the_tables_actually_on_disk(tmp_path):
-    disk = tmpfs(tmp_path / "disk", "size=300k")
-    try:
-        out = disk / "run"
-        code, text = cli("run", free(tmp_path, 5.0), "--out", out, "--no-progress")
-        assert code == 1, text
-        meta = meta_of(out)
-        assert meta["status"] == "failed" and "disk full" in meta["reason"]
-        assert meta["t_end"] == pytest.approx(_t_on_disk(meta))
+    import pandas as pd
+    with small_disk(tmp_path, "300k") as disk:
+        out, meta = _run_to_full_disk(disk, free(tmp_path, 5.0))
         assert f"complete up to t = {meta['t_end']:.2f} s" in meta["reason"]
-        import pandas as pd
         for name, info in meta["tables"].items():
             if info["parts"]:
                 assert len(pd.read_parquet(out / f"{name}.parquet")) == info["rows"]
-    finally:
-        subprocess.run(["umount", str(disk)], capture_output=True)
 
 
 def test_analyze_on_a_full_disk_names_the_file_and_leaves_no_empty_output(tmp_path):
-    disk = tmpfs(tmp_path / "disk", "size=400k")
-    try:
+    with small_disk(tmp_path, "400k") as disk:
         run = disk / "run"
         code, text = cli("run", free(tmp_path, 5.0), "--out", tmp_path / "src", "--no-progress")
         assert code == 0, text
@@ -308,8 +312,6 @@ def test_analyze_on_a_full_disk_names_the_file_and_leaves_no_empty_output(tmp_pa
         for p in run.rglob("*"):
             assert not (p.is_file() and p.stat().st_size == 0 and p.name != ".formation-traci.lock"), p
         assert not list(run.rglob(".*.tmp"))
-    finally:
-        subprocess.run(["umount", str(disk)], capture_output=True)
 
 
 # -- 5. analysis of damaged inputs: describe the damage, compute the rest ---------------------------
