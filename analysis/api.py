@@ -23,7 +23,7 @@ from analysis.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN
                               AnalysisSettings, RunAnalysis, compute_run, settings_dict)
 from analysis.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
                                   TrafficAnalysis, load_baseline)
-from formation_traci.record.rundir import open_report_dir, require_run_dir
+from formation_traci.record.rundir import looks_like_run, open_report_dir, require_run_dir
 from formation_traci.record.writer import atomic_write_text
 
 __all__ = [
@@ -177,6 +177,9 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
     if baseline is not None:
         require_run_dir(Path(baseline))  # a baseline that is not there is bad input (exit 2)
     out = Path(out_dir) if out_dir is not None else run_dir
+    if not looks_like_run(run_dir):  # nothing to analyse: nothing created there either
+        raise NoTrajectoryData(f"{run_dir}: not a run directory (no run.json and no "
+                               "trajectories.parquet): nothing written")
     with open_report_dir(out, METRICS_JSON, own_run=run_dir):  # one writer at a time
         return _analyze_into(run_dir, out, settings, figures, baseline)
 
