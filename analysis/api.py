@@ -24,7 +24,7 @@ from analysis.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN
 from analysis.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
                                   TrafficAnalysis, load_baseline)
 from formation_traci.record.rundir import looks_like_run, open_report_dir, require_run_dir
-from formation_traci.record.writer import atomic_write_text
+from formation_traci.record.rundir import atomic_write_text
 
 __all__ = [
     "SCHEMA",
@@ -174,8 +174,6 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
         If the run has no readable trajectory row at all.
     """
     run_dir = require_run_dir(Path(run_dir))
-    if baseline is not None:
-        require_run_dir(Path(baseline))  # a baseline that is not there is bad input (exit 2)
     out = Path(out_dir) if out_dir is not None else run_dir
     if not looks_like_run(run_dir):  # nothing to analyse: nothing created there either
         raise NoTrajectoryData(f"{run_dir}: not a run directory (no run.json and no "

@@ -50,7 +50,7 @@ def _save(fig: Figure, path: Path, dpi: int = 110) -> Path:
     truncated figure (disk full), never through a symbolic link."""
     import io
 
-    from formation_traci.record.writer import atomic_write_bytes
+    from formation_traci.record.rundir import atomic_write_bytes
 
     buf = io.BytesIO()
     fig.savefig(buf, dpi=dpi, format="png")

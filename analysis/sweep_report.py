@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from formation_traci.record.writer import atomic_write_text
+from formation_traci.record.rundir import atomic_write_text
 from formation_traci.sweep.row import METRICS
 from formation_traci.sweep.spec import SweepError
 

@@ -20,7 +20,7 @@ from analysis.figure_kit import _dec, _has, _member_groups, _new, _not_recorded,
 from analysis.summary import RunAnalysis
 from analysis.traffic_run import member_rows, time_keys
 from formation_traci.record.columns import VIRTUAL_CAR_ID
-from formation_traci.record.writer import atomic_write_bytes
+from formation_traci.record.rundir import atomic_write_bytes
 
 __all__ = ["MAX_SCATTER", "BIRDSEYE_AHEAD_M", "BIRDSEYE_BEHIND_M", "BIRDSEYE_STRIP_FRAMES",
            "BIRDSEYE_DPI", "spacetime_figure", "birdseye_animation"]

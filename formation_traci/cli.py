@@ -131,6 +131,10 @@ def analyze(
     """Compute metrics of a recorded run: metrics.json, metrics.csv, figures/, report.html."""
     with _outcome():
         from analysis.api import analyze_run
+        from .record.rundir import require_run_dir
+
+        if baseline is not None:
+            require_run_dir(baseline)  # a baseline that is not there is bad input (exit 2)
 
         res = analyze_run(run_dir, None if out is None else Path(out), figures=figures, baseline=baseline)
     for name, path in res.files.items():

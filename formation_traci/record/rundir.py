@@ -18,6 +18,7 @@ import re
 import shutil
 import socket
 import stat
+import tempfile
 import sys
 import time
 from pathlib import Path
@@ -329,3 +330,31 @@ def require_run_dir(run_dir: Path) -> Path:
     if not run_dir.is_dir():
         raise RunDirError(f"{run_dir}: is a file, not a run directory")
     return run_dir
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write text to ``path`` via a new temporary file beside it and a rename: never
+    half-written, never through a symbolic link at ``path`` (the rename replaces the link,
+    its target is untouched) and no temporary file left behind on failure (disk full)."""
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """:func:`atomic_write_text` for bytes."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)  # e.g. disk full: no half-written temporary left behind
+        except OSError:
+            pass
+        if isinstance(exc, OSError) and exc.filename is None:  # say which file could not be written
+            raise OSError(exc.errno, exc.strerror, str(path)) from None
+        raise

@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+
+from .rundir import atomic_write_bytes, atomic_write_text  # noqa: F401  (re-exported)
 
 from .columns import Column
 
@@ -44,34 +45,6 @@ def _arrow_strings(labels: Sequence[str]):
     np.cumsum([len(b) for b in enc], out=offsets[1:])
     return pa.Array.from_buffers(pa.string(), len(enc), [None, pa.py_buffer(offsets),
                                                           pa.py_buffer(b"".join(enc))])
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write text to ``path`` via a new temporary file beside it and a rename: never
-    half-written, never through a symbolic link at ``path`` (the rename replaces the link,
-    its target is untouched) and no temporary file left behind on failure (disk full)."""
-    atomic_write_bytes(path, text.encode("utf-8"))
-
-
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """:func:`atomic_write_text` for bytes."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException as exc:
-        try:
-            os.unlink(tmp)  # e.g. disk full: no half-written temporary left behind
-        except OSError:
-            pass
-        if isinstance(exc, OSError) and exc.filename is None:  # say which file could not be written
-            raise OSError(exc.errno, exc.strerror, str(path)) from None
-        raise
 
 
 def atomic_write_json(path: Path, obj) -> None:

@@ -10,6 +10,7 @@ The option names and types come from the SUMO binary itself (``sumo --help``).
 from __future__ import annotations
 
 import functools
+import math
 import re
 import subprocess
 from pathlib import Path
@@ -94,8 +95,8 @@ def _value_problem(name: str, kind: str, value: str | None) -> str | None:
     try:
         if kind == "INT":
             int(value)
-        elif kind in ("FLOAT", "TIME"):
-            float(value)
+        elif kind in ("FLOAT", "TIME") and not math.isfinite(float(value)):
+            return f"--{name} needs a finite {kind.lower()} value (got {value!r})"
     except ValueError:
         return f"--{name} needs a {kind.lower()} value (got {value!r})"
     return None

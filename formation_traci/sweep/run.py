@@ -56,7 +56,7 @@ SWEEP_FILES = frozenset({SWEEP_JSON, SUMMARY, CASES_DIR, LOGS_DIR, LOCK_FILE, "s
 """Names a sweep (and ``analyze-sweep``) writes at the top of its directory."""
 
 
-def check_sweep_dir(out: Path) -> Path:
+def _check_sweep_dir(out: Path) -> Path:
     """``out`` (absolute) if a sweep may write there: missing, empty, or an earlier sweep of
     this tool holding only its files (a rerun finishes it); else SweepError, nothing written."""
     from ..record.rundir import TOOL_TEMP, RunDirError, check_path
@@ -74,7 +74,7 @@ def check_sweep_dir(out: Path) -> Path:
         ours = json.loads((absolute / SWEEP_JSON).read_text(encoding="utf-8")).get("schema") == SCHEMA
     except (OSError, ValueError, AttributeError):
         ours = False
-    if not ours:
+    if not ours and not all(p.name in SWEEP_FILES and not p.is_symlink() for p in entries):
         raise SweepError(out, [("--out", "is not empty and not an earlier sweep of formation-traci (no "
                                          "sweep.json written by it): nothing written; choose another directory")])
     foreign = [p.name for p in entries if p.is_symlink() or (p.name not in SWEEP_FILES and not TOOL_TEMP.match(p.name))]
@@ -193,7 +193,7 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         On Ctrl-C, after the running cases stopped and the summary was written.
     """
     sweep = load_sweep(sweep_path)
-    out = check_sweep_dir(Path(out_dir))
+    out = _check_sweep_dir(Path(out_dir))
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
