@@ -23,7 +23,8 @@ from analysis.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN
                               AnalysisSettings, RunAnalysis, compute_run, settings_dict)
 from analysis.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
                                   TrafficAnalysis, load_baseline)
-from formation_traci.record.rundir import open_report_dir, require_run_dir
+from formation_traci.record.rundir import looks_like_run, open_report_dir, require_run_dir
+from formation_traci.record.rundir import atomic_write_text
 
 __all__ = [
     "SCHEMA",
@@ -175,6 +176,9 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
     """
     run_dir = require_run_dir(Path(run_dir))
     out = Path(out_dir) if out_dir is not None else run_dir
+    if not looks_like_run(run_dir):  # nothing to analyse: nothing created there either
+        raise NoTrajectoryData(f"{run_dir}: not a run directory (no run.json and no "
+                               "trajectories.parquet): nothing written")
     with open_report_dir(out, METRICS_JSON, own_run=run_dir):  # one writer at a time
         return _analyze_into(run_dir, out, settings, figures, baseline)
 
@@ -221,14 +225,14 @@ def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures:
         "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()},
     }
     p_json = out / METRICS_JSON
-    p_json.write_text(json.dumps(_jsonable(doc), indent=2, allow_nan=False), encoding="utf-8")
+    atomic_write_text(p_json, json.dumps(_jsonable(doc), indent=2, allow_nan=False))
     files["metrics_json"] = p_json
     p_csv = out / METRICS_CSV
-    a.members.reset_index().to_csv(p_csv, index=False)
+    atomic_write_text(p_csv, a.members.reset_index().to_csv(index=False))
     files["metrics_csv"] = p_csv
     if a.comm_age is not None and len(a.comm_age):
         p_comm = out / COMM_AGE_CSV
-        a.comm_age.to_csv(p_comm, index=False)
+        atomic_write_text(p_comm, a.comm_age.to_csv(index=False))
         files["comm_age_csv"] = p_comm
     else:
         (out / COMM_AGE_CSV).unlink(missing_ok=True)
@@ -242,7 +246,7 @@ def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures:
     base_tab = a.traffic.baseline if a.traffic is not None else None
     p_base = out / BASELINE_CSV
     if base_tab is not None:
-        base_tab.reset_index().to_csv(p_base, index=False)
+        atomic_write_text(p_base, base_tab.reset_index().to_csv(index=False))
         files["baseline_csv"] = p_base
     else:
         p_base.unlink(missing_ok=True)
@@ -250,8 +254,7 @@ def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures:
     from analysis import report  # lazy, like figures
 
     p_html = out / REPORT_HTML
-    p_html.write_text(report.run_report(a, fig_paths, fig_errors, extra, report_dir=out),
-                      encoding="utf-8")
+    atomic_write_text(p_html, report.run_report(a, fig_paths, fig_errors, extra, report_dir=out))
     files["report_html"] = p_html
     return AnalysisResult(run_dir=run_dir, out_dir=out, run=_jsonable(a.run), members=a.members,
                           string_stability=a.string_stability, issues=_issues_df(issues),
@@ -373,7 +376,7 @@ def _compare_into(dirs: list[Path], bases: list, out: Path, settings: AnalysisSe
     fig_paths, fig_errors = _figure_module().compare_figures(analyses, out / FIGURES_DIR)
     files.update({f"figure:{k}": p for k, p in fig_paths.items()})
     p_csv = out / "compare.csv"
-    table.to_csv(p_csv)
+    atomic_write_text(p_csv, table.to_csv())
     files["compare_csv"] = p_csv
     p_json = out / "compare.json"
     doc = {"schema": SCHEMA, "runs": {k: str(v) for k, v in runs.items()},
@@ -383,15 +386,15 @@ def _compare_into(dirs: list[Path], bases: list, out: Path, settings: AnalysisSe
            "issues": {lab: [i.as_dict() for i in iss] for lab, iss in issues.items()},
            "settings": settings_dict(settings),
            "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()}}
-    p_json.write_text(json.dumps(_jsonable(doc), indent=2, allow_nan=False), encoding="utf-8")
+    atomic_write_text(p_json, json.dumps(_jsonable(doc), indent=2, allow_nan=False))
     files["compare_json"] = p_json
 
     from analysis import report
 
     p_html = out / REPORT_HTML
-    p_html.write_text(report.compare_report(table, fig_paths, {**runs, **{
+    atomic_write_text(p_html, report.compare_report(table, fig_paths, {**runs, **{
         lab: Path(iss[0].what) for lab, iss in issues.items() if lab not in runs}},
-        issues, fig_errors), encoding="utf-8")
+        issues, fig_errors))
     files["report_html"] = p_html
     all_issues = pd.concat([_issues_df(v, run=k) for k, v in issues.items()], ignore_index=True)
     return CompareResult(out_dir=out, table=table, runs=runs, issues=all_issues, files=files)

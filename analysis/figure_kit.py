@@ -45,9 +45,17 @@ def _has(df: pd.DataFrame, *cols: str) -> bool:
     return all(c in df.columns and df[c].notna().any() for c in cols)
 
 
-def _save(fig: Figure, path: Path) -> Path:
-    fig.savefig(path, dpi=110)
-    return path
+def _save(fig: Figure, path: Path, dpi: int = 110) -> Path:
+    """Write ``fig`` as PNG to ``path`` through a temporary file and a rename: never a
+    truncated figure (disk full), never through a symbolic link."""
+    import io
+
+    from formation_traci.record.rundir import atomic_write_bytes
+
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=dpi, format="png")
+    atomic_write_bytes(Path(path), buf.getvalue())
+    return Path(path)
 
 
 RESOLUTION = {"m": 1e-3, "rad/s": 1e-4, "m/s^2": 1e-3, "m/s^3": 1e-2}

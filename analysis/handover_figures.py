@@ -11,6 +11,7 @@ import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from analysis.figure_kit import _save
 from analysis.handover import handover_track
 from analysis.maneuvers import maneuver_intervals
 
@@ -83,5 +84,4 @@ def handover_figure(run_dir: str | Path, member: str, path: str | Path,
     axes[2].set(ylabel="|formation error| [m]", xlabel="t [s]")
     lo, hi = axes[2].get_ylim()
     axes[2].set_ylim(min(lo, 0.0), max(hi, ERROR_AXIS_MIN))  # not 1e-12 m of rounding noise
-    fig.savefig(path, dpi=110)
-    return Path(path)
+    return _save(fig, path)

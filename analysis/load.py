@@ -221,6 +221,13 @@ def _clean_trajectories(traj: pd.DataFrame,
             traj[name] = pd.to_numeric(traj[name], errors="coerce").astype("float64")
         else:
             traj[name] = np.nan
+    for name in _FLOAT_COLUMNS:  # inf is damage, not a value: treated as missing, counted
+        inf = np.isinf(traj[name].to_numpy())
+        if inf.any():
+            issues.append(Issue("error", "non_finite_values", name,
+                                f"{int(inf.sum())} infinite value(s) in column '{name}'; treated as "
+                                "missing (the rest is computed)"))
+            traj.loc[inf, name] = np.nan
     bad = traj["t"].isna() | traj["vehicle_id"].isna()
     traj["vehicle_id"] = traj["vehicle_id"].astype(str)
     bad |= traj["vehicle_id"].isin(["", "nan", "None", "<NA>"])

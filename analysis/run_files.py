@@ -127,6 +127,35 @@ def read_table(path: str | Path, name: str | None = None) -> tuple[pd.DataFrame 
     return df, issues
 
 
+_NUMBER = (int, float)
+META_TYPES = {"status": (str,), "reason": (str, type(None)), "t_end": _NUMBER, "record_step": _NUMBER,
+              "model": (str,), "mu": _NUMBER, "members": (list,), "scenario": (dict,), "duration": _NUMBER,
+              "seed": (int,), "steps_done": (int,), "tables": (dict,), "event_counts": (dict,),
+              "sumo": (dict,), "baseline": (bool,), "versions": (dict,)}
+"""The JSON type of each run.json key the analysis reads; a key of another type is dropped
+(listed as damage) and the analysis goes on as if it were missing."""
+
+
+def _typed_meta(meta: dict[str, Any]) -> tuple[dict[str, Any], list[Issue]]:
+    """``meta`` without the keys (and members) of the wrong JSON type, and an issue for each."""
+    issues, out = [], dict(meta)
+    for k, types in META_TYPES.items():
+        v = out.get(k)
+        if k in out and (not isinstance(v, types) or (types is _NUMBER and isinstance(v, bool))):
+            issues.append(Issue("error", "invalid_meta_value", f"{RUN_JSON}:{k}",
+                                f"expected {' or '.join(t.__name__ for t in types)}, got "
+                                f"{type(v).__name__} ({str(v)[:40]}); ignored"))
+            del out[k]
+    if isinstance(out.get("members"), list):
+        good = [m for m in out["members"] if isinstance(m, dict) and isinstance(m.get("id"), str)]
+        if len(good) < len(out["members"]):
+            issues.append(Issue("error", "invalid_meta_value", f"{RUN_JSON}:members",
+                                f"{len(out['members']) - len(good)} member(s) without an object and "
+                                "a string id; ignored"))
+            out["members"] = good
+    return out, issues
+
+
 def read_meta(run_dir: str | Path) -> tuple[dict[str, Any], list[Issue]]:
     """Read and check ``run.json``.
 
@@ -157,6 +186,8 @@ def read_meta(run_dir: str | Path) -> tuple[dict[str, Any], list[Issue]]:
                           f"top level is {type(meta).__name__}, expected an object")]
     issues = [Issue("error", "missing_meta_key", f"{RUN_JSON}:{k}", f"key '{k}' is missing")
               for k in REQUIRED_META_KEYS if k not in meta]
+    meta, type_issues = _typed_meta(meta)
+    issues += type_issues
     status = meta.get("status")
     if status is not None and status not in ("completed", "completed_with_incidents"):
         why = {"interrupted": "the run was interrupted",

@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.figure_kit import _save
+
 MAX_LINES = 8
 """More combinations of the other swept fields than this are pooled into one line."""
 LOG_SPAN = 100.0
@@ -100,7 +102,7 @@ def sweep_figures(done: pd.DataFrame, swept: list[str], grid_keys: list[str], me
         try:
             fig = metric_figure(done, swept, grid_keys, metric, units.get(metric, ""), spread, labels)
             path = out_dir / f"{metric}.png"
-            fig.savefig(path, dpi=100)
+            _save(fig, path, dpi=100)
             paths[metric] = path
         except Exception as exc:  # one bad figure must not lose the others
             errors[metric] = f"{type(exc).__name__}: {exc}"

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from formation_traci.record.rundir import atomic_write_text
 from formation_traci.sweep.row import METRICS
 from formation_traci.sweep.spec import SweepError
 
@@ -257,10 +258,10 @@ def analyze_sweep(sweep_dir: str | Path, metrics: list[str] | None = None,
         files.update({f"figure:{k}": p for k, p in figs.items()})
     elif not len(done):
         notes.append("no completed case: nothing to plot")
-    stats.to_csv(out_dir / STATS_CSV, index=False)
+    atomic_write_text(out_dir / STATS_CSV, stats.to_csv(index=False))
     files["stats_csv"] = out_dir / STATS_CSV
     effects = _effects(meta, df, swept, out_dir, figs, files) if meta.get("baseline") else None
     page = _html(meta, df, stats, chosen, figs, fig_errors, notes, effects)
-    (out_dir / REPORT_HTML).write_text(page, encoding="utf-8")
+    atomic_write_text(out_dir / REPORT_HTML, page)
     files["report_html"] = out_dir / REPORT_HTML
     return SweepReport(out_dir=out_dir, stats=stats, metrics=chosen, files=files)

@@ -4,6 +4,7 @@ animation of the formation among the background vehicles.
 from __future__ import annotations
 
 import importlib.util
+import io
 import math
 from pathlib import Path
 from typing import NamedTuple
@@ -19,6 +20,7 @@ from analysis.figure_kit import _dec, _has, _member_groups, _new, _not_recorded,
 from analysis.summary import RunAnalysis
 from analysis.traffic_run import member_rows, time_keys
 from formation_traci.record.columns import VIRTUAL_CAR_ID
+from formation_traci.record.rundir import atomic_write_bytes
 
 __all__ = ["MAX_SCATTER", "BIRDSEYE_AHEAD_M", "BIRDSEYE_BEHIND_M", "BIRDSEYE_STRIP_FRAMES",
            "BIRDSEYE_DPI", "spacetime_figure", "birdseye_animation"]
@@ -194,8 +196,10 @@ def birdseye_animation(analysis: RunAnalysis, path: str | Path) -> Path:
     frames = [Image.fromarray(render(int(k))).quantize(colors=64,
                                                        method=Image.Quantize.FASTOCTREE)
               for k in d.frame_keys]
-    frames[0].save(path, save_all=True, append_images=frames[1:], duration=int(1000 / fps),
+    buf = io.BytesIO()
+    frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=int(1000 / fps),
                    loop=0, optimize=False)
+    atomic_write_bytes(path, buf.getvalue())  # never a truncated GIF, never through a link
     return path
 
 

@@ -40,6 +40,14 @@ def _group(debug: bool = typer.Option(False, "--debug", help="show the traceback
                                         help="print the version and exit")) -> None:
     """Formation control experiments: run scenarios, analyse recordings."""
     _DEBUG["on"] = debug
+    import warnings
+
+    warnings.showwarning = _one_line_warning
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings (e.g. a damaged part file) as one line on stderr, without Python's source line."""
+    typer.echo(f"warning: {message}", err=True)
 
 
 def _bad_input_types() -> tuple[type, ...]:
@@ -49,6 +57,14 @@ def _bad_input_types() -> tuple[type, ...]:
     from .scenario import ScenarioError
     from .sweep import SweepError
     return ScenarioError, RunDirError, SweepError, NoTrajectoryData
+
+
+def _nonempty(value):
+    """Typer callback of --out and directory arguments: an empty string is not the working
+    directory (bad input, exit 2)."""
+    if value is not None and str(value) == "":
+        raise typer.BadParameter("is empty: give a directory")
+    return value
 
 
 @contextlib.contextmanager
@@ -112,7 +128,7 @@ def _set_overrides(pairs: Optional[list[str]], source: str) -> dict:
 @app.command()
 def run(
     scenario: Path = typer.Argument(..., help="scenario TOML file"),
-    out: Path = typer.Option(..., "--out", "-o", help="run directory to create"),
+    out: str = typer.Option(..., "--out", "-o", help="run directory to create", callback=_nonempty),
     duration: Optional[float] = typer.Option(None, help="override run.duration [s]"),
     seed: Optional[int] = typer.Option(None, help="override run.seed"),
     model: Optional[str] = typer.Option(None, help="override vehicle.model: dynamic | kinematic"),
@@ -137,7 +153,7 @@ def run(
                                         **{k: v for k, v in opts.items() if v is not None}})
         if progress and sc.road is not None and sc.traffic.warmup > 0:
             typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)
-        res = run_scenario(sc, out, scenario_path=scenario, force=force, progress=progress, baseline=baseline)
+        res = run_scenario(sc, Path(out), scenario_path=scenario, force=force, progress=progress, baseline=baseline)
     typer.echo(f"{res.status}: t_end={res.t_end:.2f} s, steps={res.steps_done}, out={res.out_dir}"
                + (f"\nreason: {res.reason}" if res.reason else "")
                + (f"\nINCIDENTS: {res.incident_summary} (run.json 'incidents', events.parquet)"
@@ -151,15 +167,20 @@ def run(
 @app.command()
 def analyze(
     run_dir: Path = typer.Argument(..., help="run directory (run.json, trajectories.parquet)"),
-    out: Optional[Path] = typer.Option(None, "--out", "-o", help="where to write; default RUN_DIR"),
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="where to write; default RUN_DIR",
+                                      callback=_nonempty),
     figures: bool = typer.Option(True, "--figures/--no-figures", help="write PNG figures and report.html"),
     baseline: Optional[Path] = typer.Option(None, "--baseline", help="twin run from `run --baseline` (same traffic and seed, no formation)"),
 ) -> None:
     """Compute metrics of a recorded run: metrics.json, metrics.csv, figures/, report.html."""
     with _outcome():
         from analysis.api import analyze_run
+        from .record.rundir import require_run_dir
 
-        res = analyze_run(run_dir, out, figures=figures, baseline=baseline)
+        if baseline is not None:
+            require_run_dir(baseline)  # a baseline that is not there is bad input (exit 2)
+
+        res = analyze_run(run_dir, None if out is None else Path(out), figures=figures, baseline=baseline)
     for name, path in res.files.items():
         typer.echo(f"{name}: {path}")
     if len(res.issues):
@@ -171,13 +192,18 @@ def analyze(
 @app.command()
 def compare(
     run_dirs: list[Path] = typer.Argument(..., help="two or more run directories"),
-    out: Path = typer.Option(..., "--out", "-o", help="directory for compare.csv, figures and report.html"),
+    out: str = typer.Option(..., "--out", "-o", help="directory for compare.csv, figures and report.html",
+                            callback=_nonempty),
 ) -> None:
     """Overlay several runs (e.g. kinematic vs dynamic model) and tabulate key metrics."""
     with _outcome():
         from analysis.api import compare_runs
+        from .record.rundir import RunDirError
 
-        res = compare_runs(run_dirs, out)
+        if len(run_dirs) < 2:
+            raise RunDirError(f"compare needs two or more run directories (got {len(run_dirs)})")
+
+        res = compare_runs(run_dirs, Path(out))
     for name, path in res.files.items():
         typer.echo(f"{name}: {path}")
 
@@ -185,7 +211,8 @@ def compare(
 @app.command()
 def sweep(
     sweep_file: Path = typer.Argument(..., help="sweep TOML file (docs/sweeps.md)"),
-    out: Path = typer.Option(..., "--out", "-o", help="study directory (summary.parquet, cases/)"),
+    out: str = typer.Option(..., "--out", "-o", help="study directory (summary.parquet, cases/)",
+                            callback=_nonempty),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler tcp://HOST:PORT or scheduler file"),
     workers: Optional[int] = typer.Option(None, "--workers", min=1, help="local cases at once (default: cores)"),
     progress: bool = typer.Option(True, "--progress/--no-progress"),
@@ -199,8 +226,9 @@ def sweep(
 
     try:
         with _outcome():
-            res = run_sweep(sweep_file, out, scheduler=scheduler, workers=workers, progress=progress,
-                            baseline=baseline, sets=_set_overrides(sets, str(sweep_file)))
+            res = run_sweep(sweep_file, Path(out), scheduler=scheduler, workers=workers,
+                            progress=progress, baseline=baseline,
+                            sets=_set_overrides(sets, str(sweep_file)))
     except typer.Exit as exc:
         if exc.exit_code == 130:
             typer.echo("run the same command again to finish the sweep", err=True)
@@ -218,14 +246,15 @@ def sweep(
 def analyze_sweep_cmd(
     sweep_dir: Path = typer.Argument(..., help="study directory written by `sweep`"),
     metric: Optional[list[str]] = typer.Option(None, "--metric", "-m", help="metric column(s) to plot"),
-    out: Optional[Path] = typer.Option(None, "--out", "-o", help="where to write; default SWEEP_DIR"),
+    out: Optional[str] = typer.Option(None, "--out", "-o", help="where to write; default SWEEP_DIR",
+                                      callback=_nonempty),
     spread: str = typer.Option("minmax", help="spread over seeds: minmax | std"),
 ) -> None:
     """Plot metrics against the swept values (spread over seeds) and write sweep_report.html."""
     with _outcome():
         from analysis.sweep_report import analyze_sweep
 
-        rep = analyze_sweep(sweep_dir, metrics=metric or None, out=out, spread=spread)
+        rep = analyze_sweep(sweep_dir, metrics=metric or None, out=None if out is None else Path(out), spread=spread)
     for name, path in rep.files.items():
         typer.echo(f"{name}: {path}")
 

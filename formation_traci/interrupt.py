@@ -12,7 +12,9 @@ import os
 import signal
 import threading
 
-SIGNALS = (signal.SIGINT, signal.SIGTERM)
+SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+"""Signals that end a run as ``interrupted``: Ctrl-C, ``kill``, and a closed terminal (SIGHUP,
+handled like SIGTERM)."""
 
 
 class Interrupted(KeyboardInterrupt):

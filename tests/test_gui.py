@@ -75,13 +75,14 @@ def test_gui_run_starts_follows_a_member_and_closes(display, tmp_path):
 @pytest.mark.parametrize("gui", [True, False], ids=["sumo-gui", "sumo"])
 def test_sumo_that_fails_to_start_ends_the_run_within_30_s(display, tmp_path, gui):
     sc = load_scenario(LIGHT, **SHORT, **{"sumo.backend": "traci", "sumo.gui": gui,
-                                          # passes our option check (a known option), SUMO refuses the value
-                                          "sumo.options": ["--time-to-teleport", "not-a-number"]})
+                                          # passes our option check (a known option, an integer); SUMO
+                                          # refuses it, beyond its 32-bit range
+                                          "sumo.options": ["--aggregate-warnings", "99999999999999"]})
     t0 = time.monotonic()
     res = run_scenario(sc, tmp_path / "run", scenario_path=LIGHT, progress=False)
     assert time.monotonic() - t0 < 30
     assert res.status == "failed"
-    assert "SUMO did not start" in res.reason and (gui or "not-a-number" in res.reason)
+    assert "SUMO did not start" in res.reason and (gui or "99999999999999" in res.reason)
     # SUMO's words: sumo prints the refused value on stderr; sumo-gui shows it in its own
     # message window (stderr has only font warnings), so only the failure is checked there
     meta = json.loads((tmp_path / "run" / "run.json").read_text())

@@ -14,18 +14,21 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import re
 import shutil
 import socket
+import stat
+import tempfile
 import sys
 import time
 from pathlib import Path
 from typing import Iterable
 
 RUN_SCHEMA = "formation-traci/run/1"
+"""``run.json["schema"]``: marks a directory as a run of this tool."""
 RUN_FINISHED = ("completed", "completed_with_incidents")
 """Statuses of a run that reached its end (``completed_with_incidents``: with a member
 collision, removal, emergency brake or stranded member, sim/incidents.py)."""
-"""``run.json["schema"]``: marks a directory as a run of this tool."""
 LOCK_NAME = ".formation-traci.lock"
 """Lock file inside an output directory; holds the pid, host and command of the holder."""
 TOOL_FILES = frozenset({
@@ -35,6 +38,19 @@ TOOL_FILES = frozenset({
     ".reserve", "comfort.parquet", "open_loop.parquet", "comm_age.csv",
     "sections.parquet", "departures.parquet", "twin.csv"})
 """Names this tool writes at the top of a run directory: ``--force`` removes only these."""
+TOOL_TEMP = re.compile(r"^\.[A-Za-z0-9_.\-]+\.tmp$")
+"""Temporary files of an atomic write (record/writer.py), left by a killed process."""
+_PARTS = re.compile(r"^\.?part-\d{5}\.parquet(\.tmp)?$")
+TOOL_SUBFILES = {
+    **{t: _PARTS for t in ("trajectories.parquet", "events.parquet", "background.parquet", "ssm.parquet",
+                           "comfort.parquet", "open_loop.parquet")},
+    "figures": re.compile(r"^(\.[\w.\-]+\.tmp(\.png|\.gif)?|[a-z_]+\.(png|gif))$"),
+    "sumo": re.compile(r"^(sumo\.log|messages\.log|traffic\.rou\.xml|ssm\.xml|measure\.xml|measure\.add\.xml"
+                       r"|fcd\.parquet|fcd\.tmp\.parquet|sections\.add\.xml|sections\.xml)$"),
+}
+"""The manifest of the folders this tool writes: the names it writes inside each (``sumo/`` also
+holds the outputs named in the run's ``run.json`` ``sumo.args``). ``--force`` replaces a run
+only when these are all it holds."""
 
 
 class RunDirError(ValueError):
@@ -72,6 +88,9 @@ def check_path(out: Path) -> Path:
     """``out`` as an absolute path if a directory can be (or is) there; else RunDirError."""
     out = Path(out)
     absolute = Path(os.path.abspath(out))
+    if any(len(os.fsencode(part)) > 255 for part in absolute.parts) or len(os.fsencode(str(absolute))) > 4000:
+        raise RunDirError(f"{str(out)[:80]}...: the path is too long for the file system "
+                          "(255 bytes per name, 4000 in all)")
     for anc in reversed(absolute.parents):
         if anc.exists() and not anc.is_dir():
             raise RunDirError(f"{out}: cannot create a directory under {anc}, which is a file")
@@ -112,18 +131,71 @@ def check_replaceable(out: Path, force: bool, protect: Iterable[Path] = (), what
     if not is_tool_run(real):
         raise RunDirError(f"{out}: is not a previous {what} of formation-traci (no run.json written by it); "
                           "--force replaces only those: left untouched")
-    foreign = sorted(e for e in entries if e not in TOOL_FILES)
+    foreign = foreign_files(real)
     if foreign:
         raise RunDirError(f"{out}: holds files formation-traci did not write ({', '.join(foreign[:5])}"
                           f"{', ...' if len(foreign) > 5 else ''}); --force left the directory untouched")
 
 
+def _sumo_outputs(run_dir: Path) -> set[str]:
+    """Names of the files in ``sumo/`` that the run's SUMO options wrote (from run.json)."""
+    try:
+        args = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))["sumo"]["args"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return set()
+    if not isinstance(args, list):
+        return set()
+    names = set()
+    for a in args:
+        value = str(a).partition("=")[2] if str(a).startswith("--") else str(a)
+        if Path(value).parent.name == "sumo":
+            names.add(Path(value).name)
+    return names
+
+
+def foreign_files(run_dir: Path) -> list[str]:
+    """Paths (relative) in ``run_dir`` this tool did not write: anything outside
+    :data:`TOOL_FILES`, any entry of the tool's folders outside :data:`TOOL_SUBFILES`, and
+    any symbolic link."""
+    out = []
+    for p in sorted(run_dir.iterdir()):
+        if p.is_symlink():
+            out.append(f"{p.name} (a symbolic link)")
+            continue
+        if p.name not in TOOL_FILES and not TOOL_TEMP.match(p.name):
+            out.append(p.name)
+            continue
+        if p.is_dir():
+            allowed, extra = TOOL_SUBFILES.get(p.name), _sumo_outputs(run_dir) if p.name == "sumo" else set()
+            for q in sorted(p.iterdir()):
+                if q.is_symlink():
+                    out.append(f"{p.name}/{q.name} (a symbolic link)")
+                elif allowed is None or not q.is_file() or not (allowed.match(q.name) or q.name in extra):
+                    out.append(f"{p.name}/{q.name}")
+    return out
+
+
+def refuse_links(directory: Path, names: Iterable[str]) -> None:
+    """RunDirError if ``directory/name`` (or an entry of it, for a folder) is a symbolic
+    link: formation-traci never writes through one."""
+    for name in names:
+        p = Path(directory) / name
+        if p.is_symlink():
+            raise RunDirError(f"{p}: is a symbolic link; formation-traci never writes through one "
+                              "(remove it, or choose another directory): nothing written")
+        if p.is_dir():
+            for q in p.iterdir():
+                if q.is_symlink():
+                    raise RunDirError(f"{q}: is a symbolic link; formation-traci never writes through "
+                                      "one (remove it, or choose another directory): nothing written")
+
+
 def clear_run(out: Path) -> None:
     """Remove the files of a previous run (checked by :func:`check_replaceable`), not the lock."""
     for p in Path(out).iterdir():
-        if p.name == LOCK_NAME or p.name not in TOOL_FILES:
+        if p.name == LOCK_NAME or p.is_symlink() or (p.name not in TOOL_FILES and not TOOL_TEMP.match(p.name)):
             continue
-        if p.is_dir() and not p.is_symlink():
+        if p.is_dir():
             shutil.rmtree(p)
         else:
             p.unlink()
@@ -138,10 +210,15 @@ class DirLock:
 
     def acquire(self) -> "DirLock":
         path = self.directory / LOCK_NAME
-        try:
-            f = open(path, "a+", encoding="utf-8")
+        try:  # never through a symbolic link, never a FIFO or device: a regular file of ours
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, 0o644)
         except OSError as exc:
-            raise RunDirError(f"{self.directory}: cannot open {LOCK_NAME}: {exc.strerror}") from None
+            why = "it is a symbolic link (never followed)" if path.is_symlink() else exc.strerror
+            raise RunDirError(f"{self.directory}: cannot open {LOCK_NAME}: {why}; nothing written") from None
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
+            raise RunDirError(f"{path}: is not a regular file; nothing written")
+        f = os.fdopen(fd, "a+", encoding="utf-8")
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -178,9 +255,13 @@ def is_locked(directory: Path) -> str | None:
     beyond opening the lock file read-only)."""
     path = Path(directory) / LOCK_NAME
     try:
-        f = open(path, "r", encoding="utf-8")
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
     except OSError:
         return None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        return None
+    f = os.fdopen(fd, "r", encoding="utf-8")
     with f:
         try:
             fcntl.flock(f, fcntl.LOCK_SH | fcntl.LOCK_NB)
@@ -218,6 +299,11 @@ def open_report_dir(out: Path, marker: str, own_run: Path | None = None) -> DirL
     Another run's directory is refused: its report would be overwritten."""
     absolute = check_path(out)
     same_run = own_run is not None and absolute.resolve() == Path(os.path.abspath(own_run)).resolve()
+    if same_run and not looks_like_run(absolute):
+        raise RunDirError(f"{out}: is not a run directory (no run.json and no trajectories.parquet): "
+                          "nothing written")
+    if absolute.is_dir():
+        refuse_links(absolute, sorted(TOOL_FILES))
     if absolute.is_dir() and not same_run:
         entries = [p.name for p in absolute.iterdir() if p.name != LOCK_NAME]
         if "run.json" in entries:
@@ -234,6 +320,12 @@ def open_report_dir(out: Path, marker: str, own_run: Path | None = None) -> DirL
     return DirLock(absolute).acquire()
 
 
+def looks_like_run(path: Path) -> bool:
+    """True if ``path`` holds a run.json or a trajectories table written by this tool (a
+    damaged run without one of them still is a run)."""
+    return (path / "run.json").is_file() or (path / "trajectories.parquet").is_dir()
+
+
 def require_run_dir(run_dir: Path) -> Path:
     """``run_dir`` if it is an existing directory (never created), else RunDirError."""
     run_dir = Path(run_dir)
@@ -242,3 +334,31 @@ def require_run_dir(run_dir: Path) -> Path:
     if not run_dir.is_dir():
         raise RunDirError(f"{run_dir}: is a file, not a run directory")
     return run_dir
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write text to ``path`` via a new temporary file beside it and a rename: never
+    half-written, never through a symbolic link at ``path`` (the rename replaces the link,
+    its target is untouched) and no temporary file left behind on failure (disk full)."""
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """:func:`atomic_write_text` for bytes."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)  # e.g. disk full: no half-written temporary left behind
+        except OSError:
+            pass
+        if isinstance(exc, OSError) and exc.filename is None:  # say which file could not be written
+            raise OSError(exc.errno, exc.strerror, str(path)) from None
+        raise

@@ -18,6 +18,8 @@ from typing import Sequence
 
 import numpy as np
 
+from .rundir import atomic_write_bytes, atomic_write_text  # noqa: F401  (re-exported)
+
 from .columns import Column
 
 
@@ -43,20 +45,6 @@ def _arrow_strings(labels: Sequence[str]):
     np.cumsum([len(b) for b in enc], out=offsets[1:])
     return pa.Array.from_buffers(pa.string(), len(enc), [None, pa.py_buffer(offsets),
                                                           pa.py_buffer(b"".join(enc))])
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write text to ``path`` via a temporary file and a rename (never half-written)."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)  # e.g. disk full: no half-written temporary left behind
-        raise
 
 
 def atomic_write_json(path: Path, obj) -> None:

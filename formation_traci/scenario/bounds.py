@@ -20,6 +20,11 @@ MAX_SEED = 2**31 - 1
 """SUMO's --seed is a 32-bit signed integer."""
 MAX_TEXT = 4096
 """Longest name or description copied into run.json [characters]."""
+MAX_VEH_PER_HOUR_PER_LANE = 10_000.0
+"""Demand of a flow per lane, at most [veh/h]: four times a motorway lane's capacity; beyond
+it SUMO refuses the repetition rate (1e9) or the vehicle count overflows (1e308)."""
+MAX_VEH_PER_HOUR = 100_000.0
+"""Total demand of a flow, at most [veh/h] (ten lanes at the bound above)."""
 
 
 def cost_problems(sc: Scenario) -> list[tuple[str, str]]:
@@ -43,8 +48,23 @@ def cost_problems(sc: Scenario) -> list[tuple[str, str]]:
     if sc.sumo.lateral_resolution < MIN_LATERAL_RESOLUTION:
         out.append(("sumo.lateral_resolution", f"must be at least {MIN_LATERAL_RESOLUTION} m "
                                                f"(got {sc.sumo.lateral_resolution!r})"))
+    out += _flow_problems(sc)
     for name in ("name", "description"):
         n = len(getattr(sc, name))
         if n > MAX_TEXT:
             out.append((name, f"at most {MAX_TEXT} characters (got {n})"))
+    return out
+
+
+def _flow_problems(sc: Scenario) -> list[tuple[str, str]]:
+    """Demand beyond :data:`MAX_VEH_PER_HOUR_PER_LANE` / :data:`MAX_VEH_PER_HOUR`, and a flow
+    that ends before it begins (SUMO refuses both only after it started)."""
+    out = []
+    for i, f in enumerate(sc.traffic.flows):
+        for name, cap in (("veh_per_hour_per_lane", MAX_VEH_PER_HOUR_PER_LANE), ("veh_per_hour", MAX_VEH_PER_HOUR)):
+            v = getattr(f, name)
+            if v is not None and v > cap:
+                out.append((f"traffic.flows.{i}.{name}", f"at most {cap:g} veh/h (got {v!r})"))
+        if f.end is not None and f.end <= f.begin:
+            out.append((f"traffic.flows.{i}.end", f"must be after begin = {f.begin:g} s (got {f.end!r})"))
     return out

@@ -12,13 +12,24 @@ from .bounds import cost_problems
 from .schema import Scenario
 
 
+MAX_LISTED = 20
+"""Problems listed in a ScenarioError's message at most (the count says how many in all)."""
+MAX_FILE_BYTES = 1 << 20
+"""Largest scenario file read [B]: a scenario is a page of TOML (the biggest bundled one is 3 kB)."""
+MAX_DEPTH = 32
+"""Deepest nesting of tables and arrays in a scenario (the schema needs 4)."""
+
+
 class ScenarioError(ValueError):
-    """A scenario file that cannot be used; ``problems`` lists (field path, message)."""
+    """A scenario file that cannot be used; ``problems`` lists (field path, message); the
+    message lists the first :data:`MAX_LISTED`."""
 
     def __init__(self, path: str | Path, problems: list[tuple[str, str]]):
         self.path = str(path)
         self.problems = problems
-        lines = [f"{self.path}: {field}: {msg}" for field, msg in problems]
+        lines = [f"{self.path}: {field}: {msg}" for field, msg in problems[:MAX_LISTED]]
+        if len(problems) > MAX_LISTED:
+            lines.append(f"... and {len(problems) - MAX_LISTED} more")
         super().__init__(f"invalid scenario ({len(problems)} problem"
                          f"{'s' if len(problems) != 1 else ''}):\n  " + "\n  ".join(lines))
 
@@ -113,8 +124,40 @@ def load_scenario(path: str | Path, **overrides: Any) -> Scenario:
     path = Path(path)
     if not path.is_file():
         raise ScenarioError(path, [("(file)", "file not found")])
+    return parse_scenario(read_toml(path, ScenarioError), path, **overrides)
+
+
+def read_toml(path: Path, error=ScenarioError) -> dict:
+    """The TOML document in ``path``, or ``error(path, problems)``: a file over
+    :data:`MAX_FILE_BYTES`, nested deeper than :data:`MAX_DEPTH`, not UTF-8 or not TOML."""
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ScenarioError(path, [("(syntax)", f"not valid TOML: {exc}")]) from None
-    return parse_scenario(doc, path, **overrides)
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise error(path, [("(file)", f"at most {MAX_FILE_BYTES} bytes (got {size})")])
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(path, [("(syntax)", f"not valid TOML: {exc}")]) from None
+    except OSError as exc:
+        raise error(path, [("(file)", f"cannot be read: {exc.strerror}")]) from None
+    depth = _nesting(text)
+    if depth > MAX_DEPTH:
+        raise error(path, [("(document)", f"tables and arrays nested at most {MAX_DEPTH} deep (got {depth})")])
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(path, [("(syntax)", f"not valid TOML: {exc}")]) from None
+    except RecursionError:
+        raise error(path, [("(document)", f"tables and arrays nested at most {MAX_DEPTH} deep")]) from None
+
+
+def _nesting(text: str) -> int:
+    """An upper bound of the nesting of inline arrays and tables: the most brackets open at once
+    (brackets inside strings count too; a scenario has few)."""
+    depth = most = 0
+    for ch in text:
+        if ch in "[{":
+            depth += 1
+            most = max(most, depth)
+        elif ch in "]}":
+            depth = max(0, depth - 1)
+    return most

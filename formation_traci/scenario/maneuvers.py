@@ -17,7 +17,7 @@ LON_COMFORT = 2.0
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
 
 
 class TriggerSpec(_Strict):

@@ -12,7 +12,7 @@ from .base import NonNegFloat, Pair, PosFloat, Strict
 class RouteEnds(Strict):
     """A route by its two ends, joined by the network's shortest path (sumolib)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True, strict=True)
     from_: str | Pair = Field(alias="from", description="first edge id, or an [x, y] network position [m]")
     to: str | Pair = Field(description="last edge id, or an [x, y] network position [m]")
 

@@ -87,6 +87,10 @@ def not_a_sumo_file(path: Path, root: str) -> str | None:
     opener = gzip.open if path.suffix == ".gz" else open
     try:
         with opener(path, "rb") as f:
+            head = f.read(1 << 16)
+            if b"<!DOCTYPE" in head or b"<!ENTITY" in head:
+                return "it declares a DOCTYPE or entities (a SUMO network has neither)"
+            f.seek(0)
             for _, el in ET.iterparse(f, events=("start",)):
                 if el.tag != root:
                     return f"its root element is <{el.tag}>, a SUMO {root} file has <{root}>"
@@ -99,7 +103,11 @@ def not_a_sumo_file(path: Path, root: str) -> str | None:
 def build_road(sc: Scenario, source: Path | None) -> Road:
     src = source or "<scenario>"
     net_file = resolve_net(sc, source)
-    net = load_net(net_file)
+    try:
+        net = load_net(net_file)
+    except Exception as exc:  # sumolib's SAX parser: a truncated or corrupt network
+        raise ScenarioError(src, [("road.net", f"{net_file.name!r} is not a readable SUMO network: "
+                                               f"{type(exc).__name__}: {exc}")]) from None
     spec = sc.road.route or MAIN_ROUTES.get(sc.road.net)
     if not spec:
         raise ScenarioError(src, [("road.route", "required for a network that is not bundled "

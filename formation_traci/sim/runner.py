@@ -142,7 +142,7 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
     meta = run_meta(sc, None if src is None else str(src))
     meta["baseline"] = baseline
     meta_path = out_dir / "run.json"
-    _reserve(out_dir)
+    _reserve(out_dir, _json_size(meta))
     atomic_write_json(meta_path, meta)
     rec = _recorder(sc, out_dir)
     n_steps = int(round(sc.run.duration / sc.run.step))
@@ -213,7 +213,7 @@ def _finish(meta_path, meta, rec, steps, status, reason, t, k):
     if status == "failed":
         done = [v["complete_to_s"] for v in on_disk.values()]
         if any(d is None for d in done) or any(d < t for d in done):  # not everything reached the disk
-            t = min([d for d in done if d is not None], default=0.0)
+            t = min([0.0 if d is None else d for d in done], default=0.0)  # None: nothing of it on disk
             k = int(round(t / meta["record_step"]))
             reason += f"; the tables on disk are complete up to t = {t:.2f} s (run.json 'tables')"
     incidents = rec.incidents.counts()
@@ -237,10 +237,18 @@ def describe_failure(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
-def _reserve(out_dir: Path) -> None:
+def _json_size(meta: dict) -> int:
+    import json
+
+    return len(json.dumps(meta, indent=2, default=str))
+
+
+def _reserve(out_dir: Path, meta_bytes: int = 0) -> None:
+    """Hold back :data:`RESERVE_BYTES`, or four times the first run.json (its members and
+    scenario; the final one adds the tables and events) if that is more [B]."""
     try:
         with open(out_dir / ".reserve", "wb") as f:
-            f.write(b"\0" * RESERVE_BYTES)
+            f.write(b"\0" * max(RESERVE_BYTES, 4 * meta_bytes))
     except OSError:
         (out_dir / ".reserve").unlink(missing_ok=True)
 

@@ -41,11 +41,22 @@ def start_socket(api, cmd: list[str]):
 
 def attach_socket(api, port: int) -> str:
     """Connect to a SUMO started elsewhere with ``--remote-port port``; returns its version."""
-    try:
-        api.init(port)
-        return api.getVersion()[1]
-    except Exception as exc:
-        raise SumoError(f"could not attach to SUMO on port {port}: {exc}") from exc
+    import time
+
+    deadline = time.monotonic() + ATTACH_WAIT_S
+    while True:  # quiet tries: traci.init's own retries take a minute and print a line each
+        try:
+            api.init(port, numRetries=0)
+            return api.getVersion()[1]
+        except Exception as exc:
+            if time.monotonic() > deadline:
+                raise SumoError(f"could not attach to SUMO on port {port} within {ATTACH_WAIT_S:g} s "
+                                f"(is SUMO running with --remote-port {port}?): {exc}") from None
+            time.sleep(0.25)
+
+
+ATTACH_WAIT_S = 5.0
+"""How long an attach waits for SUMO to open its port [s]."""
 
 
 def follow_view(api, vehicle_id: str) -> None:

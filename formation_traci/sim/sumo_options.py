@@ -10,6 +10,7 @@ The option names and types come from the SUMO binary itself (``sumo --help``).
 from __future__ import annotations
 
 import functools
+import math
 import re
 import subprocess
 from pathlib import Path
@@ -25,6 +26,10 @@ MANAGED = {
     "device.ssm.explicit": "sumo.ssm", "device.ssm.measures": "sumo.ssm",
     "device.ssm.thresholds": "sumo.ssm", "device.ssm.range": "sumo.ssm",
     "device.friction.probability": "sumo.friction_device",
+    "collision.mingap-factor": "(always 0)", "collision.check-junctions": "(always on)",
+    "no-step-log": "(always on)", "error-log": "(the run's sumo/messages.log)",
+    "no-warnings": "(always on: warnings are sumo_message events)", "duration-log.disable": "(always on)",
+    "device.friction.stdDev": "sumo.friction_device",
 }
 """SUMO options the tool sets, and the scenario field that controls each."""
 REFUSED_SECTIONS = ("Configuration", "Input", "Communication", "TraCI Server", "GUI Only")
@@ -33,6 +38,11 @@ REFUSED_STR = {"output-prefix", "output-suffix", "save-state.suffix", "device.to
                "device.taxi.dispatch-algorithm.params", "xml-validation", "xml-validation.net",
                "xml-validation.routes"}
 """String options that name files or paths (or fetch schemas)."""
+ENDS_SUMO = {"version", "print-options", "help"}
+"""Options that make SUMO print something and exit instead of running."""
+WRITES_CWD = {"save-state.times", "save-state.period"}
+"""Options that make SUMO write files into the working directory (save-state.prefix is a path)."""
+BOOL_VALUES = {"true", "false", "on", "off", "yes", "no", "1", "0", "t", "f", "x", "-"}
 OWN_FILES = {"ssm.xml", "sumo.log", "traffic.rou.xml", "fcd.parquet"}
 BARE_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")
 _LINE = re.compile(r"^\s+(?:-(\w), )?--(\S+)(?: (\S+))?")
@@ -74,7 +84,29 @@ def _split(options: list[str]) -> list[tuple[int, str, str | None, bool]]:
     return out
 
 
+def _value_problem(name: str, kind: str, value: str | None) -> str | None:
+    """Why ``value`` cannot be the value of option ``name`` of type ``kind``, or None."""
+    if kind == "BOOL":
+        if value is not None and value.lower() not in BOOL_VALUES:
+            return f"--{name} is a switch: give --{name} or --{name}=true|false (got {value!r})"
+        return None
+    if value is None:
+        return f"--{name} needs a value ({kind.lower()})"
+    try:
+        if kind == "INT":
+            int(value)
+        elif kind in ("FLOAT", "TIME") and not math.isfinite(float(value)):
+            return f"--{name} needs a finite {kind.lower()} value (got {value!r})"
+    except ValueError:
+        return f"--{name} needs a {kind.lower()} value (got {value!r})"
+    return None
+
+
 def _problem(name: str, kind: str, section: str, value: str | None) -> str | None:
+    if name in ENDS_SUMO:
+        return f"--{name} makes SUMO print and exit instead of running"
+    if name in WRITES_CWD:
+        return f"--{name} makes SUMO write state files into the working directory, outside the run"
     if name in MANAGED:
         return f"--{name} is set by formation-traci; use {MANAGED[name]}"
     if section in REFUSED_SECTIONS:
@@ -87,7 +119,7 @@ def _problem(name: str, kind: str, section: str, value: str | None) -> str | Non
         if value is None or not BARE_NAME.match(value) or value in OWN_FILES or value.startswith("."):
             return (f"--{name} needs a bare file name (no directory; not {sorted(OWN_FILES)}); SUMO writes "
                     f"it into the run's sumo/ directory (got {value!r})")
-    return None
+    return _value_problem(name, kind, value)
 
 
 def check_options(options: list[str], source) -> None:
@@ -96,19 +128,27 @@ def check_options(options: list[str], source) -> None:
     if not options:
         return
     table = sumo_option_table()
-    problems = []
+    problems, seen, values = [], {}, set()
     items = _split(options)
     for j, (i, name, inline, is_opt) in enumerate(items):
         if not is_opt:
+            if i not in values:
+                problems.append((f"sumo.options.{i}", f"{options[i]!r} is not an option (SUMO would read a "
+                                                      "bare argument as a configuration file)"))
             continue
         if name not in table:
             problems.append((f"sumo.options.{i}", f"unknown SUMO option {options[i]!r}"))
             continue
         full, kind, section = table[name]
         value = inline
-        if value is None and kind != "BOOL" and j + 1 < len(items) and not items[j + 1][3]:
-            value = items[j + 1][1]
+        nxt = items[j + 1] if j + 1 < len(items) else None
+        if value is None and nxt is not None and not nxt[3] and (kind != "BOOL" or nxt[1].lower() in BOOL_VALUES):
+            value = nxt[1]
+            values.add(nxt[0])
         why = _problem(full, kind, section, value)
+        if full in seen:
+            why = f"--{full} is given twice (also sumo.options.{seen[full]})"
+        seen.setdefault(full, i)
         if why:
             problems.append((f"sumo.options.{i}", why))
     if problems:

@@ -71,7 +71,7 @@ def run_local(specs: list[CaseSpec], workers: int | None, timeout_s: float | Non
         for fut in as_completed(futs):
             collect(fut)
         return False
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         stop.set()
         for fut in futs:
             fut.cancel()
@@ -80,7 +80,7 @@ def run_local(specs: list[CaseSpec], workers: int | None, timeout_s: float | Non
                 collect(fut)
         except TimeoutError:
             pass
-        return True
+        return getattr(exc, "signame", "SIGINT")  # truthy: interrupted, by this signal
     finally:
         pool.shutdown(wait=False, cancel_futures=True)
 
@@ -149,14 +149,14 @@ def run_dask(specs: list[CaseSpec], scheduler: str, timeout_s: float | None,
         for fut in dask_completed(list(futs)):
             collect(fut)
         return False
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         stop.set()  # tasks not started return None; running ones stop their case process
         try:
             for fut in dask_completed([f for f in futs if f not in done], timeout=DRAIN_S):
                 collect(fut)
         except Exception:  # timeout (or a second Ctrl-C handled by the caller)
             pass
-        return True
+        return getattr(exc, "signame", "SIGINT")  # truthy: interrupted, by this signal
     finally:
         client.cancel([f for f in futs if f not in done])
         client.close()

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, JsonValue
 
+from ..scenario.load import ScenarioError, read_toml
 from .spec import SEED_PATH, SweepError, SweepFile, read_sweep_file
 
 
@@ -110,9 +111,9 @@ def _base_doc(path: Path, spec: SweepFile) -> tuple[Path, dict]:
     if not base.is_file():
         raise SweepError(path, [("base", f"scenario file not found: {base}")])
     try:
-        doc = tomllib.loads(base.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise SweepError(path, [("base", f"{base} is not valid TOML: {exc}")]) from None
+        doc = read_toml(base)
+    except ScenarioError as exc:
+        raise SweepError(path, [("base", f"{base}: {msg}") for _, msg in exc.problems]) from None
     return base, doc
 
 

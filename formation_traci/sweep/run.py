@@ -54,9 +54,47 @@ def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
+SWEEP_FILES = frozenset({SWEEP_JSON, SUMMARY, CASES_DIR, LOGS_DIR, LOCK_FILE, "sweep_report.html",
+                         "sweep_stats.csv", "sweep_figures"})
+"""Names a sweep (and ``analyze-sweep``) writes at the top of its directory."""
+
+
+def _check_sweep_dir(out: Path) -> Path:
+    """``out`` (absolute) if a sweep may write there: missing, empty, or an earlier sweep of
+    this tool holding only its files (a rerun finishes it); else SweepError, nothing written."""
+    from ..record.rundir import TOOL_TEMP, RunDirError, check_path
+
+    try:
+        absolute = check_path(out)
+    except RunDirError as exc:
+        raise SweepError(out, [("--out", str(exc))]) from None
+    if not absolute.is_dir():
+        return absolute
+    entries = sorted(absolute.iterdir())
+    if not [p for p in entries if p.name != LOCK_FILE]:
+        return absolute
+    try:
+        ours = json.loads((absolute / SWEEP_JSON).read_text(encoding="utf-8")).get("schema") == SCHEMA
+    except (OSError, ValueError, AttributeError):
+        ours = False
+    if not ours and not all(p.name in SWEEP_FILES and not p.is_symlink() for p in entries):
+        raise SweepError(out, [("--out", "is not empty and not an earlier sweep of formation-traci (no "
+                                         "sweep.json written by it): nothing written; choose another directory")])
+    foreign = [p.name for p in entries if p.is_symlink() or (p.name not in SWEEP_FILES and not TOOL_TEMP.match(p.name))]
+    if foreign:
+        raise SweepError(out, [("--out", f"holds files formation-traci did not write ({', '.join(foreign[:5])}): "
+                                         "nothing written; choose another directory")])
+    return absolute.resolve()
+
+
 @contextlib.contextmanager
 def _lock(out: Path):
-    with open(out / LOCK_FILE, "a+") as f:
+    try:
+        fd = os.open(out / LOCK_FILE, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, 0o644)
+    except OSError as exc:
+        raise SweepError(out, [("(directory)", f"cannot open {LOCK_FILE}: {exc.strerror} (a symbolic "
+                                               "link is never followed)")]) from None
+    with os.fdopen(fd, "a+") as f:
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -176,10 +214,11 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         On Ctrl-C, after the running cases stopped and the summary was written.
     """
     sweep = load_sweep(sweep_path, sets)
-    out = Path(out_dir).resolve()
-    if out.exists() and not out.is_dir():
-        raise SweepError(out, [("(directory)", "exists and is a file, not a directory")])
-    out.mkdir(parents=True, exist_ok=True)
+    out = _check_sweep_dir(Path(out_dir))
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SweepError(out, [("(directory)", f"cannot be created: {exc.strerror}")]) from None
     with raising_signals(), _lock(out):  # SIGTERM stops the cases like Ctrl-C
         specs = [case_spec(sweep, i, out, baseline) for i in range(len(sweep.cases))]
         swept = swept_dtypes([c.model_dump(mode="json") for c in sweep.cases], sweep.spec.swept())
@@ -208,7 +247,8 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
             _finish_meta(meta, df, interrupted, on_row.ok + on_row.failed, len(specs))
             atomic_write_json(out / SWEEP_JSON, meta)
     if interrupted:
-        raise KeyboardInterrupt(f"sweep interrupted; {summary_path} holds the {len(df)} cases with a result")
+        from ..interrupt import Interrupted
+        raise Interrupted(interrupted if isinstance(interrupted, str) else "SIGINT")
     files = {"sweep_json": out / SWEEP_JSON, "summary": summary_path, "effects": out / EFFECTS_CSV}
     return SweepResult(out_dir=out, summary=df, n_cases=len(specs), n_completed=n_ok, n_failed=len(df) - n_ok,
                        n_skipped=n_skipped, n_run=on_row.ok + on_row.failed,
@@ -251,12 +291,14 @@ def _progress_bar(sweep: Sweep, n_cases: int, n_skipped: int):
                 desc=sweep.spec.name or sweep.path.stem)
 
 
-def _finish_meta(meta: dict, df: pd.DataFrame, interrupted: bool | None, n_run: int,
+def _finish_meta(meta: dict, df: pd.DataFrame, interrupted: bool | str | None, n_run: int,
                  n_cases: int) -> None:
     """``sweep.json`` at the end: final status (error when the executor raised), finish
     time and counts per status."""
-    meta.update(status={True: "interrupted", False: "completed"}.get(interrupted, "error"),
+    meta.update(status="error" if interrupted is None else "interrupted" if interrupted else "completed",
                 finished=_now())
+    if interrupted:
+        meta["reason"] = f"{interrupted if isinstance(interrupted, str) else 'SIGINT'} received"
     meta["counts"].update(run=n_run, pending=n_cases - len(df),
                           **{s: int((df["status"] == s).sum())
                              for s in ("completed", "completed_with_incidents", "failed",

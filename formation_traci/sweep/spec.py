@@ -7,7 +7,6 @@ point fails one case, not the sweep.
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -28,13 +27,15 @@ class SweepError(ValueError):
     def __init__(self, path: str | Path, problems: list[tuple[str, str]]):
         self.path = str(path)
         self.problems = problems
-        lines = [f"{self.path}: {field}: {msg}" for field, msg in problems]
+        lines = [f"{self.path}: {field}: {msg}" for field, msg in problems[:20]]
+        if len(problems) > 20:
+            lines.append(f"... and {len(problems) - 20} more")
         super().__init__(f"invalid sweep ({len(problems)} problem"
                          f"{'s' if len(problems) != 1 else ''}):\n  " + "\n  ".join(lines))
 
 
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
 
 
 class Distribution(Strict):
@@ -200,10 +201,9 @@ def read_sweep_file(path: str | Path) -> tuple[SweepFile, dict]:
     path = Path(path)
     if not path.is_file():
         raise SweepError(path, [("(file)", "file not found")])
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise SweepError(path, [("(syntax)", f"not valid TOML: {exc}")]) from None
+    from ..scenario.load import read_toml
+
+    doc = read_toml(path, SweepError)
     try:
         return SweepFile.model_validate(doc), doc
     except ValidationError as exc:
