@@ -50,7 +50,8 @@ def geometric_successor(lane, next_edge):
     best, best_lat = None, math.inf
     for cand in next_edge.getLanes():
         start = np.asarray(cand.getShape()[0][:2], dtype=float)
-        along, lat = float((start - end) @ t), abs(float((start - end) @ n))
+        dx, dy = float(start[0] - end[0]), float(start[1] - end[1])  # no BLAS dot (issue 30)
+        along, lat = dx * t[0] + dy * t[1], abs(dx * n[0] + dy * n[1])
         if -2.0 <= along <= JOINT_REACH and lat < best_lat:
             best, best_lat = cand, lat
     if best is None or best_lat > 0.5 * min(lane.getWidth(), best.getWidth()):
