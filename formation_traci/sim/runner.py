@@ -185,6 +185,9 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
         if bar is not None:
             bar.close()
         status, reason = _finish(meta_path, meta, rec, steps, status, reason, t, k)
+    if status == "completed":
+        from .warm import compile_every_kind
+        compile_every_kind()  # a cold cache: the other scenario kinds' kernels too (sim/warm.py)
     return RunResult(out_dir, status, reason, float(meta["t_end"]), int(meta["steps_done"]))
 
 
