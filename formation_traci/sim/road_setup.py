@@ -27,6 +27,7 @@ MAIN_ROUTES = {
     "onramp": ["mw_up", "mw_accel", "mw_down"],
     "lanedrop": ["mw_up", "mw_down"],
     "offramp": ["mw_up", "mw_decel", "mw_down"],
+    "shortcut": ["mw_up", "mw_arc", "mw_down"],
 }
 """Default main route of each bundled network (sumo_nets/README.md)."""
 
@@ -104,7 +105,7 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
     if not spec:
         raise ScenarioError(src, [("road.route", "required for a network that is not bundled "
                                                  "(list of edge ids in driving order, or {from, to})")])
-    route, problems = resolve_route(net, spec, "road.route")
+    route, problems = resolve_route(net, spec, "road.route", sc.road.lane)
     flow_routes = {}
     for i, f in enumerate(sc.traffic.flows):
         if f.route is None:
