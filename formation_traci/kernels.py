@@ -130,6 +130,12 @@ class _CompileNotice(event.Listener):
 event.register("numba:compile", _CompileNotice())
 
 
+def compiled_in_this_process() -> bool:
+    """True once numba has compiled one of our kernels in this process (the notice was
+    printed): the cache was cold (sim/warm.py then compiles the other scenario kinds' too)."""
+    return _CompileNotice.printed
+
+
 # --- scalar helpers with numpy's semantics (NaN propagates like np.maximum / np.minimum) ---
 
 @kernel

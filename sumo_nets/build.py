@@ -470,12 +470,49 @@ def offramp() -> Network:
     )
 
 
+SHORTCUT_BUMP = 150.0  # how far the mainline swings left between x = 1000 and 2000 m [m]
+
+
+def shortcut() -> Network:
+    """A motorway whose mainline swings 150 m to the left between x = 1000 and 2000 m (1018 m
+    long) while a 1-lane off-ramp, link and on-ramp run straight along its right (969 m):
+    the shortest path between the ends leaves the motorway (routes by ends, issue 30)."""
+    bump = [(1000.0 + x, SHORTCUT_BUMP * 0.5 * (1.0 - math.cos(2.0 * math.pi * x / 1000.0)))
+            for x in (4.0 * i for i in range(251))]
+    y_ramp = -3 * LANE_WIDTH - 20.0  # left border of the ramp lane
+    conns = [Connection("mw_up", "mw_arc", k, k) for k in range(3)]
+    conns += [Connection("mw_arc", "mw_down", k, k) for k in range(3)]
+    conns += [Connection("mw_up", "offramp", 0, 0), Connection("offramp", "link", 0, 0),
+              Connection("link", "onramp", 0, 0), Connection("onramp", "mw_down", 0, 0)]
+    ramp = dict(speed=RAMP_SPEED, priority=RAMP_PRIORITY)
+    return Network(
+        name="shortcut",
+        description=("3-lane motorway, 3000 m along +x, swinging 150 m left between x=1000 and "
+                     "2000 m; an off-ramp from lane 0 at x=1000 m, a straight 1-lane link and an "
+                     "on-ramp into lane 0 at x=2000 m are the shorter path"),
+        nodes=[
+            Node("n0", 0, 0, "dead_end"), Node("n_div", 1000, 0), Node("n_merge", 2000, 0),
+            Node("n_end", 3000, 0, "dead_end"), Node("n_r1", 1100, y_ramp), Node("n_r2", 1900, y_ramp),
+        ],
+        edges=[
+            Edge("mw_up", "n0", "n_div", 3, comment="x = 0 .. 1000"),
+            Edge("mw_arc", "n_div", "n_merge", 3, shape=bump, comment="the mainline's swing"),
+            Edge("mw_down", "n_merge", "n_end", 3, comment="x = 2000 .. 3000"),
+            Edge("offramp", "n_div", "n_r1", 1, shape=[(1000.0, -2 * LANE_WIDTH), (1100.0, y_ramp)], **ramp),
+            Edge("link", "n_r1", "n_r2", 1, **ramp, comment="straight, along the mainline's right"),
+            Edge("onramp", "n_r2", "n_merge", 1, shape=[(1900.0, y_ramp), (2000.0, -2 * LANE_WIDTH)], **ramp),
+        ],
+        connections=conns,
+    )
+
+
 NETWORKS: dict[str, Callable[[], Network]] = {
     "straight3": straight3,
     "curved3": curved3,
     "onramp": onramp,
     "lanedrop": lanedrop,
     "offramp": offramp,
+    "shortcut": shortcut,
 }
 
 # ----------------------------------------------------------------------------------------

@@ -1,5 +1,5 @@
 """sumo-gui (issue 19 item 3): ``run --gui`` under Xvfb, following the formation; a SUMO that
-fails to start ends the run with SUMO's own message within 30 s. Needs Xvfb (.ci/run installs it)."""
+fails to start ends the run with SUMO's own message within 30 s. Needs Xvfb: the README's test command (tests/system_deps.sh) installs it."""
 from __future__ import annotations
 
 import json
@@ -24,7 +24,7 @@ SHORT = {"run.duration": 2.0, "traffic.warmup": 5.0, "sumo.ssm": False}
 @pytest.fixture(scope="module")
 def display():
     exe = shutil.which("Xvfb")
-    assert exe, "Xvfb is needed for the sumo-gui tests: apt-get install -y xvfb (.ci/run does)"
+    assert exe, "Xvfb is needed for the sumo-gui tests: bash tests/system_deps.sh installs it"
     num = 90 + os.getpid() % 100
     proc = subprocess.Popen([exe, f":{num}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

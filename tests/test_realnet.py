@@ -117,7 +117,7 @@ def test_smoothed_reference_is_within_tolerance_and_gently_curved(net):
 
 def test_route_by_its_ends_and_lane_centres_from_sumo_shapes(scenario):
     road = build_road(load_scenario(scenario), scenario)
-    assert road.route == ROUTE  # sumolib's shortest path between the two end edges
+    assert road.route == ROUTE  # the mainline between the two end edges (sim/routes.py)
     d = road.lane_d["-30668#1"]
     np.testing.assert_allclose(np.diff(d), 3.3, atol=0.02)  # 3.2 m lanes, centres 3.3 m apart
 

@@ -114,3 +114,15 @@ def test_the_checker_finds_a_circle(tmp_path, monkeypatch):
         assert "formation_traci.a -> formation_traci.b -> formation_traci.a" in str(e)
     else:
         raise AssertionError("the circle a <-> b was not found")
+
+
+def test_ci_runs_the_readme_test_command_verbatim():
+    """Issue 30: the README says its test command is exactly what .ci/run does; the command
+    (the bash block after "Run the tests") is a line of .ci/run, and it installs the system
+    packages the sumo-gui tests need (tests/system_deps.sh) before the tests."""
+    readme = (ROOT / "README.md").read_text()
+    block = readme[readme.index("Run the tests"):]
+    cmd = block[block.index("```bash\n") + 8:].split("\n", 1)[0]
+    assert cmd.startswith("bash tests/system_deps.sh && "), cmd
+    assert "python -m pytest -q" in cmd
+    assert cmd in (ROOT / ".ci" / "run").read_text().splitlines()

@@ -189,3 +189,14 @@ class CommChannel:
                                      float(ld.min_gap), float(ld.decel_emergency))
             v_cap[i], a_cap[i] = min(v_cap[i], vc_i), min(a_cap[i], ac_i)
         return v_cap, a_cap
+
+
+def warm_kernels() -> None:
+    """Compile (or load) this module's kernels for the argument types a [comm] run passes,
+    on zero members (sim/warm.py: one compilation covers every scenario kind)."""
+    i1, f2 = np.zeros(1, dtype=np.int64), np.zeros((0, N_VC))
+    i2 = np.zeros((1, 0), dtype=np.int64)
+    channel_instants(np.zeros((1, N_VC)), 0.01, 0, np.zeros(0, dtype=np.int64), f2, i1, i2, i2,
+                     np.zeros(0, dtype=np.int64), i2, np.zeros((1, 0)))
+    views(np.zeros(1), False, i2, np.zeros((1, 0)), f2, np.zeros(0, dtype=np.bool_), f2, 0.01,
+          np.zeros((1, 0, N_VC)))

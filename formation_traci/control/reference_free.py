@@ -58,3 +58,9 @@ class FreeReference:
 
     def stop_reason(self, t: float):
         return None
+
+
+def warm_kernels() -> None:
+    """Compile (or load) this module's kernels for the argument types a free-space run passes,
+    on zero members (sim/warm.py: one compilation covers every scenario kind)."""
+    free_vc_rows(np.zeros(8), 0.0, 0.0, 0.0, 0.0, 0.01, 1, np.zeros((0, 0, 8)))

@@ -50,7 +50,8 @@ def geometric_successor(lane, next_edge):
     best, best_lat = None, math.inf
     for cand in next_edge.getLanes():
         start = np.asarray(cand.getShape()[0][:2], dtype=float)
-        along, lat = float((start - end) @ t), abs(float((start - end) @ n))
+        dx, dy = float(start[0] - end[0]), float(start[1] - end[1])  # no BLAS dot (issue 30)
+        along, lat = dx * t[0] + dy * t[1], abs(dx * n[0] + dy * n[1])
         if -2.0 <= along <= JOINT_REACH and lat < best_lat:
             best, best_lat = cand, lat
     if best is None or best_lat > 0.5 * min(lane.getWidth(), best.getWidth()):
@@ -67,9 +68,17 @@ def _via_lanes(net, conn) -> list[str]:
     return ids
 
 
+class LaneBreak(ValueError):
+    """A lane that neither continues nor connects into the next edge: ``edges`` = (edge, next)."""
+
+    def __init__(self, message: str, edges: tuple[str, str]):
+        super().__init__(message)
+        self.edges = edges
+
+
 def geometric_route_lanes(net, edges: Sequence[str], lane_index: int) -> list[str]:
     """Lane ids along a route keeping the geometric lane (internal lanes where the connection
-    leads to it). Raises ValueError where a lane neither continues nor connects."""
+    leads to it). Raises :class:`LaneBreak` where a lane neither continues nor connects."""
     first = net.getEdge(edges[0])
     if not 0 <= lane_index < first.getLaneNumber():
         raise ValueError(f"lane_index {lane_index} not on edge {edges[0]!r} ({first.getLaneNumber()} lanes)")
@@ -83,7 +92,8 @@ def geometric_route_lanes(net, edges: Sequence[str], lane_index: int) -> list[st
             ids += _via_lanes(net, to_geo[0])
         elif geo is None:
             if not conns:
-                raise ValueError(f"lane {lane.getID()!r} has no connection to edge {nxt!r}")
+                raise LaneBreak(f"lane {lane.getID()!r} has no connection to edge {nxt!r}",
+                                (lane.getEdge().getID(), nxt))
             end = lane.getShape()[-1]
             conn = min(conns, key=lambda c: math.dist(end, c.getToLane().getShape()[0]))
             ids += _via_lanes(net, conn)

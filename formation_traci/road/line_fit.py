@@ -96,7 +96,6 @@ def _difference_matrix(n: int, order: int) -> sparse.csr_matrix:
 def _fit_pspline(u: np.ndarray, pts: np.ndarray, fit: LineFit) -> BSpline:
     """Penalised quintic regression spline of pts (n, 2) over parameter u [m] (scipy is
     imported here: a line read from the road cache is not fitted)."""
-    import scipy.sparse.linalg as sparse_linalg
     from scipy.interpolate import BSpline
 
     total = float(u[-1])
@@ -110,6 +109,54 @@ def _fit_pspline(u: np.ndarray, pts: np.ndarray, fit: LineFit) -> BSpline:
     pen = _difference_matrix(n_coef, _PENALTY_ORDER)
     density = len(u) / m  # data points per knot interval
     lam = density * (fit.smoothing_length / (2.0 * np.pi * h)) ** (2 * _PENALTY_ORDER)
-    lhs = (basis.T @ basis + lam * (pen.T @ pen)).tocsc()
-    coef = sparse_linalg.spsolve(lhs, basis.T @ pts)
-    return BSpline(knots, np.asarray(coef).reshape(n_coef, 2), _DEGREE, extrapolate=True)
+    lhs = basis.T @ basis + lam * (pen.T @ pen)  # scipy.sparse's own loops: no BLAS
+    bands = [lhs.diagonal(-k) for k in range(max(_DEGREE, _PENALTY_ORDER) + 1)]  # its bandwidth
+    coef = solve_banded_spd(bands, np.asarray(basis.T @ pts))
+    return BSpline(knots, coef, _DEGREE, extrapolate=True)
+
+
+def solve_banded_spd(bands, rhs) -> np.ndarray:
+    """x of A x = rhs for a symmetric positive definite banded A, by Cholesky in plain floats.
+
+    ``bands[k][i]`` is A[i + k, i] (the k-th sub-diagonal, k = 0..p); ``rhs`` is (n, r). Every
+    sum runs in one fixed order in Python floats (IEEE double, correctly rounded), so the
+    result is the same bit for bit on every processor: no BLAS or LAPACK kernel (whose
+    reductions differ with the CPU's vector width, issue 30) and no numpy reduction is called.
+    """
+    p = len(bands) - 1
+    a = [[float(v) for v in band] for band in bands]
+    n = len(a[0])
+    low = [[0.0] * (p + 1) for _ in range(n)]  # low[i][k] = L[i, i - k]
+    for i in range(n):
+        row = low[i]
+        for k in range(min(i, p), -1, -1):
+            j = i - k
+            other = low[j]
+            acc = a[k][j]
+            for m in range(k + 1, min(j + k, p) + 1):  # sum over c = i - m < j of L[i,c] L[j,c]
+                acc -= row[m] * other[m - k]
+            if k:
+                row[k] = acc / other[0]
+            elif acc <= 0.0:
+                raise ValueError("the smoothing system is not positive definite")
+            else:
+                row[0] = math.sqrt(acc)
+    b = np.asarray(rhs, dtype=float)
+    x = [[float(v) for v in r] for r in b.reshape(n, -1)]
+    for i in range(n):  # L y = b
+        row, xi = low[i], x[i]
+        for m in range(1, min(i, p) + 1):
+            xm = x[i - m]
+            for c in range(len(xi)):
+                xi[c] -= row[m] * xm[c]
+        for c in range(len(xi)):
+            xi[c] /= row[0]
+    for i in range(n - 1, -1, -1):  # L^T x = y
+        xi = x[i]
+        for m in range(1, min(n - 1 - i, p) + 1):
+            lm, xm = low[i + m][m], x[i + m]
+            for c in range(len(xi)):
+                xi[c] -= lm * xm[c]
+        for c in range(len(xi)):
+            xi[c] /= low[i][0]
+    return np.array(x, dtype=float).reshape(b.shape)

@@ -10,11 +10,13 @@ from .base import NonNegFloat, Pair, PosFloat, Strict
 
 
 class RouteEnds(Strict):
-    """A route by its two ends, joined by the network's shortest path (sumolib)."""
+    """A route by its two ends (and via points), joined along the mainline (sim/routes.py)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True, strict=True)
     from_: str | Pair = Field(alias="from", description="first edge id, or an [x, y] network position [m]")
     to: str | Pair = Field(description="last edge id, or an [x, y] network position [m]")
+    via: tuple[str | Pair, ...] = Field((), description="edges or [x, y] positions [m] the route passes, in order "
+                                        "(to pick one of several paths)")
 
 
 RouteValue = Union[Annotated[list[str], Field(min_length=1)], RouteEnds]

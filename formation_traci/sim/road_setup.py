@@ -27,6 +27,7 @@ MAIN_ROUTES = {
     "onramp": ["mw_up", "mw_accel", "mw_down"],
     "lanedrop": ["mw_up", "mw_down"],
     "offramp": ["mw_up", "mw_decel", "mw_down"],
+    "shortcut": ["mw_up", "mw_arc", "mw_down"],
 }
 """Default main route of each bundled network (sumo_nets/README.md)."""
 
@@ -112,7 +113,7 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
     if not spec:
         raise ScenarioError(src, [("road.route", "required for a network that is not bundled "
                                                  "(list of edge ids in driving order, or {from, to})")])
-    route, problems = resolve_route(net, spec, "road.route")
+    route, problems = resolve_route(net, spec, "road.route", sc.road.lane)
     flow_routes = {}
     for i, f in enumerate(sc.traffic.flows):
         if f.route is None:
@@ -282,7 +283,8 @@ def rectangles_overlap(p1, h1, p2, h2, length, width, length2=None, width2=None)
     a, b = corners(np.asarray(p1), h1, length, width), corners(np.asarray(p2), h2, l2, w2)
     for h in (h1, h1 + np.pi / 2, h2, h2 + np.pi / 2):
         axis = np.array([np.cos(h), np.sin(h)])
-        pa, pb = a @ axis, b @ axis
+        pa = a[:, 0] * axis[0] + a[:, 1] * axis[1]  # no BLAS matmul (issue 30)
+        pb = b[:, 0] * axis[0] + b[:, 1] * axis[1]
         if pa.max() <= pb.min() or pb.max() <= pa.min():
             return False
     return True

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..interrupt import Interrupted, stop_on_signals
-from ..record.rundir import RunDirError, RunDirExists, RUN_SCHEMA, open_out_dir  # noqa: F401
+from ..record.rundir import RUN_FINISHED, RunDirError, RunDirExists, RUN_SCHEMA, open_out_dir  # noqa: F401
 from ..record.writer import atomic_write_json
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
@@ -193,6 +193,9 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
         if bar is not None:
             bar.close()
         status, reason = _finish(meta_path, meta, rec, steps, status, reason, t, k)
+    if status in RUN_FINISHED:
+        from .warm import compile_every_kind
+        compile_every_kind()  # a cold cache: the other scenario kinds' kernels too (sim/warm.py)
     return RunResult(out_dir, status, reason, float(meta["t_end"]), int(meta["steps_done"]),
                      meta["incidents"], meta["incident_summary"])
 

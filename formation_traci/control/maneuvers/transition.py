@@ -141,3 +141,14 @@ def slots_at(plan: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.nda
     """Offsets (n, 2) [m], rates (n, 2) [m/s] and accelerations (n, 2) [m/s^2] at time t."""
     out = np.array([slot_at(row, float(t)) for row in np.asarray(plan, dtype=float)]).reshape(-1, 6)
     return out[:, 0:2], out[:, 2:4], out[:, 4:6]
+
+
+def warm_kernels() -> None:
+    """Compile (or load) this module's kernels for the argument types a maneuver run passes,
+    on empty inputs (sim/warm.py: one compilation covers every scenario kind)."""
+    row = np.zeros(N_PLAN)
+    row[PLAN_T] = 1.0
+    quintic(0.0, 0.0, 1.0)
+    rate_basis(0.0, 0.0, 1.0)
+    slot_at(row, 0.0)
+    plan_slots_into(row.reshape(1, N_PLAN), 0.0, 0.01, np.empty((1, 1, 6)))

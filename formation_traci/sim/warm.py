@@ -1,0 +1,27 @@
+"""One kernel compilation covers every scenario kind (issue 30).
+
+numba compiles a kernel when it is first called, and some kernels are called only by some
+scenario kinds: the maneuver planner's slots (control/maneuvers/transition.py), the [comm]
+channel (comm/link.py), the free-space virtual car (control/reference_free.py). A process that
+has compiled kernels (a cold cache: kernels.py printed its notice) therefore also compiles
+these, on empty inputs of the types a run passes, before it ends: the next maneuver, comm or
+free-space run loads them from the cache instead of compiling again. A warm process (nothing
+compiled) does nothing here.
+"""
+from __future__ import annotations
+
+from .. import kernels
+
+
+def compile_every_kind() -> bool:
+    """Compile the kernels of the scenario kinds this process did not run, if it compiled
+    kernels at all; True when it did."""
+    if not kernels.compiled_in_this_process():
+        return False
+    from ..comm.link import warm_kernels as comm
+    from ..control.maneuvers.transition import warm_kernels as maneuvers
+    from ..control.reference_free import warm_kernels as free_space
+
+    for warm in (maneuvers, comm, free_space):
+        warm()
+    return True
