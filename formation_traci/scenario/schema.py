@@ -84,9 +84,39 @@ class GainSpec(Strict):
 GAIN_TABLES = Literal["table_3_4", "table_3_6", "table_3_7", "table_3_8", "table_3_12"]
 
 
+class AccSpec(Strict):
+    """controller.acc: constant time gap on ego sensing (control/laws/acc.py; Plexe's defaults)."""
+
+    headway_s: PosFloat = Field(1.2, description="time gap h [s]")
+    gap_gain: PosFloat = Field(0.1, description="gap gain lambda [1/s]")
+    standstill_m: NonNegFloat = Field(2.0, description="standstill gap r0 [m]")
+
+
+class CaccPathSpec(Strict):
+    """controller.cacc_path: PATH/Rajamani constant spacing (control/laws/cacc_path.py)."""
+
+    spacing_m: PosFloat = Field(5.0, description="constant gap d [m]")
+    c1: float = Field(0.5, ge=0.0, le=1.0, description="leader weight C1 [-]")
+    xi: float = Field(1.0, ge=1.0, description="damping ratio xi [-] (>= 1)")
+    omega_n_hz: PosFloat = Field(0.2, description="bandwidth f_n [Hz] (w_n = 2 pi f_n)")
+
+
+class CaccPloegSpec(Strict):
+    """controller.cacc_ploeg: Ploeg's constant-time-gap CACC (control/laws/cacc_ploeg.py)."""
+
+    h_s: PosFloat = Field(0.5, description="time gap h [s]")
+    kp: PosFloat = Field(0.2, description="gap gain kp [1/s^2]")
+    kd: PosFloat = Field(0.7, description="gap-rate gain kd [1/s]")
+    standstill_m: NonNegFloat = Field(2.0, description="standstill gap r0 [m]")
+
+
 class ControllerSpec(Strict):
     law: str = Field(DEFAULT_LAW, description="the members' control law by name (control/laws): "
-                     "'virtual_structure' is the seed's (2.4-2.11 with 3.32-3.38)")
+                     "'virtual_structure' is the seed's (2.4-2.11 with 3.32-3.38); 'acc', "
+                     "'cacc_path', 'cacc_ploeg' follow the member ahead (docs/platoon_laws.md)")
+    acc: AccSpec = AccSpec()
+    cacc_path: CaccPathSpec = CaccPathSpec()
+    cacc_ploeg: CaccPloegSpec = CaccPloegSpec()
     k: PosFloat = Field(1.0, description="position gain of (2.7) [m/s]")
     k_theta: PosFloat = Field(3.0, description="heading gain of (2.8) [1/s]")
     speed_gains: GAIN_TABLES | GainSpec = Field(

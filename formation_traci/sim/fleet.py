@@ -57,6 +57,8 @@ class FleetConfig:
     physics_step: float  # [s]
     law: str | tuple[str, ...] = DEFAULT_LAW  # control/laws: the members' law, or one per member
     pred: tuple[int, ...] | None = None  # member ahead of each in the column (-1: none); None: none
+    bumpers: tuple[tuple[float, float], ...] | None = None  # CoG to front, to rear bumper [m]
+    law_params: tuple | None = None  # per member: {law name: {parameter: value}} (platoon laws)
 
     @property
     def n(self) -> int:
@@ -70,6 +72,9 @@ class FleetState:
     x: np.ndarray  # (n, n_states)
     theta_star: np.ndarray  # (n,) [rad]
     speed_in: np.ndarray  # (n,) unicycle only: speed input applied last [m/s]
+    u_last: np.ndarray | None = None  # (n,) every member's u0 of the last control period
+    # (a_r [m/s^2], dynamic model): what a platoon law reads of its predecessor and of its
+    # own controller state (control/laws); None: zeros (nothing computed yet)
 
 
 def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, targets) -> FleetState:
@@ -83,19 +88,20 @@ def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, target
         x[:, 0], x[:, 1], x[:, 2] = pos[:, 0], pos[:, 1], heading
         x[:, 3], x[:, 5], x[:, 6] = speed, yaw_rate, steer
     theta0 = initial_theta_star(targets, pos, heading, cfg.k)
-    return FleetState(x, theta0, np.asarray(speed, dtype=float) * np.ones(n))
+    return FleetState(x, theta0, np.asarray(speed, dtype=float) * np.ones(n), np.zeros(n))
 
 
 # ---------------------------------------------------------------------------- kernels
 
 @kernel
-def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame, vc, slots,
-                 v_cap, a_cap, dt_c, n_sub, comfort, t0, table, table_ids, at):
+def step_members(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, G, frame, vc,
+                 slots, v_cap, a_cap, dt_c, n_sub, comfort, t0, table, table_ids, at):
     """One step: for each of the vc.shape[0] control periods of dt_c [s], every member's
     input from the reference under its control law (``law``: control/laws dispatch code,
-    ``L`` the per-member law parameters, ``pred`` the member ahead), held over RK4 in n_sub
-    sub-steps (models/integrator.py). Inputs are not modified;
-    returns (x, theta_star, speed_in) after the step. When ``comfort`` has a row per
+    ``L`` the per-member law parameters, ``pred`` the member ahead, ``u_last`` every member's
+    u0 of the period before: the laws of period j read those of period j - 1), held over RK4
+    in n_sub sub-steps (models/integrator.py). Inputs are not modified;
+    returns (x, theta_star, speed_in, u_last) after the step. When ``comfort`` has a row per
     period ((n_ctrl, n, 3); else pass an empty array), member i's speed [m/s], a_lon and
     a_lat [m/s^2] at the start of period j go to comfort[j, i] (the values
     :func:`member_signals` records for that period); with ``at`` >= 0 too, periods 1 ..
@@ -106,6 +112,7 @@ def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame
     x = x.copy()
     theta_star = theta_star.copy()
     speed_in = speed_in.copy()
+    u_prev = u_last.copy()
     U0 = np.empty(n)
     U1 = np.empty(n)
     tsd = np.empty(n)
@@ -115,7 +122,7 @@ def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame
         for i in range(n):
             px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, j, i)
             res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py,
-                               tvx, tvy, tax, tay, v_cap[i], a_cap[i], pred[i])
+                               tvx, tvy, tax, tay, v_cap[i], a_cap[i], pred[i], u_prev, dt_c)
             U0[i] = res[0]
             U1[i] = res[1]
             tsd[i] = res[4]
@@ -126,6 +133,8 @@ def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame
             rk4_row(kind, x[i], U0[i], U1[i], P, i, h, n_sub, w, HELD)
             if kind == KINEMATIC:
                 speed_in[i] = maximum(U0[i], 0.0)
+        for i in range(n):
+            u_prev[i] = U0[i]
     if at >= 0 and comfort.shape[0] == vc.shape[0]:
         for j in range(1, vc.shape[0]):
             tj = t0 + j * dt_c
@@ -136,7 +145,7 @@ def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame
                 table[2, r] = comfort[j, i, 1]
                 table[3, r] = comfort[j, i, 2]
                 table_ids[r] = i
-    return x, theta_star, speed_in
+    return x, theta_star, speed_in, u_prev
 
 
 @kernel
@@ -202,9 +211,9 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
 
 
 @kernel
-def member_signals(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame, vc, slots,
-                   v_cap, a_cap, cols, out, t, limits, traj, traj_ids, at, comfort, comfort_ids,
-                   c_at, comfort_cols):
+def member_signals(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, G, frame, vc,
+                   slots, v_cap, a_cap, dt_c, cols, out, t, limits, traj, traj_ids, at, comfort,
+                   comfort_ids, c_at, comfort_cols):
     """The recorded signals at the start of a step (the first control period's reference)
     into out[i, cols[q]]; e_lon / e_lat in the frame of the member's virtual car.
 
@@ -218,7 +227,7 @@ def member_signals(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, fra
     for i in range(n):
         px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, 0, i)
         res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py, tvx,
-                           tvy, tax, tay, v_cap[i], a_cap[i], pred[i])
+                           tvy, tax, tay, v_cap[i], a_cap[i], pred[i], u_last, dt_c)
         th = vc[0, i, 2]
         _signal_values(kind, x, i, P, res[0], res[1], res, px, py, np.cos(th), np.sin(th),
                        vals)
@@ -363,13 +372,18 @@ class Fleet:
         a_lat [m/s^2] at its start (:func:`step_members`), and with ``rows``
         (sim/recorder.py Recorder.period_rows) periods 1 .. n_ctrl - 1 go into the comfort
         table's buffers too, in the same compiled call."""
-        x, ts, sp = self._step(
-            _f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self.kind, self.P,
+        x, ts, sp, ul = self._step(
+            _f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self._u_last(state),
+            self.kind, self.P,
             self.law, self.L, self.gains, self.pred, ref.line, ref.frame, ref.vc, ref.slots,
             _f64(ref.v_cap), _f64(ref.a_cap), float(ref.dt), self.n_sub(ref.dt),
             _NO_COMFORT if comfort is None else comfort, float(ref.t),
             *(_NO_PERIOD_ROWS if rows is None else rows))
-        return FleetState(x, ts, sp)
+        return FleetState(x, ts, sp, ul)
+
+    def _u_last(self, state: FleetState) -> np.ndarray:
+        """state.u_last as the kernels take it (zeros when nothing was computed yet)."""
+        return np.zeros(self.cfg.n) if state.u_last is None else _f64(state.u_last)
 
     def signals(self, state: FleetState, ref: Reference, out: np.ndarray | None = None):
         """The recorded member columns at the start of the step (SIGNAL_COLUMNS order)."""
@@ -384,9 +398,10 @@ class Fleet:
         Recorder.signal_rows) also written as the step's table rows at t [s], in the same
         compiled call: returns True when they were (False: out of range, or no ``rows``)."""
         return self._signals(_f64(state.x), _f64(state.theta_star), _f64(state.speed_in),
-                              self.kind, self.P, self.law, self.L, self.gains, self.pred, ref.line,
-                              ref.frame, ref.vc, ref.slots, _f64(ref.v_cap), _f64(ref.a_cap),
-                              self.cols, out, float(t), *(_NO_ROWS if rows is None else rows))
+                             self._u_last(state), self.kind, self.P, self.law, self.L,
+                             self.gains, self.pred, ref.line, ref.frame, ref.vc, ref.slots,
+                             _f64(ref.v_cap), _f64(ref.a_cap), float(ref.dt), self.cols, out,
+                             float(t), *(_NO_ROWS if rows is None else rows))
 
     def kinematics(self, state: FleetState):
         """Position (n, 2) [m], velocity (n, 2) [m/s], heading (n,) [rad]."""

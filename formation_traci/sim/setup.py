@@ -90,7 +90,43 @@ def build_fleet(sc: Scenario) -> FleetConfig:
         yaw_gains=_member_gains(sc, "yaw_gains"),
         physics_step=sc.run.physics_step,
         law=ctl.law,
+        pred=column_predecessors(sc),
+        bumpers=tuple((v.a + v.front_overhang, v.length - v.a - v.front_overhang)
+                      for v in vehicles),
+        law_params=(_law_params(ctl),) * len(sc.members),
     )
+
+
+LANE_TOLERANCE_M = 1.0
+"""Slots whose lateral offsets differ by less than this are in one lane of a column [m]."""
+
+
+def _law_params(ctl) -> dict:
+    """{law: {parameter: value}} of the platoon laws' scenario tables (controller.acc, ...)."""
+    return {name: getattr(ctl, name).model_dump() for name in ("acc", "cacc_path", "cacc_ploeg")}
+
+
+def column_predecessors(sc: Scenario) -> tuple[int, ...]:
+    """The member ahead of each member in its column (-1: none): the nearest slot ahead
+    (larger along-position: offset d_x, or slot.along on a road) in the same lane (lateral
+    offset within LANE_TOLERANCE_M; a road slot's lanes count as 3.5 m each)."""
+    along, lat = [], []
+    for m in sc.members:
+        if m.slot is not None:
+            along.append(m.slot.along)
+            lat.append(m.slot.across if m.slot.across is not None else 3.5 * m.slot.lanes)
+        elif m.offset is not None:
+            along.append(m.offset[0])
+            lat.append(m.offset[1])
+        else:
+            along.append(np.nan)
+            lat.append(np.nan)
+    pred = []
+    for i in range(len(along)):
+        ahead = [j for j in range(len(along)) if j != i and along[j] > along[i]
+                 and abs(lat[j] - lat[i]) < LANE_TOLERANCE_M]
+        pred.append(min(ahead, key=lambda j: along[j]) if ahead else -1)
+    return tuple(pred)
 
 
 def build_free_leader(sc: Scenario) -> tuple[FreeLeader, tuple[float, float, float]]:
