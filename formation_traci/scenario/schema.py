@@ -54,6 +54,10 @@ class VehicleOverrides(Strict):
     steer_rate_max_deg_s: PosFloat | None = Field(None, description="steering rate limit [deg/s]")
     c_d: PosFloat | None = Field(None, le=2.0, description="drag coefficient alone [-] (docs/energy.md)")
     frontal_area: PosFloat | None = Field(None, le=15.0, description="frontal area [m^2] (docs/energy.md)")
+    drive_lag_s: NonNegFloat | None = Field(None, le=5.0, description="first-order lag of the drive/brake "
+                                            "demand [s]; 0 (default): none (docs/model.md)")
+    steer_lag_s: NonNegFloat | None = Field(None, le=2.0, description="first-order lag of the steering "
+                                            "actuator [s]; 0 (default): none (docs/model.md)")
 
 
 SURFACE_NAMES = Literal["good_dry", "good_wet", "poor_dry", "poor_wet", "ice"]
@@ -169,6 +173,8 @@ class MemberSpec(Strict):
     yaw_gains: GAIN_TABLES | GainSpec | None = Field(None, description="per-member override of controller.yaw_gains")
     k: PosFloat | None = Field(None, description="per-member override of controller.k")
     k_theta: PosFloat | None = Field(None, description="per-member override of controller.k_theta")
+    params: VehicleOverrides | None = Field(None, description="per-member override of vehicle.params "
+                                            "(e.g. drive_lag_s), over its preset")
 
     @model_validator(mode="after")
     def _one_slot(self):

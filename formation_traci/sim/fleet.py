@@ -87,6 +87,7 @@ def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, target
         x = np.zeros((n, bicycle.N_STATES))
         x[:, 0], x[:, 1], x[:, 2] = pos[:, 0], pos[:, 1], heading
         x[:, 3], x[:, 5], x[:, 6] = speed, yaw_rate, steer
+        x[:, bicycle.S.DELTA_C] = steer  # the steering actuator starts at rest
     theta0 = initial_theta_star(targets, pos, heading, cfg.k)
     return FleetState(x, theta0, np.asarray(speed, dtype=float) * np.ones(n), np.zeros(n))
 
@@ -158,8 +159,8 @@ def _comfort_values(kind, x, i, P, res, out, j):
         out[j, i, 1] = res[5]
         out[j, i, 2] = vk * res[1]
         return
-    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_at(
-        x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6], res[0], res[1], P, i)
+    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_of(
+        x[i], res[0], res[1], P, i)
     out[j, i, 0] = x[i, 3]
     out[j, i, 1] = a_lon
     out[j, i, 2] = a_lat
@@ -191,8 +192,8 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
         for q in range(15, N_SIGNALS):
             vals[q] = np.nan
         return
-    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_at(
-        x[i, 2], x[i, 3], x[i, 4], x[i, 5], x[i, 6], u0, u1, P, i)
+    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_of(
+        x[i], u0, u1, P, i)
     vals[3] = x[i, 3]
     vals[4] = x[i, 5]
     vals[5] = a_lon

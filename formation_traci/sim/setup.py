@@ -23,11 +23,15 @@ def road_mu(sc: Scenario) -> float:
     return sc.vehicle.mu if sc.vehicle.mu is not None else SURFACES[sc.vehicle.surface]
 
 
-def vehicle_params(sc: Scenario, preset: str | None = None) -> VehicleParams:
+def vehicle_params(sc: Scenario, preset: str | None = None, own=None) -> VehicleParams:
     """The preset chassis (``preset``, default vehicle.preset) with the scenario's
-    vehicle.params overrides applied."""
-    veh = VEHICLE_PRESETS[preset or sc.vehicle.preset]
-    o = sc.vehicle.params
+    vehicle.params overrides applied, then a member's own ``params`` (``own``)."""
+    veh = _overridden(VEHICLE_PRESETS[preset or sc.vehicle.preset], sc.vehicle.params)
+    return veh if own is None else _overridden(veh, own)
+
+
+def _overridden(veh: VehicleParams, o) -> VehicleParams:
+    """``veh`` with the values a VehicleOverrides table gives."""
     changes = {k: v for k, v in o.model_dump().items()
                if v is not None and k not in ("steer_max_deg", "steer_rate_max_deg_s")}
     if o.steer_max_deg is not None:
@@ -39,7 +43,7 @@ def vehicle_params(sc: Scenario, preset: str | None = None) -> VehicleParams:
 
 def member_vehicles(sc: Scenario) -> list[VehicleParams]:
     """Every member's chassis: its own preset (members.preset) or vehicle.preset."""
-    return [vehicle_params(sc, m.preset) for m in sc.members]
+    return [vehicle_params(sc, m.preset, m.params) for m in sc.members]
 
 
 def _member_gains(sc: Scenario, name: str):
