@@ -203,6 +203,7 @@ def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures:
         "run": a.run,
         "members": members_json,
         "string_stability": _records(a.string_stability),
+        "formations": list(a.formations),  # formation level: string_amplification (docs/metrics.md)
         "issues": [i.as_dict() for i in issues],
         "damaged": any(i.severity == "error" for i in issues),
         "tables": {
