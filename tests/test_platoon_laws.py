@@ -142,3 +142,31 @@ def test_path_keeps_constant_spacing(tmp_path):
     assert err.max() <= 0.5
     assert np.all(np.diff(err) < 0)
     assert np.abs(wide(df, "y")[IDS].to_numpy()).max() < 1e-6  # the lane kept
+
+
+def test_radio_loss_falls_back_to_acc_and_recovers(tmp_path):
+    """Ploeg's column with every beacon lost for 3 s (comm.outages [5, 8] s, time-out 0.5 s):
+    each CACC member switches to ACC at the controller.acc gap (1.2 s) once its newest state is
+    older than 0.5 s (event law_fallback, t in (5.5, 5.6]) and back when beacons return
+    (law_recovered, t in [8, 8.1]); ACC opens the gaps, no gap closes below the 15.9 m Ploeg gap
+    by more than 1 m, and nothing collides. The head runs the virtual structure: it never switches."""
+    text = (PLATOON / "sinusoid_cacc_ploeg.toml").read_text().replace(
+        "duration = 30.0", "duration = 14.0")
+    p = tmp_path / "loss.toml"
+    p.write_text(text + "\n[comm]\ntimeout_s = 0.5\noutages = [[5.0, 8.0]]\n")
+    res = run_scenario(load_scenario(p), tmp_path / "loss", force=True, progress=False)
+    assert res.status == "completed"
+    ev = pd.read_parquet(tmp_path / "loss" / "events.parquet")
+    fb = ev[ev.kind == "law_fallback"]
+    rc = ev[ev.kind == "law_recovered"]
+    assert sorted(fb.vehicle_id) == IDS[1:] and sorted(rc.vehicle_id) == IDS[1:]
+    assert fb.t.between(5.5, 5.6).all() and rc.t.between(8.0, 8.1).all()
+    df = pd.read_parquet(tmp_path / "loss" / "trajectories.parquet")
+    x = wide(df, "x")
+    gaps = np.array([x[IDS[i - 1]] - x[IDS[i]] - LENGTH_M for i in range(1, 8)])
+    assert gaps.min() > 2.0 + 0.5 * 100 / 3.6 - 1.0
+    t = x.index.to_numpy()
+    k0, k1 = np.searchsorted(t, 5.6), np.searchsorted(t, 8.0)
+    # on ACC every gap opens towards 2 m + 1.2 s v = 35 m (slowly: lambda = 0.1 1/s)
+    assert (gaps[:, k1] > gaps[:, k0] + 0.005).all() and gaps[0, k1] > gaps[0, k0] + 2.0
+    assert not (ev.kind == "collision").any()

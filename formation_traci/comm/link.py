@@ -138,6 +138,10 @@ class CommChannel:
             v_cap, a_cap = self._gap_caps(ref, road, sensed, pos, heading, v_m)
         return ref.with_(vc=vc, v_cap=v_cap, a_cap=a_cap)
 
+    def timed_out(self) -> np.ndarray:
+        """(n,) bools: the members whose newest state is older than ``timeout_s`` this step."""
+        return self.fb
+
     def _timeouts(self, t, age, v_m, active, rec) -> None:
         late = (age > self.timeout) & active
         for i in np.flatnonzero(late & ~self.fb):

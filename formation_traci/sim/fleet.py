@@ -17,17 +17,18 @@ from typing import Literal
 import numpy as np
 
 from ..control.formation import initial_theta_star
-from ..control.laws import DEFAULT_LAW, law_code, law_module
-from ..control.laws.dispatch import law_input_at, runtime_dispatch
+from ..control.laws import DEFAULT_LAW
+from ..control.laws.dispatch import law_input_at
 from ..control.reference import Reference
 from ..control.schedule import GainSchedule
 from ..control.targets import desired_point_at
-from ..kernels import kernel, maximum, rebind, substeps
+from ..kernels import kernel, maximum, substeps
 from ..models import bicycle, kinematic
 from ..models.integrator import HELD, rk4_row
 from ..models.params import _DRAG, _GRADE, BicycleParams, N_PARAMS, pack_params
 from ..models.state import DYNAMIC, KINEMATIC, motion_at
 from ..record.columns import SIGNAL_COLUMNS
+from .fleet_laws import fallback_switches, law_kernels, pack_laws
 
 _KERNEL_SIGNALS = ("x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "ex", "ey",
                    "e_lon", "e_lat", "x_des", "y_des", "v_ref", "omega_ref", "steer",
@@ -288,38 +289,6 @@ def _f64(a) -> np.ndarray:
     return np.array(a, dtype=np.float64, order="C")
 
 
-_RUNTIME_KERNELS: dict = {}
-
-
-def _pack_laws(cfg: FleetConfig):
-    """Every member's law code (n,), the law parameters (n, most PARAMS of its laws) and the
-    one law registered at run time among them (or None)."""
-    laws = cfg.law if isinstance(cfg.law, (tuple, list)) else (cfg.law,) * cfg.n
-    codes = np.array([law_code(name) for name in laws], dtype=np.int64)
-    runtime = sorted({name for name, c in zip(laws, codes) if c < 0})
-    if len(runtime) > 1:
-        raise ValueError(f"one fleet runs at most one law registered at run time, not {runtime}")
-    packs = {name: np.asarray(law_module(name).pack(cfg), dtype=float) for name in set(laws)}
-    L = np.zeros((cfg.n, max(p.shape[1] for p in packs.values())))
-    for i, name in enumerate(laws):
-        L[i, :packs[name].shape[1]] = packs[name][i]
-    return codes, L, (runtime[0] if runtime else None)
-
-
-def _law_kernels(law: str | None):
-    """(step kernel, signal kernel): the cached ones when every law is built in, else a
-    compiled copy that also dispatches to ``law``, registered at run time (control/laws)."""
-    if law is None:
-        return step_members, member_signals
-    mod = law_module(law)
-    got = _RUNTIME_KERNELS.get(law)
-    if got is None or got[0] is not mod:
-        disp = rebind(runtime_dispatch, LAW=mod.input_at, builtin=law_input_at)
-        got = _RUNTIME_KERNELS[law] = (mod, rebind(step_members, law_input_at=disp),
-                                       rebind(member_signals, law_input_at=disp))
-    return got[1], got[2]
-
-
 class Fleet:
     """A FleetConfig packed once into the kernels' per-member arrays.
 
@@ -338,9 +307,10 @@ class Fleet:
         else:
             raise ValueError(f"unknown model {cfg.model!r}")
         self.k = _f64(np.broadcast_to(np.asarray(cfg.k, dtype=float), (n,)))  # eq 2.7, theta*(0)
-        self.law, self.L, runtime = _pack_laws(cfg)
+        self.law, self.L, runtime = pack_laws(cfg)
+        self.base_law = self.law.copy()  # the scenario's laws (self.law: the ones in force)
         self.pred = np.array(cfg.pred if cfg.pred is not None else (-1,) * n, dtype=np.int64)
-        self._step, self._signals = _law_kernels(runtime)
+        self._step, self._signals = law_kernels(runtime, step_members, member_signals)
         sg, yg = (g if isinstance(g, (tuple, list)) else (g,) * n
                   for g in (cfg.speed_gains, cfg.yaw_gains))
         self.gains = _f64([[a.g_min, a.g_max, a.k_min, b.g_min, b.g_max, b.k_min]
@@ -362,6 +332,12 @@ class Fleet:
             self.P[:, _DRAG] = drag_ratio
         if grade is not None:
             self.P[:, _GRADE] = grade
+
+    def fall_back(self, rows, lost) -> list[tuple[int, bool]]:
+        """Put the CACC members of ``rows`` (indices) whose radio is ``lost`` (bools) on their
+        ACC fallback and the others back on their own law; returns the members switched,
+        (index, True: fell back / False: recovered) (sim/fleet_laws.py)."""
+        return fallback_switches(self.law, self.base_law, self.pred, rows, lost)
 
     def n_sub(self, dt_c: float) -> int:
         return substeps(dt_c, self.cfg.physics_step)

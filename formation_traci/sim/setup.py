@@ -159,7 +159,7 @@ def comm_channel(sc: Scenario, n_ctrl: int) -> CommChannel:
     """The [comm] radio of the formation ``sc`` sees (comm/link.py), drawn from the run's seed."""
     ids = [m.id for m in sc.members]
     ch = build_channel([link_params(sc.comm, i) for i in ids], sc.run.seed, sc.run.duration,
-                       sc.run.control_step, sc.comm.beacon_hz)
+                       sc.run.control_step, sc.comm.beacon_hz, sc.comm.outages)
     return CommChannel(ch, ids, n_ctrl, sc.comm.timeout_s, vehicle_params(sc), sc.leader)
 
 

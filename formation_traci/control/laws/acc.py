@@ -13,9 +13,9 @@ from ...kernels import kernel
 from ...models.state import motion_at
 from . import platoon
 
-PARAMS = (*platoon.COMMON, "headway_s", "gap_gain", "standstill_m")
-DEFAULTS = {"headway_s": 1.2, "gap_gain": 0.1, "standstill_m": 2.0}
-_H = platoon.N_COMMON
+PARAMS = (*platoon.COMMON, *platoon.ACC_PARAMS)
+DEFAULTS = platoon.ACC_DEFAULTS
+_H = platoon.ACC_AT
 
 
 @kernel
@@ -30,7 +30,8 @@ def accel_at(x, i, p, v, vp, L):
 def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay,
              v_cap_i, a_cap_i, pred_i, u_last, dt_c):
     """Member i's model input (control/laws/__init__.py): the ACC law behind pred_i, the
-    virtual-structure law at the head."""
+    virtual-structure law at the head. A CACC member on radio loss runs this law on its ACC
+    block (sim/fleet_laws.py)."""
     if pred_i < 0:
         return platoon.head_input(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx,
                                   tvy, tax, tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c)
@@ -43,4 +44,4 @@ def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, t
 
 def pack(cfg):
     """(n, len(PARAMS)) rows from a sim/fleet.py FleetConfig (controller.acc)."""
-    return platoon.pack_rows(cfg, "acc", PARAMS[platoon.N_COMMON:], DEFAULTS)
+    return platoon.pack_rows(cfg, "acc", (), DEFAULTS)

@@ -20,9 +20,9 @@ from ...kernels import kernel, maximum
 from ...models.state import motion_at
 from . import platoon
 
-PARAMS = (*platoon.COMMON, "spacing_m", "c1", "xi", "omega_n_hz")
+PARAMS = (*platoon.COMMON, *platoon.ACC_PARAMS, "spacing_m", "c1", "xi", "omega_n_hz")
 DEFAULTS = {"spacing_m": 5.0, "c1": 0.5, "xi": 1.0, "omega_n_hz": 0.2}
-_D = platoon.N_COMMON
+_D = platoon.OWN_AT
 
 
 @kernel
@@ -54,4 +54,4 @@ def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, t
 
 def pack(cfg):
     """(n, len(PARAMS)) rows from a sim/fleet.py FleetConfig (controller.cacc_path)."""
-    return platoon.pack_rows(cfg, "cacc_path", PARAMS[platoon.N_COMMON:], DEFAULTS)
+    return platoon.pack_rows(cfg, "cacc_path", PARAMS[platoon.OWN_AT:], DEFAULTS)

@@ -15,9 +15,9 @@ from ...kernels import kernel
 from ...models.state import motion_at
 from . import platoon
 
-PARAMS = (*platoon.COMMON, "h_s", "kp", "kd", "standstill_m")
+PARAMS = (*platoon.COMMON, *platoon.ACC_PARAMS, "h_s", "kp", "kd", "standstill_m")
 DEFAULTS = {"h_s": 0.5, "kp": 0.2, "kd": 0.7, "standstill_m": 2.0}
-_H = platoon.N_COMMON
+_H = platoon.OWN_AT
 
 
 @kernel
@@ -46,4 +46,4 @@ def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, t
 
 def pack(cfg):
     """(n, len(PARAMS)) rows from a sim/fleet.py FleetConfig (controller.cacc_ploeg)."""
-    return platoon.pack_rows(cfg, "cacc_ploeg", PARAMS[platoon.N_COMMON:], DEFAULTS)
+    return platoon.pack_rows(cfg, "cacc_ploeg", PARAMS[platoon.OWN_AT:], DEFAULTS)

@@ -11,7 +11,8 @@ the member keeps its lane and slot offset, never its slot's along-position. The 
 column (``pred_i`` < 0) runs the virtual-structure law on its slot: it is the platoon leader.
 
 Law parameter rows (``L``): columns 0-3 are common (k [m/s], k_theta [1/s], CoG to front
-bumper [m], CoG to rear bumper [m]), the law's own parameters follow (:data:`N_COMMON`).
+bumper [m], CoG to rear bumper [m]), then the ACC block (controller.acc: the ACC law's
+parameters, a CACC's fallback), then a CACC's own parameters (:data:`OWN_AT`).
 """
 from __future__ import annotations
 
@@ -26,6 +27,14 @@ from . import virtual_structure
 COMMON = ("k", "k_theta", "front_m", "rear_m")
 """The first columns of every platoon law's parameter rows."""
 N_COMMON = len(COMMON)
+ACC_PARAMS = ("headway_s", "gap_gain", "standstill_m")
+"""The ACC block that follows (controller.acc): the ACC law's own parameters and a CACC's
+fallback on radio loss (sim/fleet_laws.py)."""
+ACC_DEFAULTS = {"headway_s": 1.2, "gap_gain": 0.1, "standstill_m": 2.0}
+ACC_AT = N_COMMON
+"""First column of the ACC block."""
+OWN_AT = N_COMMON + len(ACC_PARAMS)
+"""First column of a CACC's own parameters."""
 
 
 @kernel
@@ -120,13 +129,16 @@ def head_input(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy,
 
 
 def pack_rows(cfg, name: str, params: tuple[str, ...], defaults: dict[str, float]) -> np.ndarray:
-    """(n, N_COMMON + len(params)) rows: k, k_theta, the bumper lengths, then law ``name``'s
-    parameters from cfg.law_params (one mapping per member, or None: the defaults)."""
+    """(n, OWN_AT + len(params)) rows: k, k_theta, the bumper lengths, the ACC block, then law
+    ``name``'s parameters from cfg.law_params (one mapping per member, or None: the
+    defaults)."""
     n = cfg.n
     k = np.broadcast_to(np.asarray(cfg.k, dtype=float), (n,))
     kt = np.broadcast_to(np.asarray(cfg.k_theta, dtype=float), (n,))
     bump = np.zeros((n, 2)) if cfg.bumpers is None else np.asarray(cfg.bumpers, dtype=float)
     per = cfg.law_params if cfg.law_params is not None else ({},) * n
+    acc = np.array([[float(per[i].get("acc", {}).get(p, ACC_DEFAULTS[p])) for p in ACC_PARAMS]
+                    for i in range(n)], dtype=float).reshape(n, len(ACC_PARAMS))
     own = np.array([[float(per[i].get(name, {}).get(p, defaults[p])) for p in params]
                     for i in range(n)], dtype=float).reshape(n, len(params))
-    return np.column_stack([k, kt, bump, own])
+    return np.column_stack([k, kt, bump, acc, own])
