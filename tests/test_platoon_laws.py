@@ -176,3 +176,26 @@ def test_radio_loss_falls_back_to_acc_and_recovers(tmp_path):
     # on ACC every gap opens towards 2 m + 1.2 s v = 35 m (slowly: lambda = 0.1 1/s)
     assert (gaps[:, k1] > gaps[:, k0] + 0.005).all() and gaps[0, k1] > gaps[0, k0] + 2.0
     assert not (ev.kind == "collision").any()
+
+
+def test_ploeg_on_a_road_keeps_the_lane_and_its_time_gap(tmp_path):
+    """Real SUMO: the truck platoon (scenarios/highway/truck_platoon.toml) under Ploeg's CACC
+    (h = 0.5 s, r0 = 2 m) with slots 22.25 m apart: each truck settles at the gap
+    r0 + h v = 13 m behind the one ahead (7.5 m trucks: 20.5 m CoG to CoG), i.e. 1.75 m behind its
+    slot per member, in the slot's lane (e_lat 0), among SUMO's traffic."""
+    root = Path(__file__).resolve().parents[1]
+    text = (root / "scenarios" / "highway" / "truck_platoon.toml").read_text()
+    text = (text.replace("duration = 120.0", "duration = 20.0").replace("warmup = 200.0", "warmup = 20.0")
+            .replace('speed_gains = "table_3_6"', 'speed_gains = "table_3_6"\nlaw = "cacc_ploeg"')
+            .replace("along = -25.0", "along = -22.25").replace("along = -50.0", "along = -44.5"))
+    p = tmp_path / "road.toml"
+    p.write_text(text)
+    res = run_scenario(load_scenario(p), tmp_path / "road", force=True, progress=False)
+    assert res.status == "completed"
+    df = pd.read_parquet(tmp_path / "road" / "trajectories.parquet")
+    end = df[df.t >= 16.0]
+    e_lon = end.groupby("vehicle_id").e_lon.mean()
+    assert e_lon["truck2"] == pytest.approx(-1.75, abs=0.05)
+    assert e_lon["truck3"] == pytest.approx(-3.5, abs=0.1)
+    members = df[df.vehicle_id.str.startswith("truck")]
+    assert members.e_lat.abs().max() < 0.01
