@@ -116,7 +116,6 @@ def _issues_df(issues: Sequence[Issue], run: str | None = None) -> pd.DataFrame:
 
 def _figure_module():
     from analysis import figures  # lazy: matplotlib is heavy and only needed here
-
     return figures
 
 
@@ -208,6 +207,7 @@ def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures:
         "run": a.run,
         "members": members_json,
         "string_stability": _records(a.string_stability),
+        "formations": list(a.formations),  # formation level: string_amplification (docs/metrics.md)
         "issues": [i.as_dict() for i in issues],
         "damaged": any(i.severity == "error" for i in issues),
         "tables": {

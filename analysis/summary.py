@@ -25,6 +25,7 @@ from analysis.traffic_run import (TRAFFIC_MEMBER_METRICS, BaselineData, TrafficA
 from analysis.settings import DEFAULT_SETTINGS, AnalysisSettings, settings_dict
 from analysis.member_columns import _covered, _f
 from analysis.member_comfort import control_rate_dt
+from analysis.platoon import formation_amplification
 from analysis.member_metrics import FORMATION_MEMBER_METRICS, member_metrics
 from analysis.signals import contiguous_segments, peak_abs, rms
 from formation_traci.record.columns import VIRTUAL_CAR_ID
@@ -89,6 +90,7 @@ class RunAnalysis:
     traffic: TrafficAnalysis | None = None  # traffic interaction (None if not computed)
     energy: EnergyAnalysis | None = None  # traction energy per member (analysis/energy.py)
     comm_age: pd.DataFrame | None = None  # error and comfort per leader-age bin (analysis/comm.py)
+    formations: tuple = ()  # per formation: string_amplification of its columns (analysis/platoon.py)
 
 
 def _shape(data: RunData, members: list[Member]) -> tuple[dict[str, Any], pd.DataFrame, list[Issue]]:
@@ -282,4 +284,7 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
     return RunAnalysis(data=data, settings=settings, run=run, members=mdf,
                        string_stability=ss, unavailable=unavailable, signals=signals,
                        shape=shape_df, issues=tuple(issues), traffic=tra, energy=energy,
-                       comm_age=comm_age)
+                       comm_age=comm_age,
+                       formations=tuple(formation_amplification(
+                           traj, {m.id: m.offset for m in members
+                                  if np.isfinite(m.offset).all()}, settings.column_dy_tol_m)))

@@ -163,16 +163,21 @@ class Channel:
 
 
 def build_channel(links: list[LinkParams], seed: int, duration: float, control_step: float,
-                  beacon_hz: float | None) -> Channel:
-    """Draw every link's delays and losses for a run of ``duration`` [s]."""
+                  beacon_hz: float | None, outages=()) -> Channel:
+    """Draw every link's delays and losses for a run of ``duration`` [s]; every beacon sent
+    inside an ``outages`` window [t0, t1) [s] is lost on every link (the draws unchanged)."""
     send = beacon_instants(duration, control_step, beacon_hz)
+    t_send = send * control_step
+    dark = np.zeros(len(send), dtype=bool)
+    for t0, t1 in outages:
+        dark |= (t_send >= t0 - _EPS * control_step) & (t_send < t1 - _EPS * control_step)
     B, n = len(send), len(links)
     arrival = np.empty((n, B), dtype=np.int64)
     delays = np.empty((n, B))
     for i, p in enumerate(links):
         rng = np.random.default_rng(np.random.SeedSequence([int(seed), COMM_STREAM, i]))
         delays[i] = draw_delays(rng, B, p)
-        lost = draw_losses(rng, B, p)
+        lost = draw_losses(rng, B, p) | dark
         lag = np.ceil(delays[i] / control_step - _EPS).astype(np.int64)
         arrival[i] = np.where(lost, LOST, send + lag)
     arrival[:, 0] = send[0]  # the formation starts with the state at t = 0

@@ -140,6 +140,10 @@ class CommChannel:
                 cap_from = np.minimum(cap_from, a_cap)
         return ref.with_(vc=vc, v_cap=v_cap, a_cap=a_cap, a_cap_from=cap_from)
 
+    def timed_out(self) -> np.ndarray:
+        """(n,) bools: the members whose newest state is older than ``timeout_s`` this step."""
+        return self.fb
+
     def _timeouts(self, t, age, v_m, active, rec) -> None:
         late = (age > self.timeout) & active
         for i in np.flatnonzero(late & ~self.fb):

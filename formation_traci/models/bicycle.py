@@ -7,6 +7,8 @@ State (columns of ``x``, shape (n, 7)), see :class:`S`:
     BETA [rad] side-slip angle (3.2)
     R [rad/s]  yaw rate psi dot (3.3)
     DELTA [rad] front road-wheel steering angle, integrated from the rate input (3.38)
+    A_D [m/s^2] the drive/brake demand the actuator delivers (drive_lag_s > 0; else inert, 0)
+    DELTA_C [rad] the steering command the actuator follows (steer_lag_s > 0; else inert)
 Input (columns of ``u``, shape (n, 2)), see :class:`U`:
     A_REF [m/s^2]  desired acceleration a_r, turned into traction force by (3.13)
     STEER_RATE [rad/s]  steering rate delta dot (3.37)
@@ -19,6 +21,12 @@ With the ``resistances`` parameter on, the driving resistance F_res (rolling 3.1
 aerodynamic, grade: models/resistance.py) acts along the velocity: v dot gets -F_res / m and
 (3.13) asks for m a_r + F_res, so the traction limit (3.14) and the friction circle see it
 (docs/energy.md). Off (the default) is the seed's model, bit for bit.
+
+Actuator lags (docs/model.md "Actuator dynamics"): with ``drive_lag_s`` = tau_d > 0 the traction
+law (3.13) is asked for the delivered demand A_D, a_d' = (a_r - a_d) / tau_d; with
+``steer_lag_s`` = tau_s > 0 the rate input drives the command, delta_c' = delta dot (3.37 with its
+limits), and the wheel follows it, delta' = (delta_c - delta) / tau_s. With both 0 (the default)
+the two slots have zero derivative and the rest of the row is integrated bit for bit as before.
 
 Deviations from the seed (see docs/model.md): beta dot uses the exact single-track form
 instead of (3.2); the traction limit (3.14) uses the static front-axle load (b, not a);
@@ -33,7 +41,7 @@ import numpy as np
 from ..kernels import clip, kernel, maximum
 from .params import (_A, _AREA, _B, _BF, _BR, _CD, _CF, _CR, _DF, _DR, _DRAG, _EF, _ER, _GRADE,
                      _H, _IZZ, _LIN, _M, _MU, _RES, _RHO, _SMAX, _SRMAX, _TAU, _TAUSTOP, _VHIGH,
-                     _VLOW, G, BicycleParams, pack_params)
+                     _VLOW, _DLAG, _SLAG, G, BicycleParams, pack_params)
 from .resistance import aero_force, road_load, rolling_coefficient
 from .tire import cornering_force
 
@@ -48,6 +56,8 @@ class S(IntEnum):
     BETA = 4
     R = 5
     DELTA = 6
+    A_D = 7
+    DELTA_C = 8
 
 
 class U(IntEnum):
@@ -58,6 +68,8 @@ class U(IntEnum):
 
 
 N_STATES = len(S)
+N_CORE = 7
+"""The slots of (3.1)-(3.25): X .. DELTA (:func:`rhs_at`); the actuator slots follow."""
 
 
 @kernel
@@ -155,6 +167,15 @@ def kinematic_bicycle_at(v, beta, r, delta, v_dot, ddelta, a, b, tau):
 
 @kernel
 def rhs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i):
+    """Time derivative of vehicle i's state (X, Y, psi, v, beta, r, delta dot) under the
+    steering-rate input ``rate_in`` (the applied rate: :func:`steering_rate_at`); see
+    :func:`rhs_applied_at`."""
+    return rhs_applied_at(psi, v, beta, r, delta, a_ref,
+                          steering_rate_at(delta, rate_in, P[i, _SMAX], P[i, _SRMAX]), P, i)
+
+
+@kernel
+def rhs_applied_at(psi, v, beta, r, delta, a_ref, ddelta, P, i):
     """Time derivative of vehicle i's state (X, Y, psi, v, beta, r, delta dot).
 
     Dynamic part (weight w = 1 above v_high):
@@ -183,7 +204,6 @@ def rhs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i):
         v_dot_dyn = v_dot_dyn - f_res / m
     beta_dot_dyn = (fy * cb - fx * sb) / (m * maximum(v, P[i, _VLOW])) - r
     r_dot_dyn = ((f_lf * sd + fcf * cd) * a - fcr * b) / P[i, _IZZ]
-    ddelta = steering_rate_at(delta, rate_in, P[i, _SMAX], P[i, _SRMAX])
     if res_on:  # the traction m a_r + F_res is clipped, the resistance always acts
         v_dot_kin = clip(a_ref + f_res / m, -(P[i, _MU] * m * G) / m, f_max / m) - f_res / m
     else:
@@ -218,8 +238,15 @@ def outputs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i):
     the wheel, v cos(beta) cos(delta) + (v sin(beta) + a r) sin(delta) (= F_lf v driving
     straight); ``drag_force`` [N] and ``drag_ratio`` [-]: NaN with resistances off.
     """
+    return outputs_applied_at(psi, v, beta, r, delta, a_ref,
+                              steering_rate_at(delta, rate_in, P[i, _SMAX], P[i, _SRMAX]), P, i)
+
+
+@kernel
+def outputs_applied_at(psi, v, beta, r, delta, a_ref, ddelta, P, i):
+    """:func:`outputs_at` with the applied wheel steering rate ``ddelta`` [rad/s]."""
     alpha_f, alpha_r, _, _, f_lf, f_max, _ = forces_at(v, beta, r, delta, a_ref, P, i)
-    d = rhs_at(psi, v, beta, r, delta, a_ref, rate_in, P, i)
+    d = rhs_applied_at(psi, v, beta, r, delta, a_ref, ddelta, P, i)
     course_rate = d[4] + r
     a_lon = d[3] * np.cos(beta) - v * np.sin(beta) * course_rate
     a_lat = d[3] * np.sin(beta) + v * np.cos(beta) * course_rate
@@ -306,15 +333,56 @@ def project(x, p: BicycleParams):
 # ------------------------------------------------ the model over a named state row (integrator)
 
 @kernel
+def actuated_at(s, u0, u1, P, i):
+    """What the actuators deliver to the chassis for inputs (a_r, steering rate) at state row
+    ``s``: (a_ref [m/s^2], applied wheel steering rate [rad/s], a_d dot, delta_c dot)."""
+    td = P[i, _DLAG]
+    ts = P[i, _SLAG]
+    a_in = u0
+    a_dot = 0.0
+    if td > 0.0:
+        a_in = s[S.A_D]
+        a_dot = (u0 - s[S.A_D]) / td
+    if ts > 0.0:
+        c_dot = steering_rate_at(s[S.DELTA_C], u1, P[i, _SMAX], P[i, _SRMAX])
+        return a_in, (s[S.DELTA_C] - s[S.DELTA]) / ts, a_dot, c_dot
+    return a_in, steering_rate_at(s[S.DELTA], u1, P[i, _SMAX], P[i, _SRMAX]), a_dot, 0.0
+
+
+@kernel
 def rhs_into(s, u0, u1, P, i, out):
     """:func:`rhs_at` of the state row ``s`` (slots :class:`S`) under (a_ref, steering rate)
-    into ``out``: the form models/integrator.py integrates."""
-    d = rhs_at(s[S.PSI], s[S.V], s[S.BETA], s[S.R], s[S.DELTA], u0, u1, P, i)
-    for q in range(N_STATES):
+    into ``out``, through the actuators (:func:`actuated_at`): the form models/integrator.py
+    integrates. A row of the N_CORE slots alone is the model without actuator slots."""
+    if P[i, _DLAG] == 0.0 and P[i, _SLAG] == 0.0:
+        d = rhs_at(s[S.PSI], s[S.V], s[S.BETA], s[S.R], s[S.DELTA], u0, u1, P, i)
+        for q in range(N_CORE):
+            out[q] = d[q]
+        for q in range(N_CORE, s.shape[0]):
+            out[q] = 0.0
+        return
+    a_in, rate, a_dot, c_dot = actuated_at(s, u0, u1, P, i)
+    d = rhs_applied_at(s[S.PSI], s[S.V], s[S.BETA], s[S.R], s[S.DELTA], a_in, rate, P, i)
+    for q in range(N_CORE):
         out[q] = d[q]
+    out[S.A_D] = a_dot
+    out[S.DELTA_C] = c_dot
+
+
+@kernel
+def outputs_of(s, u0, u1, P, i):
+    """:func:`outputs_at` of state row ``s`` under (a_r, steering rate) through the actuators
+    (the recorded signals; with no lag exactly :func:`outputs_at` of the inputs)."""
+    if P[i, _DLAG] == 0.0 and P[i, _SLAG] == 0.0:
+        return outputs_at(s[S.PSI], s[S.V], s[S.BETA], s[S.R], s[S.DELTA], u0, u1, P, i)
+    a_in, rate, _, _ = actuated_at(s, u0, u1, P, i)
+    return outputs_applied_at(s[S.PSI], s[S.V], s[S.BETA], s[S.R], s[S.DELTA], a_in, rate, P, i)
 
 
 @kernel
 def constrain(s, P, i):
-    """:func:`project_at` on the state row ``s`` after an integration step."""
+    """:func:`project_at` on the state row ``s`` after an integration step (and the steering
+    command's angle limit)."""
     s[S.V], s[S.DELTA] = project_at(s[S.V], s[S.DELTA], P[i, _SMAX])
+    if P[i, _SLAG] > 0.0:
+        s[S.DELTA_C] = clip(s[S.DELTA_C], -P[i, _SMAX], P[i, _SMAX])

@@ -63,6 +63,8 @@ class VehicleParams:
     c_d: float  # aerodynamic drag coefficient, alone in still air [-] (docs/energy.md)
     frontal_area: float  # frontal area A of 0.5 rho c_d A v^2 [m^2] (docs/energy.md)
     color: tuple[int, int, int]  # RGB shown in SUMO
+    drive_lag_s: float = 0.0  # first-order lag of the drive/brake demand [s] (0: none, the seed's)
+    steer_lag_s: float = 0.0  # first-order lag of the steering actuator [s] (0: none, the seed's)
 
     @property
     def wheelbase(self) -> float:
@@ -190,6 +192,8 @@ class BicycleParams:
     rho_air: float | np.ndarray  # air density [kg/m^3]
     drag_ratio: float | np.ndarray  # c_d multiplier from the vehicles around [-] (1 alone)
     grade: float | np.ndarray  # road grade under the vehicle [rad], positive uphill
+    drive_lag_s: float | np.ndarray = 0.0  # drive/brake actuator time constant [s] (docs/model.md)
+    steer_lag_s: float | np.ndarray = 0.0  # steering actuator time constant [s] (docs/model.md)
 
 
 def bicycle_params(veh: VehicleParams, mu: float, tires: Tires,
@@ -210,6 +214,7 @@ def bicycle_params(veh: VehicleParams, mu: float, tires: Tires,
         v_low=blend.v_low, v_high=blend.v_high, tau=blend.tau, tau_stop=blend.tau_stop,
         resistances=bool(resistances), c_d=veh.c_d, frontal_area=veh.frontal_area,
         rho_air=rho_air, drag_ratio=1.0, grade=0.0,
+        drive_lag_s=veh.drive_lag_s, steer_lag_s=veh.steer_lag_s,
     )
 
 
@@ -243,6 +248,7 @@ PARAM_NAMES: tuple[str, ...] = (
     "linear_tire", "steer_max", "steer_rate_max",
     "v_low", "v_high", "tau", "tau_stop",
     "resistances", "c_d", "frontal_area", "rho_air", "drag_ratio", "grade",
+    "drive_lag_s", "steer_lag_s",
 )
 """Column order of the packed parameter array ``P`` (one column per BicycleParams field)."""
 
@@ -276,6 +282,8 @@ _AREA = PARAM_NAMES.index("frontal_area")
 _RHO = PARAM_NAMES.index("rho_air")
 _DRAG = PARAM_NAMES.index("drag_ratio")
 _GRADE = PARAM_NAMES.index("grade")
+_DLAG = PARAM_NAMES.index("drive_lag_s")
+_SLAG = PARAM_NAMES.index("steer_lag_s")
 
 
 def pack_params(p: BicycleParams, n: int) -> np.ndarray:

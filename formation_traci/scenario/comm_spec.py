@@ -43,6 +43,15 @@ class CommSpec(CommLinkSpec):
         4.0, description="mean burst length of the bursty model [beacons]")
     timeout_s: PosFloat = Field(1.0, description="a member that has heard nothing for longer falls back [s]")
     links: dict[str, CommLinkSpec] = Field(default_factory=dict, description="per-member overrides, by member id")
+    outages: list[Annotated[list[NonNegFloat], Field(min_length=2, max_length=2)]] = Field(
+        default_factory=list, description="[t0, t1] windows [s] in which every beacon sent is lost on every link")
+
+    @model_validator(mode="after")
+    def _windows(self):
+        for k, (t0, t1) in enumerate(self.outages):
+            if t1 <= t0:
+                raise ValueError(f"outages[{k}]: t1 ({t1}) must be after t0 ({t0})")
+        return self
 
     @model_validator(mode="after")
     def _bursts(self):

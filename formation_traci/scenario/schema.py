@@ -57,6 +57,10 @@ class VehicleOverrides(Strict):
     steer_rate_max_deg_s: PosFloat | None = Field(None, description="steering rate limit [deg/s]")
     c_d: PosFloat | None = Field(None, le=2.0, description="drag coefficient alone [-] (docs/energy.md)")
     frontal_area: PosFloat | None = Field(None, le=15.0, description="frontal area [m^2] (docs/energy.md)")
+    drive_lag_s: NonNegFloat | None = Field(None, le=5.0, description="first-order lag of the drive/brake "
+                                            "demand [s]; 0 (default): none (docs/model.md)")
+    steer_lag_s: NonNegFloat | None = Field(None, le=2.0, description="first-order lag of the steering "
+                                            "actuator [s]; 0 (default): none (docs/model.md)")
 
 
 SURFACE_NAMES = Literal["good_dry", "good_wet", "poor_dry", "poor_wet", "ice"]
@@ -87,9 +91,39 @@ class GainSpec(Strict):
 GAIN_TABLES = Literal["table_3_4", "table_3_6", "table_3_7", "table_3_8", "table_3_12"]
 
 
+class AccSpec(Strict):
+    """controller.acc: constant time gap on ego sensing (control/laws/acc.py; Plexe's defaults)."""
+
+    headway_s: PosFloat = Field(1.2, description="time gap h [s]")
+    gap_gain: PosFloat = Field(0.1, description="gap gain lambda [1/s]")
+    standstill_m: NonNegFloat = Field(2.0, description="standstill gap r0 [m]")
+
+
+class CaccPathSpec(Strict):
+    """controller.cacc_path: PATH/Rajamani constant spacing (control/laws/cacc_path.py)."""
+
+    spacing_m: PosFloat = Field(5.0, description="constant gap d [m]")
+    c1: float = Field(0.5, ge=0.0, le=1.0, description="leader weight C1 [-]")
+    xi: float = Field(1.0, ge=1.0, description="damping ratio xi [-] (>= 1)")
+    omega_n_hz: PosFloat = Field(0.2, description="bandwidth f_n [Hz] (w_n = 2 pi f_n)")
+
+
+class CaccPloegSpec(Strict):
+    """controller.cacc_ploeg: Ploeg's constant-time-gap CACC (control/laws/cacc_ploeg.py)."""
+
+    h_s: PosFloat = Field(0.5, description="time gap h [s]")
+    kp: PosFloat = Field(0.2, description="gap gain kp [1/s^2]")
+    kd: PosFloat = Field(0.7, description="gap-rate gain kd [1/s]")
+    standstill_m: NonNegFloat = Field(2.0, description="standstill gap r0 [m]")
+
+
 class ControllerSpec(Strict):
     law: str = Field(DEFAULT_LAW, description="the members' control law by name (control/laws): "
-                     "'virtual_structure' is the seed's (2.4-2.11 with 3.32-3.38)")
+                     "'virtual_structure' is the seed's (2.4-2.11 with 3.32-3.38); 'acc', "
+                     "'cacc_path', 'cacc_ploeg' follow the member ahead (docs/platoon_laws.md)")
+    acc: AccSpec = AccSpec()
+    cacc_path: CaccPathSpec = CaccPathSpec()
+    cacc_ploeg: CaccPloegSpec = CaccPloegSpec()
     k: PosFloat = Field(1.0, description="position gain of (2.7) [m/s]")
     k_theta: PosFloat = Field(3.0, description="heading gain of (2.8) [1/s]")
     speed_gains: GAIN_TABLES | GainSpec = Field(
@@ -153,6 +187,8 @@ class MemberSpec(Strict):
     yaw_gains: GAIN_TABLES | GainSpec | None = Field(None, description="per-member override of controller.yaw_gains")
     k: PosFloat | None = Field(None, description="per-member override of controller.k")
     k_theta: PosFloat | None = Field(None, description="per-member override of controller.k_theta")
+    params: VehicleOverrides | None = Field(None, description="per-member override of vehicle.params "
+                                            "(e.g. drive_lag_s), over its preset")
 
     @model_validator(mode="after")
     def _one_slot(self):
@@ -281,12 +317,9 @@ class Scenario(Strict):
         if dup:
             raise ValueError(f"member ids must be unique over all formations, repeated: {dup}")
         for j, f in enumerate(self.formations):
-            bad = [f"formations.{j}.members.{i}" for i, m in enumerate(f.members)
-                   if m.offset is None or m.position is None]
-            if bad:
-                raise ValueError(f"free-space formations need 'offset' and 'position' for every "
-                                 f"member ({', '.join(bad)})")
-            if f.comm is not None and sorted(set(f.comm.links) - {m.id for m in f.members}):
+            if any(m.offset is None or m.position is None for m in f.members):
+                raise ValueError(f"formations.{j}: free space needs 'offset' and 'position' for every member")
+            if f.comm is not None and set(f.comm.links) - {m.id for m in f.members}:
                 raise ValueError(f"formations.{j}.comm.links names members not in the formation")
         return self
 

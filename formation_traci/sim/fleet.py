@@ -17,18 +17,19 @@ from typing import Literal
 import numpy as np
 
 from ..control.formation import initial_theta_star
-from ..control.laws import DEFAULT_LAW, law_module, pack_laws
-from ..control.laws.dispatch import law_input_at, runtime_dispatch
+from ..control.laws import DEFAULT_LAW
+from ..control.laws.dispatch import law_input_at
 from ..control.reference import Reference, cap_at
 from ..control.schedule import GainSchedule
 from ..control.targets import desired_point_at
-from ..kernels import kernel, maximum, rebind, substeps
+from ..kernels import kernel, maximum, substeps
 from ..models import bicycle, kinematic
 from ..models.integrator import HELD, rk4_row
 from ..models.params import _DRAG, _GRADE, BicycleParams, N_PARAMS, pack_params
 from ..models.bicycle import S
 from ..models.state import DYNAMIC, KINEMATIC, motion_at
 from ..record.columns import SIGNAL_COLUMNS
+from .fleet_laws import fallback_switches, law_kernels, pack_laws
 
 _KERNEL_SIGNALS = ("x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "ex", "ey",
                    "e_lon", "e_lat", "x_des", "y_des", "v_ref", "omega_ref", "steer",
@@ -58,6 +59,8 @@ class FleetConfig:
     physics_step: float  # [s]
     law: str | tuple[str, ...] = DEFAULT_LAW  # control/laws: the members' law, or one per member
     pred: tuple[int, ...] | None = None  # member ahead of each in the column (-1: none); None: none
+    bumpers: tuple[tuple[float, float], ...] | None = None  # CoG to front, to rear bumper [m]
+    law_params: tuple | None = None  # per member: {law name: {parameter: value}} (platoon laws)
 
     @property
     def n(self) -> int:
@@ -71,6 +74,9 @@ class FleetState:
     x: np.ndarray  # (n, n_states)
     theta_star: np.ndarray  # (n,) [rad]
     speed_in: np.ndarray  # (n,) unicycle only: speed input applied last [m/s]
+    u_last: np.ndarray | None = None  # (n,) every member's u0 of the last control period
+    # (a_r [m/s^2], dynamic model): what a platoon law reads of its predecessor and of its
+    # own controller state (control/laws); None: zeros (nothing computed yet)
 
 
 def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, targets) -> FleetState:
@@ -83,20 +89,22 @@ def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, target
         x = np.zeros((n, bicycle.N_STATES))
         x[:, S.X], x[:, S.Y], x[:, S.PSI] = pos[:, 0], pos[:, 1], heading
         x[:, S.V], x[:, S.R], x[:, S.DELTA] = speed, yaw_rate, steer
+        x[:, S.DELTA_C] = steer  # the steering actuator starts at rest
     theta0 = initial_theta_star(targets, pos, heading, cfg.k)
-    return FleetState(x, theta0, np.asarray(speed, dtype=float) * np.ones(n))
+    return FleetState(x, theta0, np.asarray(speed, dtype=float) * np.ones(n), np.zeros(n))
 
 
 # ---------------------------------------------------------------------------- kernels
 
 @kernel
-def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame, vc, slots,
-                 v_cap, a_cap, a_cap_from, dt_c, n_sub, comfort, t0, table, table_ids, at):
+def step_members(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, G, frame, vc,
+                 slots, v_cap, a_cap, a_cap_from, dt_c, n_sub, comfort, t0, table, table_ids, at):
     """One step: for each of the vc.shape[0] control periods of dt_c [s], every member's
     input from the reference under its control law (``law``: control/laws dispatch code,
-    ``L`` the per-member law parameters, ``pred`` the member ahead), held over RK4 in n_sub
-    sub-steps (models/integrator.py). Inputs are not modified;
-    returns (x, theta_star, speed_in) after the step. When ``comfort`` has a row per
+    ``L`` the per-member law parameters, ``pred`` the member ahead, ``u_last`` every member's
+    u0 of the period before: the laws of period j read those of period j - 1), held over RK4
+    in n_sub sub-steps (models/integrator.py). Inputs are not modified;
+    returns (x, theta_star, speed_in, u_last) after the step. When ``comfort`` has a row per
     period ((n_ctrl, n, 3); else pass an empty array), member i's speed [m/s], a_lon and
     a_lat [m/s^2] at the start of period j go to comfort[j, i] (the values
     :func:`member_signals` records for that period); with ``at`` >= 0 too, periods 1 ..
@@ -107,6 +115,7 @@ def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame
     x = x.copy()
     theta_star = theta_star.copy()
     speed_in = speed_in.copy()
+    u_prev = u_last.copy()
     U0 = np.empty(n)
     U1 = np.empty(n)
     tsd = np.empty(n)
@@ -117,7 +126,8 @@ def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame
             px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, j, i)
             res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py,
                                tvx, tvy, tax, tay, v_cap[i],
-                               cap_at(a_cap_from[i], a_cap[i], j, vc.shape[0]), pred[i])
+                               cap_at(a_cap_from[i], a_cap[i], j, vc.shape[0]), pred[i], u_prev,
+                               dt_c)
             U0[i] = res[0]
             U1[i] = res[1]
             tsd[i] = res[4]
@@ -128,6 +138,8 @@ def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame
             rk4_row(kind, x[i], U0[i], U1[i], P, i, h, n_sub, w, HELD)
             if kind == KINEMATIC:
                 speed_in[i] = maximum(U0[i], 0.0)
+        for i in range(n):
+            u_prev[i] = U0[i]
     if at >= 0 and comfort.shape[0] == vc.shape[0]:
         for j in range(1, vc.shape[0]):
             tj = t0 + j * dt_c
@@ -138,7 +150,7 @@ def step_members(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame
                 table[2, r] = comfort[j, i, 1]
                 table[3, r] = comfort[j, i, 2]
                 table_ids[r] = i
-    return x, theta_star, speed_in
+    return x, theta_star, speed_in, u_prev
 
 
 @kernel
@@ -151,8 +163,8 @@ def _comfort_values(kind, x, i, P, res, out, j):
         out[j, i, 1] = res[5]
         out[j, i, 2] = vk * res[1]
         return
-    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_at(
-        x[i, S.PSI], x[i, S.V], x[i, S.BETA], x[i, S.R], x[i, S.DELTA], res[0], res[1], P, i)
+    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_of(
+        x[i], res[0], res[1], P, i)
     out[j, i, 0] = x[i, S.V]
     out[j, i, 1] = a_lon
     out[j, i, 2] = a_lat
@@ -184,8 +196,8 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
         for q in range(15, N_SIGNALS):
             vals[q] = np.nan
         return
-    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_at(
-        x[i, S.PSI], x[i, S.V], x[i, S.BETA], x[i, S.R], x[i, S.DELTA], u0, u1, P, i)
+    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_of(
+        x[i], u0, u1, P, i)
     vals[3] = x[i, S.V]
     vals[4] = x[i, S.R]
     vals[5] = a_lon
@@ -204,8 +216,8 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
 
 
 @kernel
-def member_signals(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, frame, vc, slots,
-                   v_cap, a_cap, a_cap_from, cols, out, t, limits, traj, traj_ids, at, comfort,
+def member_signals(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, G, frame, vc,
+                   slots, v_cap, a_cap, a_cap_from, dt_c, cols, out, t, limits, traj, traj_ids, at, comfort,
                    comfort_ids, c_at, comfort_cols):
     """The recorded signals at the start of a step (the first control period's reference)
     into out[i, cols[q]]; e_lon / e_lat in the frame of the member's virtual car.
@@ -221,7 +233,7 @@ def member_signals(x, theta_star, speed_in, kind, P, law, L, gains, pred, G, fra
         px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, 0, i)
         res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py, tvx,
                            tvy, tax, tay, v_cap[i], cap_at(a_cap_from[i], a_cap[i], 0, vc.shape[0]),
-                           pred[i])
+                           pred[i], u_last, dt_c)
         th = vc[0, i, 2]
         _signal_values(kind, x, i, P, res[0], res[1], res, px, py, np.cos(th), np.sin(th),
                        vals)
@@ -286,23 +298,6 @@ def _f64(a) -> np.ndarray:
     return np.array(a, dtype=np.float64, order="C")
 
 
-_RUNTIME_KERNELS: dict = {}
-
-
-def _law_kernels(law: str | None):
-    """(step kernel, signal kernel): the cached ones when every law is built in, else a
-    compiled copy that also dispatches to ``law``, registered at run time (control/laws)."""
-    if law is None:
-        return step_members, member_signals
-    mod = law_module(law)
-    got = _RUNTIME_KERNELS.get(law)
-    if got is None or got[0] is not mod:
-        disp = rebind(runtime_dispatch, LAW=mod.input_at, builtin=law_input_at)
-        got = _RUNTIME_KERNELS[law] = (mod, rebind(step_members, law_input_at=disp),
-                                       rebind(member_signals, law_input_at=disp))
-    return got[1], got[2]
-
-
 class Fleet:
     """A FleetConfig packed once into the kernels' per-member arrays.
 
@@ -322,8 +317,9 @@ class Fleet:
             raise ValueError(f"unknown model {cfg.model!r}")
         self.k = _f64(np.broadcast_to(np.asarray(cfg.k, dtype=float), (n,)))  # eq 2.7, theta*(0)
         self.law, self.L, runtime = pack_laws(cfg)
+        self.base_law = self.law.copy()  # the scenario's laws (self.law: the ones in force)
         self.pred = np.array(cfg.pred if cfg.pred is not None else (-1,) * n, dtype=np.int64)
-        self._step, self._signals = _law_kernels(runtime)
+        self._step, self._signals = law_kernels(runtime, step_members, member_signals)
         sg, yg = (g if isinstance(g, (tuple, list)) else (g,) * n
                   for g in (cfg.speed_gains, cfg.yaw_gains))
         self.gains = _f64([[a.g_min, a.g_max, a.k_min, b.g_min, b.g_max, b.k_min]
@@ -346,6 +342,12 @@ class Fleet:
         if grade is not None:
             self.P[:, _GRADE] = grade
 
+    def fall_back(self, rows, lost) -> list[tuple[int, bool]]:
+        """Put the CACC members of ``rows`` (indices) whose radio is ``lost`` (bools) on their
+        ACC fallback and the others back on their own law; returns the members switched,
+        (index, True: fell back / False: recovered) (sim/fleet_laws.py)."""
+        return fallback_switches(self.law, self.base_law, self.pred, rows, lost)
+
     def n_sub(self, dt_c: float) -> int:
         return substeps(dt_c, self.cfg.physics_step)
 
@@ -356,13 +358,18 @@ class Fleet:
         a_lat [m/s^2] at its start (:func:`step_members`), and with ``rows``
         (sim/recorder.py Recorder.period_rows) periods 1 .. n_ctrl - 1 go into the comfort
         table's buffers too, in the same compiled call."""
-        x, ts, sp = self._step(
-            _f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self.kind, self.P,
+        x, ts, sp, ul = self._step(
+            _f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self._u_last(state),
+            self.kind, self.P,
             self.law, self.L, self.gains, self.pred, ref.line, ref.frame, ref.vc, ref.slots,
             _f64(ref.v_cap), _f64(ref.a_cap), _cap_from(ref), float(ref.dt), self.n_sub(ref.dt),
             _NO_COMFORT if comfort is None else comfort, float(ref.t),
             *(_NO_PERIOD_ROWS if rows is None else rows))
-        return FleetState(x, ts, sp)
+        return FleetState(x, ts, sp, ul)
+
+    def _u_last(self, state: FleetState) -> np.ndarray:
+        """state.u_last as the kernels take it (zeros when nothing was computed yet)."""
+        return np.zeros(self.cfg.n) if state.u_last is None else _f64(state.u_last)
 
     def signals(self, state: FleetState, ref: Reference, out: np.ndarray | None = None):
         """The recorded member columns at the start of the step (SIGNAL_COLUMNS order)."""
@@ -377,10 +384,10 @@ class Fleet:
         Recorder.signal_rows) also written as the step's table rows at t [s], in the same
         compiled call: returns True when they were (False: out of range, or no ``rows``)."""
         return self._signals(_f64(state.x), _f64(state.theta_star), _f64(state.speed_in),
-                              self.kind, self.P, self.law, self.L, self.gains, self.pred, ref.line,
-                              ref.frame, ref.vc, ref.slots, _f64(ref.v_cap), _f64(ref.a_cap),
-                              _cap_from(ref),
-                              self.cols, out, float(t), *(_NO_ROWS if rows is None else rows))
+                             self._u_last(state), self.kind, self.P, self.law, self.L,
+                             self.gains, self.pred, ref.line, ref.frame, ref.vc, ref.slots,
+                             _f64(ref.v_cap), _f64(ref.a_cap), _cap_from(ref), float(ref.dt),
+                             self.cols, out, float(t), *(_NO_ROWS if rows is None else rows))
 
     def kinematics(self, state: FleetState):
         """Position (n, 2) [m], velocity (n, 2) [m/s], heading (n,) [rad]."""

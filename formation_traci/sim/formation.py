@@ -66,7 +66,10 @@ def join_configs(cfgs: list[FleetConfig]) -> FleetConfig:
         k_theta=np.concatenate([np.broadcast_to(c.k_theta, (c.n,)) for c in cfgs]),
         speed_gains=tuple(g for c in cfgs for g in _per_member(c.speed_gains, c.n)),
         yaw_gains=tuple(g for c in cfgs for g in _per_member(c.yaw_gains, c.n)),
-        law=laws if len(set(laws)) > 1 else laws[0], pred=tuple(pred))
+        law=laws if len(set(laws)) > 1 else laws[0], pred=tuple(pred),
+        bumpers=None if any(c.bumpers is None for c in cfgs)
+        else tuple(b for c in cfgs for b in c.bumpers),
+        law_params=tuple(q for c in cfgs for q in (c.law_params or ({},) * c.n)))
 
 
 def _per_member(value, n: int) -> tuple:
@@ -91,7 +94,9 @@ def join_states(states: list[FleetState]) -> FleetState:
         return states[0]
     return FleetState(np.concatenate([s.x for s in states]),
                       np.concatenate([s.theta_star for s in states]),
-                      np.concatenate([s.speed_in for s in states]))
+                      np.concatenate([s.speed_in for s in states]),
+                      np.concatenate([s.u_last if s.u_last is not None else np.zeros(len(s.x))
+                                      for s in states]))
 
 
 def sensed_of(sensed: Sensed, sl: slice) -> Sensed:

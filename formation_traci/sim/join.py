@@ -105,6 +105,8 @@ def adopt(fleet, state, ref, adopting: list) -> None:
         row = state.x[i]
         row[:] = 0.0
         row[S.X], row[S.Y], row[S.PSI] = x, y, psi
+        if state.u_last is not None:
+            state.u_last[i] = 0.0  # a platoon law's memory starts afresh
         if kind == KINEMATIC:
             state.speed_in[i] = v
         else:

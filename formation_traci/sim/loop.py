@@ -14,6 +14,7 @@ from typing import Iterator
 
 import numpy as np
 
+from ..comm.link import CommChannel
 from ..control.reference import apply
 from ..control.reference_free import FreeReference
 from ..record.columns import DEFAULT_FORMATION_ID, SIGNAL_COLUMNS, VIRTUAL_CAR_ID
@@ -121,6 +122,20 @@ def _references(forms, world, k, t, sensed, fleet, state, rec):
     return join_references(raw), ref, truth_ref
 
 
+def _law_fallbacks(forms, fleet: Fleet, t: float, rec) -> None:
+    """CACC members whose beacons timed out this step run their ACC fallback, the others their
+    own law (sim/fleet_laws.py); each switch is an event (law_fallback / law_recovered)."""
+    for f in forms:
+        for tr in f.transforms:
+            if not isinstance(tr, CommChannel):
+                continue
+            rows = np.arange(fleet.cfg.n)[f.members]
+            for i, fell in fleet.fall_back(rows, tr.timed_out()):
+                rec.add_event(t, "law_fallback" if fell else "law_recovered", fleet.cfg.ids[i], "",
+                              "beacons timed out: ACC at the controller.acc time gap" if fell
+                              else "beacons back: its own law")
+
+
 def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float]]:
     """Run the parts ``build()`` returns (built on the first ``next``, so that set-up and
     kernel compilation run under the caller's signal handling); yields (step index, time
@@ -145,6 +160,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             sensed.extra.setdefault("leader_age_s", perfect)
             clock.lap("sumo_read")
             ref0, ref, ref_err = _references(plans, world, k, t, sensed, fleet, state, rec)
+            _law_fallbacks(forms, fleet, t, rec)
             state = world.adopt(state, ref)  # vehicles the world handed to the formation (join)
             clock.lap("governor")
             world.observe(t, sensed, ref)

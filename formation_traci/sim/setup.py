@@ -23,11 +23,15 @@ def road_mu(sc: Scenario) -> float:
     return sc.vehicle.mu if sc.vehicle.mu is not None else SURFACES[sc.vehicle.surface]
 
 
-def vehicle_params(sc: Scenario, preset: str | None = None) -> VehicleParams:
+def vehicle_params(sc: Scenario, preset: str | None = None, own=None) -> VehicleParams:
     """The preset chassis (``preset``, default vehicle.preset) with the scenario's
-    vehicle.params overrides applied."""
-    veh = VEHICLE_PRESETS[preset or sc.vehicle.preset]
-    o = sc.vehicle.params
+    vehicle.params overrides applied, then a member's own ``params`` (``own``)."""
+    veh = _overridden(VEHICLE_PRESETS[preset or sc.vehicle.preset], sc.vehicle.params)
+    return veh if own is None else _overridden(veh, own)
+
+
+def _overridden(veh: VehicleParams, o) -> VehicleParams:
+    """``veh`` with the values a VehicleOverrides table gives."""
     changes = {k: v for k, v in o.model_dump().items()
                if v is not None and k not in ("steer_max_deg", "steer_rate_max_deg_s")}
     if o.steer_max_deg is not None:
@@ -39,7 +43,7 @@ def vehicle_params(sc: Scenario, preset: str | None = None) -> VehicleParams:
 
 def member_vehicles(sc: Scenario) -> list[VehicleParams]:
     """Every member's chassis: its own preset (members.preset) or vehicle.preset."""
-    return [vehicle_params(sc, m.preset) for m in sc.members]
+    return [vehicle_params(sc, m.preset, m.params) for m in sc.members]
 
 
 def _member_gains(sc: Scenario, name: str):
@@ -118,7 +122,43 @@ def build_fleet(sc: Scenario) -> FleetConfig:
         yaw_gains=_member_gains(sc, "yaw_gains"),
         physics_step=sc.run.physics_step,
         law=ctl.law,
+        pred=column_predecessors(sc),
+        bumpers=tuple((v.a + v.front_overhang, v.length - v.a - v.front_overhang)
+                      for v in vehicles),
+        law_params=(_law_params(ctl),) * len(sc.members),
     )
+
+
+LANE_TOLERANCE_M = 1.0
+"""Slots whose lateral offsets differ by less than this are in one lane of a column [m]."""
+
+
+def _law_params(ctl) -> dict:
+    """{law: {parameter: value}} of the platoon laws' scenario tables (controller.acc, ...)."""
+    return {name: getattr(ctl, name).model_dump() for name in ("acc", "cacc_path", "cacc_ploeg")}
+
+
+def column_predecessors(sc: Scenario) -> tuple[int, ...]:
+    """The member ahead of each member in its column (-1: none): the nearest slot ahead
+    (larger along-position: offset d_x, or slot.along on a road) in the same lane (lateral
+    offset within LANE_TOLERANCE_M; a road slot's lanes count as 3.5 m each)."""
+    along, lat = [], []
+    for m in sc.members:
+        if m.slot is not None:
+            along.append(m.slot.along)
+            lat.append(m.slot.across if m.slot.across is not None else 3.5 * m.slot.lanes)
+        elif m.offset is not None:
+            along.append(m.offset[0])
+            lat.append(m.offset[1])
+        else:
+            along.append(np.nan)
+            lat.append(np.nan)
+    pred = []
+    for i in range(len(along)):
+        ahead = [j for j in range(len(along)) if j != i and along[j] > along[i]
+                 and abs(lat[j] - lat[i]) < LANE_TOLERANCE_M]
+        pred.append(min(ahead, key=lambda j: along[j]) if ahead else -1)
+    return tuple(pred)
 
 
 def build_free_leader(sc: Scenario) -> tuple[FreeLeader, tuple[float, float, float]]:
@@ -147,7 +187,7 @@ def comm_channel(sc: Scenario, n_ctrl: int) -> CommChannel:
     """The [comm] radio of the formation ``sc`` sees (comm/link.py), drawn from the run's seed."""
     ids = [m.id for m in sc.members]
     ch = build_channel([link_params(sc.comm, i) for i in ids], sc.run.seed, sc.run.duration,
-                       sc.run.control_step, sc.comm.beacon_hz)
+                       sc.run.control_step, sc.comm.beacon_hz, sc.comm.outages)
     return CommChannel(ch, ids, n_ctrl, sc.comm.timeout_s, vehicle_params(sc), sc.leader)
 
 

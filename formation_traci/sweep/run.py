@@ -210,15 +210,11 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     SweepError
         If the sweep file is invalid, another sweep is running in ``out_dir``, or the Dask
         scheduler cannot be reached.
-    KeyboardInterrupt
-        On Ctrl-C, after the running cases stopped and the summary was written.
+    Interrupted
+        On Ctrl-C or SIGTERM, after the running cases stopped and the summary was written.
     """
     sweep = load_sweep(sweep_path, sets)
-    out = _check_sweep_dir(Path(out_dir))
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise SweepError(out, [("(directory)", f"cannot be created: {exc.strerror}")]) from None
+    out = _make_sweep_dir(Path(out_dir))
     with raising_signals(), _lock(out):  # SIGTERM stops the cases like Ctrl-C
         specs = [case_spec(sweep, i, out, baseline) for i in range(len(sweep.cases))]
         swept = swept_dtypes([c.model_dump(mode="json") for c in sweep.cases], sweep.spec.swept())
@@ -253,6 +249,16 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     return SweepResult(out_dir=out, summary=df, n_cases=len(specs), n_completed=n_ok, n_failed=len(df) - n_ok,
                        n_skipped=n_skipped, n_run=on_row.ok + on_row.failed,
                        files={k: v for k, v in files.items() if k != "effects" or baseline})
+
+
+def _make_sweep_dir(out: Path) -> Path:
+    """The sweep directory, checked like a run's (:func:`_check_sweep_dir`) and created."""
+    out = _check_sweep_dir(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SweepError(out, [("(directory)", f"cannot be created: {exc.strerror}")]) from None
+    return out
 
 
 def _resume(specs: list[CaseSpec]) -> tuple[dict[str, dict], list[CaseSpec]]:

@@ -5,15 +5,20 @@ A law is a module with
 * ``PARAMS``: the names of its per-member parameters (columns of the array ``L``);
 * ``pack(cfg) -> (n, len(PARAMS))``: those parameters from a sim/fleet.py FleetConfig;
 * ``input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay,
-  v_cap_i, a_cap_i, pred_i)``: a ``@kernel`` giving member i's model input for its desired
-  point (p, p', p'') and the safety caps; ``pred_i`` is the member ahead of i in the
-  formation's column (-1: none), whose state row a platoon law reads in ``x``. It returns
+  v_cap_i, a_cap_i, pred_i, u_last, dt_c)``: a ``@kernel`` giving member i's model input for
+  its desired point (p, p', p'') and the safety caps; ``pred_i`` is the member ahead of i in
+  the formation's column (-1: none), whose state row a platoon law reads in ``x``;
+  ``u_last`` (n,) every member's input u0 of the control period before (a_r [m/s^2] on the
+  dynamic model: what a CACC receives of its predecessor, and a dynamic law's own state);
+  ``dt_c`` the control period [s]. It returns
   (u0, u1, v_ref [m/s], omega_ref [rad/s], theta* dot [rad/s], v_ref dot [m/s^2], ex, ey [m],
   heading error [rad]) (control/laws/virtual_structure.py).
 
 Built-in laws are named in :data:`BUILTIN` and dispatched by code in the compiled step
 (control/laws/dispatch.py, cached with the other kernels); :func:`register_law` adds a law
 from anywhere at run time (compiled for its fleet when first used, not cached on disk).
+The platoon laws (acc, cacc_path, cacc_ploeg: control/laws/platoon.py, docs/platoon_laws.md)
+are longitudinal laws on the column's predecessor with the virtual structure's lateral loop.
 This module imports no kernels: the scenario schema checks names against it.
 """
 from __future__ import annotations
@@ -21,15 +26,19 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-import numpy as np
-
 DEFAULT_LAW = "virtual_structure"
 """The seed's law: the virtual structure, eqs 2.4-2.11, with the loops 3.32-3.38."""
 
 BUILTIN: dict[str, tuple[str, int]] = {
     "virtual_structure": ("formation_traci.control.laws.virtual_structure", 0),
+    "acc": ("formation_traci.control.laws.acc", 1),
+    "cacc_path": ("formation_traci.control.laws.cacc_path", 2),
+    "cacc_ploeg": ("formation_traci.control.laws.cacc_ploeg", 3),
 }
 """Built-in laws: name -> (module, code of control/laws/dispatch.py)."""
+
+PLATOON_LAWS = ("acc", "cacc_path", "cacc_ploeg")
+"""Built-in laws that follow the member ahead in a column (FleetConfig.pred)."""
 
 _RUNTIME: dict[str, ModuleType] = {}
 
@@ -62,19 +71,3 @@ def law_module(name: str) -> ModuleType:
 def law_code(name: str) -> int:
     """The dispatch code of a built-in law, -1 for one registered at run time."""
     return BUILTIN[name][1] if name in BUILTIN else -1
-
-
-def pack_laws(cfg):
-    """Every member's law code (n,), the law parameters (n, most PARAMS of its laws) and the
-    one law registered at run time among them (or None), for a sim/fleet.py FleetConfig
-    (``law``: one name, or one per member)."""
-    laws = cfg.law if isinstance(cfg.law, (tuple, list)) else (cfg.law,) * cfg.n
-    codes = np.array([law_code(name) for name in laws], dtype=np.int64)
-    runtime = sorted({name for name, c in zip(laws, codes) if c < 0})
-    if len(runtime) > 1:
-        raise ValueError(f"one fleet runs at most one law registered at run time, not {runtime}")
-    packs = {name: np.asarray(law_module(name).pack(cfg), dtype=float) for name in set(laws)}
-    L = np.zeros((cfg.n, max(p.shape[1] for p in packs.values())))
-    for i, name in enumerate(laws):
-        L[i, :packs[name].shape[1]] = packs[name][i]
-    return codes, L, (runtime[0] if runtime else None)

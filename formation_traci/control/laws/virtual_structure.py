@@ -21,7 +21,7 @@ PARAMS = ("k", "k_theta")
 
 @kernel
 def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay,
-             v_cap_i, a_cap_i, pred_i):
+             v_cap_i, a_cap_i, pred_i, u_last, dt_c):
     """Model input of member i for its desired point (p, p', p''): (u0, u1, capped v_ref
     [m/s], omega_ref [rad/s], theta* dot [rad/s], v_ref dot [m/s^2], ex, ey [m], heading
     error [rad]). u0, u1: a_r [m/s^2] and the steering rate [rad/s] (dynamic model), v_ref
