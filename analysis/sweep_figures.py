@@ -159,7 +159,7 @@ def effects_figure(eff: pd.DataFrame, swept: list[str], units: dict[str, str],
 
     Parameters
     ----------
-    eff : effects.csv as a DataFrame (formation_traci/sweep/effects.py)
+    eff : effects.csv as a DataFrame (analysis/effects.py)
     swept : the swept fields (the first is the x axis; the others one line each)
     units : effect -> unit
     labels : field -> axis label

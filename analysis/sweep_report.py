@@ -10,9 +10,10 @@ from pathlib import Path
 
 import pandas as pd
 
+from formation_traci.errors import SweepError
 from formation_traci.record.rundir import atomic_write_text
-from formation_traci.sweep.row import METRICS
-from formation_traci.sweep.spec import SweepError
+
+from .sweep_metrics import METRICS
 
 FINISHED = ("completed", "completed_with_incidents")
 """Statuses of a case whose run reached its end (in the statistics and figures)."""
@@ -174,7 +175,7 @@ def _effects(meta: dict, df: pd.DataFrame, swept: list[str], out_dir: Path, figs
              files: dict) -> pd.DataFrame:
     """A sweep with twins: ``effects.csv`` from the summary and its figure (added to
     ``figs`` and ``files``); returns the effects table."""
-    from formation_traci.sweep.effects import write_effects
+    from .effects import write_effects
 
     effects = write_effects(df, swept, out_dir / EFFECTS_CSV)
     files["effects_csv"] = out_dir / EFFECTS_CSV

@@ -68,6 +68,33 @@ def test_no_import_circles():
     assert not circles, circles
 
 
+def folder(module: str) -> str | None:
+    """The folder a module is in: formation_traci.<sub> or analysis; None for the modules at
+    formation_traci's top (kernels, states, versions, interrupt, cli: the package's own)."""
+    parts = module.split(".")
+    if parts[0] == "analysis":
+        return "analysis"
+    if len(parts) >= 2 and (ROOT / "formation_traci" / parts[1]).is_dir():
+        return ".".join(parts[:2])
+    return None
+
+
+def test_no_two_folders_import_each_other():
+    """Folders import one way: road never imports control and control road, comm neither sim
+    nor the scenario, analysis not sweep and sweep analysis (issue 26)."""
+    mods = modules()
+    edges: dict[str, set[str]] = {}
+    for m, p in mods.items():
+        src = folder(m)
+        for d in imports(m, p, set(mods)):
+            dst = folder(d)
+            if src and dst and dst != src:
+                edges.setdefault(src, set()).add(dst)
+    pairs = sorted({tuple(sorted((a, b))) for a, bs in edges.items() for b in bs
+                    if a in edges.get(b, ())})
+    assert not pairs, pairs
+
+
 def violations() -> set[str]:
     found = set()
     for p in modules().values():

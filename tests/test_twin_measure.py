@@ -175,7 +175,7 @@ def test_sweep_with_twins_summarises_paired_effects_with_confidence_intervals(tm
     import numpy as np
     import pandas as pd
 
-    from formation_traci.sweep.effects import paired_effects
+    from analysis.effects import paired_effects
     from formation_traci.sweep.row import EFFECT_KEYS
 
     sweep = tmp_path / "s.toml"

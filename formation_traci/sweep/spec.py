@@ -13,25 +13,14 @@ from typing import Annotated, Any
 from pydantic import (BaseModel, ConfigDict, Field, JsonValue, StringConstraints, ValidationError,
                       field_validator, model_validator)
 
+from ..errors import SweepError  # noqa: F401 (re-exported)
+
 DOTTED = r"^[A-Za-z_][A-Za-z0-9_]*(\.([A-Za-z_][A-Za-z0-9_]*|[0-9]+))*$"
 DottedPath = Annotated[str, StringConstraints(pattern=DOTTED)]
 Label = Annotated[str, StringConstraints(pattern=r"^[A-Za-z][A-Za-z0-9_]{0,15}$")]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Pair = Annotated[list[Finite], Field(min_length=2, max_length=2)]
 SEED_PATH = "run.seed"
-
-
-class SweepError(ValueError):
-    """A sweep file (or sweep directory) that cannot be used; ``problems``: (field, message)."""
-
-    def __init__(self, path: str | Path, problems: list[tuple[str, str]]):
-        self.path = str(path)
-        self.problems = problems
-        lines = [f"{self.path}: {field}: {msg}" for field, msg in problems[:20]]
-        if len(problems) > 20:
-            lines.append(f"... and {len(problems) - 20} more")
-        super().__init__(f"invalid sweep ({len(problems)} problem"
-                         f"{'s' if len(problems) != 1 else ''}):\n  " + "\n  ".join(lines))
 
 
 class Strict(BaseModel):

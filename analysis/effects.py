@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .row import EFFECT_KEYS
+from .sweep_metrics import EFFECT_KEYS
 
 EFFECT_COLUMNS = ("metric", "mean", "se", "ci95_lo", "ci95_hi", "n_seeds", "distinguishable", "note")
 """Columns of ``effects.csv`` after the grid axes."""
