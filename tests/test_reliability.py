@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from formation_traci.scenario import ScenarioError, load_scenario, parse_scenario
 from formation_traci.scenario.schema import Scenario
 from formation_traci.sim.runner import run_scenario
-from run_helpers import free_toml, spawn, wait_for
+from run_helpers import meta_of, free_toml, spawn, wait_for
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = {
@@ -111,7 +111,9 @@ def test_sigkill_leaves_the_chunks_readable(tmp_path):
     out = tmp_path / "run"
     proc = spawn("run", sc, "--out", out, "--no-progress", stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     parts = out / "trajectories.parquet"
-    wait_for(lambda: len(list(parts.glob("part-*.parquet"))) >= 2, every=0.1)
+    # two parts on disk and run.json's progress past them (it follows the parts by one update)
+    wait_for(lambda: len(list(parts.glob("part-*.parquet"))) >= 2
+             and (meta_of(out).get("t_end") or 0) > 0, every=0.1)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait(timeout=30)
     assert len(list(parts.glob("part-*.parquet"))) >= 2

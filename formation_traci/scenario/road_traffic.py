@@ -15,7 +15,7 @@ class RouteEnds(Strict):
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True, strict=True)
     from_: str | Pair = Field(alias="from", description="first edge id, or an [x, y] network position [m]")
     to: str | Pair = Field(description="last edge id, or an [x, y] network position [m]")
-    via: tuple[str | Pair, ...] = Field((), description="edges or [x, y] positions [m] the route passes, in order "
+    via: list[str | Pair] = Field(default_factory=list, description="edges or [x, y] positions [m] the route passes, in order "
                                         "(to pick one of several paths)")
 
 
