@@ -122,18 +122,22 @@ def _references(forms, world, k, t, sensed, fleet, state, rec):
     return join_references(raw), ref, truth_ref
 
 
-def _law_fallbacks(forms, fleet: Fleet, t: float, rec) -> None:
+def _radio_links(forms, fleet: Fleet) -> list:
+    """(the formation's fleet rows, its [comm] channel) of every formation with a radio: what
+    :func:`_law_fallbacks` watches each step (none: nothing to do per step)."""
+    rows = np.arange(fleet.cfg.n)
+    return [(rows[f.members], tr) for f in forms for tr in f.transforms
+            if isinstance(tr, CommChannel)]
+
+
+def _law_fallbacks(links, fleet: Fleet, t: float, rec) -> None:
     """CACC members whose beacons timed out this step run their ACC fallback, the others their
     own law (sim/fleet_laws.py); each switch is an event (law_fallback / law_recovered)."""
-    for f in forms:
-        for tr in f.transforms:
-            if not isinstance(tr, CommChannel):
-                continue
-            rows = np.arange(fleet.cfg.n)[f.members]
-            for i, fell in fleet.fall_back(rows, tr.timed_out()):
-                rec.add_event(t, "law_fallback" if fell else "law_recovered", fleet.cfg.ids[i], "",
-                              "beacons timed out: ACC at the controller.acc time gap" if fell
-                              else "beacons back: its own law")
+    for rows, tr in links:
+        for i, fell in fleet.fall_back(rows, tr.timed_out()):
+            rec.add_event(t, "law_fallback" if fell else "law_recovered", fleet.cfg.ids[i], "",
+                          "beacons timed out: ACC at the controller.acc time gap" if fell
+                          else "beacons back: its own law")
 
 
 def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float]]:
@@ -151,6 +155,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
     perfect = np.zeros(fleet.cfg.n)  # leader_age_s without a channel
     clock = PhaseClock({} if parts.timing is None else parts.timing)
     plans = [(f, f.sensing, f.true_error) for f in forms]  # the transforms are fixed now
+    links = _radio_links(forms, fleet)
     try:
         world.start()  # inside: a signal or a failure during SUMO's start or warm-up closes SUMO
         for k in range(n_steps + 1):
@@ -160,7 +165,8 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             sensed.extra.setdefault("leader_age_s", perfect)
             clock.lap("sumo_read")
             ref0, ref, ref_err = _references(plans, world, k, t, sensed, fleet, state, rec)
-            _law_fallbacks(forms, fleet, t, rec)
+            if links:
+                _law_fallbacks(links, fleet, t, rec)
             state = world.adopt(state, ref)  # vehicles the world handed to the formation (join)
             clock.lap("governor")
             world.observe(t, sensed, ref)
