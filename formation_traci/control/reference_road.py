@@ -194,6 +194,24 @@ class RoadReference:
     def commit(self) -> None:
         self.s, self.v = (float(q) for q in self._next)
 
+    def parked(self, t: float) -> Reference:
+        """The reference while the formation waits to depart or after it left its route: the
+        virtual car standing at its s, no member in the run, no virtual-car row (truth NaN);
+        the same keys of ``info`` as :meth:`reference` (sim/formation.py join_info)."""
+        got = getattr(self, "_parked", None)
+        if got is None or got[0] != self.s:
+            n = len(self.frame)
+            vc = np.empty((self.n_ctrl, n, 8))
+            road_vc_rows(self.G, self.s, 0.0, 0.0, 0.0, self.dt_c, vc)
+            no = np.full(n, np.inf)
+            ref = Reference(float(t), self.dt_c, vc, self.slots, self.frame, np.zeros(n, dtype=bool),
+                            no, no, line=self.G, truth=np.full(8, np.nan),
+                            info={"a_vc": 0.0, "gap": np.full(n, np.inf), "lead_idx": np.full(n, -1),
+                                  "a_request": 0.0, "a_cap_request": np.zeros(n), "emergency": False,
+                                  "emergency_members": np.zeros(n, dtype=bool)})
+            got = self._parked = (self.s, ref)
+        return got[1].with_(t=float(t))
+
     def stop_reason(self, t: float):
         """('end_of_road', message) when the formation's front nears the route's end."""
         if self.s + float(np.max(self.along + self.d_front)) + self.end_margin > self.length:

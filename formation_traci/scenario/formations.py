@@ -8,18 +8,47 @@ before.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from ..record.columns import DEFAULT_FORMATION_ID
 from .schema import Scenario
 
 
 def formation_views(sc: Scenario) -> list[tuple[str, Scenario]]:
-    """(formation_id, the scenario as that formation sees it) for every formation."""
+    """(formation_id, the scenario as that formation sees it) for every formation: its own
+    leader, members, controller, comm, maneuvers and (on a road) ``road.start``."""
     views = [(DEFAULT_FORMATION_ID, sc)]
     for f in sc.formations:
-        views.append((f.id, sc.model_copy(update={
-            "leader": f.leader, "members": f.members, "controller": f.controller,
-            "comm": f.comm, "formations": []})))
+        update = {"leader": f.leader, "members": f.members, "controller": f.controller,
+                  "comm": f.comm, "maneuvers": f.maneuvers, "formations": []}
+        if sc.road is not None and f.start is not None:
+            update["road"] = sc.road.model_copy(update={"start": f.start})
+        views.append((f.id, sc.model_copy(update=update)))
     return views
+
+
+@dataclass(frozen=True)
+class FormationSetup:
+    """One formation of a road run as prepared: its id, the scenario it sees
+    (:func:`formation_views`), its departure time [s] and how many lanes left of the
+    reference lane (``road.lane``) its slots' ``lanes`` count from."""
+
+    id: str
+    view: Scenario
+    depart: float = 0.0
+    lane_shift: int = 0
+    field: str = ""  # its fields' path in the scenario file ('' or 'formations.<j>.')
+
+
+def formation_setups(sc: Scenario) -> list[FormationSetup]:
+    """:class:`FormationSetup` of every formation, the top-level one first."""
+    out = []
+    for j, (fid, view) in enumerate(formation_views(sc)):
+        f = sc.formations[j - 1] if j else None
+        lane = None if f is None or f.lane is None or sc.road is None else f.lane - sc.road.lane
+        out.append(FormationSetup(fid, view, 0.0 if f is None else float(f.depart), lane or 0,
+                                  "" if f is None else f"formations.{j - 1}."))
+    return out
 
 
 def all_member_ids(sc: Scenario) -> list[str]:

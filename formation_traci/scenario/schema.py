@@ -15,6 +15,7 @@ from ..record.columns import DEFAULT_FORMATION_ID
 
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict  # noqa: F401
 from .comm_spec import CommLinkSpec, CommSpec  # noqa: F401
+from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec  # noqa: F401 (re-exported)
 from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec
 from .road_traffic import FlowSpec, RoadSpec, RouteEnds, RouteValue, TrafficSpec  # noqa: F401 (re-exported)
 
@@ -89,32 +90,6 @@ class GainSpec(Strict):
 
 
 GAIN_TABLES = Literal["table_3_4", "table_3_6", "table_3_7", "table_3_8", "table_3_12"]
-
-
-class AccSpec(Strict):
-    """controller.acc: constant time gap on ego sensing (control/laws/acc.py; Plexe's defaults)."""
-
-    headway_s: PosFloat = Field(1.2, description="time gap h [s]")
-    gap_gain: PosFloat = Field(0.1, description="gap gain lambda [1/s]")
-    standstill_m: NonNegFloat = Field(2.0, description="standstill gap r0 [m]")
-
-
-class CaccPathSpec(Strict):
-    """controller.cacc_path: PATH/Rajamani constant spacing (control/laws/cacc_path.py)."""
-
-    spacing_m: PosFloat = Field(5.0, description="constant gap d [m]")
-    c1: float = Field(0.5, ge=0.0, le=1.0, description="leader weight C1 [-]")
-    xi: float = Field(1.0, ge=1.0, description="damping ratio xi [-] (>= 1)")
-    omega_n_hz: PosFloat = Field(0.2, description="bandwidth f_n [Hz] (w_n = 2 pi f_n)")
-
-
-class CaccPloegSpec(Strict):
-    """controller.cacc_ploeg: Ploeg's constant-time-gap CACC (control/laws/cacc_ploeg.py)."""
-
-    h_s: PosFloat = Field(0.5, description="time gap h [s]")
-    kp: PosFloat = Field(0.2, description="gap gain kp [1/s^2]")
-    kd: PosFloat = Field(0.7, description="gap-rate gain kd [1/s]")
-    standstill_m: NonNegFloat = Field(2.0, description="standstill gap r0 [m]")
 
 
 class ControllerSpec(Strict):
@@ -198,14 +173,23 @@ class MemberSpec(Strict):
 
 
 class FormationSpec(Strict):
-    """A further formation of the run (free space): its own virtual leader, members and
-    controller; the top-level ``leader``/``members``/``controller``/``comm`` are the first."""
+    """A further formation of the run: its own virtual leader, members and controller; the
+    top-level ``leader``/``members``/``controller``/``comm`` are the first. On a road it has
+    its own start, lane and departure time (docs/scenarios.md, "Several formations")."""
 
     id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$", description="formation_id in the tables")
     leader: LeaderSpec
     members: list[MemberSpec] = Field(min_length=1, description="at least one member")
     controller: ControllerSpec = ControllerSpec()
     comm: CommSpec | None = Field(None, description="leader-to-member radio; default: perfect")
+    maneuvers: list[ManeuverSpec] = Field(
+        default_factory=list, description="its maneuvers (not yet run in a scenario with several formations)")
+    start: NonNegFloat | None = Field(None, description="road: its virtual car's arc length at departure [m]; "
+                                      "default road.start")
+    lane: Annotated[int, Field(ge=0)] | None = Field(None, description="road: the lane its slots' 'lanes' count from (its "
+                                   "virtual car's lane); default road.lane")
+    depart: NonNegFloat = Field(0.0, description="road: when its members enter the road [s] (run time; "
+                                "its leader.speed profile's time starts then)")
 
 
 class SumoSpec(Strict):
@@ -281,6 +265,22 @@ class OpenLoopSpec(Strict):
         return self
 
 
+def _formation_fits(j: int, f: FormationSpec, road: bool) -> None:
+    """[[formations]] entry j's fields fit the run (free space or a road)."""
+    if f.comm is not None and set(f.comm.links) - {m.id for m in f.members}:
+        raise ValueError(f"formations.{j}.comm.links names members not in the formation")
+    if not road:
+        if any(m.offset is None or m.position is None for m in f.members):
+            raise ValueError(f"formations.{j}: free space needs 'offset' and 'position' for every member")
+        given = [k for k in ("start", "lane") if getattr(f, k) is not None]
+        if given or f.depart or f.maneuvers:
+            raise ValueError(f"formations.{j}: {', '.join(given + ['depart'] * bool(f.depart) + ['maneuvers'] * bool(f.maneuvers))} "
+                             "need a [road] (free-space formations all start at t = 0)")
+    elif f.lane is not None and any(m.slot is None for m in f.members):
+        raise ValueError(f"formations.{j}.lane: every member needs a road 'slot' (a lane moves road-frame "
+                         "slots; virtual-car-frame 'offset' members keep the reference line)")
+
+
 class Scenario(Strict):
     name: str = ""
     description: str = ""
@@ -299,15 +299,14 @@ class Scenario(Strict):
     maneuver_limits: ManeuverLimits = ManeuverLimits()
     formations: list[FormationSpec] = Field(
         default_factory=list, description="further formations beside the top-level one (whose "
-        f"formation_id is '{DEFAULT_FORMATION_ID}'); free space only for now")
+        f"formation_id is '{DEFAULT_FORMATION_ID}')")
 
     @model_validator(mode="after")
     def _formation_rules(self):
         if not self.formations:
             return self
-        if self.road is not None or self.open_loop is not None:
-            raise ValueError("formations: several formations run in free space (no [road], no "
-                             "open_loop) in this version")
+        if self.open_loop is not None:
+            raise ValueError("formations: several formations do not run open loop")
         fids = [DEFAULT_FORMATION_ID] + [f.id for f in self.formations]
         if len(set(fids)) < len(fids):
             raise ValueError(f"formations: ids must be unique and not '{DEFAULT_FORMATION_ID}' "
@@ -317,10 +316,10 @@ class Scenario(Strict):
         if dup:
             raise ValueError(f"member ids must be unique over all formations, repeated: {dup}")
         for j, f in enumerate(self.formations):
-            if any(m.offset is None or m.position is None for m in f.members):
-                raise ValueError(f"formations.{j}: free space needs 'offset' and 'position' for every member")
-            if f.comm is not None and set(f.comm.links) - {m.id for m in f.members}:
-                raise ValueError(f"formations.{j}.comm.links names members not in the formation")
+            _formation_fits(j, f, self.road is not None)
+        if self.road is not None and (self.maneuvers or any(f.maneuvers for f in self.formations)):
+            raise ValueError("maneuvers: a road scenario with several formations runs no maneuvers "
+                             "in this version (each formation keeps its slots)")
         return self
 
     @model_validator(mode="after")

@@ -130,20 +130,24 @@ class EmergencyWatch:
     comfortable (the planner's emergency flags, control/longitudinal.py), ``emergency_end``
     when that ends."""
 
-    def __init__(self, rec, ids):
+    def __init__(self, rec, ids, vc_ids=None):
         self.rec, self.ids = rec, list(ids)
-        self.on = np.zeros(len(self.ids) + 1, dtype=bool)  # members, then the virtual car
+        self.vc_ids = list(vc_ids or ["vc"])  # one virtual car per formation
+        self.on = np.zeros(len(self.ids) + len(self.vc_ids), dtype=bool)  # members, then the virtual cars
         self._any_on = False  # self.on.any()
 
     def __call__(self, t, info: dict) -> None:
+        """``info``: Reference.info; several formations: ``emergency`` and ``a_request`` one
+        per virtual car (sim/formation.py join_references)."""
         members, vc = info["emergency_members"], info["emergency"]
-        if not (vc or self._any_on or members.any()):
+        if not (np.any(vc) or self._any_on or members.any()):
             return  # nobody braking hard, before or now
         now = np.append(members, vc)
         n = len(self.ids)
+        a_vc = np.atleast_1d(info["a_request"])
         for i in np.flatnonzero(now != self.on):
-            who = "vc" if i == n else self.ids[i]
-            a = info["a_request"] if i == n else info["a_cap_request"][i]
+            who = self.vc_ids[i - n] if i >= n else self.ids[i]
+            a = a_vc[i - n] if i >= n else info["a_cap_request"][i]
             if now[i]:
                 self.rec.add_event(t, "emergency_brake", who, "", f"braking request {-a:.2f} m/s^2")
             else:

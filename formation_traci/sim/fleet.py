@@ -30,6 +30,7 @@ from ..models.bicycle import S
 from ..models.state import DYNAMIC, KINEMATIC, motion_at
 from ..record.columns import SIGNAL_COLUMNS
 from .fleet_laws import fallback_switches, law_kernels, pack_laws
+from .fleet_state import FleetState
 
 _KERNEL_SIGNALS = ("x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "ex", "ey",
                    "e_lon", "e_lat", "x_des", "y_des", "v_ref", "omega_ref", "steer",
@@ -65,18 +66,6 @@ class FleetConfig:
     @property
     def n(self) -> int:
         return len(self.ids)
-
-
-@dataclass
-class FleetState:
-    """Dynamic state of the members: vehicle states and the controller's theta* (2.11)."""
-
-    x: np.ndarray  # (n, n_states)
-    theta_star: np.ndarray  # (n,) [rad]
-    speed_in: np.ndarray  # (n,) unicycle only: speed input applied last [m/s]
-    u_last: np.ndarray | None = None  # (n,) every member's u0 of the last control period
-    # (a_r [m/s^2], dynamic model): what a platoon law reads of its predecessor and of its
-    # own controller state (control/laws); None: zeros (nothing computed yet)
 
 
 def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, targets) -> FleetState:

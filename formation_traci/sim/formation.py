@@ -29,6 +29,10 @@ class Formation:
     generator: object  # a reference generator: reference(t, sensed), commit(), stop_reason(t)
     transforms: list = field(default_factory=list)  # Reference -> Reference, in order
     vc_id: str = VIRTUAL_CAR_ID  # the virtual car's vehicle_id in the tables
+    depart: float = 0.0  # run time its members enter the world [s]; its generator's time starts then
+    parked: object = None  # t -> Reference while it waits or after it ended (no member in the run)
+    held: FleetState | None = None  # its members' rows while it is parked (their state is held)
+    status: str = "running"  # waiting (to depart) | running | done (retired at the end of its route)
 
     @property
     def sensing(self) -> list:
@@ -99,17 +103,6 @@ def join_states(states: list[FleetState]) -> FleetState:
                                       for s in states]))
 
 
-def sensed_of(sensed: Sensed, sl: slice) -> Sensed:
-    """What the world sensed, as formation ``sl`` sees it: its members' rows (views), every
-    neighbour. Its transforms' recorded columns go back into ``sensed`` with
-    :func:`merge_extra`."""
-    n = len(sensed.active)
-    pick = (lambda a: a[sl] if isinstance(a, np.ndarray) and a.shape[:1] == (n,) else a)
-    return replace(sensed, active=sensed.active[sl],
-                   extra={k: pick(v) for k, v in sensed.extra.items()},
-                   v_m=pick(sensed.v_m), m_s=pick(sensed.m_s), m_d=pick(sensed.m_d))
-
-
 def merge_extra(sensed: Sensed, part: Sensed, sl: slice) -> None:
     """The recorded columns ``part`` (a formation's :func:`sensed_of`) holds into
     ``sensed``'s rows ``sl``."""
@@ -121,17 +114,15 @@ def merge_extra(sensed: Sensed, part: Sensed, sl: slice) -> None:
         full[sl] = val
 
 
-def join_references(refs: list[Reference]) -> Reference:
+def join_references(refs: list[Reference], n_nb: int | None = None) -> Reference:
     """The formations' references of one step as the fleet's: members' rows in formation
-    order; ``truth`` (k, 8), one row per formation's virtual car."""
+    order; ``truth`` (k, 8), one row per formation's virtual car; ``info``: :func:`join_info`."""
     if len(refs) == 1:
         return refs[0]
     first = refs[0]
     if any(r.line is not first.line for r in refs):
         raise ValueError("the formations of a run share one reference line")
-    info = {}
-    for r in refs:
-        info.update(r.info)
+    info = join_info(refs, n_nb)
     return Reference(
         first.t, first.dt, np.concatenate([r.vc for r in refs], axis=1),
         np.concatenate([r.slots for r in refs], axis=1),
@@ -140,3 +131,22 @@ def join_references(refs: list[Reference]) -> Reference:
         line=first.line, truth=np.stack([r.truth for r in refs]), info=info,
         a_cap_from=(None if all(r.a_cap_from is None for r in refs) else np.concatenate(
             [r.a_cap if r.a_cap_from is None else r.a_cap_from for r in refs])))
+
+
+def join_info(refs: list[Reference], n_nb: int | None = None) -> dict:
+    """The generators' diagnostics of several formations as one: per-member arrays joined in
+    formation order, per-formation values as one array (one per virtual car). ``n_nb``: how
+    many neighbours the world itself sensed; a lead vehicle index at or beyond it is another
+    formation's member (sim/sumo_peers.py), given as -1 (no vehicle of the traffic)."""
+    info = {}
+    for key in dict.fromkeys(k for r in refs for k in r.info):
+        vals = [r.info.get(key) for r in refs]
+        if all(isinstance(v, np.ndarray) and v.shape == r.active.shape for v, r in zip(vals, refs)):
+            info[key] = np.concatenate(vals)
+        elif all(v is not None and np.ndim(v) == 0 for v in vals):
+            info[key] = np.array(vals)
+        else:
+            info[key] = vals
+    if n_nb is not None and "lead_idx" in info:
+        info["lead_idx"] = np.where(info["lead_idx"] >= n_nb, -1, info["lead_idx"])
+    return info

@@ -22,7 +22,7 @@ from ..scenario.formations import formation_views
 from ..scenario.schema import Scenario
 from .fleet import Fleet, FleetState
 from .formation import (Formation, join_configs, join_references, join_states, merge_extra,
-                        sensed_of, virtual_car_id)
+                        virtual_car_id)
 from .road_load import road_load_part
 from .setup import build_fleet, build_free_leader, build_initial_state, member_vehicles, offsets
 from .timing import PhaseClock
@@ -105,21 +105,32 @@ def _references(forms, world, k, t, sensed, fleet, state, rec):
         return ref0, ref, (ref0 if true_error and ref.vc is not ref0.vc else ref)
     raw, out, err = [], [], []
     for f, sensing, true_error in forms:
-        part = sensed_of(sensed, f.members)
+        if f.status == "waiting" and t >= f.depart - 1e-9:  # it departs: its members enter
+            world.spawn(t, np.arange(f.members.start, f.members.stop))
+            f.status = "running"
+        if f.status != "running":
+            parked = f.parked(t)
+            raw.append(parked), out.append(parked), err.append(parked)
+            continue
+        part = world.sensed_for(sensed, f.members)
         if sensing:
             kin = fleet.kinematics(state) if kin is None else kin
             for tr in sensing:
                 tr.sense(k, t, part, tuple(a[f.members] for a in kin), rec)
             merge_extra(sensed, part, f.members)
-        world.command(t, f.generator.plan(t, part), part, f.vc_id)
-        ref0 = f.generator.reference(t, part)
+        t_f = t - f.depart  # the formation's own time [s]
+        world.command(t, f.generator.plan(t_f, part), part, f.vc_id)
+        ref0 = f.generator.reference(t_f, part)
+        if f.depart:
+            ref0 = ref0.with_(t=t)
         ref = apply(ref0, f.transforms)
         raw.append(ref0)
         out.append(ref)
         err.append(ref0 if true_error and ref.vc is not ref0.vc else ref)
-    ref = join_references(out)
-    truth_ref = ref if all(e is o for e, o in zip(err, out)) else join_references(err)
-    return join_references(raw), ref, truth_ref
+    n_nb = None if sensed.nb is None else len(sensed.nb.ids)
+    ref = join_references(out, n_nb)
+    truth_ref = ref if all(e is o for e, o in zip(err, out)) else join_references(err, n_nb)
+    return join_references(raw, n_nb), ref, truth_ref
 
 
 def _radio_links(forms, fleet: Fleet) -> list:
@@ -182,14 +193,16 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
                 rec.add_step(t, sig, sensed.extra, ref.active, ref.truth, written)
                 if rec.incidents is not None:  # collisions between members, stranded members
                     rec.incidents.step(t, sig, ref.active)
-            else:
+            elif ref.truth.ndim == 1:
                 rec.add_vc(t, ref.leader(), s=float(ref.truth[7]))
+            else:  # a twin of several formations: their virtual cars on the road
+                rec.add_vcs(t, ref.truth)
             clock.lap("record")
             yield k, t
             clock.lap("record")  # the caller's share: the step's end, part files, progress (sim/runner.py)
             if k == n_steps:
                 break
-            stop = _stop_reason(forms, world, t)
+            stop = _stop_reason(forms, world, t, state, rec)
             if stop is not None:
                 vc_id, (kind, detail, why) = stop
                 if kind:
@@ -204,8 +217,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
                 state = step_recording(fleet, state, ref, rec, periods)
             else:
                 state = fleet.step(state, ref)
-            for f in forms:
-                f.generator.commit()
+            _settle(forms, state)
             check_finite(state, ids, t + step)
             clock.lap("control_model")
             world.actuate(t + step, state, v_before)
@@ -217,13 +229,36 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
         world.close()
 
 
-def _stop_reason(forms, world, t):
-    """(virtual car id, (event kind, detail, why)) of the first formation whose generator
-    ends the run (end of road), or of the world (no member left); None: go on."""
+def _settle(forms, state: FleetState) -> None:
+    """After the members' step: the running formations' generators commit it; the members of
+    a parked formation (waiting to depart, or done) are held where they are."""
     for f in forms:
-        stop = f.generator.stop_reason(t)
+        if f.status == "running":
+            f.generator.commit()
+        else:
+            state.hold(f.members, f.held)
+
+
+def _stop_reason(forms, world, t, state: FleetState, rec):
+    """(virtual car id, (event kind, detail, why)) of the first formation whose generator
+    ends the run (end of road), or of the world (no member left); None: go on. With several
+    formations, one that reaches the end of its route is retired (its members leave the
+    world, its event recorded) and the run goes on while another runs or waits to depart."""
+    if len(forms) == 1:
+        stop = forms[0].generator.stop_reason(t)
         if stop is not None:
-            return f.vc_id, stop
+            return forms[0].vc_id, stop
+    else:
+        for f in forms:
+            stop = f.generator.stop_reason(t) if f.status == "running" else None
+            if stop is not None:
+                kind, detail, why = stop
+                if kind:
+                    rec.add_event(t, kind, f.vc_id, "", detail)
+                world.retire(t, np.arange(f.members.start, f.members.stop), f"formation {f.id}: {why}")
+                f.status, f.held = "done", state.rows(f.members)
+        if all(f.status == "done" for f in forms):
+            return VIRTUAL_CAR_ID, ("", "", f"every formation reached the end of its route by t = {t:.2f} s")
     stop = world.stop_reason(t)
     return None if stop is None else (VIRTUAL_CAR_ID, stop)
 

@@ -244,8 +244,7 @@ class Recorder:
                     or self.signal_rows(mask) is None):
                 self.add_signal_rows(t, sig, extra, mask)
                 self.add_comfort_rows(t, sig, mask)
-                for code, vc in zip(self.vc_codes.tolist(), np.atleast_2d(truth).tolist()):
-                    self.add_vc(t, LeaderState(*vc[:7]), vc[7], code=code)
+                self.add_vcs(t, truth)
                 return
             self._sig_block[:, at:e] = sig.T
             blk[0, at:e] = t
@@ -260,11 +259,12 @@ class Recorder:
             blk[:, e] = self._vc_row(t, x, y, theta, v, omega, v_dot, s)
             self._traj_ids[e] = self.vc_code
             tr.commit(n + 1)
-        else:  # several formations: one row per virtual car
-            for j, (x, y, theta, v, omega, v_dot, _, s) in enumerate(truth.tolist()):
+        else:  # several formations: one row per virtual car on the road (NaN: parked)
+            on = np.flatnonzero(truth[:, 0] == truth[:, 0])
+            for j, (x, y, theta, v, omega, v_dot, _, s) in enumerate(truth[on].tolist()):
                 blk[:, e + j] = self._vc_row(t, x, y, theta, v, omega, v_dot, s)
-            self._traj_ids[e:e + len(truth)] = self.vc_codes
-            tr.commit(n + len(truth))
+            self._traj_ids[e:e + len(on)] = self.vc_codes[on]
+            tr.commit(n + len(on))
         cf.commit(n)
 
     def _extras(self, extra: dict, out: np.ndarray) -> None:
@@ -312,6 +312,13 @@ class Recorder:
                                f"v {v[i]:.1f} m/s")
         self._out_of_range = bad
         self._any_out = bool(bad.any())
+
+    def add_vcs(self, t, truth: np.ndarray) -> None:
+        """One row per virtual car of ``truth`` ((8,) or (k, 8), Reference.truth) that is on the
+        road (a NaN row: a formation waiting to depart or retired, sim/loop.py parked)."""
+        for code, vc in zip(self.vc_codes.tolist(), np.atleast_2d(truth).tolist()):
+            if vc[0] == vc[0]:
+                self.add_vc(t, LeaderState(*vc[:7]), vc[7], code=code)
 
     def add_vc(self, t, vc, s=np.nan, code: int | None = None):
         """One row for a virtual car (``code``: its vehicle_id code, default the first

@@ -193,17 +193,22 @@ def _reference(net_file: str, route: tuple, lane: int, tolerance: float, net):
     return _REFERENCE_CACHE[key]
 
 
-def slot_offsets(sc: Scenario, road: Road) -> np.ndarray:
+def slot_offsets(sc: Scenario, road: Road, lane_shift: int = 0) -> np.ndarray:
     """(n, 2) road-frame slots (along, across) [m]; a slot given in lanes lies on SUMO's lane
     centre relative to the reference lane's, on the edge where the slot starts
-    (road/lanes.py ``LaneCentres.across``, the mapping the maneuvers use too)."""
+    (road/lanes.py ``LaneCentres.across``, the mapping the maneuvers use too). ``lane_shift``:
+    the formation's lane, in lanes left of the reference lane (a further formation's ``lane``);
+    a slot's ``lanes`` count from it."""
     out = []
     for m in sc.members:
         if m.slot is None:
             out.append([np.nan, np.nan])
         else:
+            s = sc.road.start + m.slot.along
             across = (m.slot.across if m.slot.across is not None
-                      else float(road.lanes.across(m.slot.lanes, sc.road.start + m.slot.along)))
+                      else float(road.lanes.across(m.slot.lanes + lane_shift, s)))
+            if m.slot.across is not None and lane_shift:
+                across += float(road.lanes.across(lane_shift, s))
             out.append([m.slot.along, across])
     return np.array(out, dtype=float)
 

@@ -1,5 +1,6 @@
-"""The parts of a road run (sim/loop.py RunParts): SUMO's world, the formation's road
-reference generator (with the maneuver planner when the scenario has maneuvers) and the fleet."""
+"""The parts of a road run (sim/loop.py RunParts): SUMO's world, each formation's road
+reference generator (with the maneuver planner when the scenario has maneuvers) and the
+fleet of all members."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -13,22 +14,53 @@ from .sumo_world import SumoWorld
 
 def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
              baseline: bool = False, step_hook=None, should_stop=None):
-    """World, reference generator and fleet of a road run (loop.step_loop runs them)."""
-    from ..control.reference_road import GovernorLimits, RoadReference
-    from .fleet import Fleet, initial_state
-    from .loop import one_formation
+    """World, reference generators and fleet of a road run (loop.step_loop runs them)."""
+    from .fleet import Fleet
+    from .formation import Formation, join_configs, join_states, virtual_car_id
+    from .loop import RunParts, one_formation
     from .road_load import road_load_part
-    from .setup import build_fleet, follow_limit, profile, road_mu
+    from .setup import build_fleet
+
+    parts = plan.formations or ((None, plan, slice(0, len(sc.members))),)
+    views = [sc if setup is None else setup.view for setup, _, _ in parts]
+    cfgs = [build_fleet(view) for view in views]
+    fleet = Fleet(join_configs(cfgs))
+    world = SumoWorld(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
+    world.should_stop = should_stop
+    built = [_formation_parts(view, p, cfg, fleet.gains[rows], world, meta)
+             for view, (_, p, rows), cfg in zip(views, parts, cfgs)]
+    meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
+                        "governor": 0.0, "control_model": 0.0, "record": 0.0}
+    load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, plan.road.line)
+    if len(built) == 1:
+        gen, transforms, state = built[0]
+        return one_formation(world, gen, fleet, state, transforms=transforms,
+                             timing=meta["timing_s"], road_load=load)
+    forms = []
+    for (setup, _, rows), (gen, transforms, state) in zip(parts, built):
+        waits = setup.depart > 0
+        forms.append(Formation(setup.id, rows, gen, transforms, virtual_car_id(setup.id, len(parts)),
+                               depart=setup.depart, parked=gen.parked,
+                               held=state.copy() if waits else None,
+                               status="waiting" if waits else "running"))
+    return RunParts(world, fleet, join_states([s for _, _, s in built]), forms,
+                    timing=meta["timing_s"], road_load=load)
+
+
+def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld, meta: dict):
+    """(reference generator, transforms, initial state) of the formation ``sc`` sees, whose
+    members are ``plan``'s (``gains``: their rows of sim/fleet.py Fleet.gains)."""
+    from ..control.reference_road import GovernorLimits, RoadReference
+    from .fleet import initial_state
+    from .setup import follow_limit, profile, road_mu
     from .sumo_plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
 
-    run, ld, veh, line = sc.run, sc.leader, plan.veh, plan.road.line
+    run, ld, line = sc.run, sc.leader, plan.road.line
     n_ctrl = int(round(run.step / run.control_step))
-    cfg = build_fleet(sc)
-    fleet = Fleet(cfg)
     speed_profile = profile(ld.speed)
     # the virtual car never asks for more than the road's adhesion allows the members
     mu_g = road_mu(sc) * 9.81  # and never more than every member's speed law can follow
-    follow = follow_limit(sc, fleet.gains, speed_profile, meta)
+    follow = follow_limit(sc, gains, speed_profile, meta)
     limits = GovernorLimits(ld.time_gap, ld.min_gap,
                             min(ld.accel_max, ADHESION_SHARE_COMFORT * mu_g, follow),
                             min(ld.decel_max, ADHESION_SHARE_COMFORT * mu_g),
@@ -37,20 +69,14 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     tg0 = initial_targets(plan.road, plan.slots, plan.rigid, plan.is_road, s0, v0, 0.0)
     yaw0 = plan.speed0 * line.curvature(line.to_frenet(plan.pos0)[0])
     state = initial_state(cfg, plan.pos0, plan.heading0, plan.speed0, yaw0, np.zeros(cfg.n), tg0)
-    world = SumoWorld(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
-    world.should_stop = should_stop
     args = (world.line.G, world.line.length, plan.slots, plan.rigid, plan.is_road, s0, v0,
             speed_profile, limits, np.array([v.width / 2 for v in plan.vehicles]),
             np.array([v.cog_to_front_bumper for v in plan.vehicles]),
             sc.road.end_margin, run.step / n_ctrl, n_ctrl)
-    meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
-                        "governor": 0.0, "control_model": 0.0, "record": 0.0}
-    load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, line)
     # docs/model.md, "Accelerations within a step" and "Leave without stranding"
     ramp, release = sc.leader.accel_within_step == "ramp", sc.leader.emergency_release
     if not sc.maneuvers:
-        return one_formation(world, RoadReference(*args, ramp=ramp, release=release), fleet,
-                             state, timing=meta["timing_s"], road_load=load)
+        return RoadReference(*args, ramp=ramp, release=release), [], state
     from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
     from ..control.maneuvers.planner import ManeuverPlanner
     from .road_setup import road_room
@@ -62,5 +88,4 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
                               np.array([v.cog_to_front_bumper for v in plan.vehicles]))
     gen = ManeuverRoadReference(*args, ramp=ramp, release=release, planner=planner,
                                 length=lengths)
-    return one_formation(world, gen, fleet, state, transforms=[PlanSlots(planner)],
-                         timing=meta["timing_s"], road_load=load)
+    return gen, [PlanSlots(planner)], state

@@ -25,15 +25,18 @@ from .sections import sumo_options as section_options
 from .sections import write_tables as write_sections
 from .incidents import clearance_lookup
 from .demand import measure_plan, traffic_meta
-from .join import adopt, enter, inside_formation, take_over
+from .join import inside_formation
 from .messages import sumo_outputs_meta
-from .sumo_adapter import SumoAdapter, SumoError
+from .sumo_adapter import SumoAdapter
+from .formation import virtual_car_id
 from .sumo_neighbours import NOBODY
+from .sumo_handover import MemberHandover
+from .sumo_peers import Peers
 from .sumo_sense import NeighbourGuess, PackedLanes, sense_step
 from .sumo_types import Neighbours
 from .sumo_plan import MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
-from .traffic import CAR, flow_vehicles_per_hour, write_routes
-from .world import Sensed
+from .traffic import flow_vehicles_per_hour, write_routes
+from .world import Sensed, sensed_of
 
 _NO_ROWS = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0, dtype=np.int64))
 """sense_step's SUMO rows of the members when they are not in SUMO (not inserted yet, a baseline)."""
@@ -41,7 +44,7 @@ _NO_NB = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0))
 """sense_step's neighbour rows when there is no neighbour."""
 
 
-class SumoWorld:
+class SumoWorld(MemberHandover):
     """The members among SUMO's traffic on the plan's road (see the module docstring)."""
 
     def __init__(self, sc: Scenario, plan: RoadPlan, fleet, rec, out_dir: Path, meta: dict,
@@ -49,9 +52,10 @@ class SumoWorld:
         self.sc, self.plan, self.fleet, self.rec, self.meta = sc, plan, fleet, rec, meta
         self.baseline, self.step_hook = baseline, step_hook
         self.records_members = not baseline
-        self.ids = [m.id for m in sc.members]
+        self.ids = list(plan.ids) if plan.ids else [m.id for m in sc.members]
         self._id_set = set(self.ids)
         n = len(self.ids)
+        self.groups = [rows for _, _, rows in plan.formations] or [slice(0, n)]  # formations' rows
         self.line = FastLine(float(plan.road.line.length), packed(plan.road.line))  # packed once per line
         self.out_dir, self.sumo_dir = out_dir, out_dir / "sumo"
         self.active = np.ones(n, dtype=bool)  # members in the run
@@ -60,6 +64,10 @@ class SumoWorld:
         for mv in sc.maneuvers:  # a joining member enters when it takes a vehicle over
             if mv.kind == "join":
                 self.active[self.ids.index(mv.member)] = False
+        self.waiting = np.zeros(n, dtype=bool)  # members of formations that depart later
+        for setup, _, rows in plan.formations:
+            self.waiting[rows] = setup.depart > 0
+        self.active &= ~self.waiting
         self.pending = np.flatnonzero(self.active)  # spawned, inserted at the next actuate
         self.sumo_ids = list(self.ids)  # SUMO's vehicle of each member (join: the one taken over)
         self.adopting = []  # take-overs to write into the fleet state (sim/join.py)
@@ -69,7 +77,7 @@ class SumoWorld:
         self.sections = None  # the measurement sections (sim/sections.py), set at start
         self.should_stop = None  # polled by the drain (the run's stop flag: Ctrl-C ends it)
         self.all_bg = sc.traffic.record_radius is None or baseline
-        self.ctx_owner = None
+        self.ctx_owner = [None] * len(self.groups)  # each formation's context subscription
         self.m_s = np.full(n, np.nan)  # members' arc length at the last sense [m] (NaN: none yet)
         self.packed_lanes = PackedLanes(plan.road.shapes)
         self._nb_guess = NeighbourGuess()
@@ -82,11 +90,13 @@ class SumoWorld:
         lanes = LaneTracker()
         self.members = MemberWatch(rec, self.ids, lanes)
         self.traffic = TrafficWatch(rec, self.ids, lanes, sc.leader.time_gap, sc.leader.min_gap)
-        self.emergency = EmergencyWatch(rec, self.ids)
+        self.emergency = EmergencyWatch(rec, self.ids, [virtual_car_id(setup.id, len(self.groups))
+                                                        for setup, _, _ in plan.formations] or None)
         self.followed = None  # the member sumo-gui's view follows
         self.refusals = RefusalWatch(rec, self.ids, self.sumo_ids)
         self.mtypes = member_types(sc, plan)
         self.d_front = np.array([mt.d_front for mt in self.mtypes])  # CoG to front bumper [m]
+        self.peers = Peers(self.ids, self.sumo_ids, self.mtypes, self.groups) if len(self.groups) > 1 else None
         self.adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
         if sc.sumo.ssm != "off":  # converted as the run goes, cut with the other tables (record/ssm.py)
             t0 = int(round(sc.traffic.warmup / sc.run.step)) * sc.run.step
@@ -109,7 +119,7 @@ class SumoWorld:
         self.measure = measure_plan(sc, road, self.sumo_dir)
         self.sections = plan_sections(sc, road, self.sumo_dir)
         drain_s = sc.traffic.sections.drain_max if self.sections is not None else 0.0
-        args = sumo_args(sc, road.net_file, routes, self.sumo_dir, t_sumo_end + drain_s)
+        args = sumo_args(sc, road.net_file, routes, self.sumo_dir, t_sumo_end + drain_s, self.ids)
         adds = [str(self.measure["file"])] if self.measure is not None else []
         if self.sections is not None:
             adds.append(str(self.sections["file"]))
@@ -201,6 +211,9 @@ class SumoWorld:
             sensed.extra.update(sumo_gap=gap, lane_index=rows[5])
             self.members.placement(t, gap, n_off)
             self.members.lane_changes(t, *rows[6:])
+            if self.peers is not None:  # every member as the other formations' traffic
+                self.peers.lanes(rows[6], rows[8], rows[5])
+                self.peers.update(pos, heading, v_m, getattr(self, "a_mean", np.zeros(n)), m_s, m_d)
         if nb_rows is None:
             sensed.nb = NOBODY
         else:
@@ -248,58 +261,6 @@ class SumoWorld:
         lane_index[idx_act] = np.where(present, lane_idx, np.nan)
         return (*rows, lane_index, idx_act, present, lanes, lane_idx)
 
-    def release(self, t: float, i: int, exit_edge: str = "") -> None:
-        """Leave: hand member i over to SUMO's own driver model where it is (its lane,
-        position and speed); it drives on as an ordinary vehicle with a SUMO car's
-        acceleration and deceleration (sim/traffic.py CAR), routed to ``exit_edge`` when
-        given, and is no longer controlled."""
-        vid = self.sumo_ids[i]
-        if not self.active[i] or not self.inserted or self.baseline:
-            return
-        v = float(self.v_after[i])
-        way = f", routed to the exit {exit_edge}" if exit_edge else ""
-        try:
-            lane = self.adapter.release(vid, float(CAR["accel"]), float(CAR["decel"]), exit_edge)
-        except SumoError as exc:
-            lane, way = "?", f", not routed to the exit: {exc}"
-        self.active[i] = False
-        self.released.add(vid)
-        self.rec.add_event(t, "handover", self.ids[i], vid if vid != self.ids[i] else "",
-                           f"leave: released to SUMO at {v:.2f} m/s on lane {lane}{way}")
-
-    def take_over(self, t: float, i: int, vid: str, sensed, where=None) -> None:
-        """Join: SUMO vehicle ``vid`` becomes member i where it is, or (``where`` = (s, d, v))
-        member i's own vehicle enters the road under SUMO's driver (sim/join.py); a baseline
-        twin has no formation to join."""
-        if not self.inserted or self.baseline:
-            return
-        if where is None:
-            take_over(self, t, i, vid, sensed)
-        else:
-            enter(self, t, i, *where)
-
-    def command(self, t: float, commands, sensed, vc_id: str) -> None:
-        """A formation's requests of this step (control/reference.py WorldCommand: leave,
-        join, its events, recorded as the virtual car ``vc_id``'s), carried out in order
-        before its reference."""
-        for c in commands:
-            if c.kind == "record":
-                self.rec.add_event(t, c.event, vc_id, "", c.detail)
-            elif c.kind == "release":
-                self.release(t, c.member, c.vehicle)
-            else:
-                self.take_over(t, c.member, c.vehicle, sensed, c.where)
-
-    def adopt(self, state, ref):
-        """The fleet state with the vehicles taken over in this step written in (sim/join.py)."""
-        if self.adopting:
-            adopt(self.fleet, state, ref, self.adopting)
-        return state
-
-    def joined_names(self) -> dict:
-        """SUMO id -> member id of the vehicles taken over by a join."""
-        return {s: m for s, m in zip(self.sumo_ids, self.ids) if s != m}
-
     def observe(self, t: float, sensed: Sensed, ref) -> None:
         info = ref.info
         self.emergency(t, info)
@@ -312,6 +273,7 @@ class SumoWorld:
         their state puts them (vehicles standing there are cleared first)."""
         rows = np.atleast_1d(rows)
         self.active[rows] = True
+        self.waiting[rows] = False
         self.pending = np.union1d(self.pending, rows).astype(np.int64)
 
     def retire(self, t: float, rows, why: str) -> None:
@@ -325,10 +287,31 @@ class SumoWorld:
             self.rec.add_event(t, "member_retired", self.ids[i], "", why)
         self.pending = np.setdiff1d(self.pending, rows).astype(np.int64)
 
+    def sensed_for(self, sensed: Sensed, rows: slice) -> Sensed:
+        """What the formation of fleet rows ``rows`` senses: its members, and as its
+        neighbours SUMO's vehicles and the other formations' members (sim/sumo_peers.py)."""
+        if self.peers is None:
+            return sensed_of(sensed, rows)
+        return self.peers.sensed_for(sensed, rows, self.active & self.in_sumo)
+
     def stop_reason(self, t: float):
-        if not self.active.any():
+        if not self.active.any() and not self.waiting.any():
             return None, "", f"no member left in SUMO at t = {t:.2f} s"
         return None
+
+    def _subscribe_contexts(self) -> None:
+        """One context subscription per formation with members in SUMO, on a member near its
+        middle (sim/sumo_zone.py), renewed when that member left."""
+        here = self.active & self.in_sumo if len(self.groups) > 1 else self.active
+        for g, rows in enumerate(self.groups):
+            owner = self.ctx_owner[g]
+            if owner is not None and self.active[owner] and self.inserted:
+                continue
+            mask = np.zeros_like(here)
+            mask[rows] = here[rows]
+            if mask.any():
+                self.ctx_owner[g] = subscribe_context(self.adapter, self.sumo_ids, mask, self.along,
+                                                      self.slot_d_0, self.sc.traffic.record_radius)
 
     # ------------------------------------------------------------------ actuate / step
     def actuate(self, t_next: float, state, v_before) -> None:
@@ -383,10 +366,8 @@ class SumoWorld:
             act_idx = np.flatnonzero(here_now)
             ad.set_true_speeds([self.sumo_ids[i] for i in act_idx], self.v_after[act_idx],
                                self.a_mean[act_idx])
-        if not self.all_bg and self.active.any() and (
-                not self.inserted or self.ctx_owner is None or not self.active[self.ctx_owner]):
-            self.ctx_owner = subscribe_context(ad, self.sumo_ids, self.active, self.along,
-                                               self.slot_d_0, self.sc.traffic.record_radius)
+        if not self.all_bg and self.active.any():
+            self._subscribe_contexts()
         self.inserted = True
         if self.all_bg:
             ad.subscribe_departed()

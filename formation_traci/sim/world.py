@@ -14,7 +14,7 @@ the world at once (an event ``member_retired`` says why).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
@@ -43,6 +43,17 @@ class Sensed:
     nb_in_formation: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
 
 
+def sensed_of(sensed: Sensed, sl: slice) -> Sensed:
+    """What the world sensed, as formation ``sl`` sees it: its members' rows (views), every
+    neighbour. Its transforms' recorded columns go back into ``sensed`` with
+    sim/formation.py ``merge_extra``."""
+    n = len(sensed.active)
+    pick = (lambda a: a[sl] if isinstance(a, np.ndarray) and a.shape[:1] == (n,) else a)
+    return replace(sensed, active=sensed.active[sl],
+                   extra={k: pick(v) for k, v in sensed.extra.items()},
+                   v_m=pick(sensed.v_m), m_s=pick(sensed.m_s), m_d=pick(sensed.m_d))
+
+
 class World(Protocol):
     records_members: bool  # False for a baseline twin: the formation is not in this world
 
@@ -59,6 +70,8 @@ class World(Protocol):
     def step(self, k: int, t_next: float) -> None: ...
 
     def command(self, t: float, commands: list, sensed: Sensed, vc_id: str) -> None: ...
+
+    def sensed_for(self, sensed: Sensed, rows: slice) -> Sensed: ...  # a formation's view of it
 
     def adopt(self, state, ref): ...
 
@@ -86,6 +99,10 @@ class FreeSpace:
 
     def adopt(self, state, ref):
         return state
+
+    def sensed_for(self, sensed, rows) -> Sensed:
+        """Formations in free space do not see each other: their members' rows only."""
+        return sensed_of(sensed, rows)
 
     def spawn(self, t, rows) -> None:
         self.sensed.active[rows] = True

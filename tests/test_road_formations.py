@@ -1,0 +1,132 @@
+"""Several formations on one SUMO road (issue 26: one on a road; issue 27: formations on the
+road together): each formation's rows carry its id, each sees the others' members as traffic
+(a formation that catches up with another slows behind it at the governor's time gap), one
+that departs later enters then, one that reaches the end of its route is retired while the
+run goes on; scenario errors name the formation's fields."""
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from formation_traci.scenario import ScenarioError, load_scenario
+from formation_traci.sim.runner import run_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+THREE = ROOT / "scenarios" / "highway" / "three_formations.toml"
+
+
+def _run(path_or_sc, out, **over):
+    sc = load_scenario(path_or_sc, **over) if isinstance(path_or_sc, Path) else path_or_sc
+    res = run_scenario(sc, out, scenario_path=THREE, force=True, progress=False)
+    tr = pd.read_parquet(out / "trajectories.parquet")
+    return res, tr, pd.read_parquet(out / "events.parquet")
+
+
+@pytest.fixture(scope="module")
+def three(tmp_path_factory):
+    """The bundled three-formation scenario, 50 s after a 30 s warm-up (the chaser is 276 m
+    behind f0 and closes at 8 m/s: it reaches f0 at about 35 s)."""
+    return _run(THREE, tmp_path_factory.mktemp("three") / "run",
+                **{"run.duration": 50.0, "traffic.warmup": 30.0})
+
+
+def test_each_formation_has_its_rows_its_virtual_car_and_no_collision(three):
+    res, tr, ev = three
+    assert res.status == "completed", res.reason
+    assert res.incidents["member_collisions"] == 0 and res.incidents["member_removed"] == 0
+    fid = tr.groupby("vehicle_id").formation_id.unique().map(list).to_dict()
+    assert fid == {"a1": ["f0"], "a2": ["f0"], "a3": ["f0"], "vc:f0": ["f0"],
+                   "b1": ["chaser"], "b2": ["chaser"], "vc:chaser": ["chaser"],
+                   "c1": ["pair"], "c2": ["pair"], "vc:pair": ["pair"]}
+    # every formation holds its structure as one alone does (one formation on this road:
+    # well below 0.3 m, tests/test_sumo_runs.py); the members of different formations never
+    # overlap (sim/incidents.py counts every pair of members, of any formations)
+    members = tr[~tr.vehicle_id.str.startswith("vc")]
+    err = np.hypot(members.ex, members.ey).groupby(members.formation_id).max()
+    assert (err < 0.3).all(), err.to_dict()
+    assert not (ev.kind == "collision").any()
+
+
+def test_a_formation_departs_at_its_time_at_its_start_in_its_lane(three):
+    _, tr, _ = three
+    pair = tr[tr.formation_id == "pair"]
+    assert pair.t.min() == pytest.approx(10.0)  # depart = 10 s: no row before
+    first = pair[pair.t == pair.t.min()].set_index("vehicle_id")
+    assert first.loc["vc:pair", "s"] == pytest.approx(450.0)  # its own start [m]
+    assert first.loc["vc:pair", "v"] == pytest.approx(30.0)  # its profile's time starts at depart
+    # lane = 2: its slots' lanes count from lane 2 (c1 in lane 2, c2 one to the right)
+    lanes = pair[pair.t > 11.0].groupby("vehicle_id").lane_index.agg(lambda s: set(s.dropna()))
+    assert lanes["c1"] == {2.0} and lanes["c2"] == {1.0}
+
+
+def test_a_formation_that_catches_up_slows_behind_the_other_at_the_time_gap(three):
+    """The chaser (32 m/s) meets f0 (24 m/s) in the same lane: its virtual car slows to f0's
+    speed and its front member keeps the governor's gap min_gap + time_gap v = 2 + 1.5 x 24 =
+    38 m to f0's last member (bumper to bumper; both passenger cars, 4.6 m long)."""
+    _, tr, _ = three
+    vc = tr[tr.vehicle_id == "vc:chaser"].set_index("t").v
+    assert vc.iloc[0] == pytest.approx(32.0) and vc.iloc[-1] == pytest.approx(24.0, abs=0.3)
+    s = tr.pivot(index="t", columns="vehicle_id", values="s")
+    length = 4.6  # passenger_car, models/params.py
+    gap = s["a3"] - s["b1"] - length  # CoG to CoG minus one body: bumper to bumper [m]
+    assert gap.min() > 30.0  # never closer than 0.8 of the gap it settles at
+    assert gap.iloc[-1] == pytest.approx(2.0 + 1.5 * 24.0, abs=1.5)
+
+
+def test_a_formation_at_the_end_of_its_route_retires_and_the_run_goes_on(tmp_path):
+    """A second formation 300 m before the end of the 6 km route at 30 m/s reaches it after
+    ~9 s: its members leave SUMO (member_retired), the top formation drives on to the end."""
+    sc = load_scenario(THREE, **{"run.duration": 14.0, "traffic.warmup": 10.0})
+    late = sc.formations[0].model_copy(update={"start": 5600.0, "leader": sc.formations[0].leader.model_copy(
+        update={"speed": 30.0})})
+    sc = sc.model_copy(update={"formations": [late]})
+    res, tr, ev = _run(sc, tmp_path / "end")
+    assert res.status == "completed" and res.t_end == pytest.approx(14.0)
+    end = ev[ev.kind == "end_of_road"]
+    assert list(end.vehicle_id) == ["vc:chaser"]
+    retired = ev[ev.kind == "member_retired"]
+    assert sorted(retired.vehicle_id) == ["b1", "b2"] and (retired.t == end.t.iloc[0]).all()
+    assert tr[tr.formation_id == "chaser"].t.max() <= end.t.iloc[0] + 1e-9
+    assert tr[tr.vehicle_id == "a1"].t.max() == pytest.approx(14.0)
+
+
+def _bad(tmp_path, text):
+    p = tmp_path / "bad.toml"
+    p.write_text(THREE.read_text() + text)
+    return p
+
+
+def test_formation_fields_are_checked_and_named(tmp_path):
+    on_top = ('\n[[formations]]\nid = "twin"\nleader = { speed = 24.0 }\n'
+              'members = [{ id = "t1", slot = { along = 0.0, lanes = 0 } }]\n')
+    with pytest.raises(ScenarioError) as exc:
+        from formation_traci.sim.sumo_plan import prepare
+        p = _bad(tmp_path, on_top)
+        prepare(load_scenario(p), p)
+    assert exc.value.problems[0][0] == "formations.2.members.0"
+    assert "a1" in exc.value.problems[0][1] and "f0" in exc.value.problems[0][1]
+    rigid = ('\n[[formations]]\nid = "r"\nlane = 0\nleader = { speed = 24.0 }\n'
+             'members = [{ id = "r1", offset = [0.0, 0.0] }]\n')
+    with pytest.raises(ScenarioError, match="formations.2.lane"):
+        load_scenario(_bad(tmp_path, rigid))
+    far = ('\n[[formations]]\nid = "far"\nstart = 9000.0\nleader = { speed = 24.0 }\n'
+           'members = [{ id = "z1", slot = { along = 0.0, lanes = 0 } }]\n')
+    with pytest.raises(ScenarioError) as exc:
+        p = _bad(tmp_path, far)
+        prepare(load_scenario(p), p)
+    assert exc.value.problems[0][0] == "formations.2.members.0.slot"
+
+
+def test_road_only_fields_and_maneuvers_are_refused_where_they_cannot_run(tmp_path):
+    text = ('[run]\nduration = 2.0\n[leader]\nspeed = 10.0\n'
+            '[[members]]\nid = "a"\noffset = [0.0, 0.0]\nposition = [0.0, 0.0]\n'
+            '[[formations]]\nid = "g"\nstart = 5.0\n[formations.leader]\nspeed = 10.0\n'
+            '[[formations.members]]\nid = "b"\noffset = [0.0, 0.0]\nposition = [0.0, 50.0]\n')
+    p = tmp_path / "free.toml"
+    p.write_text(text)
+    with pytest.raises(ScenarioError, match="formations.0: start need a \\[road\\]"):
+        load_scenario(p)
+    man = '\n[[maneuvers]]\nkind = "lane_change"\nat = { s = 1000.0 }\nlanes = 1\n'
+    with pytest.raises(ScenarioError, match="several formations runs no maneuvers"):
+        load_scenario(_bad(tmp_path, man))
