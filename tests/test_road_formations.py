@@ -33,8 +33,9 @@ def three(tmp_path_factory):
 
 def test_each_formation_has_its_rows_its_virtual_car_and_no_collision(three):
     res, tr, ev = three
-    assert res.status == "completed", res.reason
-    assert res.incidents["member_collisions"] == 0 and res.incidents["member_removed"] == 0
+    # traffic's cut-ins may make emergency brakes, the run's incidents (issue 32); nothing else
+    assert res.status in ("completed", "completed_with_incidents"), res.reason
+    assert not any(res.incidents[k] for k in ("member_collisions", "member_removed", "stranded"))
     fid = tr.groupby("vehicle_id").formation_id.unique().map(list).to_dict()
     assert fid == {"a1": ["f0"], "a2": ["f0"], "a3": ["f0"], "vc:f0": ["f0"],
                    "b1": ["chaser"], "b2": ["chaser"], "vc:chaser": ["chaser"],

@@ -38,16 +38,21 @@ class FormationSetup:
     depart: float = 0.0
     lane_shift: int = 0
     field: str = ""  # its fields' path in the scenario file ('' or 'formations.<j>.')
+    flow: str = ""  # the [[formation_flows]] id that inserts it ('' : none; it waits for room)
 
 
-def formation_setups(sc: Scenario) -> list[FormationSetup]:
-    """:class:`FormationSetup` of every formation, the top-level one first."""
+def formation_setups(sc: Scenario, flow_of: dict | None = None) -> list[FormationSetup]:
+    """:class:`FormationSetup` of every formation, the top-level one first; ``flow_of``:
+    formation id -> the flow that inserts it (sim/formation_flows.py)."""
+    flow_of = flow_of or {}
     out = []
     for j, (fid, view) in enumerate(formation_views(sc)):
         f = sc.formations[j - 1] if j else None
         lane = None if f is None or f.lane is None or sc.road is None else f.lane - sc.road.lane
+        flow = flow_of.get(fid, "")
         out.append(FormationSetup(fid, view, 0.0 if f is None else float(f.depart), lane or 0,
-                                  "" if f is None else f"formations.{j - 1}."))
+                                  "" if f is None else (f"formation_flows.{flow}.formation." if flow
+                                                        else f"formations.{j - 1}."), flow))
     return out
 
 

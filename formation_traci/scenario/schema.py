@@ -6,17 +6,20 @@ See docs/scenarios.md for the field-by-field reference.
 """
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from ..control.laws import DEFAULT_LAW, law_names
+
 from ..record.columns import DEFAULT_FORMATION_ID
 
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict  # noqa: F401
 from .comm_spec import CommLinkSpec, CommSpec  # noqa: F401
+from .formation_parts import (GAIN_TABLES, SURFACE_NAMES, ControllerSpec, GainSpec,  # noqa: F401 (re-exported)
+                              LeaderSpec, MemberSpec, VehicleOverrides, VehicleSpec)
+from .formation_spec import FormationFlowSpec, FormationSpec, FormationTemplate, formation_fits  # noqa: F401
 from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec  # noqa: F401 (re-exported)
-from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec
+from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec  # noqa: F401 (re-exported)
 from .road_traffic import FlowSpec, RoadSpec, RouteEnds, RouteValue, TrafficSpec  # noqa: F401 (re-exported)
 
 
@@ -41,155 +44,6 @@ class RunSpec(Strict):
         if self.step > self.duration:
             raise ValueError(f"step ({self.step} s) must not exceed duration ({self.duration} s)")
         return self
-
-
-class VehicleOverrides(Strict):
-    """Optional replacements of preset chassis values (units as in the preset)."""
-
-    m: PosFloat | None = Field(None, description="mass [kg]")
-    Izz: PosFloat | None = Field(None, description="yaw inertia [kg m^2]")
-    a: PosFloat | None = Field(None, description="CoG to front axle [m]")
-    b: PosFloat | None = Field(None, description="CoG to rear axle [m]")
-    h: PosFloat | None = Field(None, description="CoG height [m]")
-    length: PosFloat | None = Field(None, description="body length [m]")
-    width: PosFloat | None = Field(None, description="body width [m]")
-    front_overhang: NonNegFloat | None = Field(None, description="front axle to bumper [m]")
-    steer_max_deg: PosFloat | None = Field(None, le=89, description="steering angle limit [deg]")
-    steer_rate_max_deg_s: PosFloat | None = Field(None, description="steering rate limit [deg/s]")
-    c_d: PosFloat | None = Field(None, le=2.0, description="drag coefficient alone [-] (docs/energy.md)")
-    frontal_area: PosFloat | None = Field(None, le=15.0, description="frontal area [m^2] (docs/energy.md)")
-    drive_lag_s: NonNegFloat | None = Field(None, le=5.0, description="first-order lag of the drive/brake "
-                                            "demand [s]; 0 (default): none (docs/model.md)")
-    steer_lag_s: NonNegFloat | None = Field(None, le=2.0, description="first-order lag of the steering "
-                                            "actuator [s]; 0 (default): none (docs/model.md)")
-
-
-SURFACE_NAMES = Literal["good_dry", "good_wet", "poor_dry", "poor_wet", "ice"]
-
-
-class VehicleSpec(Strict):
-    model: Literal["dynamic", "kinematic"] = "dynamic"
-    preset: Literal["passenger_car", "small_truck"] = "passenger_car"
-    tire: Literal["load", "seed"] = Field("load", description="'load': D = -mu * axle load; 'seed': Table 3.2")
-    tire_law: Literal["magic_formula", "linear"] = "magic_formula"
-    surface: SURFACE_NAMES = Field("good_dry", description="Table 3.3 pavement")
-    mu: PosFloat | None = Field(None, le=1.5, description="road adhesion [-]; overrides surface")
-    params: VehicleOverrides = VehicleOverrides()
-
-
-class GainSpec(Strict):
-    g_min: PosFloat
-    g_max: PosFloat
-    k_min: PosFloat
-
-    @model_validator(mode="after")
-    def _order(self):
-        if self.g_max < self.g_min:
-            raise ValueError(f"g_max ({self.g_max}) must be >= g_min ({self.g_min})")
-        return self
-
-
-GAIN_TABLES = Literal["table_3_4", "table_3_6", "table_3_7", "table_3_8", "table_3_12"]
-
-
-class ControllerSpec(Strict):
-    law: str = Field(DEFAULT_LAW, description="the members' control law by name (control/laws): "
-                     "'virtual_structure' is the seed's (2.4-2.11 with 3.32-3.38); 'acc', "
-                     "'cacc_path', 'cacc_ploeg' follow the member ahead (docs/platoon_laws.md)")
-    acc: AccSpec = AccSpec()
-    cacc_path: CaccPathSpec = CaccPathSpec()
-    cacc_ploeg: CaccPloegSpec = CaccPloegSpec()
-    k: PosFloat = Field(1.0, description="position gain of (2.7) [m/s]")
-    k_theta: PosFloat = Field(3.0, description="heading gain of (2.8) [1/s]")
-    speed_gains: GAIN_TABLES | GainSpec = Field(
-        "table_3_4", description="linear-velocity schedule (3.34); 'table_3_6' for the truck")
-    yaw_gains: GAIN_TABLES | GainSpec = Field("table_3_8", description="angular-velocity schedule (3.34)")
-
-    @field_validator("law")
-    @classmethod
-    def _known_law(cls, v):
-        if v not in law_names():
-            raise ValueError(f"unknown control law {v!r}; expected one of: {', '.join(law_names())}")
-        return v
-
-
-class LeaderSpec(Strict):
-    """Virtual car (eq 2.3) in free space."""
-
-    x: Finite = Field(0.0, description="initial x [m]")
-    y: Finite = Field(0.0, description="initial y [m]")
-    heading_deg: Finite = Field(0.0, description="initial heading [deg], counter-clockwise from +x")
-    speed: Signal = Field(description="speed [m/s]: constant or profile (on a road: the set speed)")
-    yaw_rate_deg_s: Signal = Field(0.0, description="yaw rate [deg/s]: constant or profile (free space only)")
-    time_gap: PosFloat = Field(1.5, description="time gap every member keeps to the vehicle ahead [s] (road)")
-    min_gap: PosFloat = Field(2.0, description="standstill gap to the vehicle ahead [m] (road)")
-    accel_max: PosFloat = Field(1.5, description="largest acceleration of the virtual car [m/s^2] (road)")
-    decel_max: PosFloat = Field(3.0, description="comfortable deceleration of the virtual car [m/s^2] (road)")
-    decel_emergency: PosFloat = Field(7.0, description="deceleration allowed to avoid a collision [m/s^2] (road)")
-    bound_by_members: bool = Field(
-        True, description="road: the virtual car's acceleration and its braking outside emergencies "
-        "at most 90 % of the weakest member's speed law (a truck's Table 3.6 gains: 0.46 m/s^2; issue 32); "
-        "false: only accel_max and decel_max (before issue 32)")
-    emergency_release: bool = Field(
-        True, description="road: braking harder than decel_max is released at 20 m/s^3 once the emergency "
-        "is over (issue 32); false: at the planner's 0.8 m/s^3 like any change (before issue 32)")
-    accel_within_step: Literal["ramp", "hold"] = Field(
-        "ramp", description="road: how the virtual car's acceleration and the members' acceleration caps, "
-        "planned once per step, pass within the step: 'ramp' from the last step's value to this step's "
-        "(continuous accelerations, issue 32), 'hold' constant over the step (before issue 32)")
-
-    @field_validator("speed")
-    @classmethod
-    def _speed_nonneg(cls, v):
-        vals = v.values if isinstance(v, ProfileSpec) else [v]
-        if any(x < 0 for x in vals):
-            raise ValueError("speed must be >= 0 m/s")
-        return v
-
-
-class MemberSpec(Strict):
-    id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$")
-    offset: Pair | None = Field(None, description="[d_x, d_y] in the virtual car frame [m], eq 2.4")
-    slot: SlotSpec | None = Field(None, description="slot in road coordinates (road scenarios)")
-    position: Pair | None = Field(None, description="initial centre of gravity [x, y] [m]; on a road default: the slot")
-    heading_deg: Finite | None = Field(None, description="initial heading [deg]; default the leader's")
-    speed: NonNegFloat | None = Field(None, description="initial speed [m/s]; default the leader's")
-    yaw_rate_deg_s: Finite = Field(0.0, description="initial yaw rate [deg/s] (dynamic model)")
-    steer_deg: Finite = Field(0.0, description="initial steering angle [deg] (dynamic model)")
-    preset: Literal["passenger_car", "small_truck"] | None = Field(
-        None, description="per-member vehicle preset (mixed formations); default vehicle.preset")
-    speed_gains: GAIN_TABLES | GainSpec | None = Field(None, description="per-member override of controller.speed_gains")
-    yaw_gains: GAIN_TABLES | GainSpec | None = Field(None, description="per-member override of controller.yaw_gains")
-    k: PosFloat | None = Field(None, description="per-member override of controller.k")
-    k_theta: PosFloat | None = Field(None, description="per-member override of controller.k_theta")
-    params: VehicleOverrides | None = Field(None, description="per-member override of vehicle.params "
-                                            "(e.g. drive_lag_s), over its preset")
-
-    @model_validator(mode="after")
-    def _one_slot(self):
-        if (self.offset is None) == (self.slot is None):
-            raise ValueError("give exactly one of 'offset' (virtual car frame) or 'slot' (road frame)")
-        return self
-
-
-class FormationSpec(Strict):
-    """A further formation of the run: its own virtual leader, members and controller; the
-    top-level ``leader``/``members``/``controller``/``comm`` are the first. On a road it has
-    its own start, lane and departure time (docs/scenarios.md, "Several formations")."""
-
-    id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.\-]+$", description="formation_id in the tables")
-    leader: LeaderSpec
-    members: list[MemberSpec] = Field(min_length=1, description="at least one member")
-    controller: ControllerSpec = ControllerSpec()
-    comm: CommSpec | None = Field(None, description="leader-to-member radio; default: perfect")
-    maneuvers: list[ManeuverSpec] = Field(
-        default_factory=list, description="its maneuvers (not yet run in a scenario with several formations)")
-    start: NonNegFloat | None = Field(None, description="road: its virtual car's arc length at departure [m]; "
-                                      "default road.start")
-    lane: Annotated[int, Field(ge=0)] | None = Field(None, description="road: the lane its slots' 'lanes' count from (its "
-                                   "virtual car's lane); default road.lane")
-    depart: NonNegFloat = Field(0.0, description="road: when its members enter the road [s] (run time; "
-                                "its leader.speed profile's time starts then)")
 
 
 class SumoSpec(Strict):
@@ -265,22 +119,6 @@ class OpenLoopSpec(Strict):
         return self
 
 
-def _formation_fits(j: int, f: FormationSpec, road: bool) -> None:
-    """[[formations]] entry j's fields fit the run (free space or a road)."""
-    if f.comm is not None and set(f.comm.links) - {m.id for m in f.members}:
-        raise ValueError(f"formations.{j}.comm.links names members not in the formation")
-    if not road:
-        if any(m.offset is None or m.position is None for m in f.members):
-            raise ValueError(f"formations.{j}: free space needs 'offset' and 'position' for every member")
-        given = [k for k in ("start", "lane") if getattr(f, k) is not None]
-        if given or f.depart or f.maneuvers:
-            raise ValueError(f"formations.{j}: {', '.join(given + ['depart'] * bool(f.depart) + ['maneuvers'] * bool(f.maneuvers))} "
-                             "need a [road] (free-space formations all start at t = 0)")
-    elif f.lane is not None and any(m.slot is None for m in f.members):
-        raise ValueError(f"formations.{j}.lane: every member needs a road 'slot' (a lane moves road-frame "
-                         "slots; virtual-car-frame 'offset' members keep the reference line)")
-
-
 class Scenario(Strict):
     name: str = ""
     description: str = ""
@@ -300,6 +138,26 @@ class Scenario(Strict):
     formations: list[FormationSpec] = Field(
         default_factory=list, description="further formations beside the top-level one (whose "
         f"formation_id is '{DEFAULT_FORMATION_ID}')")
+    formation_flows: list[FormationFlowSpec] = Field(
+        default_factory=list, description="formations inserted while the run goes (road)")
+
+    @model_validator(mode="after")
+    def _flow_rules(self):
+        if not self.formation_flows:
+            return self
+        if self.road is None:
+            raise ValueError("formation_flows: formations are inserted on a [road]")
+        if self.maneuvers:
+            raise ValueError("maneuvers: a road scenario with formation flows runs no maneuvers in this version")
+        ids = [f.id for f in self.formation_flows]
+        if len(set(ids)) < len(ids) or set(ids) & {f.id for f in self.formations}:
+            raise ValueError(f"formation_flows: ids must be unique and differ from the formations' ids: {ids}")
+        flows = {f.id for f in self.traffic.flows}
+        for j, f in enumerate(self.formation_flows):
+            if f.of_flow is not None and f.of_flow not in flows:
+                raise ValueError(f"formation_flows.{j}.of_flow: expected one of the traffic.flows ids "
+                                 f"{sorted(flows)}, got {f.of_flow!r}")
+        return self
 
     @model_validator(mode="after")
     def _formation_rules(self):
@@ -316,7 +174,7 @@ class Scenario(Strict):
         if dup:
             raise ValueError(f"member ids must be unique over all formations, repeated: {dup}")
         for j, f in enumerate(self.formations):
-            _formation_fits(j, f, self.road is not None)
+            formation_fits(j, f, self.road is not None)
         if self.road is not None and (self.maneuvers or any(f.maneuvers for f in self.formations)):
             raise ValueError("maneuvers: a road scenario with several formations runs no maneuvers "
                              "in this version (each formation keeps its slots)")

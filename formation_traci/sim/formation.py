@@ -33,6 +33,7 @@ class Formation:
     parked: object = None  # t -> Reference while it waits or after it ended (no member in the run)
     held: FleetState | None = None  # its members' rows while it is parked (their state is held)
     status: str = "running"  # waiting (to depart) | running | done (retired at the end of its route)
+    flow: str = ""  # the formation flow that inserts it: it enters only where there is room
 
     @property
     def sensing(self) -> list:

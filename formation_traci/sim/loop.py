@@ -103,11 +103,10 @@ def _references(forms, world, k, t, sensed, fleet, state, rec):
         ref0 = f.generator.reference(t, sensed)
         ref = apply(ref0, f.transforms)
         return ref0, ref, (ref0 if true_error and ref.vc is not ref0.vc else ref)
-    raw, out, err = [], [], []
+    raw, out, err, blocked = [], [], [], set()
     for f, sensing, true_error in forms:
-        if f.status == "waiting" and t >= f.depart - 1e-9:  # it departs: its members enter
-            world.spawn(t, np.arange(f.members.start, f.members.stop))
-            f.status = "running"
+        if f.status == "waiting" and t >= f.depart - 1e-9:  # due: its members enter
+            _depart(f, world, t, state, blocked)
         if f.status != "running":
             parked = f.parked(t)
             raw.append(parked), out.append(parked), err.append(parked)
@@ -131,6 +130,19 @@ def _references(forms, world, k, t, sensed, fleet, state, rec):
     ref = join_references(out, n_nb)
     truth_ref = ref if all(e is o for e, o in zip(err, out)) else join_references(err, n_nb)
     return join_references(raw, n_nb), ref, truth_ref
+
+
+def _depart(f: Formation, world, t: float, state: FleetState, blocked: set) -> None:
+    """Formation ``f`` is due at t [s]: its members enter the world (its generator's time
+    starts now). One of a formation flow enters only where there is room, one per flow and
+    step, in order (``blocked``: the flows whose due formation is still waiting)."""
+    if f.flow and (f.flow in blocked or not world.has_room(t, f.members, state)):
+        blocked.add(f.flow)
+        return
+    if f.flow:
+        blocked.add(f.flow)
+    world.spawn(t, np.arange(f.members.start, f.members.stop))
+    f.status, f.depart = "running", t
 
 
 def _radio_links(forms, fleet: Fleet) -> list:

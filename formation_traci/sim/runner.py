@@ -129,17 +129,22 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
                 raise RunDirError(f"{out_dir}: SUMO splits file names at commas; choose an output "
                                   "directory without ',' for a road scenario")
         lock = open_out_dir(Path(out_dir), force, protect)
+        run_sc = sc if plan is None or plan.scenario is None else plan.scenario  # flows' formations in
         try:
-            return _run_in(sc, Path(out_dir), src, plan, baseline, step_hook, transforms, progress,
-                           stop)
+            return _run_in(run_sc, Path(out_dir), src, plan, baseline, step_hook, transforms, progress,
+                           stop, shown=sc)
         finally:
             lock.release()
 
 
-def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, stop) -> RunResult:
-    """The run in its locked directory (see :func:`run_scenario`)."""
+def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, stop,
+            shown=None) -> RunResult:
+    """The run in its locked directory (see :func:`run_scenario`); ``shown``: the scenario as
+    given (run.json 'scenario'), ``sc`` with its formation flows' formations."""
     stop.raising = False  # the record is set up whole: a signal now only sets the flag
     meta = run_meta(sc, None if src is None else str(src))
+    if shown is not None and shown is not sc:
+        meta["scenario"] = shown.model_dump(mode="json")
     meta["baseline"] = baseline
     meta_path = out_dir / "run.json"
     _reserve(out_dir, _json_size(meta))

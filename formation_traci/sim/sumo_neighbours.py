@@ -98,11 +98,11 @@ class NeighbourReads:
         return (ids, list(body[2]), np.array(cols[0], dtype=float), ang, v, a, length, width,
                 list(cols[5]), np.array(cols[4], dtype=int))
 
-    def vehicle_bodies(self):
-        """Every vehicle in SUMO: ids, body centre x, y [m], heading [rad], length, width [m]
-        (direct getters: used once, at insertion)."""
+    def vehicle_bodies(self, ids=None):
+        """Every vehicle in SUMO (or those of ``ids``): ids, body centre x, y [m], heading
+        [rad], length, width [m] (direct getters: used at insertion)."""
         v = self.api.vehicle
-        ids = list(v.getIDList())
+        ids = list(v.getIDList()) if ids is None else list(ids)
         n = len(ids)
         xf, yf, ang, length, width = (np.empty(n) for _ in range(5))
         for i, vid in enumerate(ids):
@@ -110,3 +110,8 @@ class NeighbourReads:
             ang[i], length[i], width[i] = v.getAngle(vid), v.getLength(vid), v.getWidth(vid)
         x, y, psi = sumo_to_cog(xf, yf, ang, length / 2.0)
         return ids, x, y, psi, length, width
+
+    def vehicles_on(self, edges) -> list[str]:
+        """The vehicles on ``edges`` after the last step (ids)."""
+        get = self.api.edge.getLastStepVehicleIDs
+        return [vid for e in edges for vid in get(e)]

@@ -20,6 +20,7 @@ from .messages import SUMO_ARGS as SUMO_QUIET
 from .road_setup import (Road, build_road, check_no_overlap, check_route_ends, check_slots,
                          initial_check_limit, rectangles_overlap, slot_offsets)
 from .setup import member_vehicles, profile, vehicle_params
+from .formation_flows import expand_flows
 from .ssm import ssm_args
 from .sumo_adapter import MemberType
 from .sumo_options import check_options, place_outputs
@@ -52,25 +53,28 @@ class RoadPlan:
     ids: tuple[str, ...] = ()  # every member's id
     presets: tuple[str | None, ...] = ()  # every member's own preset (None: vehicle.preset)
     formations: tuple = ()  # (FormationSetup, its RoadPlan, its rows: slice) of each formation
+    scenario: Scenario | None = None  # the scenario with its formation flows' formations (sim/formation_flows.py)
+    flow_keep: dict | None = None  # traffic flow id -> the share of its demand it keeps (penetration)
 
 
 def prepare(sc: Scenario, source: Path | None) -> RoadPlan:
     """Resolve and check the road and the formations; raises ScenarioError before anything runs."""
     road = build_road(sc, source)
     check_options(list(sc.sumo.options), source)
+    run_sc, flow_of, keep = expand_flows(sc, {f: lanes for f, (_, lanes) in road.flow_routes.items()}, source)
     parts, at = [], 0
-    for setup in formation_setups(sc):
+    for setup in formation_setups(run_sc, flow_of):
         plan = _named_fields(setup.field, source, lambda: _formation_plan(setup, road, source))
         parts.append((setup, plan, slice(at, at + len(plan.ids))))
         at += len(plan.ids)
     if len(parts) == 1:
         return parts[0][1]
-    _check_apart(parts, source)
+    _check_apart([p for p in parts if not p[0].flow], source)
     cat = (lambda name: np.concatenate([getattr(p, name) for _, p, _ in parts]))  # noqa: E731
     return RoadPlan(road, parts[0][1].veh, cat("slots"), cat("rigid"), cat("is_road"), cat("pos0"),
                     cat("heading0"), cat("speed0"), sum((p.vehicles for _, p, _ in parts), ()),
                     sum((p.ids for _, p, _ in parts), ()), sum((p.presets for _, p, _ in parts), ()),
-                    tuple(parts))
+                    tuple(parts), run_sc, keep or None)
 
 
 def _formation_plan(setup, road: Road, source) -> RoadPlan:

@@ -38,11 +38,11 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
                              timing=meta["timing_s"], road_load=load)
     forms = []
     for (setup, _, rows), (gen, transforms, state) in zip(parts, built):
-        waits = setup.depart > 0
+        waits = setup.depart > 0 or bool(setup.flow)
         forms.append(Formation(setup.id, rows, gen, transforms, virtual_car_id(setup.id, len(parts)),
                                depart=setup.depart, parked=gen.parked,
                                held=state.copy() if waits else None,
-                               status="waiting" if waits else "running"))
+                               status="waiting" if waits else "running", flow=setup.flow))
     return RunParts(world, fleet, join_states([s for _, _, s in built]), forms,
                     timing=meta["timing_s"], road_load=load)
 

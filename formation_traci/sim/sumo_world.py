@@ -30,6 +30,7 @@ from .messages import sumo_outputs_meta
 from .sumo_adapter import SumoAdapter
 from .formation import virtual_car_id
 from .sumo_neighbours import NOBODY
+from .sumo_flows import counted_entry, flow_counts, room_for
 from .sumo_handover import MemberHandover
 from .sumo_peers import Peers
 from .sumo_sense import NeighbourGuess, PackedLanes, sense_step
@@ -66,7 +67,8 @@ class SumoWorld(MemberHandover):
                 self.active[self.ids.index(mv.member)] = False
         self.waiting = np.zeros(n, dtype=bool)  # members of formations that depart later
         for setup, _, rows in plan.formations:
-            self.waiting[rows] = setup.depart > 0
+            self.waiting[rows] = setup.depart > 0 or bool(setup.flow)
+        self.flows_inserted = {}  # formation flow id -> formations that entered
         self.active &= ~self.waiting
         self.pending = np.flatnonzero(self.active)  # spawned, inserted at the next actuate
         self.sumo_ids = list(self.ids)  # SUMO's vehicle of each member (join: the one taken over)
@@ -113,7 +115,10 @@ class SumoWorld(MemberHandover):
         flows = []
         for f in sc.traffic.flows:
             edges, lanes = road.flow_routes[f.id]
-            flows.append((f, edges, flow_vehicles_per_hour(f, lanes)))
+            vph = flow_vehicles_per_hour(f, lanes)
+            if self.plan.flow_keep and f.id in self.plan.flow_keep and f.id != "of_flow":  # a formation flow's share
+                vph *= self.plan.flow_keep[f.id]
+            flows.append((f, edges, vph))
         routes = write_routes(self.sumo_dir / "traffic.rou.xml", flows, t_sumo_end)
         self.flows = [(f, e, vph, f.end if f.end is not None else t_sumo_end) for f, e, vph in flows]
         self.measure = measure_plan(sc, road, self.sumo_dir)
@@ -173,6 +178,9 @@ class SumoWorld(MemberHandover):
         try:
             self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
         finally:
+            if self.plan.flow_keep is not None:
+                self.meta["formation_flows"] = flow_counts(self.plan, self.flows_inserted, t_sumo - t0,
+                                                           self.adapter.departures, t0)
             if hasattr(self, "flows"):
                 from .fcd import true_speeds  # pandas: imported only to end a run
                 traffic_meta(self.meta, self.rec, self.flows, departed, t_sumo, t0, self.measure)
@@ -275,6 +283,13 @@ class SumoWorld(MemberHandover):
         self.active[rows] = True
         self.waiting[rows] = False
         self.pending = np.union1d(self.pending, rows).astype(np.int64)
+        if self.plan.flow_keep is not None:
+            counted_entry(self.plan, self.flows_inserted, rows)
+
+    def has_room(self, t: float, rows: slice, state) -> bool:
+        """Room on the road for the members ``rows`` where their state puts them (a formation
+        flow's formation enters only then: sim/sumo_flows.py)."""
+        return room_for(self, rows, state)
 
     def retire(self, t: float, rows, why: str) -> None:
         """Members ``rows`` leave the run and SUMO now (an event ``member_retired``)."""

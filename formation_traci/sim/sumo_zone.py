@@ -29,20 +29,40 @@ def subscribe_context(adapter, ids, active, along, across, radius):
     return owner
 
 
+def insertion_zone(pos, heading, v, veh, front):
+    """The free space a member (chassis ``veh``) needs where it is inserted at CoG ``pos`` [m],
+    ``heading`` [rad] and speed ``v`` [m/s]: its body, ``front`` [m] ahead of it and
+    INSERT_CLEAR_TIME of its speed (at least 2 m) behind it, 0.3 m beside it. Returns (centre,
+    length, width) [m] of that rectangle, aligned with ``heading``."""
+    back = max(2.0, v * INSERT_CLEAR_TIME)
+    shift = (front - back) / 2
+    zc = pos + shift * np.array([math.cos(heading), math.sin(heading)])
+    return zc, veh.length + front + back, veh.width + 0.6
+
+
 def clear_insertion_zone(adapter, rec, t, pos, heading, v, vehicles, front):
     """Remove SUMO vehicles that stand where a member (chassis ``vehicles[i]``) is inserted,
     or inside its time gap ahead (``front`` [m]) or within INSERT_CLEAR_TIME of its speed
-    behind it."""
+    behind it (:func:`insertion_zone`)."""
     ids, x, y, psi, length, width = adapter.vehicle_bodies()
+    zones = [insertion_zone(pos[i], heading[i], v[i], vehicles[i], front[i]) for i in range(len(pos))]
     for j, vid in enumerate(ids):
-        for i in range(len(pos)):
-            back = max(2.0, v[i] * INSERT_CLEAR_TIME)
-            veh = vehicles[i]
-            zone_len = veh.length + front[i] + back
-            shift = (front[i] - back) / 2
-            zc = pos[i] + shift * np.array([math.cos(heading[i]), math.sin(heading[i])])
-            if rectangles_overlap(zc, heading[i], np.array([x[j], y[j]]), psi[j], zone_len, veh.width + 0.6,
+        for i, (zc, zone_len, zone_w) in enumerate(zones):
+            if rectangles_overlap(zc, heading[i], np.array([x[j], y[j]]), psi[j], zone_len, zone_w,
                                   length[j], width[j]):
                 adapter.remove_vehicle(vid)
                 rec.add_event(t, "cleared_at_insertion", vid, "", "removed: it stood where a member is inserted")
                 break
+
+
+def has_room(pos, heading, v, vehicles, front, bodies) -> bool:
+    """Is every member's :func:`insertion_zone` free of the ``bodies`` (x, y, heading, length,
+    width arrays [m, rad] of the vehicles that could be there)?"""
+    x, y, psi, length, width = bodies
+    for i in range(len(pos)):
+        zc, zone_len, zone_w = insertion_zone(pos[i], heading[i], v[i], vehicles[i], front[i])
+        for j in range(len(x)):
+            if rectangles_overlap(zc, heading[i], np.array([x[j], y[j]]), psi[j], zone_len, zone_w,
+                                  length[j], width[j]):
+                return False
+    return True

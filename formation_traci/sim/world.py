@@ -73,6 +73,8 @@ class World(Protocol):
 
     def sensed_for(self, sensed: Sensed, rows: slice) -> Sensed: ...  # a formation's view of it
 
+    def has_room(self, t: float, rows: slice, state) -> bool: ...  # may members ``rows`` enter now?
+
     def adopt(self, state, ref): ...
 
     def spawn(self, t: float, rows: np.ndarray) -> None: ...
@@ -99,6 +101,9 @@ class FreeSpace:
 
     def adopt(self, state, ref):
         return state
+
+    def has_room(self, t, rows, state) -> bool:
+        return True
 
     def sensed_for(self, sensed, rows) -> Sensed:
         """Formations in free space do not see each other: their members' rows only."""

@@ -1,0 +1,68 @@
+"""Formation flows on the SUMO side (sim/formation_flows.py has the rule): is there room for a
+due formation, and the counts of formations requested and inserted (run.json
+``formation_flows``)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .sumo_zone import has_room
+
+LOOK_BEHIND_M, LOOK_AHEAD_M = 150.0, 250.0
+"""The stretch around a due formation's members whose vehicles may block its entry [m]."""
+
+
+def room_for(world, rows: slice, state) -> bool:
+    """Are the insertion zones (sim/sumo_zone.py ``insertion_zone``) of the members ``rows``
+    at their state's poses free of SUMO's vehicles and of the members of the run that SUMO
+    does not have yet?"""
+    pos, _, heading = world.fleet.kinematics(state)
+    v_all = world.fleet.speed(state)
+    idx = np.arange(rows.start, rows.stop)
+    s = world.line.to_frenet(pos[idx])[0]
+    lo, hi = float(np.min(s)) - LOOK_BEHIND_M, float(np.max(s)) + LOOK_AHEAD_M
+    edges = [g.edge for g in world.plan.road.segments if g.s1 >= lo and g.s0 <= hi]
+    _, x, y, psi, length, width = world.adapter.vehicle_bodies(world.adapter.vehicles_on(edges))
+    own = np.flatnonzero(world.active & ~world.in_sumo)  # spawned, not inserted yet
+    own = own[(own < rows.start) | (own >= rows.stop)]
+    if len(own):
+        mt = [world.mtypes[i] for i in own]
+        shift = np.array([m.d_front - m.length / 2 for m in mt])  # CoG -> body centre [m]
+        x = np.append(x, pos[own, 0] + shift * np.cos(heading[own]))
+        y = np.append(y, pos[own, 1] + shift * np.sin(heading[own]))
+        psi = np.append(psi, heading[own])
+        length = np.append(length, [m.length for m in mt])
+        width = np.append(width, [m.width for m in mt])
+    ld = world.sc.leader
+    v = v_all[idx]
+    return has_room(pos[idx], heading[idx], v, [world.plan.vehicles[i] for i in idx],
+                    ld.min_gap + ld.time_gap * v, (x, y, psi, length, width))
+
+
+def counted_entry(plan, inserted: dict, rows) -> None:
+    """Count a formation of a flow entering (``rows``: its members' fleet rows)."""
+    first = int(np.atleast_1d(rows)[0])
+    for setup, _, r in plan.formations:
+        if setup.flow and r.start == first:
+            inserted[setup.flow] = inserted.get(setup.flow, 0) + 1
+
+
+def flow_counts(plan, inserted: dict, t_end: float, departures, t0: float) -> dict:
+    """run.json ``formation_flows``: per flow, the formations due by ``t_end`` [s] (requested)
+    and those that entered (inserted), the members that entered, and for a penetration flow
+    the share of formation vehicles among all that entered during the run (its members and
+    the ``of_flow`` traffic flow's vehicles SUMO inserted after the warm-up ``t0`` [s])."""
+    out, of_flow = {}, plan.flow_keep.get("of_flow", {})
+    for setup, p, _ in plan.formations:
+        if setup.flow:
+            c = out.setdefault(setup.flow, {"requested": 0, "inserted": inserted.get(setup.flow, 0),
+                                            "members_inserted": 0})
+            c["requested"] += int(setup.depart <= t_end + 1e-9)
+            c["members_per_formation"] = len(p.ids)
+    for fid, c in out.items():
+        c["members_inserted"] = c["inserted"] * c.pop("members_per_formation")
+        src = of_flow.get(fid, "")
+        if src:
+            n = sum(1 for vid, t in departures if t >= t0 and vid.rsplit(".", 1)[0] == src)
+            c["share"] = c["members_inserted"] / max(1, c["members_inserted"] + n)
+            c["of_flow_vehicles"] = n
+    return out

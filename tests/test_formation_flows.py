@@ -1,0 +1,93 @@
+"""Formations inserted by a flow (issue 27, item 2): a penetration rate of a traffic flow
+inserts formations at the asked share of the vehicles entering during the run (within 10 %),
+run.json counts requested and inserted formations, each formation is '<flow>.<k>' with its
+own rows, and a formation that reaches the end of its route is retired."""
+import json
+
+import pandas as pd
+import pytest
+
+from formation_traci.scenario import ScenarioError, load_scenario
+from formation_traci.sim.runner import run_scenario
+from formation_traci.sim.formation_flows import expand_flows, flow_period
+
+SC = """
+name = "flow"
+[run]
+duration = 120.0
+seed = 1
+[road]
+net = "straight3"
+lane = 1
+start = 300.0
+[leader]
+speed = 30.0
+[[members]]
+id = "a"
+slot = { along = 0.0, lanes = 0 }
+[[formation_flows]]
+id = "pen"
+lane = 0
+start = 3500.0
+penetration = 0.1
+of_flow = "main"
+[formation_flows.formation]
+leader = { speed = 28.0 }
+members = [{ id = "m1", slot = { along = 0.0, lanes = 0 } }, { id = "m2", slot = { along = -12.0, lanes = 0 } }]
+[traffic]
+warmup = 30.0
+[[traffic.flows]]
+id = "main"
+veh_per_hour_per_lane = 1000
+"""
+
+
+def test_the_period_follows_from_the_share_of_the_flow(tmp_path):
+    """p = 0.1 of 3 x 1000 veh/h in formations of 2: 300 formation veh/h, one formation every
+    2 x 3600 / 300 = 24 s; the traffic flow keeps 90 % of its demand; 120 s: 5 formations due
+    (t = 0, 24, 48, 72, 96 s)."""
+    p = tmp_path / "s.toml"
+    p.write_text(SC)
+    sc = load_scenario(p)
+    assert flow_period(sc, sc.formation_flows[0], {"main": 3}) == pytest.approx(24.0)
+    run_sc, flow_of, keep = expand_flows(sc, {"main": 3})
+    assert [f.depart for f in run_sc.formations] == pytest.approx([0.0, 24.0, 48.0, 72.0, 96.0])
+    assert [m.id for m in run_sc.formations[1].members] == ["pen.1.m1", "pen.1.m2"]
+    assert set(flow_of.values()) == {"pen"} and keep["main"] == pytest.approx(0.9)
+
+
+def test_a_penetration_flow_inserts_its_share_and_retires_at_the_route_end(tmp_path):
+    p = tmp_path / "s.toml"
+    p.write_text(SC)
+    res = run_scenario(load_scenario(p), tmp_path / "run", scenario_path=p, force=True, progress=False)
+    assert res.status == "completed", res.reason
+    assert res.incidents["member_collisions"] == 0
+    meta = json.loads((tmp_path / "run" / "run.json").read_text())
+    counts = meta["formation_flows"]["pen"]
+    assert counts["requested"] == 5 and counts["inserted"] == 5 and counts["members_inserted"] == 10
+    assert counts["share"] == pytest.approx(0.1, rel=0.1)  # within 10 % of the asked share
+    assert meta["scenario"]["formation_flows"][0]["id"] == "pen"  # run.json keeps the scenario as given
+    tr = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
+    ev = pd.read_parquet(tmp_path / "run" / "events.parquet")
+    first = tr[tr.formation_id == "pen.0"]
+    assert set(first.vehicle_id) == {"pen.0.m1", "pen.0.m2", "vc:pen.0"}
+    # every formation's members are in SUMO after their first step, where we put them
+    members = tr[tr.formation_id.str.startswith("pen.") & ~tr.vehicle_id.str.startswith("vc")]
+    placed = members[members.t > members.groupby("vehicle_id").t.transform("min")]
+    assert placed.sumo_gap.notna().all() and placed.sumo_gap.max() < 0.01
+    assert set(placed.lane_index.dropna()) == {0.0}
+    # from s = 3500 m at 28 m/s the first formations reach the end of the 6 km route and retire
+    retired = ev[ev.kind == "member_retired"]
+    assert {"pen.0.m1", "pen.0.m2"} <= set(retired.vehicle_id)
+    assert "vc:pen.0" in set(ev[ev.kind == "end_of_road"].vehicle_id)
+    assert tr[tr.vehicle_id == "a"].t.max() == pytest.approx(120.0)  # the run goes on
+
+
+def test_a_flow_needs_exactly_one_rule_and_a_known_flow(tmp_path):
+    p = tmp_path / "s.toml"
+    p.write_text(SC.replace('penetration = 0.1', 'penetration = 0.1\nperiod_s = 10.0'))
+    with pytest.raises(ScenarioError, match="exactly one of"):
+        load_scenario(p)
+    p.write_text(SC.replace('of_flow = "main"', 'of_flow = "side"'))
+    with pytest.raises(ScenarioError, match="formation_flows.0.of_flow"):
+        load_scenario(p)
