@@ -10,14 +10,14 @@ from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from ..control.laws import DEFAULT_LAW, law_names
+from ..control.laws import DEFAULT_LAW, SUMO_LAWS, law_names
 from ..record.columns import DEFAULT_FORMATION_ID
 
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict  # noqa: F401
 from .comm_spec import CommLinkSpec, CommSpec  # noqa: F401
+from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec, SumoCaccSpec, sumo_cacc_rules  # noqa: F401
 from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec
 from .road_traffic import FlowSpec, RoadSpec, RouteEnds, RouteValue, TrafficSpec  # noqa: F401 (re-exported)
-
 
 
 class RunSpec(Strict):
@@ -91,39 +91,15 @@ class GainSpec(Strict):
 GAIN_TABLES = Literal["table_3_4", "table_3_6", "table_3_7", "table_3_8", "table_3_12"]
 
 
-class AccSpec(Strict):
-    """controller.acc: constant time gap on ego sensing (control/laws/acc.py; Plexe's defaults)."""
-
-    headway_s: PosFloat = Field(1.2, description="time gap h [s]")
-    gap_gain: PosFloat = Field(0.1, description="gap gain lambda [1/s]")
-    standstill_m: NonNegFloat = Field(2.0, description="standstill gap r0 [m]")
-
-
-class CaccPathSpec(Strict):
-    """controller.cacc_path: PATH/Rajamani constant spacing (control/laws/cacc_path.py)."""
-
-    spacing_m: PosFloat = Field(5.0, description="constant gap d [m]")
-    c1: float = Field(0.5, ge=0.0, le=1.0, description="leader weight C1 [-]")
-    xi: float = Field(1.0, ge=1.0, description="damping ratio xi [-] (>= 1)")
-    omega_n_hz: PosFloat = Field(0.2, description="bandwidth f_n [Hz] (w_n = 2 pi f_n)")
-
-
-class CaccPloegSpec(Strict):
-    """controller.cacc_ploeg: Ploeg's constant-time-gap CACC (control/laws/cacc_ploeg.py)."""
-
-    h_s: PosFloat = Field(0.5, description="time gap h [s]")
-    kp: PosFloat = Field(0.2, description="gap gain kp [1/s^2]")
-    kd: PosFloat = Field(0.7, description="gap-rate gain kd [1/s]")
-    standstill_m: NonNegFloat = Field(2.0, description="standstill gap r0 [m]")
-
-
 class ControllerSpec(Strict):
     law: str = Field(DEFAULT_LAW, description="the members' control law by name (control/laws): "
                      "'virtual_structure' is the seed's (2.4-2.11 with 3.32-3.38); 'acc', "
-                     "'cacc_path', 'cacc_ploeg' follow the member ahead (docs/platoon_laws.md)")
+                     "'cacc_path', 'cacc_ploeg' follow the member ahead; 'sumo_cacc': SUMO's own "
+                     "CACC drives the followers (road runs; docs/platoon_laws.md)")
     acc: AccSpec = AccSpec()
     cacc_path: CaccPathSpec = CaccPathSpec()
     cacc_ploeg: CaccPloegSpec = CaccPloegSpec()
+    sumo_cacc: SumoCaccSpec = SumoCaccSpec()
     k: PosFloat = Field(1.0, description="position gain of (2.7) [m/s]")
     k_theta: PosFloat = Field(3.0, description="heading gain of (2.8) [1/s]")
     speed_gains: GAIN_TABLES | GainSpec = Field(
@@ -133,8 +109,9 @@ class ControllerSpec(Strict):
     @field_validator("law")
     @classmethod
     def _known_law(cls, v):
-        if v not in law_names():
-            raise ValueError(f"unknown control law {v!r}; expected one of: {', '.join(law_names())}")
+        if v not in law_names() + SUMO_LAWS:
+            raise ValueError(f"unknown control law {v!r}; expected one of: "
+                             f"{', '.join(law_names() + SUMO_LAWS)}")
         return v
 
 
@@ -388,6 +365,10 @@ class Scenario(Strict):
         if len(set(ids)) != len(ids):
             raise ValueError("flow ids must be unique")
         return self
+
+    @model_validator(mode="after")
+    def _sumo_cacc(self):
+        return sumo_cacc_rules(self)
 
     @model_validator(mode="after")
     def _unique_ids(self):

@@ -8,23 +8,23 @@ import numpy as np
 
 from ..scenario.schema import Scenario
 from .sumo_plan import RoadPlan
-from .sumo_world import SumoWorld
 
 
 def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
              baseline: bool = False, step_hook=None, should_stop=None):
     """World, reference generator and fleet of a road run (loop.step_loop runs them)."""
     from ..control.reference_road import GovernorLimits, RoadReference
-    from .fleet import Fleet, initial_state
+    from .fleet import initial_state
     from .loop import one_formation
     from .road_load import road_load_part
     from .setup import build_fleet, follow_limit, profile, road_mu
+    from .sumo_driven import world_and_fleet
     from .sumo_plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
 
     run, ld, veh, line = sc.run, sc.leader, plan.veh, plan.road.line
     n_ctrl = int(round(run.step / run.control_step))
     cfg = build_fleet(sc)
-    fleet = Fleet(cfg)
+    fleet, world_class = world_and_fleet(sc, cfg, baseline)  # sumo_cacc: SUMO drives followers
     speed_profile = profile(ld.speed)
     # the virtual car never asks for more than the road's adhesion allows the members
     mu_g = road_mu(sc) * 9.81  # and never more than every member's speed law can follow
@@ -37,7 +37,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     tg0 = initial_targets(plan.road, plan.slots, plan.rigid, plan.is_road, s0, v0, 0.0)
     yaw0 = plan.speed0 * line.curvature(line.to_frenet(plan.pos0)[0])
     state = initial_state(cfg, plan.pos0, plan.heading0, plan.speed0, yaw0, np.zeros(cfg.n), tg0)
-    world = SumoWorld(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
+    world = world_class(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
     world.should_stop = should_stop
     args = (world.line.G, world.line.length, plan.slots, plan.rigid, plan.is_road, s0, v0,
             speed_profile, limits, np.array([v.width / 2 for v in plan.vehicles]),
