@@ -1,7 +1,9 @@
 """Writes the string-stability scenario set of issue 28 (docs/platoon_laws.md): Plexe's
 reference experiment, 8 cars at 100 km/h in one lane of free space, the leader's speed a 0.2 Hz
 +-10 km/h sinusoid from t = 5 s (sinusoid_<law>.toml) or a brake at 8 m/s^2 (braking_<law>.toml),
-each column started at its law's equilibrium gap. Run: python scenarios/platoon/make_platoon.py
+each column started at its law's equilibrium gap; sinusoid_sumo_cacc.toml and braking_sumo_cacc.toml: the
+same column on a SUMO road (straight3, lane 0) whose followers SUMO's own CACC drives
+(docs/platoon_laws.md "SUMO's CACC twin"). Run: python scenarios/platoon/make_platoon.py
 """
 from __future__ import annotations
 
