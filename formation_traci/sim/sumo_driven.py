@@ -130,6 +130,11 @@ class SumoDrivenWorld(SumoWorld):
             if self.fleet.driven[i]:
                 self.adapter.drive_with_sumo(self.sumo_ids[i])
 
+    def actuate(self, t_next: float, state, v_before) -> None:
+        super().actuate(t_next, state, v_before)
+        if self.true_v is not None:  # FCD in the formation frame: SUMO's speed is their truth
+            self.true_v[int(round(t_next / self.sc.run.step))][self.fleet.driven] = np.nan
+
     def sense(self, k: int, t: float, state):
         if self.inserted:
             self._read_driven(state)
