@@ -19,25 +19,17 @@ import pandas as pd
 
 from analysis.load import Issue, NoTrajectoryData, load_run
 from analysis.maneuvers import PHASE_METRICS, maneuver_intervals, phase_metrics
+from analysis.platoon import COMPARE_ROWS, compare_value
 from analysis.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN_METRICS,
                               AnalysisSettings, RunAnalysis, compute_run, settings_dict)
 from analysis.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
                                   TrafficAnalysis, load_baseline)
-from formation_traci.record.rundir import looks_like_run, open_report_dir, require_run_dir
-from formation_traci.record.rundir import atomic_write_text
+from formation_traci.record.rundir import (atomic_write_text, looks_like_run, open_report_dir,
+                                            require_run_dir)
 
 __all__ = [
-    "SCHEMA",
-    "METRICS_JSON",
-    "METRICS_CSV",
-    "REPORT_HTML",
-    "BASELINE_CSV",
-    "COMM_AGE_CSV",
-    "FIGURES_DIR",
-    "AnalysisResult",
-    "CompareResult",
-    "NoTrajectoryData",
-    "analyze_run",
+    "SCHEMA", "METRICS_JSON", "METRICS_CSV", "REPORT_HTML", "BASELINE_CSV", "COMM_AGE_CSV",
+    "FIGURES_DIR", "AnalysisResult", "CompareResult", "NoTrajectoryData", "analyze_run",
     "compare_runs",
 ]
 
@@ -55,7 +47,7 @@ FIGURES_DIR = "figures"
 
 _COMPARE_RUN_ROWS = ("status", "model", "mu", "duration_s", "sample_rate_hz",
                      "n_members_with_data", "shape_error_rms_m", "shape_error_max_m",
-                     "string_stable", "string_peak_ratio_max")
+                     "string_stable", "string_peak_ratio_max", *COMPARE_ROWS)
 
 
 @dataclass(frozen=True)
@@ -350,7 +342,7 @@ def _compare_into(dirs: list[Path], bases: list, out: Path, settings: AnalysisSe
         raise NoTrajectoryData("none of the runs has trajectory data: "
                                + "; ".join(i.detail for v in issues.values() for i in v))
 
-    units = {**RUN_METRICS, **MEMBER_METRICS}
+    units = {**RUN_METRICS, **MEMBER_METRICS, **dict.fromkeys(COMPARE_ROWS, "-")}
     index = (list(_COMPARE_RUN_ROWS) + [f"worst {k}" for k in KEY_METRICS]
              + [f"traffic {k}" for k in TRAFFIC_COMPARE_METRICS] + ["data problems"])
     table = pd.DataFrame(index=index, columns=["unit", *analyses], dtype=object)
@@ -364,7 +356,7 @@ def _compare_into(dirs: list[Path], bases: list, out: Path, settings: AnalysisSe
     table.loc["data problems", "unit"] = "-"
     for label, a in analyses.items():
         for k in _COMPARE_RUN_ROWS:
-            table.loc[k, label] = _jsonable(a.run.get(k))
+            table.loc[k, label] = _jsonable(compare_value(a, k))
         for k in KEY_METRICS:
             table.loc[f"worst {k}", label] = a.run["worst"].get(k)
         for k in TRAFFIC_COMPARE_METRICS:

@@ -23,6 +23,18 @@ from analysis import formation
 SPEED_ERROR_FLOOR_MPS = 1e-6
 """Peak speed errors below this are round-off [m/s]."""
 
+COMPARE_ROWS = ("string_amplification", "gamma_mean")
+"""Formation-level rows of ``formation-traci compare`` (the run's first formation): our column
+against SUMO's CACC twin (docs/platoon_laws.md) side by side."""
+
+
+def compare_value(analysis, key: str):
+    """The comparison table's value of ``key`` for a RunAnalysis: run-level, or (a
+    :data:`COMPARE_ROWS` key) its first formation's record (None without one)."""
+    if key not in COMPARE_ROWS:
+        return analysis.run.get(key)
+    return analysis.formations[0].get(key) if analysis.formations else None
+
 
 def amplification(speeds: np.ndarray) -> tuple[float, float, float]:
     """(ratio, peak |e_first| [m/s], peak |e_last| [m/s]) of a column's speeds (n >= 3 members,

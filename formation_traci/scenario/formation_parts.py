@@ -5,9 +5,9 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from ..control.laws import DEFAULT_LAW, law_names
+from ..control.laws import DEFAULT_LAW, SUMO_LAWS, law_names
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict
-from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec
+from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec, SumoCaccSpec
 from .maneuvers import SlotSpec
 
 
@@ -63,10 +63,12 @@ GAIN_TABLES = Literal["table_3_4", "table_3_6", "table_3_7", "table_3_8", "table
 class ControllerSpec(Strict):
     law: str = Field(DEFAULT_LAW, description="the members' control law by name (control/laws): "
                      "'virtual_structure' is the seed's (2.4-2.11 with 3.32-3.38); 'acc', "
-                     "'cacc_path', 'cacc_ploeg' follow the member ahead (docs/platoon_laws.md)")
+                     "'cacc_path', 'cacc_ploeg' follow the member ahead; 'sumo_cacc': SUMO's own "
+                     "CACC drives the followers (road runs; docs/platoon_laws.md)")
     acc: AccSpec = AccSpec()
     cacc_path: CaccPathSpec = CaccPathSpec()
     cacc_ploeg: CaccPloegSpec = CaccPloegSpec()
+    sumo_cacc: SumoCaccSpec = SumoCaccSpec()
     k: PosFloat = Field(1.0, description="position gain of (2.7) [m/s]")
     k_theta: PosFloat = Field(3.0, description="heading gain of (2.8) [1/s]")
     speed_gains: GAIN_TABLES | GainSpec = Field(
@@ -76,8 +78,9 @@ class ControllerSpec(Strict):
     @field_validator("law")
     @classmethod
     def _known_law(cls, v):
-        if v not in law_names():
-            raise ValueError(f"unknown control law {v!r}; expected one of: {', '.join(law_names())}")
+        if v not in law_names() + SUMO_LAWS:
+            raise ValueError(f"unknown control law {v!r}; expected one of: "
+                             f"{', '.join(law_names() + SUMO_LAWS)}")
         return v
 
 

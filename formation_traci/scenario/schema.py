@@ -18,7 +18,7 @@ from .comm_spec import CommLinkSpec, CommSpec  # noqa: F401
 from .formation_parts import (GAIN_TABLES, SURFACE_NAMES, ControllerSpec, GainSpec,  # noqa: F401 (re-exported)
                               LeaderSpec, MemberSpec, VehicleOverrides, VehicleSpec)
 from .formation_spec import FormationFlowSpec, FormationSpec, FormationTemplate, formation_fits  # noqa: F401
-from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec  # noqa: F401 (re-exported)
+from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec, SumoCaccSpec, sumo_cacc_rules  # noqa: F401
 from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec  # noqa: F401 (re-exported)
 from .road_traffic import FlowSpec, RoadSpec, RouteEnds, RouteValue, TrafficSpec  # noqa: F401 (re-exported)
 
@@ -179,6 +179,13 @@ class Scenario(Strict):
             raise ValueError("maneuvers: a road scenario with several formations runs no maneuvers "
                              "in this version (each formation keeps its slots)")
         return self
+
+    @model_validator(mode="after")
+    def _sumo_cacc(self):
+        laws = [f.controller.law for f in self.formations] + [f.formation.controller.law for f in self.formation_flows]
+        if "sumo_cacc" in laws or (self.controller.law == "sumo_cacc" and (self.formations or self.formation_flows)):
+            raise ValueError("controller.law = \"sumo_cacc\" runs in a scenario of one formation only")
+        return sumo_cacc_rules(self)
 
     @model_validator(mode="after")
     def _energy_needs_forces(self):

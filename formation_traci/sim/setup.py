@@ -6,6 +6,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..control.formation import LeaderState, rigid_targets
+from ..control.laws import DEFAULT_LAW, SUMO_LAWS
 from ..control.schedule import FOLLOW_SHARE, GAIN_PRESETS, GainSchedule, law_peak
 from ..control.virtual_car import FreeLeader, Profile
 from ..models.linear import stable_blend_speed
@@ -121,7 +122,7 @@ def build_fleet(sc: Scenario) -> FleetConfig:
         speed_gains=_member_gains(sc, "speed_gains"),
         yaw_gains=_member_gains(sc, "yaw_gains"),
         physics_step=sc.run.physics_step,
-        law=ctl.law,
+        law=DEFAULT_LAW if ctl.law in SUMO_LAWS else ctl.law,  # SUMO's: sim/sumo_driven.py
         pred=column_predecessors(sc),
         bumpers=tuple((v.a + v.front_overhang, v.length - v.a - v.front_overhang)
                       for v in vehicles),

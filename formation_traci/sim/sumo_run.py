@@ -15,17 +15,17 @@ from .sumo_world import SumoWorld
 def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
              baseline: bool = False, step_hook=None, should_stop=None):
     """World, reference generators and fleet of a road run (loop.step_loop runs them)."""
-    from .fleet import Fleet
     from .formation import Formation, join_configs, join_states, virtual_car_id
     from .loop import RunParts, one_formation
     from .road_load import road_load_part
     from .setup import build_fleet
+    from .sumo_driven import world_and_fleet
 
     parts = plan.formations or ((None, plan, slice(0, len(sc.members))),)
     views = [sc if setup is None else setup.view for setup, _, _ in parts]
     cfgs = [build_fleet(view) for view in views]
-    fleet = Fleet(join_configs(cfgs))
-    world = SumoWorld(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
+    fleet, world_class = world_and_fleet(sc, join_configs(cfgs), baseline)  # sumo_cacc: SUMO drives followers
+    world = world_class(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
     world.should_stop = should_stop
     built = [_formation_parts(view, p, cfg, fleet.gains[rows], world, meta)
              for view, (_, p, rows), cfg in zip(views, parts, cfgs)]

@@ -113,6 +113,15 @@ class MemberType:
     vclass: str  # SUMO vehicle class
     max_speed: float = 70.0  # [m/s] above anything a member reaches, so SUMO never clamps
     ssm_device: bool = False  # SUMO's SSM device on members of this type (sumo.ssm = "members")
+    # what SUMO's own driver model uses (a member placed by moveToXY ignores them; one SUMO
+    # drives, sim/sumo_driven.py, does not): the vType copied (its car-following model and its
+    # parameters; a CACC one from an additional file), minGap [m], accel, decel, emergency
+    # decel [m/s^2]
+    base: str = "DEFAULT_VEHTYPE"
+    min_gap: float = 0.5
+    accel: float = 10.0
+    decel: float = 10.0
+    emergency_decel: float = 12.0
 
 
 @dataclass(frozen=True)

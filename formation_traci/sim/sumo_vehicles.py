@@ -8,6 +8,8 @@ no SUMO itself.
 """
 from __future__ import annotations
 
+import numpy as np
+
 from .sumo_types import (LANE_CHANGE_MODE_DEFAULT, ORDINARY_CLASS, SPEED_MODE_DEFAULT, MemberType,
                          SumoError)
 
@@ -40,18 +42,18 @@ class VehicleSetup:
 
     def add_member_type(self, mt: MemberType) -> None:
         vt = self.api.vehicletype
-        vt.copy("DEFAULT_VEHTYPE", mt.id)
+        vt.copy(mt.base, mt.id)
         vt.setLength(mt.id, mt.length)
         vt.setWidth(mt.id, mt.width)
         vt.setColor(mt.id, (*mt.color, 255))
         vt.setVehicleClass(mt.id, mt.vclass)
         vt.setMaxSpeed(mt.id, mt.max_speed)
-        vt.setMinGap(mt.id, 0.5)
+        vt.setMinGap(mt.id, mt.min_gap)
         vt.setImperfection(mt.id, 0.0)
         vt.setSpeedDeviation(mt.id, 0.0)
-        vt.setAccel(mt.id, 10.0)
-        vt.setDecel(mt.id, 10.0)
-        vt.setEmergencyDecel(mt.id, 12.0)
+        vt.setAccel(mt.id, mt.accel)
+        vt.setDecel(mt.id, mt.decel)
+        vt.setEmergencyDecel(mt.id, mt.emergency_decel)
         vt.setMaxSpeedLat(mt.id, 10.0)
         if mt.ssm_device:  # by the type, not --device.ssm.explicit: SUMO keeps that id list
             vt.setParameter(mt.id, "has.ssm.device", "true")  # from the first run of a process
@@ -118,3 +120,24 @@ class VehicleSetup:
         v.subscribe(vid, self._member_vars())  # replaces a neighbour subscription
         self._subscribed.add(vid)
         self._window[vid] = (route_id, -1)
+
+    def drive_with_sumo(self, vid: str) -> None:
+        """Member ``vid`` (inserted, placed once) is driven by its vType's own car-following
+        model from now on (sim/sumo_driven.py): SUMO's safe-speed checks on (the default speed
+        mode), lane changes off (it keeps its lane), no moveToXY."""
+        self.api.vehicle.setSpeedMode(vid, SPEED_MODE_DEFAULT)
+        self.api.vehicle.setLaneChangeMode(vid, 0)
+
+    def driven_states(self, ids: list[str]):
+        """SUMO's state of vehicles ``ids`` after the last step: front bumper (n, 2) [m], angle
+        (n,) [deg, CW from north], speed (n,) [m/s], acceleration (n,) [m/s^2] (NaN for a
+        vehicle SUMO no longer has)."""
+        v = self.api.vehicle
+        out = np.full((len(ids), 5), np.nan)
+        for i, vid in enumerate(ids):
+            try:
+                out[i, :2] = v.getPosition(vid)
+                out[i, 2:] = v.getAngle(vid), v.getSpeed(vid), v.getAcceleration(vid)
+            except self.api.TraCIException:
+                pass  # removed: read_members reports it
+        return out[:, :2], out[:, 2], out[:, 3], out[:, 4]

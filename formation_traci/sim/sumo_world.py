@@ -61,6 +61,8 @@ class SumoWorld(MemberHandover):
         self.out_dir, self.sumo_dir = out_dir, out_dir / "sumo"
         self.active = np.ones(n, dtype=bool)  # members in the run
         self.in_sumo = np.zeros(n, dtype=bool)  # members SUMO has (inserted, not removed)
+        self.moved = np.ones(n, dtype=bool)  # members placed by moveToXY (False: SUMO drives, sim/sumo_driven.py)
+        self.adds: list[str] = []  # further SUMO additional files (sim/sumo_driven.py: its vTypes)
         self._every = np.arange(n)
         for mv in sc.maneuvers:  # a joining member enters when it takes a vehicle over
             if mv.kind == "join":
@@ -125,7 +127,7 @@ class SumoWorld(MemberHandover):
         self.sections = plan_sections(sc, road, self.sumo_dir)
         drain_s = sc.traffic.sections.drain_max if self.sections is not None else 0.0
         args = sumo_args(sc, road.net_file, routes, self.sumo_dir, t_sumo_end + drain_s, self.ids)
-        adds = [str(self.measure["file"])] if self.measure is not None else []
+        adds = ([str(self.measure["file"])] if self.measure is not None else []) + self.adds
         if self.sections is not None:
             adds.append(str(self.sections["file"]))
         if adds:
@@ -337,7 +339,7 @@ class SumoWorld(MemberHandover):
         if self.true_v is not None:  # the members' true speeds for the FCD (sim/fcd.py)
             self.true_v[int(round(t_next / self.sc.run.step))] = np.where(self.active, v_after, np.nan)
         ids, ad = self.ids, self.adapter
-        act_idx = np.flatnonzero(self.active & self.in_sumo)
+        act_idx = np.flatnonzero(self.active & self.in_sumo & self.moved)
         if len(self.pending):  # a twin clears the same vehicles at the same step (same state)
             self._insert(t_next, self.pending, pos, heading, v_after)
         if self.baseline or not len(act_idx):
@@ -374,7 +376,7 @@ class SumoWorld(MemberHandover):
             ad.subscribe_departed()
             self.inserted = True  # reads neighbours (every vehicle) from now on
             return
-        here_now = self.active & self.in_sumo
+        here_now = self.active & self.in_sumo & self.moved
         if here_now.all():
             ad.set_true_speeds(self.sumo_ids, self.v_after, self.a_mean)
         else:

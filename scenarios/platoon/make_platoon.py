@@ -1,7 +1,9 @@
 """Writes the string-stability scenario set of issue 28 (docs/platoon_laws.md): Plexe's
 reference experiment, 8 cars at 100 km/h in one lane of free space, the leader's speed a 0.2 Hz
 +-10 km/h sinusoid from t = 5 s (sinusoid_<law>.toml) or a brake at 8 m/s^2 (braking_<law>.toml),
-each column started at its law's equilibrium gap. Run: python scenarios/platoon/make_platoon.py
+each column started at its law's equilibrium gap; sinusoid_sumo_cacc.toml and braking_sumo_cacc.toml: the
+same column on a SUMO road (straight3, lane 0) whose followers SUMO's own CACC drives
+(docs/platoon_laws.md "SUMO's CACC twin"). Run: python scenarios/platoon/make_platoon.py
 """
 from __future__ import annotations
 
@@ -56,6 +58,27 @@ def scenario(name: str, gap_m: float, controller: str, speed: str, vehicle_extra
             f"[controller]\n{controller}\n[leader]\nspeed = {speed}\n\n{members}")
 
 
+SUMO_CACC = ('law = "sumo_cacc"\nsumo_cacc = { tau_s = 0.5, min_gap_m = 2.0, accel_mps2 = 5.0, '
+             'decel_mps2 = 8.0, emergency_decel_mps2 = 9.0 }\ncacc_ploeg = { h_s = 0.5, kp = 0.2, '
+             'kd = 0.7 }\n')
+"""SUMO's CACC at Ploeg's time gap and standstill gap (desired gap minGap + tau v = 15.89 m);
+cacc_ploeg is the law our column runs in the comparison (--set controller.law='"cacc_ploeg"')."""
+
+
+def road_scenario(name: str, gap_m: float, controller: str, speed: str,
+                  duration: float = DURATION_S) -> str:
+    """The column in lane 0 of the straight motorway (sumo_nets/straight3), no traffic: the
+    head at 300 m, the others behind it at ``gap_m`` bumper to bumper."""
+    members = "".join(f'[[members]]\nid = "p{i}"\nslot = {{ along = {-i * (gap_m + LENGTH_M):.4f}, '
+                      f"lanes = 0 }}\n\n" for i in range(N))
+    return (f'name = "{name}"\ndescription = "issue 28 string stability on a SUMO road: 8 cars at '
+            f'100 km/h in lane 0, gap {gap_m:.2f} m (written by make_platoon.py)"\n\n'
+            f"[run]\nduration = {duration}\nstep = 0.05\ncontrol_step = 0.01\n\n"
+            f'[vehicle]\nmodel = "dynamic"\npreset = "passenger_car"\n\n'
+            f'[road]\nnet = "straight3"\nlane = 0\nstart = 500.0\n\n'
+            f"[controller]\n{controller}\n[leader]\nspeed = {speed}\n\n{members}")
+
+
 def main(out: Path = Path(__file__).parent) -> None:
     for law, (gap, ctl, extra) in LAWS.items():
         (out / f"sinusoid_{law}.toml").write_text(scenario(f"sinusoid-{law}", gap, ctl,
@@ -66,6 +89,11 @@ def main(out: Path = Path(__file__).parent) -> None:
     (out / "sinusoid_acc_short_gap.toml").write_text(scenario(
         "sinusoid-acc-short-gap", gap, 'law = "acc"\nacc = { headway_s = 0.3 }\n', sinusoid(),
         "[vehicle.params]\ndrive_lag_s = 0.5\n"))
+    gap = 2.0 + 0.5 * V0
+    (out / "sinusoid_sumo_cacc.toml").write_text(road_scenario("sinusoid-sumo_cacc", gap, SUMO_CACC,
+                                                               sinusoid()))
+    (out / "braking_sumo_cacc.toml").write_text(road_scenario("braking-sumo_cacc", gap, SUMO_CACC,
+                                                              braking(), 15.0))
 
 
 if __name__ == "__main__":

@@ -40,6 +40,10 @@ BUILTIN: dict[str, tuple[str, int]] = {
 PLATOON_LAWS = ("acc", "cacc_path", "cacc_ploeg")
 """Built-in laws that follow the member ahead in a column (FleetConfig.pred)."""
 
+SUMO_LAWS = ("sumo_cacc",)
+"""Laws SUMO's own car-following model runs (no kernel here; road runs only,
+sim/sumo_driven.py): the column's head runs the virtual structure, SUMO drives the followers."""
+
 _RUNTIME: dict[str, ModuleType] = {}
 
 

@@ -1,0 +1,179 @@
+"""SUMO's own CACC as the followers' law: ``controller.law = "sumo_cacc"`` (docs/platoon_laws.md,
+"SUMO's CACC twin").
+
+What drives what. The column's head (a member without predecessor, FleetConfig.pred -1) is
+ours, exactly as under our platoon laws: the virtual structure on its slot of the virtual car
+(which follows ``leader.speed`` through the governor), placed with moveToXY, its true speed and
+acceleration told to SUMO after every step. Every follower is inserted at the pose and speed our
+column would start from (same lane, same spacing), of a vType with SUMO's ``CACC``
+car-following model (``controller.sumo_cacc``; written to ``sumo/sumo_cacc.add.xml``, copied per
+member preset with the member's chassis length and width), and from then on SUMO drives it: the
+default speed mode, no lane changes, no moveToXY. SUMO's CACC follows the vehicle ahead in its
+lane (MSCFModel_CACC.cpp: CACC when that vehicle's vType is CACC, else its ACC fallback; the
+head's vType is CACC too, so the first follower runs CACC on it).
+
+Recording. At every sense the followers' SUMO state (front bumper, angle, speed,
+acceleration) is read back and written into their rows of the fleet state (CoG frame), so the
+loop records them in the same tables as our members: x, y, heading, v from SUMO, yaw_rate the
+heading's rate over the step, a_lon SUMO's acceleration, a_lat v times yaw_rate, the formation
+error (ex .. y_des) against their slots on the virtual car as for any member, ``sumo_gap`` ~ 0
+(their state is SUMO's); the model's own columns (v_ref, omega_ref, steer .. drag_ratio) are
+NaN. Their comfort rows at the control rate hold the step's values (SUMO changes a speed once
+per step). The fleet still steps their rows with the head's law (thrown away at the next read).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ..models.bicycle import S
+from ..models.state import KINEMATIC
+from ..record.columns import SIGNAL_COLUMNS
+from .fleet import Fleet
+from .sumo_types import sumo_to_cog
+from .sumo_world import SumoWorld
+
+SUMO_CACC = "sumo_cacc"
+"""``controller.law`` of this module (control/laws SUMO_LAWS)."""
+CACC_BASE_TYPE = "sumo_cacc"
+"""The CACC vType of the additional file; every member type is a copy of it."""
+
+_COL = {c: SIGNAL_COLUMNS.index(c) for c in ("v", "yaw_rate", "a_lon", "a_lat")}
+_MODEL_ONLY = [SIGNAL_COLUMNS.index(c) for c in (
+    "v_ref", "omega_ref", "steer", "steer_rate", "beta", "slip_front", "slip_rear",
+    "traction_force", "traction_force_max", "friction_usage", "power", "drag_force",
+    "drag_ratio") if c in SIGNAL_COLUMNS]
+"""Signal columns of our vehicle model and controller: NaN for a member SUMO drives."""
+
+
+def world_and_fleet(sc, cfg, baseline: bool):
+    """(fleet, World class) of a road run: SUMO drives the followers under ``sumo_cacc``
+    (a baseline twin has no formation: the ordinary ones)."""
+    if sc.controller.law != SUMO_CACC or baseline:
+        return Fleet(cfg), SumoWorld
+    return DrivenFleet(cfg), SumoDrivenWorld
+
+
+class DrivenFleet(Fleet):
+    """A Fleet whose followers (``driven``: pred >= 0) SUMO drives: their recorded signals
+    are SUMO's motion (:attr:`sumo`, written by :class:`SumoDrivenWorld` at every sense)."""
+
+    def __init__(self, cfg):
+        super().__init__(cfg)
+        self.driven = self.pred >= 0
+        self.sumo = np.zeros((cfg.n, 3))  # v [m/s], a_lon [m/s^2], yaw rate [rad/s] as read
+
+    def _patch(self, out: np.ndarray) -> None:
+        d, s = self.driven, self.sumo
+        out[d, _COL["v"]] = s[d, 0]
+        out[d, _COL["yaw_rate"]] = s[d, 2]
+        out[d, _COL["a_lon"]] = s[d, 1]
+        out[d, _COL["a_lat"]] = s[d, 0] * s[d, 2]
+        for c in _MODEL_ONLY:
+            out[d, c] = np.nan
+
+    def signals_into(self, state, ref, out, t: float = 0.0, rows=None) -> bool:
+        """:meth:`Fleet.signals_into` with the followers' columns SUMO's; never writes the
+        table rows itself (returns False: the recorder writes ``out``)."""
+        super().signals_into(state, ref, out, t, None)
+        self._patch(out)
+        return False
+
+    def step(self, state, ref, comfort=None, rows=None):
+        """:meth:`Fleet.step`; the followers' comfort values of every period (and their table
+        rows, when written: sim/recorder.py period_rows' layout, row at + (j - 1) n + i) are
+        their SUMO values at the step's start, held."""
+        new = super().step(state, ref, comfort, rows)
+        if comfort is None or not self.driven.any():
+            return new
+        d, s = np.flatnonzero(self.driven), self.sumo
+        held = np.stack([s[d, 0], s[d, 1], s[d, 0] * s[d, 2]], axis=1)  # (len(d), 3)
+        comfort[:, d, :] = held
+        if rows is not None:
+            table, _, at = rows
+            n = self.cfg.n
+            for j in range(1, comfort.shape[0]):
+                table[1:4, at + (j - 1) * n + d] = held.T
+        return new
+
+
+class SumoDrivenWorld(SumoWorld):
+    """SumoWorld whose followers SUMO's CACC drives (see the module docstring)."""
+
+    def __init__(self, sc, plan, fleet: DrivenFleet, rec, out_dir: Path, meta: dict,
+                 baseline: bool = False, step_hook=None):
+        super().__init__(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
+        spec = sc.controller.sumo_cacc
+        self.moved = ~fleet.driven
+        self.mtypes = [replace(mt, id=f"{mt.id}_cacc", base=CACC_BASE_TYPE, min_gap=spec.min_gap_m,
+                               accel=spec.accel_mps2, decel=spec.decel_mps2,
+                               emergency_decel=spec.emergency_decel_mps2) for mt in self.mtypes]
+        self._psi = np.full(len(self.ids), np.nan)  # followers' heading at the last read [rad]
+        meta["sumo_cacc"] = {
+            "moved": [m for m, d in zip(self.ids, fleet.driven) if not d],
+            "driven_by_sumo": [m for m, d in zip(self.ids, fleet.driven) if d],
+            "vtype": {"carFollowModel": "CACC", **spec.vtype_attributes()},
+            "desired_gap_m": f"{spec.min_gap_m:g} + {spec.tau_s:g} v (bumper to bumper)"}
+
+    def start(self) -> None:
+        self.sumo_dir.mkdir(exist_ok=True)
+        path = self.sumo_dir / "sumo_cacc.add.xml"
+        write_cacc_type(path, self.sc.controller.sumo_cacc.vtype_attributes())
+        self.adds = [str(path)]
+        super().start()
+
+    def _insert(self, t_next, rows, pos, heading, v_after) -> None:
+        super()._insert(t_next, rows, pos, heading, v_after)
+        for i in rows:
+            if self.fleet.driven[i]:
+                self.adapter.drive_with_sumo(self.sumo_ids[i])
+
+    def actuate(self, t_next: float, state, v_before) -> None:
+        super().actuate(t_next, state, v_before)
+        if self.true_v is not None:  # FCD in the formation frame: SUMO's speed is their truth
+            self.true_v[int(round(t_next / self.sc.run.step))][self.fleet.driven] = np.nan
+
+    def sense(self, k: int, t: float, state):
+        if self.inserted:
+            self._read_driven(state)
+        else:  # before SUMO has them: the initial state (speed, no acceleration, its yaw rate)
+            sumo = self.fleet.sumo
+            sumo[:, 0], sumo[:, 1] = self.fleet.speed(state), 0.0
+            sumo[:, 2] = 0.0 if self.fleet.kind == KINEMATIC else state.x[:, S.R]
+        return super().sense(k, t, state)
+
+    def _read_driven(self, state) -> None:
+        """The followers' SUMO state into their fleet-state rows (CoG frame) and the fleet's
+        :attr:`DrivenFleet.sumo` (speed, acceleration, heading rate over the step)."""
+        rows = np.flatnonzero(self.fleet.driven & self.active & self.in_sumo)
+        if not len(rows):
+            return
+        front, ang, v, a = self.adapter.driven_states([self.sumo_ids[i] for i in rows])
+        here = np.isfinite(v)
+        rows, front, ang, v, a = rows[here], front[here], ang[here], v[here], a[here]
+        x, y, psi = sumo_to_cog(front[:, 0], front[:, 1], ang, self.d_front[rows])
+        last = self._psi[rows]
+        dpsi = np.angle(np.exp(1j * (psi - last)))
+        r = np.where(np.isfinite(last), dpsi / self.sc.run.step, 0.0)
+        self._psi[rows] = psi
+        sx = state.x
+        sx[rows, S.X], sx[rows, S.Y], sx[rows, S.PSI] = x, y, psi
+        if self.fleet.kind == KINEMATIC:
+            state.speed_in[rows] = v
+        else:
+            sx[rows, S.V], sx[rows, S.R], sx[rows, S.BETA] = v, r, 0.0
+            if sx.shape[1] > S.A_D:
+                sx[rows, S.A_D] = a
+        sumo = self.fleet.sumo
+        sumo[rows, 0], sumo[rows, 1], sumo[rows, 2] = v, a, r
+        self._kin = None  # the state changed in place
+
+
+def write_cacc_type(path: Path, attributes: dict[str, str]) -> None:
+    """The SUMO additional file with the CACC vType :data:`CACC_BASE_TYPE` (``attributes``:
+    SUMO attribute -> value)."""
+    attrs = " ".join(f'{k}="{v}"' for k, v in attributes.items())
+    path.write_text(f'<additional>\n    <vType id="{CACC_BASE_TYPE}" carFollowModel="CACC" '
+                    f"{attrs}/>\n</additional>\n")
