@@ -26,7 +26,8 @@ def t_quantile_975(dof: int) -> float:
     return float(t.ppf(0.975, dof))
 
 
-def paired_effects(summary: pd.DataFrame, axes: list[str]) -> pd.DataFrame:
+def paired_effects(summary: pd.DataFrame, axes: list[str], metrics=EFFECT_KEYS,
+                   statuses=("completed",)) -> pd.DataFrame:
     """Per combination of ``axes`` values and per paired metric: mean over the completed
     seeds, standard error ``s / sqrt(n)`` (``s`` with ddof 1), the 95 % interval
     ``mean -+ t(0.975, n - 1) * se``, ``n_seeds``, ``distinguishable`` (the interval excludes
@@ -38,18 +39,23 @@ def paired_effects(summary: pd.DataFrame, axes: list[str]) -> pd.DataFrame:
         ``summary.parquet`` of a sweep with twins.
     axes : list of str
         The swept columns (grid and random fields); the seeds are what is averaged over.
+    metrics : iterable of str
+        The summary columns to average (default: the paired ``fx_*`` effects; a sweep's
+        ``means.csv`` gives the section measures, :func:`write_means`).
+    statuses : tuple of str
+        The case statuses averaged over (``means.csv``: also runs that ended with incidents).
 
     Returns
     -------
     DataFrame
         Columns: the axes, then :data:`EFFECT_COLUMNS`.
     """
-    df = summary[summary["status"] == "completed"]
+    df = summary[summary["status"].isin(statuses)]
     groups = df.groupby(axes, sort=True, dropna=False) if axes else [((), df)]
     rows = []
     for key, g in groups:
         key = key if isinstance(key, tuple) else (key,)
-        for metric in EFFECT_KEYS:
+        for metric in metrics:
             x = pd.to_numeric(g[metric], errors="coerce").to_numpy(float) if metric in g else np.array([])
             x = x[np.isfinite(x)]
             n = int(x.size)
@@ -76,3 +82,19 @@ def write_effects(summary: pd.DataFrame, axes: list[str], path: Path) -> pd.Data
     eff.to_csv(tmp, index=False)
     os.replace(tmp, path)
     return eff
+
+
+def write_means(summary: pd.DataFrame, axes: list[str], path: Path) -> pd.DataFrame | None:
+    """Per grid point, the mean over the seeds of every section measure
+    (analysis/sweep_metrics.py SECTION_METRICS) with its 95 % confidence interval, as
+    :func:`paired_effects`, written atomically to ``path`` (CSV; ``means.csv`` of a sweep of
+    road runs, e.g. a penetration study). None (nothing written) when no case has them."""
+    from .sweep_metrics import SECTION_METRICS
+
+    if not any(m in summary and summary[m].notna().any() for m in SECTION_METRICS):
+        return None
+    table = paired_effects(summary, axes, SECTION_METRICS, ("completed", "completed_with_incidents"))
+    tmp = path.with_name(f".{path.name}.tmp")
+    table.to_csv(tmp, index=False)
+    os.replace(tmp, path)
+    return table

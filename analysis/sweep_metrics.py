@@ -3,6 +3,25 @@ fills them) and the paired effects of a sweep with twins: defined with the analy
 computes them, so the sweep imports the analysis and never the other way round."""
 from __future__ import annotations
 
+TTC_S = 3.0
+"""A section passage with a time to collision below this is a conflict [s] (as the twin comparison)."""
+DRAC_MPS2 = 3.35
+"""A section passage needing a deceleration above this to avoid the crash is a conflict [m/s^2]
+(the usual DRAC threshold, Archer 2005)."""
+
+SECTION_METRICS: dict[str, tuple[str, str]] = {
+    "throughput_veh_h": ("veh/h", "every vehicle over the downstream section during the run"),
+    "throughput_formation_veh_h": ("veh/h", "formation members over the downstream section during the run"),
+    "delay_mean_s": ("s", "background vehicles timed over the stretch: mean travel time minus the stretch at the speed limit"),
+    "delay_formation_mean_s": ("s", "the same for the formation members"),
+    "speed_var_m2ps2": ("m^2/s^2", "variance of the background spot speeds at the sections during the run"),
+    "conflicts_ttc": ("-", f"background passages closing on the vehicle ahead with TTC < {TTC_S:g} s"),
+    "conflicts_ttc_formation": ("-", f"formation members' passages with TTC < {TTC_S:g} s"),
+    "conflicts_drac": ("-", f"background passages with DRAC > {DRAC_MPS2:g} m/s^2"),
+    "conflicts_drac_formation": ("-", f"formation members' passages with DRAC > {DRAC_MPS2:g} m/s^2"),
+}
+"""A run's own measures at its sections (analysis/section_measures.py): unit and meaning."""
+
 METRICS: dict[str, tuple[str, str]] = {
     # name: (unit, meaning) -- "max" is the largest value over the members
     "e_rms_m": ("m", "max of each member's r.m.s. formation error |e| over the whole run (eq 2.5)"),
@@ -34,6 +53,7 @@ METRICS: dict[str, tuple[str, str]] = {
     "leader_age_mean_s": ("s", "max of each member's mean age of the virtual-car state it held ([comm])"),
     "leader_age_p95_s": ("s", "max of each member's 95th percentile of that age"),
     "comm_timeouts": ("-", "SUMO runs: comm_timeout events (a member fell back: no state for longer than comm.timeout_s)"),
+    **SECTION_METRICS,
     "stretch_coverage": ("-", "with twins: share of the background vehicles in the measured stretch timed over all of it in both runs"),
     "matched_share": ("-", "with twins: share of those vehicles matched by id in the other run"),
     **{f"fx_{k}": (u, f"with twins: formation run minus its twin, {m}") for k, (u, m) in {

@@ -9,7 +9,7 @@ each network and :mod:`sumo_nets.build` for the design values.
 from pathlib import Path
 
 NETS_DIR = Path(__file__).resolve().parent
-NETWORK_NAMES = ("straight3", "curved3", "onramp", "lanedrop", "offramp", "shortcut")
+NETWORK_NAMES = ("straight3", "curved3", "onramp", "lanedrop", "offramp", "shortcut", "straight3_long")
 
 
 def net_path(name: str) -> Path:

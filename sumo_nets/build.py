@@ -315,6 +315,18 @@ def straight3() -> Network:
     )
 
 
+def straight3_long() -> Network:
+    return Network(
+        name="straight3_long",
+        description="straight 3-lane motorway, 10000 m along +x (entry 300 m + main 9700 m)",
+        nodes=[Node("n0", 0, 0, "dead_end"), Node("n1", 300, 0), Node("n2", 10000, 0, "dead_end")],
+        edges=[
+            Edge("entry", "n0", "n1", 3, comment="0 m .. 300 m"),
+            Edge("main", "n1", "n2", 3, comment="300 m .. 10000 m"),
+        ],
+    )
+
+
 def curved3() -> Network:
     pts = integrate_alignment(CURVED3_PROFILE)
     entry, main = split_alignment(pts, CURVED3_ENTRY_LENGTH)
@@ -508,6 +520,7 @@ def shortcut() -> Network:
 
 NETWORKS: dict[str, Callable[[], Network]] = {
     "straight3": straight3,
+    "straight3_long": straight3_long,
     "curved3": curved3,
     "onramp": onramp,
     "lanedrop": lanedrop,

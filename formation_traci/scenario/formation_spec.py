@@ -66,7 +66,8 @@ class FormationFlowSpec(Strict):
 
     id: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$", description="its formations are '<id>.<k>'")
     formation: FormationTemplate
-    lane: NonNegInt = Field(description="the lane its formations enter (their slots' 'lanes' count from it)")
+    lane: NonNegInt | list[NonNegInt] = Field(description="the lane its formations enter (their slots' 'lanes' "
+                                              "count from it); a list: formation k enters lane[k % len]")
     start: NonNegFloat | None = Field(None, description="arc length where its virtual cars enter [m]; default road.start")
     period_s: PosFloat | None = Field(None, description="one formation every this many seconds")
     veh_per_hour: PosFloat | None = Field(None, description="formation vehicles per hour (formations: / members)")
@@ -83,6 +84,8 @@ class FormationFlowSpec(Strict):
             raise ValueError("give exactly one of 'period_s', 'veh_per_hour' or 'penetration'")
         if (self.penetration is None) != (self.of_flow is None):
             raise ValueError("'of_flow' is given with (and only with) 'penetration'")
+        if isinstance(self.lane, list) and not self.lane:
+            raise ValueError("lane: give a lane or a non-empty list of lanes")
         if any(m.slot is None for m in self.formation.members):
             raise ValueError("formation.members: every member of a flow's formation needs a road 'slot'")
         return self

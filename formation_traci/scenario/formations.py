@@ -50,7 +50,7 @@ def formation_setups(sc: Scenario, flow_of: dict | None = None) -> list[Formatio
         f = sc.formations[j - 1] if j else None
         lane = None if f is None or f.lane is None or sc.road is None else f.lane - sc.road.lane
         flow = flow_of.get(fid, "")
-        out.append(FormationSetup(fid, view, 0.0 if f is None else float(f.depart), lane or 0,
+        out.append(FormationSetup(fid, view, float(sc.depart if f is None else f.depart), lane or 0,
                                   "" if f is None else (f"formation_flows.{flow}.formation." if flow
                                                         else f"formations.{j - 1}."), flow))
     return out

@@ -138,8 +138,16 @@ class Scenario(Strict):
     formations: list[FormationSpec] = Field(
         default_factory=list, description="further formations beside the top-level one (whose "
         f"formation_id is '{DEFAULT_FORMATION_ID}')")
+    depart: NonNegFloat = Field(0.0, description="road: when the top-level formation's members enter the "
+                                "road [s] (run time; a formation flow's study may keep it out of the run)")
     formation_flows: list[FormationFlowSpec] = Field(
         default_factory=list, description="formations inserted while the run goes (road)")
+
+    @model_validator(mode="after")
+    def _depart_on_road(self):
+        if self.depart and self.road is None:
+            raise ValueError("depart: the top-level formation departs later only on a [road]")
+        return self
 
     @model_validator(mode="after")
     def _flow_rules(self):

@@ -4,7 +4,8 @@ Before the run each flow becomes the formations it asks for over the run: format
 flow ``F`` is ``F.k`` (members ``F.k.<member>``), due at ``begin + k T``, with T from the
 flow's rule: ``period_s``; ``veh_per_hour`` formation vehicles (T = n 3600 / veh_per_hour for
 n members); or ``penetration`` p of traffic flow ``of_flow`` of Q veh/h (T = n 3600 / (p Q),
-and that flow keeps (1 - p) Q: the demand stays Q, a share p of it formation vehicles). At
+and that flow keeps (1 - p) Q: the demand stays Q, a share p of it formation vehicles; several
+penetration flows of one traffic flow (e.g. one per lane) take their shares from it together). At
 run time a due formation waits until its members' insertion zones are free (sim/loop.py,
 SumoWorld.has_room; one formation of a flow per step, in order) and then enters; run.json
 ``formation_flows.<id>`` counts the formations requested (due within the run) and inserted.
@@ -45,7 +46,10 @@ def expand_flows(sc: Scenario, lanes_of: dict, source=None):
     for j, fl in enumerate(sc.formation_flows):
         period = flow_period(sc, fl, lanes_of)
         if fl.penetration is not None:
-            keep[fl.of_flow] = keep.get(fl.of_flow, 1.0) * (1.0 - fl.penetration)
+            keep[fl.of_flow] = keep.get(fl.of_flow, 1.0) - fl.penetration
+            if keep[fl.of_flow] <= 0.0:
+                raise ScenarioError(source or "<scenario>", [(f"formation_flows.{j}.penetration", (
+                    f"the penetrations of flow {fl.of_flow!r} add up to 1 or more: expected a sum below 1"))])
         end = min(sc.run.duration if fl.end is None else fl.end, sc.run.duration)
         count = 0 if not math.isfinite(period) or fl.begin >= end else math.ceil((end - fl.begin) / period)
         if count > MAX_FLOW_FORMATIONS:
@@ -68,4 +72,5 @@ def _instance(fl, k: int, t: float) -> FormationSpec:
         comm = comm.model_copy(update={"links": {f"{fid}.{m}": v for m, v in comm.links.items()}})
     members = [m.model_copy(update={"id": f"{fid}.{m.id}"}) for m in tpl.members]
     return FormationSpec(id=fid, leader=tpl.leader, members=members, controller=tpl.controller,
-                         comm=comm, start=fl.start, lane=fl.lane, depart=t)
+                         comm=comm, start=fl.start, depart=t,
+                         lane=fl.lane[k % len(fl.lane)] if isinstance(fl.lane, list) else fl.lane)

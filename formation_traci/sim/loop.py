@@ -94,7 +94,7 @@ def _references(forms, world, k, t, sensed, fleet, state, rec):
     transforms, after them, the one to record the error against). ``forms``: (formation,
     its sensing transforms, its true_error) each."""
     kin = None
-    if len(forms) == 1:
+    if len(forms) == 1 and forms[0][0].status == "running" and not forms[0][0].depart:
         f, sensing, true_error = forms[0]
         for tr in sensing:
             kin = fleet.kinematics(state) if kin is None else kin  # once for every transform
@@ -256,7 +256,7 @@ def _stop_reason(forms, world, t, state: FleetState, rec):
     ends the run (end of road), or of the world (no member left); None: go on. With several
     formations, one that reaches the end of its route is retired (its members leave the
     world, its event recorded) and the run goes on while another runs or waits to depart."""
-    if len(forms) == 1:
+    if len(forms) == 1 and not forms[0].depart:
         stop = forms[0].generator.stop_reason(t)
         if stop is not None:
             return forms[0].vc_id, stop

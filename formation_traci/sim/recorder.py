@@ -254,7 +254,9 @@ class Recorder:
             self._cf_vals[1:, c_at:c_at + n] = sig[:, self._acc].T
             self._cf_ids[c_at:c_at + n] = self.codes
         self._extras(extra, self._extra_block[:, at:e])
-        if truth.ndim == 1:
+        if truth.ndim == 1 and truth[0] != truth[0]:  # its formation is not on the road (parked)
+            tr.commit(n)
+        elif truth.ndim == 1:
             x, y, theta, v, omega, v_dot, _, s = truth.tolist()
             blk[:, e] = self._vc_row(t, x, y, theta, v, omega, v_dot, s)
             self._traj_ids[e] = self.vc_code

@@ -6,6 +6,7 @@ road anywhere along the route, members that would be inserted on top of each oth
 """
 from __future__ import annotations
 
+import math
 import os
 import itertools
 from dataclasses import dataclass
@@ -23,6 +24,7 @@ from .routes import resolve_route
 
 MAIN_ROUTES = {
     "straight3": ["entry", "main"],
+    "straight3_long": ["entry", "main"],
     "curved3": ["entry", "main"],
     "onramp": ["mw_up", "mw_accel", "mw_down"],
     "lanedrop": ["mw_up", "mw_down"],
@@ -58,6 +60,7 @@ class Road:
     shapes: LaneShapes = None  # SUMO's lane shapes: (lane, position, lateral offset) -> x, y
     member_forbidden: tuple[str, ...] = ()  # internal lanes members are kept off (road/lanes.py)
     lanes: LaneCentres = None  # lane_d with the reference lane per edge, looked up by arc length
+    speed_limit: float = math.nan  # the highest lane speed limit along the route [m/s]
 
 
 def resolve_net(sc: Scenario, source: Path | None) -> Path:
@@ -163,7 +166,8 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
     return Road(net_file, route, line, tuple(segments), width,
                 {e: net.getEdge(e).getLaneNumber() for e in route}, lane_d,
                 {e: net.getEdge(e).getLane(0).getLength() for e in route}, flow_routes, fit, LaneShapes(net),
-                tuple(sideways_internal_lanes(net, route)), centres)
+                tuple(sideways_internal_lanes(net, route)), centres,
+                max(ln.getSpeed() for e in route for ln in net.getEdge(e).getLanes()))
 
 
 _REFERENCE_CACHE: dict = {}

@@ -58,11 +58,13 @@ def flow_counts(plan, inserted: dict, t_end: float, departures, t0: float) -> di
                                             "members_inserted": 0})
             c["requested"] += int(setup.depart <= t_end + 1e-9)
             c["members_per_formation"] = len(p.ids)
-    for fid, c in out.items():
+    for c in out.values():
         c["members_inserted"] = c["inserted"] * c.pop("members_per_formation")
-        src = of_flow.get(fid, "")
-        if src:
-            n = sum(1 for vid, t in departures if t >= t0 and vid.rsplit(".", 1)[0] == src)
-            c["share"] = c["members_inserted"] / max(1, c["members_inserted"] + n)
-            c["of_flow_vehicles"] = n
+    for src in set(of_flow.values()) - {""}:  # the flows that take a share of traffic flow src
+        shares = [fid for fid in out if of_flow.get(fid) == src]
+        n = sum(1 for vid, t in departures if t >= t0 and vid.rsplit(".", 1)[0] == src)
+        members = sum(out[fid]["members_inserted"] for fid in shares)
+        for fid in shares:  # each flow's members among all vehicles that entered for src
+            out[fid]["share"] = out[fid]["members_inserted"] / max(1, members + n)
+            out[fid]["of_flow_vehicles"] = n
     return out

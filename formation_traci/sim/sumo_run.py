@@ -32,7 +32,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
                         "governor": 0.0, "control_model": 0.0, "record": 0.0}
     load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, plan.road.line)
-    if len(built) == 1:
+    if not plan.formations:  # one formation from t = 0
         gen, transforms, state = built[0]
         return one_formation(world, gen, fleet, state, transforms=transforms,
                              timing=meta["timing_s"], road_load=load)

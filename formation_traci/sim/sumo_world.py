@@ -135,7 +135,8 @@ class SumoWorld(MemberHandover):
         args += section_options(self.sections)
         meta, plan = self.meta, self.plan
         meta["sumo"] = {"args": args, "warmup": self.t0, "net": str(road.net_file),
-                        "route": road.route, "reference_lane": sc.road.lane}
+                        "route": road.route, "reference_lane": sc.road.lane,
+                        "speed_limit_mps": road.speed_limit}
         meta["members"] = [dict(m, **{"frame": "road" if plan.is_road[i] else "vehicle",
                                       "offset": (plan.slots[i] if plan.is_road[i]
                                                  else plan.rigid[i]).tolist()})

@@ -19,7 +19,7 @@ from pydantic import BaseModel, ConfigDict
 
 from ..record.rundir import RUN_FINISHED, DirLock, clear_run
 from .expand import Case
-from .row import empty_row, metric_values, twin_values
+from .row import empty_row, metric_values, traffic_only_values, twin_values
 
 CASE_JSON = "case.json"
 """Per-case record in the case directory: ``{"spec": ..., "row": ...}``."""
@@ -140,13 +140,26 @@ def _analyse(run_dir: Path, row: dict, twin: Path | None = None) -> dict[str, An
     try:
         a = analyze_run(run_dir, figures=False, baseline=twin)
     except NoTrajectoryData as exc:
-        return {} if row["status"] not in RUN_FINISHED else {"status": "failed",
-                                                        "reason": f"analysis: {exc}"}
+        if row["status"] not in RUN_FINISHED:
+            return {}
+        meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+        if _no_formation_entered(meta):  # e.g. a penetration study's 0 %: traffic alone
+            return traffic_only_values(run_dir, meta)
+        return {"status": "failed", "reason": f"analysis: {exc}"}
     meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
     out = metric_values(run_dir, a.members, meta)
     if twin is not None:
         out.update(twin_values(_traffic_run(run_dir)))
     return out
+
+
+def _no_formation_entered(meta: dict) -> bool:
+    """A road run that ended where no formation ever entered the road (its formations depart
+    after the run, its formation flows inserted none): no member row, by design."""
+    sc = meta.get("scenario") or {}
+    flows = meta.get("formation_flows") or {}
+    return (sc.get("road") is not None and float(sc.get("depart") or 0.0) >= float(meta.get("t_end") or 0.0)
+            and not sc.get("formations") and not any(f.get("inserted") for f in flows.values()))
 
 
 def _traffic_run(run_dir: Path) -> dict:

@@ -22,7 +22,8 @@ WALL_COLUMNS: tuple[str, ...] = ("wall_s", "host", "pid")
 
 COUNT_METRICS = frozenset({"n_unsettled", "collisions", "member_collisions", "member_removed",
                            "stranded", "sumo_collision_artefacts", "emergency_brakes", "requested_veh", "inserted_veh",
-                           "comm_timeouts"})
+                           "comm_timeouts", "conflicts_ttc", "conflicts_ttc_formation", "conflicts_drac",
+                           "conflicts_drac_formation"})
 
 
 def empty_row(case: dict, status: str, reason: str | None) -> dict[str, Any]:
@@ -167,8 +168,19 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
         **_incidents(meta),
     }
     if (meta.get("scenario") or {}).get("road") is not None:
+        from analysis.section_measures import section_measures  # pandas, SUMO runs only
+
         out.update(_sumo_metrics(run_dir, set(map(str, members.index)), meta))
+        out.update(section_measures(run_dir, meta))
     return out
+
+
+def traffic_only_values(run_dir: Path, meta: dict) -> dict[str, Any]:
+    """The metrics of a road run no formation entered (a penetration study's 0 %): the
+    traffic's (SUMO's counts, the section measures) and the incidents; the members' None."""
+    from analysis.section_measures import section_measures
+
+    return {**_sumo_metrics(run_dir, set(), meta), **section_measures(run_dir, meta), **_incidents(meta)}
 
 
 def _incidents(meta: dict) -> dict[str, Any]:

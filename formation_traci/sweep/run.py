@@ -31,6 +31,8 @@ CASES_DIR = "cases"
 LOGS_DIR = "logs"
 TWINS_DIR = "twins"
 EFFECTS_CSV = "effects.csv"
+MEANS_CSV = "means.csv"
+"""Per grid point the section measures' mean over the seeds and 95 % interval (road sweeps)."""
 LOCK_FILE = ".sweep.lock"
 WRITE_EVERY_S = 2.0
 """The summary is rewritten at most this often while cases finish, and always at the end [s]."""
@@ -164,10 +166,11 @@ def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str],
     tmp = path.with_name(f".{path.name}.tmp")
     df.to_parquet(tmp, index=False)
     os.replace(tmp, path)
-    if effects is not None:
-        from analysis.effects import write_effects
+    from analysis.effects import write_effects, write_means
 
+    if effects is not None:
         write_effects(df, list(swept), effects)
+    write_means(df, list(swept), path.with_name(MEANS_CSV))
     return df
 
 
