@@ -10,6 +10,8 @@ formation nothing of this runs.
 """
 from __future__ import annotations
 
+from itertools import compress
+
 import numpy as np
 
 from .world import sensed_of
@@ -30,6 +32,7 @@ class Peers:
         self.lane_ids = [""] * n
         self.lane_index = np.full(n, -1, dtype=np.int64)
         self.rows = None
+        self._step_of = self._table = None  # the Sensed the joined table is of, and the table
 
     def lanes(self, idx, lanes, lane_index) -> None:
         """The members' lanes as SUMO last reported them (``idx``: the members read)."""
@@ -46,27 +49,49 @@ class Peers:
                      m_s + shift, m_d, m_s + self.d_front - self.length)
 
     def sensed_for(self, sensed: Sensed, sl: slice, present: np.ndarray) -> Sensed:
-        """What formation ``sl`` senses: :func:`~.formation.sensed_of`, its neighbours joined
-        by the members of the other formations that are ``present`` (in the run and in SUMO)."""
+        """What formation ``sl`` senses: :func:`~.world.sensed_of`, its neighbours joined by
+        the members of the other formations that are ``present`` (in the run and in SUMO).
+        The joined table is built once per step (:meth:`_joined`); a formation takes it less
+        its own members (boolean masks: no Python loop over vehicles)."""
         part = sensed_of(sensed, sl)
         if self.rows is None or sensed.nb is None:
             return part
-        mask = present.copy()
-        mask[sl] = False
-        idx = np.flatnonzero(mask)
-        if not len(idx):
+        nb, arrays, owner, flagged = self._joined(sensed, present)
+        if not (owner >= 0).any():
             return part
-        x, y, psi, v, a, s, d, rear = (q[idx] for q in self.rows)
-        nb = sensed.nb
-        part.nb = Neighbours(
-            list(nb.ids) + [self.sumo_ids[i] for i in idx], list(nb.types) + [self.types[i] for i in idx],
-            np.append(nb.x, x), np.append(nb.y, y), np.append(nb.heading, psi), np.append(nb.v, v),
-            np.append(nb.a, a), np.append(nb.length, self.length[idx]),
-            np.append(nb.width, self.width[idx]), list(nb.lane_ids) + [self.lane_ids[i] for i in idx],
-            np.append(nb.lane_index, self.lane_index[idx]))
-        part.nb_s, part.nb_d, part.nb_v = np.append(sensed.nb_s, s), np.append(sensed.nb_d, d), part.nb.v
-        part.nb_rear = np.append(sensed.nb_rear, rear)
-        part.nb_half_w = np.append(sensed.nb_half_w, self.width[idx] / 2)
-        if len(sensed.nb_in_formation) == len(nb.ids):
-            part.nb_in_formation = np.append(sensed.nb_in_formation, np.zeros(len(idx), dtype=np.bool_))
+        keep = (owner < sl.start) | (owner >= sl.stop)
+        pick = (lambda a: a) if keep.all() else (lambda a: a[keep])  # noqa: E731
+        x, y, psi, v, a, length, width, lane_index, s, d, rear, half_w, in_f = map(pick, arrays)
+        lists = [nb.ids, nb.types, nb.lane_ids]
+        if not keep.all():
+            lists = [list(compress(q, keep)) for q in lists]
+        part.nb = Neighbours(lists[0], lists[1], x, y, psi, v, a, length, width, lists[2], lane_index)
+        part.nb_s, part.nb_d, part.nb_v, part.nb_rear, part.nb_half_w = s, d, v, rear, half_w
+        if flagged:
+            part.nb_in_formation = in_f
         return part
+
+    def _joined(self, sensed: Sensed, present: np.ndarray):
+        """SUMO's neighbours of this step and every present member, as one table: (Neighbours
+        with the joined lists, the arrays, each row's member index or -1, whether the released
+        members' flags are there); built on the first call of a step."""
+        if self._step_of is sensed:
+            return self._table
+        nb = sensed.nb
+        idx = np.flatnonzero(present)
+        x, y, psi, v, a, s, d, rear = (q[idx] for q in self.rows)
+        n_nb = len(nb.ids)
+        flagged = len(sensed.nb_in_formation) == n_nb
+        in_f = (np.append(sensed.nb_in_formation, np.zeros(len(idx), dtype=np.bool_)) if flagged
+                else np.zeros(n_nb + len(idx), dtype=np.bool_))
+        arrays = (np.append(nb.x, x), np.append(nb.y, y), np.append(nb.heading, psi), np.append(nb.v, v),
+                  np.append(nb.a, a), np.append(nb.length, self.length[idx]),
+                  np.append(nb.width, self.width[idx]), np.append(nb.lane_index, self.lane_index[idx]),
+                  np.append(sensed.nb_s, s), np.append(sensed.nb_d, d), np.append(sensed.nb_rear, rear),
+                  np.append(sensed.nb_half_w, self.width[idx] / 2), in_f)
+        joined = Neighbours(list(nb.ids) + [self.sumo_ids[i] for i in idx],
+                            list(nb.types) + [self.types[i] for i in idx], *arrays[:7],
+                            list(nb.lane_ids) + [self.lane_ids[i] for i in idx], arrays[7])
+        owner = np.concatenate([np.full(n_nb, -1, dtype=np.int64), idx])
+        self._step_of, self._table = sensed, (joined, arrays, owner, flagged)
+        return self._table
