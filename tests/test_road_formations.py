@@ -128,8 +128,8 @@ def test_road_only_fields_and_maneuvers_are_refused_where_they_cannot_run(tmp_pa
     p.write_text(text)
     with pytest.raises(ScenarioError, match="formations.0: start need a \\[road\\]"):
         load_scenario(p)
-    man = '\n[[maneuvers]]\nkind = "lane_change"\nat = { s = 1000.0 }\nlanes = 1\n'
-    with pytest.raises(ScenarioError, match="several formations runs no maneuvers"):
+    man = '\n[[maneuvers]]\nkind = "join"\nmember = "a3"\nat = { s = 1000.0 }\n'
+    with pytest.raises(ScenarioError, match="a join runs in a scenario of one formation only"):
         load_scenario(_bad(tmp_path, man))
 
 
@@ -211,3 +211,24 @@ def _left_alone(tmp_path) -> float:
     tr = pd.read_parquet(tmp_path / "alone" / "trajectories.parquet")
     m = tr[~tr.vehicle_id.str.startswith("vc")]
     return float(np.hypot(m.ex, m.ey).max())
+
+
+def test_a_formation_changes_lane_to_pass_another(tmp_path):
+    """Maneuvers per formation: the chaser of the three-formation scenario changes one lane to
+    the left at s = 700 m (its gap check sees f0's members and the traffic), passes f0 in lane 2
+    at its own 32 m/s, and no member of one formation comes near another's (no collision)."""
+    text = THREE.read_text().replace(
+        'leader = { speed = 32.0 }',
+        'leader = { speed = 32.0 }\nmaneuvers = [{ kind = "lane_change", lanes = 1, at = { s = 700.0 } }]')
+    p = tmp_path / "pass.toml"
+    p.write_text(text)
+    sc = load_scenario(p, **{"run.duration": 60.0, "traffic.warmup": 30.0})
+    sc = sc.model_copy(update={"formations": sc.formations[:1]})  # f0 and the chaser
+    res, tr, ev = _run(sc, tmp_path / "run")
+    assert not any(res.incidents[k] for k in ("member_collisions", "member_removed", "stranded"))
+    ours = ev[ev.formation_id == "chaser"]
+    assert {"maneuver_start", "maneuver_end"} <= set(ours.kind), sorted(set(ours.kind))
+    b = tr[tr.vehicle_id == "b1"].set_index("t")
+    a = tr[tr.vehicle_id == "a1"].set_index("t")
+    assert b.lane_index.iloc[-1] == 2.0 and b.s.iloc[-1] > a.s.iloc[-1]  # past f0, one lane left
+    assert tr[tr.vehicle_id == "vc:chaser"].v.min() > 28.0  # it never had to slow behind f0

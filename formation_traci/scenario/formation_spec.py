@@ -25,7 +25,7 @@ class FormationSpec(Strict):
     controller: ControllerSpec = ControllerSpec()
     comm: CommSpec | None = Field(None, description="leader-to-member radio; default: perfect")
     maneuvers: list[ManeuverSpec] = Field(
-        default_factory=list, description="its maneuvers (not yet run in a scenario with several formations)")
+        default_factory=list, description="its maneuvers (road; no join: docs/scenarios.md)")
     start: NonNegFloat | None = Field(None, description="road: its virtual car's arc length at departure [m]; "
                                       "default road.start")
     lane: NonNegInt | None = Field(None, description="road: the lane its slots' 'lanes' count from (its "

@@ -155,8 +155,8 @@ class Scenario(Strict):
             return self
         if self.road is None:
             raise ValueError("formation_flows: formations are inserted on a [road]")
-        if self.maneuvers:
-            raise ValueError("maneuvers: a road scenario with formation flows runs no maneuvers in this version")
+        if any(mv.kind == "join" for mv in self.maneuvers):
+            raise ValueError("maneuvers: a join runs in a scenario of one formation only")
         ids = [f.id for f in self.formation_flows]
         if len(set(ids)) < len(ids) or set(ids) & {f.id for f in self.formations}:
             raise ValueError(f"formation_flows: ids must be unique and differ from the formations' ids: {ids}")
@@ -183,9 +183,11 @@ class Scenario(Strict):
             raise ValueError(f"member ids must be unique over all formations, repeated: {dup}")
         for j, f in enumerate(self.formations):
             formation_fits(j, f, self.road is not None)
-        if self.road is not None and (self.maneuvers or any(f.maneuvers for f in self.formations)):
-            raise ValueError("maneuvers: a road scenario with several formations runs no maneuvers "
-                             "in this version (each formation keeps its slots)")
+        joins = [mv for mv in self.maneuvers if mv.kind == "join"] + [
+            mv for f in self.formations for mv in f.maneuvers if mv.kind == "join"]
+        if self.road is not None and joins:
+            raise ValueError("maneuvers: a join runs in a scenario of one formation only (it would have "
+                             "to tell the other formations' members from SUMO's vehicles)")
         return self
 
     @model_validator(mode="after")

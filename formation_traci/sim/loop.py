@@ -9,7 +9,7 @@ picture and where a maneuver planner or a communication channel plugs in.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Iterator
 
 import numpy as np
@@ -118,8 +118,11 @@ def _references(forms, world, k, t, sensed, fleet, state, rec):
                 tr.sense(k, t, part, tuple(a[f.members] for a in kin), rec)
             merge_extra(sensed, part, f.members)
         t_f = t - f.depart  # the formation's own time [s]
-        world.command(t, f.generator.plan(t_f, part), part, f.vc_id)
+        world.command(t, _fleet_rows(f.generator.plan(t_f, part), f.members.start), part, f.vc_id)
+        slot = part.extra.get("slot")
         ref0 = f.generator.reference(t_f, part)
+        if part.extra.get("slot") is not slot:  # a maneuver's slots, recorded
+            merge_extra(sensed, part, f.members)
         if f.depart:
             ref0 = ref0.with_(t=t)
         ref = apply(ref0, f.transforms)
@@ -130,6 +133,14 @@ def _references(forms, world, k, t, sensed, fleet, state, rec):
     ref = join_references(out, n_nb)
     truth_ref = ref if all(e is o for e, o in zip(err, out)) else join_references(err, n_nb)
     return join_references(raw, n_nb), ref, truth_ref
+
+
+def _fleet_rows(commands: list, first: int) -> list:
+    """A formation's world commands with its member indices as the fleet's rows (its first
+    row ``first``)."""
+    if not first or not commands:
+        return commands
+    return [c if c.member < 0 else replace(c, member=c.member + first) for c in commands]
 
 
 def _depart(f: Formation, world, t: float, state: FleetState, blocked: set) -> None:

@@ -83,7 +83,7 @@ def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld,
     lengths = np.array([v.length for v in plan.vehicles])
     widths = np.array([v.width for v in plan.vehicles])
     planner = ManeuverPlanner(sc.maneuvers, plan.slots, plan.road.lanes, sc.maneuver_limits,
-                              lengths, widths, list(world.ids), road_room(plan.road),
+                              lengths, widths, list(plan.ids or world.ids), road_room(plan.road),
                               (ld.time_gap, ld.min_gap),
                               np.array([v.cog_to_front_bumper for v in plan.vehicles]))
     gen = ManeuverRoadReference(*args, ramp=ramp, release=release, planner=planner,
