@@ -151,3 +151,27 @@ def join_info(refs: list[Reference], n_nb: int | None = None) -> dict:
     if n_nb is not None and "lead_idx" in info:
         info["lead_idx"] = np.where(info["lead_idx"] >= n_nb, -1, info["lead_idx"])
     return info
+
+
+def depart_due(f: Formation, world, t: float, state: FleetState, blocked: set) -> None:
+    """Formation ``f`` is due at t [s]: its members enter the world (its generator's time
+    starts now). One of a formation flow enters only where there is room, one per flow and
+    step, in order (``blocked``: the flows whose due formation is still waiting)."""
+    if f.flow and (f.flow in blocked or not world.has_room(t, f.members, state)):
+        blocked.add(f.flow)
+        return
+    if f.flow:
+        blocked.add(f.flow)
+    world.spawn(t, np.arange(f.members.start, f.members.stop))
+    f.status, f.depart = "running", t
+
+
+def retire_formation(f: Formation, world, t: float, state: FleetState, rec, stop) -> None:
+    """Formation ``f`` ends (its generator's ``stop`` = (event kind, detail, why): the end of
+    its route): the event for its virtual car, its members out of the world (member_retired),
+    their state held from now on."""
+    kind, detail, why = stop
+    if kind:
+        rec.add_event(t, kind, f.vc_id, "", detail)
+    world.retire(t, np.arange(f.members.start, f.members.stop), f"formation {f.id}: {why}")
+    f.status, f.held = "done", state.rows(f.members)

@@ -21,8 +21,9 @@ from ..record.columns import DEFAULT_FORMATION_ID, SIGNAL_COLUMNS, VIRTUAL_CAR_I
 from ..scenario.formations import formation_views
 from ..scenario.schema import Scenario
 from .fleet import Fleet, FleetState
-from .formation import (Formation, join_configs, join_references, join_states, merge_extra,
-                        virtual_car_id)
+from .formation_group import group_of
+from .formation import (Formation, depart_due, join_configs, join_references, join_states,
+                        merge_extra, retire_formation, virtual_car_id)
 from .road_load import road_load_part
 from .setup import build_fleet, build_free_leader, build_initial_state, member_vehicles, offsets
 from .timing import PhaseClock
@@ -106,7 +107,7 @@ def _references(forms, world, k, t, sensed, fleet, state, rec):
     raw, out, err, blocked = [], [], [], set()
     for f, sensing, true_error in forms:
         if f.status == "waiting" and t >= f.depart - 1e-9:  # due: its members enter
-            _depart(f, world, t, state, blocked)
+            depart_due(f, world, t, state, blocked)
         if f.status != "running":
             parked = f.parked(t)
             raw.append(parked), out.append(parked), err.append(parked)
@@ -143,19 +144,6 @@ def _fleet_rows(commands: list, first: int) -> list:
     return [c if c.member < 0 else replace(c, member=c.member + first) for c in commands]
 
 
-def _depart(f: Formation, world, t: float, state: FleetState, blocked: set) -> None:
-    """Formation ``f`` is due at t [s]: its members enter the world (its generator's time
-    starts now). One of a formation flow enters only where there is room, one per flow and
-    step, in order (``blocked``: the flows whose due formation is still waiting)."""
-    if f.flow and (f.flow in blocked or not world.has_room(t, f.members, state)):
-        blocked.add(f.flow)
-        return
-    if f.flow:
-        blocked.add(f.flow)
-    world.spawn(t, np.arange(f.members.start, f.members.stop))
-    f.status, f.depart = "running", t
-
-
 def _radio_links(forms, fleet: Fleet) -> list:
     """(the formation's fleet rows, its [comm] channel) of every formation with a radio: what
     :func:`_law_fallbacks` watches each step (none: nothing to do per step)."""
@@ -190,6 +178,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
     clock = PhaseClock({} if parts.timing is None else parts.timing)
     plans = [(f, f.sensing, f.true_error) for f in forms]  # the transforms are fixed now
     links = _radio_links(forms, fleet)
+    group = group_of(forms, world)  # plain road formations: one compiled call for all
     try:
         world.start()  # inside: a signal or a failure during SUMO's start or warm-up closes SUMO
         for k in range(n_steps + 1):
@@ -198,7 +187,8 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             sensed = world.sense(k, t, state)
             sensed.extra.setdefault("leader_age_s", perfect)
             clock.lap("sumo_read")
-            ref0, ref, ref_err = _references(plans, world, k, t, sensed, fleet, state, rec)
+            ref0, ref, ref_err = (_references(plans, world, k, t, sensed, fleet, state, rec) if group is None
+                                  else group.references(world, k, t, sensed, state))
             if links:
                 _law_fallbacks(links, fleet, t, rec)
             state = world.adopt(state, ref)  # vehicles the world handed to the formation (join)
@@ -225,7 +215,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             clock.lap("record")  # the caller's share: the step's end, part files, progress (sim/runner.py)
             if k == n_steps:
                 break
-            stop = _stop_reason(forms, world, t, state, rec)
+            stop = _stop_reason(forms, world, t, state, rec, group)
             if stop is not None:
                 vc_id, (kind, detail, why) = stop
                 if kind:
@@ -240,7 +230,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
                 state = step_recording(fleet, state, ref, rec, periods)
             else:
                 state = fleet.step(state, ref)
-            _settle(forms, state)
+            _settle(forms, state) if group is None else group.settle(state)
             check_finite(state, ids, t + step)
             clock.lap("control_model")
             world.actuate(t + step, state, v_before)
@@ -262,12 +252,15 @@ def _settle(forms, state: FleetState) -> None:
             state.hold(f.members, f.held)
 
 
-def _stop_reason(forms, world, t, state: FleetState, rec):
+def _stop_reason(forms, world, t, state: FleetState, rec, group=None):
     """(virtual car id, (event kind, detail, why)) of the first formation whose generator
     ends the run (end of road), or of the world (no member left); None: go on. With several
     formations, one that reaches the end of its route is retired (its members leave the
     world, its event recorded) and the run goes on while another runs or waits to depart."""
-    if len(forms) == 1 and not forms[0].depart:
+    if group is not None:
+        if group.stop(world, t, state, rec):
+            return VIRTUAL_CAR_ID, ("", "", f"every formation reached the end of its route by t = {t:.2f} s")
+    elif len(forms) == 1 and not forms[0].depart:
         stop = forms[0].generator.stop_reason(t)
         if stop is not None:
             return forms[0].vc_id, stop
@@ -275,11 +268,7 @@ def _stop_reason(forms, world, t, state: FleetState, rec):
         for f in forms:
             stop = f.generator.stop_reason(t) if f.status == "running" else None
             if stop is not None:
-                kind, detail, why = stop
-                if kind:
-                    rec.add_event(t, kind, f.vc_id, "", detail)
-                world.retire(t, np.arange(f.members.start, f.members.stop), f"formation {f.id}: {why}")
-                f.status, f.held = "done", state.rows(f.members)
+                retire_formation(f, world, t, state, rec, stop)
         if all(f.status == "done" for f in forms):
             return VIRTUAL_CAR_ID, ("", "", f"every formation reached the end of its route by t = {t:.2f} s")
     stop = world.stop_reason(t)

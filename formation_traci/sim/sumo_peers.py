@@ -71,6 +71,18 @@ class Peers:
             part.nb_in_formation = in_f
         return part
 
+    def table(self, sensed: Sensed, present: np.ndarray):
+        """The joined table's arrays a formation group's kernel reads (sim/formation_group.py):
+        rear arc length, lateral offset, half width [m], speed [m/s], the released members'
+        flags and each row's member index (-1: a SUMO vehicle)."""
+        if self.rows is None:
+            n = len(sensed.nb.ids)
+            flags = sensed.nb_in_formation if len(sensed.nb_in_formation) == n else np.zeros(n, dtype=np.bool_)
+            return (sensed.nb_rear, sensed.nb_d, sensed.nb_half_w, sensed.nb_v, flags,
+                    np.full(n, -1, dtype=np.int64))
+        _, arrays, owner, _ = self._joined(sensed, present)
+        return arrays[10], arrays[9], arrays[11], arrays[3], arrays[12], owner
+
     def _joined(self, sensed: Sensed, present: np.ndarray):
         """SUMO's neighbours of this step and every present member, as one table: (Neighbours
         with the joined lists, the arrays, each row's member index or -1, whether the released

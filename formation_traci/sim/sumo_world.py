@@ -312,6 +312,11 @@ class SumoWorld(MemberHandover):
             return sensed_of(sensed, rows)
         return self.peers.sensed_for(sensed, rows, self.active & self.in_sumo)
 
+    def joined_neighbours(self, sensed: Sensed):
+        """SUMO's vehicles and every member in SUMO as one neighbour table for a formation
+        group (sim/formation_group.py, sim/sumo_peers.py Peers.table)."""
+        return self.peers.table(sensed, self.active & self.in_sumo)
+
     def stop_reason(self, t: float):
         if not self.active.any() and not self.waiting.any():
             return None, "", f"no member left in SUMO at t = {t:.2f} s"

@@ -1,0 +1,120 @@
+"""Many formations at the cost of one: the formations of a road run whose reference is a plain
+road reference (control/reference_road.py RoadReference: no maneuvers, no transforms such as
+a radio) stepped together, one compiled call for all of them (control/reference_group.py)
+and no Python work per formation and step.
+
+The loop (sim/loop.py) uses a :class:`FormationGroup` instead of its per-formation path when
+every formation of a run of several on a road is such a formation (:func:`group_of`); the
+results are those of the per-formation path, bit for bit (the golden of
+scenarios/highway/three_formations.toml, recorded with the per-formation path, pins it).
+Departures, a flow's room check and a retirement at the end of the route stay per formation
+(sim/formation.py depart_due, retire_formation): they happen once per formation, not per step.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..control.reference import Reference
+from ..control.reference_group import group_reference_step
+from ..control.reference_road import RoadReference
+from .fleet_state import FleetState
+from .formation import depart_due, retire_formation
+
+_NO_TABLE = (np.empty(0), np.empty(0), np.empty(0), np.empty(0), np.zeros(0, dtype=np.bool_),
+             np.empty(0, dtype=np.int64))
+
+
+def group_of(forms: list, world) -> "FormationGroup | None":
+    """The group of ``forms`` when all of them (two or more) are plain road formations and the
+    world can join their neighbours (SUMO); else None (the loop's per-formation path)."""
+    if len(forms) < 2 or not hasattr(world, "joined_neighbours"):
+        return None
+    if any(type(f.generator) is not RoadReference or f.transforms for f in forms):
+        return None
+    return FormationGroup(forms)
+
+
+class FormationGroup:
+    """The state of every formation's road reference as arrays (see the module docstring)."""
+
+    def __init__(self, forms: list):
+        gens = [f.generator for f in forms]
+        self.forms, g0 = forms, gens[0]
+        self.G, self.dt_c, self.n_ctrl, self.length = g0.G, g0.dt_c, g0.n_ctrl, g0.length
+        self.starts = np.array([f.members.start for f in forms] + [forms[-1].members.stop], dtype=np.int64)
+        self.profs = np.concatenate([g.prof for g in gens])
+        self.prof_at = np.cumsum([0] + [len(g.prof) for g in gens]).astype(np.int64)
+        cat = (lambda get: np.ascontiguousarray(np.concatenate([get(g) for g in gens])))  # noqa: E731
+        self.along, self.slot_d = cat(lambda g: g.along), cat(lambda g: g.slot_d)
+        self.is_road, self.d_front, self.half_w = cat(lambda g: g.is_road), cat(lambda g: g.d_front), cat(lambda g: g.half_w)
+        self.frame, self.slots = cat(lambda g: g.frame), np.concatenate([g.slots for g in gens], axis=1)
+        self.lims = np.stack([g.lim for g in gens])
+        self.pps = np.stack([g.longitudinal.pp for g in gens])
+        self.ramps = np.array([g.ramp for g in gens])
+        self.s, self.v = np.array([g.s for g in gens]), np.array([g.v for g in gens])
+        self.a_vc = np.array([g.longitudinal.a_vc for g in gens])
+        self.emergency_vc = np.zeros(len(gens), dtype=np.bool_)
+        self.a_cap_prev = cat(lambda g: g.longitudinal.a_cap)
+        self.v_prev, self.emergency = cat(lambda g: g._v_prev), cat(lambda g: g.longitudinal.emergency)
+        self.has_prev = np.zeros(len(gens), dtype=np.bool_)
+        self.reach = np.array([float(np.max(g.along + g.d_front)) + g.end_margin for g in gens])
+        self.end_margin = np.array([g.end_margin for g in gens])
+        self._next = None
+
+    def running(self) -> np.ndarray:
+        return np.array([f.status == "running" for f in self.forms])
+
+    def references(self, world, k: int, t: float, sensed, state: FleetState):
+        """The joined Reference of the step starting at t [s] (the loop's (raw, reference,
+        error reference): all three the same, a group has no transforms)."""
+        blocked: set = set()
+        for f in self.forms:
+            if f.status == "waiting" and t >= f.depart - 1e-9:
+                depart_due(f, world, t, state, blocked)
+        run = self.running()
+        nb_rear, nb_d, nb_half_w, nb_v, nb_in_f, owner = (
+            _NO_TABLE if sensed.nb is None else world.joined_neighbours(sensed))
+        n, k_f = len(self.frame), len(self.forms)
+        vc, truth = np.empty((self.n_ctrl, n, 8)), np.empty((k_f, 8))
+        a_cap_from, gap, a_cap_req, a_cap = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+        lead_idx = np.empty(n, dtype=np.int64)
+        a_request, s_next, v_next = np.empty(k_f), np.empty(k_f), np.empty(k_f)
+        t_f = np.array([t - f.depart for f in self.forms])
+        group_reference_step(
+            self.G, self.profs, self.prof_at, t_f, self.s, self.v, self.along, self.slot_d,
+            self.is_road, self.d_front, self.half_w, sensed.m_s, sensed.m_d, sensed.v_m,
+            sensed.active, nb_rear, nb_d, nb_half_w, nb_v, nb_in_f, owner, self.starts, self.lims,
+            self.pps, self.a_vc, self.emergency_vc, self.a_cap_prev, self.v_prev, self.has_prev,
+            self.emergency, self.dt_c, vc, self.ramps, a_cap_from, run, a_request, s_next, v_next,
+            gap, lead_idx, a_cap_req, a_cap, truth)
+        self._next = (run, s_next, v_next)
+        rows = np.repeat(run, np.diff(self.starts))
+        n_nb = None if sensed.nb is None else len(sensed.nb.ids)
+        info = {"a_vc": np.where(run, self.a_vc, 0.0), "gap": gap,
+                "lead_idx": lead_idx if n_nb is None else np.where(lead_idx >= n_nb, -1, lead_idx),
+                "a_request": a_request, "a_cap_request": a_cap_req,
+                "emergency": run & self.emergency_vc, "emergency_members": rows & self.emergency}
+        ramp = bool(self.ramps.any())
+        ref = Reference(float(t), self.dt_c, vc, self.slots, self.frame, sensed.active,
+                        np.full(n, np.inf), a_cap, line=self.G, truth=truth,
+                        a_cap_from=a_cap_from if ramp else None, info=info)
+        return ref, ref, ref
+
+    def settle(self, state: FleetState) -> None:
+        """After the members' step: the running formations' virtual cars move to the step's
+        end; the members of the others are held."""
+        run, s_next, v_next = self._next
+        self.s, self.v = np.where(run, s_next, self.s), np.where(run, v_next, self.v)
+        for f in self.forms:
+            if f.status != "running":
+                state.hold(f.members, f.held)
+
+    def stop(self, world, t: float, state: FleetState, rec) -> bool:
+        """Retire every running formation whose front nears the end of its route; True when
+        every formation is done."""
+        run = self.running()
+        for i in np.flatnonzero(run & (self.s + self.reach > self.length)):
+            retire_formation(self.forms[i], world, t, state, rec, (
+                "end_of_road", f"formation front within {self.end_margin[i]} m of the route end",
+                f"end of the route reached at t = {t:.2f} s"))
+        return all(f.status == "done" for f in self.forms)
