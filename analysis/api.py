@@ -3,7 +3,7 @@
 ``formation-traci analyze RUN_DIR`` -> :func:`analyze_run`; ``formation-traci compare
 RUN_A RUN_B ... --out DIR`` -> :func:`compare_runs`. Both read only recorded files; a
 damaged run is analysed as far as possible and its problems are listed in the outputs.
-Only a run without any trajectory row raises (:class:`~analysis.load.NoTrajectoryData`).
+Only a run without any trajectory row raises (:class:`~analysis.load.run_data.NoTrajectoryData`).
 """
 from __future__ import annotations
 
@@ -17,12 +17,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis.load import Issue, NoTrajectoryData, load_run
-from analysis.maneuvers import PHASE_METRICS, maneuver_intervals, phase_metrics
-from analysis.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN_METRICS,
-                              AnalysisSettings, RunAnalysis, compute_run, settings_dict)
-from analysis.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
-                                  TrafficAnalysis, load_baseline)
+from analysis.load.run_data import Issue, NoTrajectoryData, load_run
+from analysis.metrics.maneuvers import PHASE_METRICS, maneuver_intervals, phase_metrics
+from analysis.runs.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN_METRICS,
+                                   AnalysisSettings, RunAnalysis, compute_run, settings_dict)
+from analysis.runs.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
+                                       TrafficAnalysis, load_baseline)
 from formation_traci.record.rundir import looks_like_run, open_report_dir, require_run_dir
 from formation_traci.record.rundir import atomic_write_text
 
@@ -50,7 +50,7 @@ REPORT_HTML = "report.html"
 BASELINE_CSV = "baseline.csv"
 TWIN_CSV = "twin.csv"
 COMM_AGE_CSV = "comm_age.csv"
-"""Error and comfort per leader-age bin and member (analysis/comm.py)."""
+"""Error and comfort per leader-age bin and member (analysis/metrics/comm.py)."""
 FIGURES_DIR = "figures"
 
 _COMPARE_RUN_ROWS = ("status", "model", "mu", "duration_s", "sample_rate_hz",
@@ -115,7 +115,7 @@ def _issues_df(issues: Sequence[Issue], run: str | None = None) -> pd.DataFrame:
 
 
 def _figure_module():
-    from analysis import figures  # lazy: matplotlib is heavy and only needed here
+    from analysis.figures import run_figures as figures  # lazy: matplotlib is heavy
     return figures
 
 
@@ -251,7 +251,7 @@ def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures:
     else:
         p_base.unlink(missing_ok=True)
 
-    from analysis import report  # lazy, like figures
+    from analysis.report import run_report as report  # lazy, like figures
 
     p_html = out / REPORT_HTML
     atomic_write_text(p_html, report.run_report(a, fig_paths, fig_errors, extra, report_dir=out))
@@ -389,7 +389,7 @@ def _compare_into(dirs: list[Path], bases: list, out: Path, settings: AnalysisSe
     atomic_write_text(p_json, json.dumps(_jsonable(doc), indent=2, allow_nan=False))
     files["compare_json"] = p_json
 
-    from analysis import report
+    from analysis.report import run_report as report
 
     p_html = out / REPORT_HTML
     atomic_write_text(p_html, report.compare_report(table, fig_paths, {**runs, **{

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis.sweep_metrics import EFFECT_KEYS, METRICS  # noqa: F401 (re-exported)
+from analysis.report.sweep_metrics import EFFECT_KEYS, METRICS  # noqa: F401 (re-exported)
 
 ID_COLUMNS: tuple[str, ...] = ("case_id", "case_index", "seed")
 STATUS_COLUMNS: tuple[str, ...] = ("status", "reason", "t_end_s")
@@ -65,7 +65,7 @@ def _all_or_none(x: np.ndarray, fn) -> float | None:
 
 
 def _sumo_metrics(run_dir: Path, member_ids: set[str], meta: dict) -> dict[str, Any]:
-    from analysis.load import read_table  # skips damaged parts, never raises
+    from analysis.load.run_data import read_table  # skips damaged parts, never raises
 
     events, _ = read_table(run_dir / "events.parquet")
     n_coll = 0
@@ -91,7 +91,7 @@ def _sumo_metrics(run_dir: Path, member_ids: set[str], meta: dict) -> dict[str, 
 
 
 def _energy_metrics(members: pd.DataFrame) -> dict[str, Any]:
-    """Formation energy from the members' analysis/energy.py columns (sums, not means)."""
+    """Formation energy from the members' analysis/runs/energy.py columns (sums, not means)."""
     e, d = _col(members, "traction_energy_kwh"), _col(members, "distance_km")
     alone = _col(members, "energy_alone_kwh_per_100km") * d / 100.0
     ok = np.isfinite(e) & np.isfinite(d)
