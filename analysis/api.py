@@ -8,21 +8,19 @@ Only a run without any trajectory row raises (:class:`~analysis.load.run_data.No
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
-from analysis.load.run_data import Issue, NoTrajectoryData, load_run
-from analysis.metrics.maneuvers import PHASE_METRICS, maneuver_intervals, phase_metrics
+from analysis.load.run_data import Issue, NoTrajectoryData, load_formations, load_run
+from analysis.report.metrics_doc import SCHEMA, issues_frame, jsonable, metrics_doc
+from analysis.runs.fleet import compute_formations
 from analysis.runs.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN_METRICS,
                                    AnalysisSettings, RunAnalysis, compute_run, settings_dict)
-from analysis.runs.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
-                                       TrafficAnalysis, load_baseline)
+from analysis.runs.traffic_run import TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS, load_baseline
 from formation_traci.record.rundir import looks_like_run, open_report_dir, require_run_dir
 from formation_traci.record.rundir import atomic_write_text
 
@@ -40,9 +38,6 @@ __all__ = [
     "analyze_run",
     "compare_runs",
 ]
-
-SCHEMA = "formation-traci/metrics/1"
-"""Identifier of the ``metrics.json`` layout."""
 
 METRICS_JSON = "metrics.json"
 METRICS_CSV = "metrics.csv"
@@ -84,57 +79,9 @@ class CompareResult:
     files: dict[str, Path]  # "compare_csv", "compare_json", "report_html", "figure:<name>"
 
 
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, Path):
-        return str(x)
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, np.generic):
-        x = x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if x is pd.NA or x is pd.NaT:
-        return None
-    return x
-
-
-def _records(df: pd.DataFrame) -> list[dict[str, Any]]:
-    return [_jsonable(r) for r in df.to_dict(orient="records")]
-
-
-def _issues_df(issues: Sequence[Issue], run: str | None = None) -> pd.DataFrame:
-    cols = ["severity", "kind", "what", "detail"]
-    df = pd.DataFrame([i.as_dict() for i in issues], columns=cols)
-    if run is not None:
-        df.insert(0, "run", run)
-    return df
-
-
 def _figure_module():
     from analysis.figures import run_figures as figures  # lazy: matplotlib is heavy
     return figures
-
-
-def _traffic_json(t: TrafficAnalysis | None) -> dict[str, Any] | None:
-    if t is None:
-        return None
-    base = None
-    if t.baseline is not None:
-        base = _records(t.baseline.reset_index())
-    return {
-        "run": _jsonable(t.run),
-        "units": TRAFFIC_RUN_METRICS,
-        "ssm": {g: _jsonable(r.to_dict()) for g, r in t.ssm.iterrows()},
-        "member_conflicts": _records(t.member_conflicts),
-        "ssm_extremes": _records(t.ssm_extremes),
-        "conflicts": _records(t.conflicts),
-        "baseline_vehicles": base,
-        "unavailable": dict(t.unavailable),
-    }
 
 
 def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
@@ -185,7 +132,7 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
 def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures: bool,
                   baseline: str | Path | None) -> AnalysisResult:
     base = load_baseline(baseline) if baseline is not None else None
-    a = compute_run(load_run(run_dir), settings, baseline=base)
+    a = compute_formations(load_formations(run_dir), settings, baseline=base)
     files: dict[str, Path] = {}
     fig_paths: dict[str, Path] = {}
     fig_errors: dict[str, str] = {}
@@ -196,36 +143,9 @@ def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures:
         files.update({f"figure:{k}": p for k, p in fig_paths.items()})
     issues = list(a.issues) + extra
 
-    members_json = []
-    for mid, row in a.members.iterrows():
-        rec = {"id": mid, **row.to_dict(), "unavailable": a.unavailable.get(mid, {})}
-        members_json.append(_jsonable(rec))
-    traj = a.data.trajectories
-    doc = {
-        "schema": SCHEMA,
-        "run_dir": str(run_dir),
-        "run": a.run,
-        "members": members_json,
-        "string_stability": _records(a.string_stability),
-        "formations": list(a.formations),  # formation level: string_amplification (docs/metrics.md)
-        "issues": [i.as_dict() for i in issues],
-        "damaged": any(i.severity == "error" for i in issues),
-        "tables": {
-            "trajectories": {"rows": len(traj),
-                             "vehicles": sorted(map(str, traj["vehicle_id"].unique())),
-                             "missing_columns": sorted(a.data.missing_columns)},
-            **{k: (None if v is None else {"rows": len(v)}) for k, v in a.data.tables.items()},
-        },
-        "meta": a.data.meta,
-        "settings": settings_dict(settings),
-        "units": {"run": RUN_METRICS, "members": MEMBER_METRICS},
-        "traffic": _traffic_json(a.traffic),
-        "comm_age": _records(a.comm_age) if a.comm_age is not None else [],
-        "maneuvers": _maneuvers_json(a),
-        "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()},
-    }
+    doc = metrics_doc(a, run_dir, issues, fig_paths, out)
     p_json = out / METRICS_JSON
-    atomic_write_text(p_json, json.dumps(_jsonable(doc), indent=2, allow_nan=False))
+    atomic_write_text(p_json, json.dumps(jsonable(doc), indent=2, allow_nan=False))
     files["metrics_json"] = p_json
     p_csv = out / METRICS_CSV
     atomic_write_text(p_csv, a.members.reset_index().to_csv(index=False))
@@ -256,21 +176,11 @@ def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures:
     p_html = out / REPORT_HTML
     atomic_write_text(p_html, report.run_report(a, fig_paths, fig_errors, extra, report_dir=out))
     files["report_html"] = p_html
-    return AnalysisResult(run_dir=run_dir, out_dir=out, run=_jsonable(a.run), members=a.members,
-                          string_stability=a.string_stability, issues=_issues_df(issues),
+    return AnalysisResult(run_dir=run_dir, out_dir=out, run=jsonable(a.run), members=a.members,
+                          string_stability=a.string_stability, issues=issues_frame(issues),
                           files=files,
-                          traffic=_jsonable(a.traffic.run) if a.traffic is not None else None,
+                          traffic=jsonable(a.traffic.run) if a.traffic is not None else None,
                           baseline=base_tab)
-
-
-def _maneuvers_json(a) -> dict[str, Any]:
-    """Maneuver intervals and the steady / maneuver split of error and comfort per member."""
-    traj = a.data.trajectories
-    iv = maneuver_intervals(a.data.tables.get("events"), float(traj["t"].max()) if len(traj) else 0.0)
-    if iv.empty:
-        return {"intervals": [], "phases": [], "units": PHASE_METRICS}
-    ph = phase_metrics(traj, [m.id for m in a.data.members], iv, a.data.dt)
-    return {"intervals": _records(iv), "phases": _records(ph.reset_index()), "units": PHASE_METRICS}
 
 
 def _labels(run_dirs: Sequence[Path]) -> list[str]:
@@ -364,11 +274,11 @@ def _compare_into(dirs: list[Path], bases: list, out: Path, settings: AnalysisSe
     table.loc["data problems", "unit"] = "-"
     for label, a in analyses.items():
         for k in _COMPARE_RUN_ROWS:
-            table.loc[k, label] = _jsonable(a.run.get(k))
+            table.loc[k, label] = jsonable(a.run.get(k))
         for k in KEY_METRICS:
             table.loc[f"worst {k}", label] = a.run["worst"].get(k)
         for k in TRAFFIC_COMPARE_METRICS:
-            table.loc[f"traffic {k}", label] = _jsonable(
+            table.loc[f"traffic {k}", label] = jsonable(
                 a.traffic.run.get(k) if a.traffic is not None else None)
         table.loc["data problems", label] = sum(i.severity == "error" for i in issues[label])
 
@@ -386,7 +296,7 @@ def _compare_into(dirs: list[Path], bases: list, out: Path, settings: AnalysisSe
            "issues": {lab: [i.as_dict() for i in iss] for lab, iss in issues.items()},
            "settings": settings_dict(settings),
            "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()}}
-    atomic_write_text(p_json, json.dumps(_jsonable(doc), indent=2, allow_nan=False))
+    atomic_write_text(p_json, json.dumps(jsonable(doc), indent=2, allow_nan=False))
     files["compare_json"] = p_json
 
     from analysis.report import run_report as report
@@ -396,5 +306,5 @@ def _compare_into(dirs: list[Path], bases: list, out: Path, settings: AnalysisSe
         lab: Path(iss[0].what) for lab, iss in issues.items() if lab not in runs}},
         issues, fig_errors))
     files["report_html"] = p_html
-    all_issues = pd.concat([_issues_df(v, run=k) for k, v in issues.items()], ignore_index=True)
+    all_issues = pd.concat([issues_frame(v, run=k) for k, v in issues.items()], ignore_index=True)
     return CompareResult(out_dir=out, table=table, runs=runs, issues=all_issues, files=files)

@@ -9,7 +9,7 @@ no readable trajectory rows at all raises :class:`NoTrajectoryData`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +38,8 @@ __all__ = [
     "read_table",
     "read_meta",
     "load_run",
+    "load_formations",
+    "formation_ids",
     "describe_issues",
 ]
 
@@ -145,6 +147,9 @@ def _coverage_issues(traj: pd.DataFrame, dt: float, meta: dict[str, Any]) -> lis
 def load_run(run_dir: str | Path) -> RunData:
     """Load a run directory, reporting instead of failing on damage.
 
+    A run of several formations (``[[formations]]``) is loaded as its first formation, with
+    a warning naming the others; :func:`load_formations` gives every formation.
+
     Parameters
     ----------
     run_dir : str or Path
@@ -164,7 +169,57 @@ def load_run(run_dir: str | Path) -> RunData:
         If no trajectory row can be read (missing table, every part unreadable, or the
         ``t``/``vehicle_id`` columns absent).
     """
+    views = load_formations(run_dir)
+    first, data = next(iter(views.items()))
+    if len(views) == 1:
+        return data
+    warn = Issue("warning", "several_formations", "formation_id",
+                 f"the run has {len(views)} formations ({', '.join(views)}); this analysis "
+                 f"covers formation '{first}' only")
+    return replace(data, issues=(*data.issues, warn))
+
+
+def load_formations(run_dir: str | Path) -> dict[str, RunData]:
+    """Load a run directory as one :class:`RunData` per formation, each as if that formation
+    had run alone: its rows (``formation_id``), its virtual car as ``'vc'``, its members in
+    ``meta["members"]``; the optional tables are shared.
+
+    Parameters
+    ----------
+    run_dir : str or Path
+        Run directory containing ``run.json`` and ``trajectories.parquet``.
+
+    Returns
+    -------
+    dict of str to RunData
+        Formation id to its data, in the order of run.json's members (the top-level
+        formation ``f0`` first); one entry for a run of one formation (the same data as
+        :func:`load_run`; ``f0`` when the record has no ``formation_id``).
+
+    Raises
+    ------
+    NoTrajectoryData
+        As :func:`load_run`.
+    """
     run_dir = Path(run_dir)
+    meta, traj, missing, issues = _read_trajectories(run_dir)
+    tables, tab_issues = _optional_tables(run_dir)
+    fids = formation_ids(traj, meta)
+    views: dict[str, RunData] = {}
+    for fid in fids:
+        f_traj, f_meta = _formation_view(traj, meta, fid) if len(fids) > 1 else (traj, meta)
+        dt, dt_issues = _sample_spacing(f_traj, f_meta)
+        cov_issues = _coverage_issues(f_traj, dt, f_meta)
+        members, m_issues = run_members(f_meta, f_traj)
+        views[fid] = RunData(run_dir=run_dir, meta=f_meta, trajectories=f_traj, dt=dt,
+                             members=tuple(members), missing_columns=missing, tables=tables,
+                             issues=tuple(issues + dt_issues + cov_issues + m_issues
+                                          + tab_issues))
+    return views
+
+
+def _read_trajectories(run_dir: Path):
+    """run.json and the cleaned trajectories of every formation, with their issues."""
     if not run_dir.is_dir():
         raise NoTrajectoryData(f"{run_dir} is not a directory")
     issues: list[Issue] = []
@@ -181,22 +236,8 @@ def load_run(run_dir: str | Path) -> RunData:
         if key not in traj.columns:
             raise NoTrajectoryData(f"{run_dir}: trajectories have no '{key}' column; "
                                    "rows cannot be placed in time or attributed to a vehicle")
-
     traj, missing, c_issues = _clean_trajectories(traj, run_dir)
-    issues += c_issues
-    traj, meta, f_issues = _first_formation(traj, meta)
-    issues += f_issues
-    dt, dt_issues = _sample_spacing(traj, meta)
-    issues += dt_issues
-    issues += _coverage_issues(traj, dt, meta)
-
-    members, m_issues = run_members(meta, traj)
-    issues += m_issues
-    tables, tab_issues = _optional_tables(run_dir)
-    issues += tab_issues
-    return RunData(run_dir=run_dir, meta=meta, trajectories=traj, dt=dt,
-                   members=tuple(members), missing_columns=missing, tables=tables,
-                   issues=tuple(issues))
+    return meta, traj, missing, issues + c_issues
 
 
 def _clean_trajectories(traj: pd.DataFrame,
@@ -251,24 +292,40 @@ def _clean_trajectories(traj: pd.DataFrame,
     return traj, missing, issues
 
 
-def _first_formation(traj: pd.DataFrame, meta: dict[str, Any]):
-    """A run of several formations (``formation_id``) analysed as its first formation: its
-    rows, its virtual car as 'vc', its members in run.json, and a warning naming the others
-    (the metrics of a run's other formations are not computed by this version)."""
+def formation_ids(traj: pd.DataFrame, meta: dict[str, Any]) -> list[str]:
+    """The formations of a run: the ``formation_id`` of run.json's members in their order,
+    then any other id in the trajectories; ``["f0"]`` (the top-level formation's id) when
+    the record has no ``formation_id``.
+
+    Parameters
+    ----------
+    traj : DataFrame
+        The run's trajectories.
+    meta : dict
+        run.json's content.
+
+    Returns
+    -------
+    list of str
+        Formation ids, the first formation first.
+    """
     if "formation_id" not in traj.columns:
-        return traj, meta, []
-    fids = [f for f in pd.unique(traj["formation_id"].astype(str)) if f]
-    if len(fids) <= 1:
-        return traj, meta, []
-    first = fids[0]
-    traj = traj.loc[traj["formation_id"].astype(str) == first].copy()
-    traj.loc[traj["vehicle_id"] == f"{VIRTUAL_CAR_ID}:{first}", "vehicle_id"] = VIRTUAL_CAR_ID
+        return ["f0"]
+    declared = [m.get("formation_id") for m in meta.get("members") or []
+                if isinstance(m, dict)]
+    recorded = pd.unique(traj["formation_id"].astype(str))
+    fids = [f for f in dict.fromkeys([*declared, *recorded])
+            if isinstance(f, str) and f and f in set(recorded)]
+    return fids or ["f0"]
+
+
+def _formation_view(traj: pd.DataFrame, meta: dict[str, Any], fid: str):
+    """Formation ``fid``'s rows, its virtual car ('vc:<fid>') as 'vc', its members in run.json."""
+    traj = traj.loc[traj["formation_id"].astype(str) == fid].copy()
+    traj.loc[traj["vehicle_id"] == f"{VIRTUAL_CAR_ID}:{fid}", "vehicle_id"] = VIRTUAL_CAR_ID
     meta = dict(meta, members=[m for m in meta.get("members", [])
-                               if isinstance(m, dict) and m.get("formation_id", first) == first])
-    return traj.reset_index(drop=True), meta, [Issue(
-        "warning", "several_formations", "formation_id",
-        f"the run has {len(fids)} formations ({', '.join(fids)}); this analysis covers "
-        f"formation '{first}' only")]
+                               if isinstance(m, dict) and m.get("formation_id", fid) == fid])
+    return traj.reset_index(drop=True), meta
 
 
 def _optional_tables(run_dir: Path) -> tuple[dict[str, pd.DataFrame | None], list[Issue]]:

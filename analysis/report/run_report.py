@@ -219,6 +219,7 @@ def run_report(analysis: RunAnalysis, figures: Mapping[str, Path],
                  + f" &middot; {n_err} data error(s)</p>")
 
     parts.append(_summary_html(a, issues))
+    parts.append(_formations_html(a))
     if figures or figure_errors:
         parts.append("<h2>Figures</h2>")
         for name, p in figures.items():
@@ -272,6 +273,31 @@ def _tables_html(a: RunAnalysis, issues, n_err: int) -> str:
         parts.append(_details("Versions", _table(["package", "version"],
                                                  [[k, v] for k, v in versions.items()], left=2)))
     return "".join(parts)
+
+
+_FORMATION_COLUMNS = ("n_members", "shape_error_rms_m", "shape_error_max_m", "string_stable",
+                      "string_amplification", "energy_kwh_per_100km")
+_FORMATION_WORST = ("e_rms_m", "e_max_m", "a_lat_peak_mps2", "jerk_lat_peak_mps3", "aw_lat_mps2")
+
+
+def _formations_html(a: RunAnalysis) -> str:
+    """Several formations: one row per formation, the fleet's totals, mean and worst."""
+    if a.fleet is None:
+        return ""
+    f = a.fleet.fleet
+    worst = [f"worst {k}" for k in _FORMATION_WORST]
+
+    def row(label, rec, n_members):
+        return [label, n_members, *[rec.get(k) for k in _FORMATION_COLUMNS[1:]],
+                *[(rec.get("worst") or {}).get(k) for k in _FORMATION_WORST]]
+
+    rows = [row(fid, r, r.get("n_members")) for fid, r in a.fleet.formations.items()]
+    rows += [row(f"fleet: mean of {f['n_formations']}", f["mean"], f["n_members"]),
+             row("fleet: worst", f["worst"], f["n_members"])]
+    return ("<h2>Formations</h2><p>Each formation analysed as if it had run alone; "
+            "the fleet's mean and worst over the formations (members: the fleet's total; "
+            "worst member metrics: the largest over the formation's members).</p>"
+            + _table(["formation", *_FORMATION_COLUMNS, *worst], rows, left=1))
 
 
 def _details(title: str, body: str, open_: bool = False) -> str:

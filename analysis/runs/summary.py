@@ -94,6 +94,8 @@ class RunAnalysis:
     comm_age: pd.DataFrame | None = None
     # per formation: string_amplification of its columns (analysis/metrics/platoon.py)
     formations: tuple = ()
+    # several formations: analysis.runs.fleet.FleetAnalysis (each one's and the fleet's)
+    fleet: Any = None
 
 
 def _shape(data: RunData, members: list[Member]) -> tuple[dict[str, Any], pd.DataFrame, list[Issue]]:
