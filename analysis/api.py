@@ -3,29 +3,27 @@
 ``formation-traci analyze RUN_DIR`` -> :func:`analyze_run`; ``formation-traci compare
 RUN_A RUN_B ... --out DIR`` -> :func:`compare_runs`. Both read only recorded files; a
 damaged run is analysed as far as possible and its problems are listed in the outputs.
-Only a run without any trajectory row raises (:class:`~analysis.load.NoTrajectoryData`).
+Only a run without any trajectory row raises (:class:`~analysis.load.run_data.NoTrajectoryData`).
 """
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
-from analysis.load import Issue, NoTrajectoryData, load_run
-from analysis.maneuvers import PHASE_METRICS, maneuver_intervals, phase_metrics
-from analysis.platoon import COMPARE_ROWS, compare_value
-from analysis.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN_METRICS,
-                              AnalysisSettings, RunAnalysis, compute_run, settings_dict)
-from analysis.traffic_run import (TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS,
-                                  TrafficAnalysis, load_baseline)
-from formation_traci.record.rundir import (atomic_write_text, looks_like_run, open_report_dir,
-                                            require_run_dir)
+from analysis.load.run_data import Issue, NoTrajectoryData, load_formations, load_run
+from analysis.metrics.platoon import COMPARE_ROWS, compare_value
+from analysis.report.metrics_doc import SCHEMA, issues_frame, jsonable, metrics_doc
+from analysis.runs.fleet import compute_formations
+from analysis.runs.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN_METRICS,
+                                   AnalysisSettings, RunAnalysis, compute_run, settings_dict)
+from analysis.runs.traffic_run import TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS, load_baseline
+from formation_traci.record.rundir import looks_like_run, open_report_dir, require_run_dir
+from formation_traci.record.rundir import atomic_write_text
 
 __all__ = [
     "SCHEMA", "METRICS_JSON", "METRICS_CSV", "REPORT_HTML", "BASELINE_CSV", "COMM_AGE_CSV",
@@ -33,16 +31,13 @@ __all__ = [
     "compare_runs",
 ]
 
-SCHEMA = "formation-traci/metrics/1"
-"""Identifier of the ``metrics.json`` layout."""
-
 METRICS_JSON = "metrics.json"
 METRICS_CSV = "metrics.csv"
 REPORT_HTML = "report.html"
 BASELINE_CSV = "baseline.csv"
 TWIN_CSV = "twin.csv"
 COMM_AGE_CSV = "comm_age.csv"
-"""Error and comfort per leader-age bin and member (analysis/comm.py)."""
+"""Error and comfort per leader-age bin and member (analysis/metrics/comm.py)."""
 FIGURES_DIR = "figures"
 
 _COMPARE_RUN_ROWS = ("status", "model", "mu", "duration_s", "sample_rate_hz",
@@ -76,57 +71,9 @@ class CompareResult:
     files: dict[str, Path]  # "compare_csv", "compare_json", "report_html", "figure:<name>"
 
 
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, Path):
-        return str(x)
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, np.generic):
-        x = x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if x is pd.NA or x is pd.NaT:
-        return None
-    return x
-
-
-def _records(df: pd.DataFrame) -> list[dict[str, Any]]:
-    return [_jsonable(r) for r in df.to_dict(orient="records")]
-
-
-def _issues_df(issues: Sequence[Issue], run: str | None = None) -> pd.DataFrame:
-    cols = ["severity", "kind", "what", "detail"]
-    df = pd.DataFrame([i.as_dict() for i in issues], columns=cols)
-    if run is not None:
-        df.insert(0, "run", run)
-    return df
-
-
 def _figure_module():
-    from analysis import figures  # lazy: matplotlib is heavy and only needed here
+    from analysis.figures import run_figures as figures  # lazy: matplotlib is heavy
     return figures
-
-
-def _traffic_json(t: TrafficAnalysis | None) -> dict[str, Any] | None:
-    if t is None:
-        return None
-    base = None
-    if t.baseline is not None:
-        base = _records(t.baseline.reset_index())
-    return {
-        "run": _jsonable(t.run),
-        "units": TRAFFIC_RUN_METRICS,
-        "ssm": {g: _jsonable(r.to_dict()) for g, r in t.ssm.iterrows()},
-        "member_conflicts": _records(t.member_conflicts),
-        "ssm_extremes": _records(t.ssm_extremes),
-        "conflicts": _records(t.conflicts),
-        "baseline_vehicles": base,
-        "unavailable": dict(t.unavailable),
-    }
 
 
 def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
@@ -177,7 +124,7 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
 def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures: bool,
                   baseline: str | Path | None) -> AnalysisResult:
     base = load_baseline(baseline) if baseline is not None else None
-    a = compute_run(load_run(run_dir), settings, baseline=base)
+    a = compute_formations(load_formations(run_dir), settings, baseline=base)
     files: dict[str, Path] = {}
     fig_paths: dict[str, Path] = {}
     fig_errors: dict[str, str] = {}
@@ -188,36 +135,9 @@ def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures:
         files.update({f"figure:{k}": p for k, p in fig_paths.items()})
     issues = list(a.issues) + extra
 
-    members_json = []
-    for mid, row in a.members.iterrows():
-        rec = {"id": mid, **row.to_dict(), "unavailable": a.unavailable.get(mid, {})}
-        members_json.append(_jsonable(rec))
-    traj = a.data.trajectories
-    doc = {
-        "schema": SCHEMA,
-        "run_dir": str(run_dir),
-        "run": a.run,
-        "members": members_json,
-        "string_stability": _records(a.string_stability),
-        "formations": list(a.formations),  # formation level: string_amplification (docs/metrics.md)
-        "issues": [i.as_dict() for i in issues],
-        "damaged": any(i.severity == "error" for i in issues),
-        "tables": {
-            "trajectories": {"rows": len(traj),
-                             "vehicles": sorted(map(str, traj["vehicle_id"].unique())),
-                             "missing_columns": sorted(a.data.missing_columns)},
-            **{k: (None if v is None else {"rows": len(v)}) for k, v in a.data.tables.items()},
-        },
-        "meta": a.data.meta,
-        "settings": settings_dict(settings),
-        "units": {"run": RUN_METRICS, "members": MEMBER_METRICS},
-        "traffic": _traffic_json(a.traffic),
-        "comm_age": _records(a.comm_age) if a.comm_age is not None else [],
-        "maneuvers": _maneuvers_json(a),
-        "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()},
-    }
+    doc = metrics_doc(a, run_dir, issues, fig_paths, out)
     p_json = out / METRICS_JSON
-    atomic_write_text(p_json, json.dumps(_jsonable(doc), indent=2, allow_nan=False))
+    atomic_write_text(p_json, json.dumps(jsonable(doc), indent=2, allow_nan=False))
     files["metrics_json"] = p_json
     p_csv = out / METRICS_CSV
     atomic_write_text(p_csv, a.members.reset_index().to_csv(index=False))
@@ -243,26 +163,16 @@ def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures:
     else:
         p_base.unlink(missing_ok=True)
 
-    from analysis import report  # lazy, like figures
+    from analysis.report import run_report as report  # lazy, like figures
 
     p_html = out / REPORT_HTML
     atomic_write_text(p_html, report.run_report(a, fig_paths, fig_errors, extra, report_dir=out))
     files["report_html"] = p_html
-    return AnalysisResult(run_dir=run_dir, out_dir=out, run=_jsonable(a.run), members=a.members,
-                          string_stability=a.string_stability, issues=_issues_df(issues),
+    return AnalysisResult(run_dir=run_dir, out_dir=out, run=jsonable(a.run), members=a.members,
+                          string_stability=a.string_stability, issues=issues_frame(issues),
                           files=files,
-                          traffic=_jsonable(a.traffic.run) if a.traffic is not None else None,
+                          traffic=jsonable(a.traffic.run) if a.traffic is not None else None,
                           baseline=base_tab)
-
-
-def _maneuvers_json(a) -> dict[str, Any]:
-    """Maneuver intervals and the steady / maneuver split of error and comfort per member."""
-    traj = a.data.trajectories
-    iv = maneuver_intervals(a.data.tables.get("events"), float(traj["t"].max()) if len(traj) else 0.0)
-    if iv.empty:
-        return {"intervals": [], "phases": [], "units": PHASE_METRICS}
-    ph = phase_metrics(traj, [m.id for m in a.data.members], iv, a.data.dt)
-    return {"intervals": _records(iv), "phases": _records(ph.reset_index()), "units": PHASE_METRICS}
 
 
 def _labels(run_dirs: Sequence[Path]) -> list[str]:
@@ -356,11 +266,11 @@ def _compare_into(dirs: list[Path], bases: list, out: Path, settings: AnalysisSe
     table.loc["data problems", "unit"] = "-"
     for label, a in analyses.items():
         for k in _COMPARE_RUN_ROWS:
-            table.loc[k, label] = _jsonable(compare_value(a, k))
+            table.loc[k, label] = jsonable(compare_value(a, k))
         for k in KEY_METRICS:
             table.loc[f"worst {k}", label] = a.run["worst"].get(k)
         for k in TRAFFIC_COMPARE_METRICS:
-            table.loc[f"traffic {k}", label] = _jsonable(
+            table.loc[f"traffic {k}", label] = jsonable(
                 a.traffic.run.get(k) if a.traffic is not None else None)
         table.loc["data problems", label] = sum(i.severity == "error" for i in issues[label])
 
@@ -378,15 +288,15 @@ def _compare_into(dirs: list[Path], bases: list, out: Path, settings: AnalysisSe
            "issues": {lab: [i.as_dict() for i in iss] for lab, iss in issues.items()},
            "settings": settings_dict(settings),
            "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()}}
-    atomic_write_text(p_json, json.dumps(_jsonable(doc), indent=2, allow_nan=False))
+    atomic_write_text(p_json, json.dumps(jsonable(doc), indent=2, allow_nan=False))
     files["compare_json"] = p_json
 
-    from analysis import report
+    from analysis.report import run_report as report
 
     p_html = out / REPORT_HTML
     atomic_write_text(p_html, report.compare_report(table, fig_paths, {**runs, **{
         lab: Path(iss[0].what) for lab, iss in issues.items() if lab not in runs}},
         issues, fig_errors))
     files["report_html"] = p_html
-    all_issues = pd.concat([_issues_df(v, run=k) for k, v in issues.items()], ignore_index=True)
+    all_issues = pd.concat([issues_frame(v, run=k) for k, v in issues.items()], ignore_index=True)
     return CompareResult(out_dir=out, table=table, runs=runs, issues=all_issues, files=files)

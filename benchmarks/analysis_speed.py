@@ -16,8 +16,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "analysis")]
 
-from analysis.load import load_run  # noqa: E402
-from analysis.summary import compute_run  # noqa: E402
+from analysis.load.run_data import load_run  # noqa: E402
+from analysis.runs.summary import compute_run  # noqa: E402
 from test_analysis_traffic_run import FAST, long_run_with_traffic  # noqa: E402
 
 

@@ -8,8 +8,8 @@ on the members, then the analysis' conflicts from the recording) and with none
     (loop of the default run + conflict analysis) / loop of the run without
 
 with the loop the wall-clock seconds from SUMO started to the end of the run (``timing_s``), and
-the conflict analysis the time of ``analysis.conflict_run`` on the loaded recording (building the
-rows, ``recorded_conflicts``, the SSM table); reading the recording is printed apart, since the
+the conflict analysis the time of ``analysis.runs.conflict_run`` on the loaded recording (building
+the rows, ``recorded_conflicts``, the SSM table); reading the recording is printed apart, since the
 analysis reads it anyway. On a shared machine the wall clock drifts with the others' load; the
 CPU seconds of each process (with setup) are printed too. ``--oracle`` adds a run with the device on every vehicle (``"all"``,
 the former default) and checks the default against it on that run: member conflicts of SUMO's
@@ -43,11 +43,11 @@ def peak_rss_mb() -> float:
 
 def _conflict_analysis(run: Path) -> dict:
     """Time the conflict part of the analysis on a finished run, and what it finds."""
-    from analysis import traffic as tr
-    from analysis.conflict_run import recorded_section, ssm_section
-    from analysis.load import load_run
-    from analysis.summary import DEFAULT_SETTINGS
-    from analysis.traffic_run import _background_rows, member_rows
+    from analysis.metrics import traffic as tr
+    from analysis.runs.conflict_run import recorded_section, ssm_section
+    from analysis.load.run_data import load_run
+    from analysis.runs.summary import DEFAULT_SETTINGS
+    from analysis.runs.traffic_run import background_rows, member_rows
     t0 = time.perf_counter()
     data = load_run(run)
     t1 = time.perf_counter()
@@ -56,7 +56,7 @@ def _conflict_analysis(run: Path) -> dict:
     import pandas as pd
     bg = data.tables.get("background")
     M = member_rows(data, fp, data.dt)
-    B = _background_rows(bg, data.dt, set(ids)) if bg is not None else M.iloc[:0]
+    B = background_rows(bg, data.dt, set(ids)) if bg is not None else M.iloc[:0]
     run_m, _, tab = recorded_section(pd.concat([M, B], ignore_index=True), ids, DEFAULT_SETTINGS)
     traj = data.trajectories
     sr = ssm_section(data.tables.get("ssm"), ids, float(traj["t"].min()), float(traj["t"].max()),
@@ -100,8 +100,8 @@ def spawn(mode: str, duration: float) -> dict:
 def _oracle_check(oracle: dict, default: dict) -> None:
     import numpy as np
     import pandas as pd
-    from analysis import conflicts as cf
-    from analysis import traffic as tr
+    from analysis.metrics import conflicts as cf
+    from analysis.metrics import traffic as tr
     run = Path(oracle["run_dir"])
     s = pd.read_parquet(run / "ssm.parquet")
     s = tr.merge_ssm_duplicates(s.assign(ego=s["ego"].astype(str), foe=s["foe"].astype(str)))

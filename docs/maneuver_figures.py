@@ -6,7 +6,7 @@ scenarios (scenarios/maneuvers/): one figure per maneuver, drawn by the analysis
 
 Each scenario runs at full length into a temporary directory (SUMO through libsumo, about
 a minute in all); the run-level figures come from ``formation-traci analyze``
-(analysis/api.py ``analyze_run``), the hand-over figures from analysis/handover_figures.py.
+(analysis/api.py ``analyze_run``), the hand-over figures from analysis/figures/handover_figures.py.
 """
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ FIGURES = {  # scenario -> (figure, file in docs/img); figure: an analyze figure
 def draw(name: str, work: Path) -> Path:
     """Run scenario ``name`` and write its figure into docs/img; returns the file."""
     from analysis.api import analyze_run
-    from analysis.handover_figures import handover_figure
+    from analysis.figures.handover_figures import handover_figure
     from formation_traci.scenario import load_scenario
     from formation_traci.sim.runner import run_scenario
 

@@ -5,8 +5,8 @@ half a minute in all):
     python docs/platoon_figures.py
 
 Each scenario runs at full length into a temporary directory; the ratio is metrics.json's
-formation-level ``string_amplification`` (analysis/platoon.py), the smallest gap is taken from
-the recorded positions (bumper to bumper, 4.6 m cars).
+formation-level ``string_amplification`` (analysis/metrics/platoon.py), the smallest gap is taken
+from the recorded positions (bumper to bumper, 4.6 m cars).
 """
 from __future__ import annotations
 

@@ -51,7 +51,7 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 
 def _bad_input_types() -> tuple[type, ...]:
-    from analysis.load import NoTrajectoryData
+    from analysis.load.run_data import NoTrajectoryData
 
     from .record.rundir import RunDirError
     from .scenario import ScenarioError
@@ -184,7 +184,7 @@ def analyze(
     for name, path in res.files.items():
         typer.echo(f"{name}: {path}")
     if len(res.issues):
-        from analysis.load import describe_issues
+        from analysis.load.run_data import describe_issues
 
         typer.echo(f"{describe_issues(res.issues.to_dict('records'))}; listed in metrics.json and report.html")
 
@@ -252,7 +252,7 @@ def analyze_sweep_cmd(
 ) -> None:
     """Plot metrics against the swept values (spread over seeds) and write sweep_report.html."""
     with _outcome():
-        from analysis.sweep_report import analyze_sweep
+        from analysis.report.sweep_report import analyze_sweep
 
         rep = analyze_sweep(sweep_dir, metrics=metric or None, out=None if out is None else Path(out), spread=spread)
     for name, path in rep.files.items():

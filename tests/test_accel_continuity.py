@@ -11,8 +11,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import iso2631
-from analysis.summary import _crest_issues
+from analysis.metrics import iso2631
+from analysis.runs.summary import crest_factor_issues
 from formation_traci.control.reference_road import ramp_advance
 from formation_traci.scenario import load_scenario
 from formation_traci.sim.runner import run_scenario
@@ -103,6 +103,6 @@ def test_crest_factor_above_9_is_a_warning_with_mtvv_and_vdv():
                       "aw_lon_mps2": [0.02, 0.02], "mtvv_lon_mps2": [0.09, 0.03],
                       "vdv_lon_mps175": [0.1, 0.05], "duration_s": [60.0, 60.0],
                       "aw_crest_over_9_lat": [None, None]}, index=pd.Index(["a", "b"], name="id"))
-    issues = _crest_issues(m)
+    issues = crest_factor_issues(m)
     assert [(i.kind, i.what) for i in issues] == [("iso2631_crest_factor", "a a_lon")]
     assert "10.5" in issues[0].detail and "MTVV 0.09" in issues[0].detail and "VDV 0.1" in issues[0].detail

@@ -6,11 +6,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from analysis import conflicts as cf
-from analysis import traffic as tr
-from analysis.conflict_run import classify_extremes
-from analysis.load import load_run
-from analysis.traffic_run import _background_rows, member_rows
+from analysis.load.run_data import load_run
+from analysis.metrics import conflicts as cf
+from analysis.metrics import traffic as tr
+from analysis.runs.conflict_run import classify_extremes
+from analysis.runs.traffic_run import background_rows, member_rows
 from formation_traci.scenario import load_scenario
 from formation_traci.sim.runner import run_scenario
 
@@ -75,7 +75,8 @@ def _recorded(run: Path) -> tuple[pd.DataFrame, list[str]]:
     fp, _ = tr.member_footprint(data.meta.get("scenario"))
     ids = [m.id for m in data.members]
     rows = pd.concat([member_rows(data, fp, data.dt),
-                      _background_rows(data.tables["background"], data.dt, set(ids))], ignore_index=True)
+                      background_rows(data.tables["background"], data.dt, set(ids))],
+                     ignore_index=True)
     return cf.recorded_conflicts(rows, ids), ids
 
 

@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.energy import alone_power, compute_energy, kwh_per_100km, positive_energy
-from analysis.load import load_run
+from analysis.load.run_data import load_run
+from analysis.runs.energy import alone_power, compute_energy, kwh_per_100km, positive_energy
 from formation_traci.models import bicycle
 from formation_traci.models.bicycle import S, U
 from formation_traci.models.drag_interaction import (PLATOON_DRAG, drag_ratios, lateral_overlap,
@@ -245,8 +245,8 @@ def test_column_energy_followers_save_as_the_measurements_say(tmp_path):
         assert m.loc[mid, "energy_saving_vs_alone"] == pytest.approx(expect, rel=0.01), mid
     assert en.run["energy_saving_vs_alone"] > 0.1
     # the report shows energy per member and the formation's saving
-    from analysis.report import run_report
-    from analysis.summary import compute_run
+    from analysis.report.run_report import run_report
+    from analysis.runs.summary import compute_run
     a = compute_run(data)
     assert a.run["energy_saving_vs_alone"] == pytest.approx(en.run["energy_saving_vs_alone"])
     html = run_report(a, {})

@@ -9,9 +9,9 @@ import sys
 import pandas as pd
 from typer.testing import CliRunner
 
+from analysis.figures.sweep_figures import metric_figure
+from analysis.report.sweep_report import swept_labels
 from formation_traci.cli import app
-from analysis.sweep_figures import metric_figure
-from analysis.sweep_report import swept_labels
 
 
 def test_version_flag_prints_the_installed_version():
@@ -60,9 +60,9 @@ import re  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from analysis.headline import verdicts  # noqa: E402
-from analysis.load import describe_issues  # noqa: E402
-from analysis.propagation import propagation  # noqa: E402
+from analysis.load.run_data import describe_issues  # noqa: E402
+from analysis.metrics.propagation import propagation  # noqa: E402
+from analysis.report.headline import verdicts  # noqa: E402
 from formation_traci.scenario import load_scenario  # noqa: E402
 from formation_traci.sim.runner import run_scenario  # noqa: E402
 

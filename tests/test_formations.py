@@ -1,6 +1,9 @@
 """Several formations in one run (sim/formation.py): each formation's rows carry its id, each
 has its own virtual car, and the formations share no state: every formation's rows equal, bit
 for bit, those of a run of that formation alone."""
+import re
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -82,17 +85,85 @@ def test_formation_ids_and_member_ids_are_unique(tmp_path):
         load_scenario(p)
 
 
-def test_analysis_of_several_formations_covers_the_first_and_says_so(tmp_path):
-    """Until per-formation metrics exist, a run of several formations is analysed as its first
-    formation: its members only, its own virtual car, and a warning naming the others."""
+THESIS = Path(__file__).resolve().parents[1] / "scenarios" / "thesis"
+
+
+def _east(top_level: bool) -> str:
+    """case 2.3.3 (speed changes, turns both ways) 400 m to the left, its members renamed
+    e_v1..e_v3: as the top-level formation of a run, or as the [[formations]] entry 'east'."""
+    text = (THESIS / "case_2_3_3_varying.toml").read_text()
+    leader = text[text.index("[leader]\n") + 9:text.index("[[members]]")].strip()
+    members = text[text.index("[[members]]"):].replace('id = "v', 'id = "e_v')
+    members = re.sub(r"position = \[([-0-9.]+), ([-0-9.]+)\]",
+                     lambda m: f"position = [{m[1]}, {float(m[2]) + 400.0}]", members)
+    if top_level:
+        return f"[leader]\ny = 400.0\n{leader}\n{members}"
+    return ('[[formations]]\nid = "east"\n[formations.leader]\ny = 400.0\n' + leader + "\n"
+            + members.replace("[[members]]", "[[formations.members]]"))
+
+
+def test_each_formation_is_analysed_as_if_it_ran_alone(tmp_path):
+    """Issue 27: a run of two formations in free space (case 2.3.1 and case 2.3.3 side by
+    side, 12 s: long enough for ISO 2631). Formations share no state, so each one's members
+    (comfort included) and formation-level metrics equal those of its run alone, exactly;
+    metrics.json keeps the first formation's run-level metrics (those of case 2.3.1 alone),
+    adds formation_metrics and fleet, whose worst is the largest over the formations and mean
+    the mean; the report has one row per formation and the fleet's; a run of one formation
+    writes neither."""
+    import json
+
     from analysis.api import analyze_run
-    _run(tmp_path, "both", RUN.format(model="kinematic") + WEST
-         + EAST_LIST.format(law="virtual_structure"))
-    _run(tmp_path, "west", RUN.format(model="kinematic") + WEST)
-    both = analyze_run(tmp_path / "both", figures=False)
-    west = analyze_run(tmp_path / "west", figures=False)
-    assert sorted(both.members.index) == ["a", "b"]
-    pd.testing.assert_frame_equal(both.members, west.members)
-    warn = both.issues[both.issues.kind == "several_formations"]
-    assert len(warn) == 1 and "east" in warn.detail.iloc[0]
-    assert not (west.issues.kind == "several_formations").any()
+    from analysis.runs.fleet import FORMATION_METRICS
+    from analysis.runs.summary import KEY_METRICS
+
+    west = (THESIS / "case_2_3_1_straight.toml").read_text().replace("duration = 30.0",
+                                                                       "duration = 12.0")
+    head = west[:west.index("[leader]")]  # run, vehicle
+    _run(tmp_path, "both", west + "\n" + _east(top_level=False))
+    _run(tmp_path, "west", west)
+    _run(tmp_path, "east", head + _east(top_level=True))
+    res = {k: analyze_run(tmp_path / k, out_dir=tmp_path / f"an_{k}", figures=False)
+           for k in ("both", "west", "east")}
+    doc = {k: json.loads((tmp_path / f"an_{k}" / "metrics.json").read_text()) for k in res}
+    both = res["both"].members
+    assert list(both.index) == ["v1", "v2", "v3", "e_v1", "e_v2", "e_v3"]
+    assert list(both.formation_id) == ["f0"] * 3 + ["east"] * 3
+    for k in ("west", "east"):  # every member of every formation, as in its run alone
+        alone = res[k].members
+        pd.testing.assert_frame_equal(both.loc[alone.index].drop(columns="formation_id"), alone,
+                                      check_exact=True)
+        assert alone["aw_lat_mps2"].notna().all() and alone["jerk_lat_peak_mps3"].notna().all()
+    assert doc["both"]["run"] == doc["west"]["run"]  # the first formation's, layout unchanged
+    for fid, k in (("f0", "west"), ("east", "east")):
+        rec = doc["both"]["formation_metrics"][fid]
+        alone = doc[k]["run"]
+        assert {m: rec[m] for m in FORMATION_METRICS if m != "string_amplification"} == \
+            {m: alone[m] for m in FORMATION_METRICS if m != "string_amplification"}
+        assert rec["worst"] == alone["worst"]
+        assert rec["string_amplification"] == doc[k]["formations"][0]["string_amplification"]
+    fleet = doc["both"]["fleet"]
+    assert (fleet["n_formations"], fleet["n_members"]) == (2, 6)
+    w, e = doc["west"]["run"], doc["east"]["run"]
+    for m in ("shape_error_rms_m", "shape_error_max_m"):
+        assert fleet["worst"][m] == max(w[m], e[m])
+        assert fleet["mean"][m] == pytest.approx((w[m] + e[m]) / 2, rel=1e-15)
+    winners = set()
+    for m in KEY_METRICS:
+        vals = [x for x in (w["worst"][m], e["worst"][m]) if x is not None]
+        assert fleet["worst"]["worst"][m] == (max(vals) if vals else None), m
+        if len(vals) == 2 and vals[0] != vals[1]:
+            winners.add("f0" if vals[0] > vals[1] else "east")
+            assert fleet["worst_formation"]["worst"][m] == ("f0" if vals[0] > vals[1] else "east")
+    assert winners == {"f0", "east"}  # each formation is the worst in some metric: a real max
+    assert [f["id"] for f in doc["both"]["formations"]] == ["f0", "east"]
+    assert [m["id"] for m in doc["both"]["meta"]["members"]] == list(both.index)
+    html = (tmp_path / "an_both" / "report.html").read_text()
+    i = html.index("<h2>Formations</h2>")
+    table = html[i:html.index("</table>", i)]
+    assert all(f'<td class="l">{r}</td>' in table
+               for r in ("f0", "east", "fleet: mean of 2", "fleet: worst"))
+    for k in ("west", "east"):  # one formation: nothing of the above
+        assert "formation_metrics" not in doc[k] and "fleet" not in doc[k]
+        assert "formation_id" not in res[k].members.columns
+        assert "<h2>Formations</h2>" not in (tmp_path / f"an_{k}" / "report.html").read_text()
+    assert not (res["both"].issues.severity == "warning").any()

@@ -11,10 +11,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.pair_geometry import clearance as analysis_clearance
+from analysis.metrics.pair_geometry import clearance as analysis_clearance
+from formation_traci.models.params import PASSENGER_CAR
 from formation_traci.record.columns import INCIDENT_KEYS, SIGNAL_COLUMNS
 from formation_traci.sim.incidents import STRANDED_TIME, Incidents, signed_clearance, verdict
-from formation_traci.models.params import PASSENGER_CAR
 from run_helpers import cli
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -48,7 +48,7 @@ position = [0.0, 5.0]
 def test_signed_clearance_from_first_principles():
     """Two 4 m x 2 m boxes in a row 10 m apart: 6 m; side by side 1.5 m apart: overlap 0.5 m
     (the smallest overlap over the four normals); rotated and apart: the independent
-    polygon distance of analysis.pair_geometry, and equal overlap depth by symmetry."""
+    polygon distance of analysis.metrics.pair_geometry, and equal overlap depth by symmetry."""
     assert signed_clearance(0, 0, 0, 4, 2, 10, 0, 0, 4, 2) == pytest.approx(6.0, abs=1e-12)
     assert signed_clearance(0, 0, 0, 4, 2, 0, 1.5, 0, 4, 2) == pytest.approx(-0.5, abs=1e-12)
     assert signed_clearance(0, 0, 0, 4, 2, 0, 2.0, 0, 4, 2) == pytest.approx(0.0, abs=1e-12)
@@ -197,7 +197,7 @@ the cars (tests/test_mixed_formation.py: the default holds it)."""
 def test_lust_truck_collision_is_in_the_verdict_and_sumo_reports_are_classified(tmp_path):
     """The reported case as it was (the virtual car not bounded by the truck, item 2): the run
     is completed_with_incidents, not completed. Every SUMO report classified as an artefact has
-    a positive clearance by analysis.pair_geometry's independent polygon distance on the
+    a positive clearance by analysis.metrics.pair_geometry's independent polygon distance on the
     recorded poses, every member collision a zero one (overlap)."""
     sc = tmp_path / "truck.toml"
     sc.write_text(TRUCK)

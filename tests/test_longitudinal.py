@@ -5,8 +5,8 @@ import math
 
 import numpy as np
 
+from analysis.metrics.comfort import emergency_mask, jerk_window_mean
 from formation_traci.control.longitudinal import LongitudinalPlanner, PlannerParams, plan_accel
-from analysis.comfort import emergency_mask, jerk_window_mean
 
 P = PlannerParams()
 DT = 0.05

@@ -3,6 +3,7 @@ road together): each formation's rows carry its id, each sees the others' member
 (a formation that catches up with another slows behind it at the governor's time gap), one
 that departs later enters then, one that reaches the end of its route is retired while the
 run goes on; scenario errors name the formation's fields."""
+import json
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +60,14 @@ def test_a_formation_departs_at_its_time_at_its_start_in_its_lane(three):
     # lane = 2: its slots' lanes count from lane 2 (c1 in lane 2, c2 one to the right)
     lanes = pair[pair.t > 11.0].groupby("vehicle_id").lane_index.agg(lambda s: set(s.dropna()))
     assert lanes["c1"] == {2.0} and lanes["c2"] == {1.0}
+    # the analysis takes its record from its entry as complete (run.json formations), not as
+    # a run whose first parts are missing
+    from analysis.api import analyze_run
+    res = three[0]
+    meta = json.loads((res.out_dir / "run.json").read_text())
+    assert meta["formations"]["pair"]["entered_s"] == pytest.approx(10.0)
+    issues = analyze_run(res.out_dir, figures=False).issues
+    assert not (issues.kind == "missing_head").any(), issues[issues.kind == "missing_head"]
 
 
 def test_a_formation_that_catches_up_slows_behind_the_other_at_the_time_gap(three):

@@ -69,19 +69,17 @@ def test_no_import_circles():
 
 
 def folder(module: str) -> str | None:
-    """The folder a module is in: formation_traci.<sub> or analysis; None for the modules at
-    formation_traci's top (kernels, states, versions, interrupt, cli: the package's own)."""
+    """The folder a module is in: formation_traci.<sub> or analysis.<sub> (load, metrics, runs,
+    figures, report); None for the modules at a package's top (formation_traci's kernels,
+    states, versions, interrupt, cli; analysis' api: the entry points over its folders)."""
     parts = module.split(".")
-    if parts[0] == "analysis":
-        return "analysis"
-    if len(parts) >= 2 and (ROOT / "formation_traci" / parts[1]).is_dir():
+    if len(parts) >= 2 and (ROOT / parts[0] / parts[1]).is_dir():
         return ".".join(parts[:2])
     return None
 
 
-def test_no_two_folders_import_each_other():
-    """Folders import one way: road never imports control and control road, comm neither sim
-    nor the scenario, analysis not sweep and sweep analysis (issue 26)."""
+def folder_edges() -> dict[str, set[str]]:
+    """Folder -> the other folders its modules import."""
     mods = modules()
     edges: dict[str, set[str]] = {}
     for m, p in mods.items():
@@ -90,6 +88,20 @@ def test_no_two_folders_import_each_other():
             dst = folder(d)
             if src and dst and dst != src:
                 edges.setdefault(src, set()).add(dst)
+    return edges
+
+
+def test_the_analysis_metrics_import_no_other_part_of_the_analysis():
+    """analysis/metrics/ holds the definitions: pure functions that read no file, so none of
+    its modules imports the loading, the per-run drivers, the figures or the report."""
+    assert folder_edges().get("analysis.metrics", set()) <= {"formation_traci.record"}
+
+
+def test_no_two_folders_import_each_other():
+    """Folders import one way: road never imports control and control road, comm neither sim
+    nor the scenario, analysis not sweep and sweep analysis (issue 26); within the analysis
+    load -> metrics, runs -> load and metrics, figures -> runs, report -> figures and runs."""
+    edges = folder_edges()
     pairs = sorted({tuple(sorted((a, b))) for a, bs in edges.items() for b in bs
                     if a in edges.get(b, ())})
     assert not pairs, pairs

@@ -69,7 +69,7 @@ def test_bundled_highway_scenario_runs_to_the_end(tmp_path, path):
 def _smooth_longitudinal(members, events):
     """Issue 19: jerk p95 <= 1 m/s^3 (Savitzky-Golay, as in metrics.json) and the jerk averaged
     over 1 s <= 2.5 m/s^3 (ISO 15622) for every member outside recorded emergency brakes."""
-    from analysis.comfort import emergency_mask, jerk, jerk_window_mean
+    from analysis.metrics.comfort import emergency_mask, jerk, jerk_window_mean
     for mid, g in members.groupby("vehicle_id", observed=True):
         t, a = g.t.to_numpy(), g.a_lon.to_numpy()
         j = jerk(a, 0.05)

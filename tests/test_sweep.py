@@ -16,8 +16,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from analysis.report.sweep_report import analyze_sweep
 from formation_traci.scenario import load_scenario
-from analysis.sweep_report import analyze_sweep
 from formation_traci.sweep import SweepError, expand_sweep, load_sweep, run_sweep
 from formation_traci.sweep import launch
 from formation_traci.sweep.row import WALL_COLUMNS
@@ -308,7 +308,7 @@ def test_analyze_sweep_plots_means_and_writes_one_html(local, tmp_path):
 def test_importing_sweeps_does_not_load_matplotlib():
     code = ("import sys, formation_traci.sweep as s\n"
             "s.run_sweep, s.expand_sweep, s.run_case\n"
-            "import analysis.sweep_report\n"
+            "import analysis.report.sweep_report\n"
             "assert 'matplotlib' not in sys.modules, 'matplotlib imported'\n")
     subprocess.run([sys.executable, "-c", code], check=True)
 
@@ -321,8 +321,8 @@ def test_public_functions_document_their_parameters():
     for mod_name in ("formation_traci.sweep.spec", "formation_traci.sweep.expand",
                      "formation_traci.sweep.row", "formation_traci.sweep.case",
                      "formation_traci.sweep.launch", "formation_traci.sweep.executors",
-                     "formation_traci.sweep.run", "analysis.sweep_report",
-                     "analysis.sweep_figures"):
+                     "formation_traci.sweep.run", "analysis.report.sweep_report",
+                     "analysis.figures.sweep_figures"):
         mod = importlib.import_module(mod_name)
         for name, fn in inspect.getmembers(mod, inspect.isfunction):
             if name.startswith("_") or fn.__module__ != mod.__name__:

@@ -152,7 +152,7 @@ def test_lust_stretch_is_timed_whole_in_both_runs(lust_pair):
 def test_a_run_without_the_formation_has_exactly_zero_effect(lust_pair):
     """Against a run where the formation is absent from the road (the twin run again):
     every vehicle matched and timed, and every formation-minus-twin effect exactly 0."""
-    from analysis.twin_sections import EFFECTS, read_sections, twin_comparison
+    from analysis.runs.twin_sections import EFFECTS, read_sections, twin_comparison
 
     d, _ = lust_pair
     _, _, meta = _tables(d, "twin")
@@ -175,7 +175,7 @@ def test_sweep_with_twins_summarises_paired_effects_with_confidence_intervals(tm
     import numpy as np
     import pandas as pd
 
-    from analysis.effects import paired_effects
+    from analysis.report.effects import paired_effects
     from formation_traci.sweep.row import EFFECT_KEYS
 
     sweep = tmp_path / "s.toml"
@@ -200,7 +200,7 @@ def test_sweep_with_twins_summarises_paired_effects_with_confidence_intervals(tm
     assert row.n_seeds == 2 and row["mean"] == pytest.approx(x.mean())
     assert (row.ci95_lo, row.ci95_hi) == pytest.approx((x.mean() - half, x.mean() + half))
     assert bool(row.distinguishable) == (x.mean() - half > 0 or x.mean() + half < 0)
-    from analysis.sweep_report import analyze_sweep
+    from analysis.report.sweep_report import analyze_sweep
 
     rep = analyze_sweep(out)
     page = rep.files["report_html"].read_text()

@@ -34,6 +34,7 @@ class Formation:
     held: FleetState | None = None  # its members' rows while it is parked (their state is held)
     status: str = "running"  # waiting (to depart) | running | done (retired at the end of its route)
     flow: str = ""  # the formation flow that inserts it: it enters only where there is room
+    left: float | None = None  # run time it was retired at the end of its route [s]
 
     @property
     def sensing(self) -> list:
@@ -174,4 +175,12 @@ def retire_formation(f: Formation, world, t: float, state: FleetState, rec, stop
     if kind:
         rec.add_event(t, kind, f.vc_id, "", detail)
     world.retire(t, np.arange(f.members.start, f.members.stop), f"formation {f.id}: {why}")
-    f.status, f.held = "done", state.rows(f.members)
+    f.status, f.held, f.left = "done", state.rows(f.members), t
+
+
+def formations_meta(forms: list) -> dict:
+    """run.json ``formations`` of a run of several formations (or one that departs later): per
+    formation when it entered the road and left it [s] (None: never / not before the end) and
+    its status at the end (waiting: it never entered)."""
+    return {f.id: {"entered_s": None if f.status == "waiting" else float(f.depart),
+                   "left_s": f.left, "status": f.status, "flow": f.flow or None} for f in forms}

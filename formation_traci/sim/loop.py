@@ -23,7 +23,7 @@ from ..scenario.schema import Scenario
 from .fleet import Fleet, FleetState
 from .formation_group import group_of
 from .formation import (Formation, depart_due, join_configs, join_references, join_states,
-                        merge_extra, retire_formation, virtual_car_id)
+                        formations_meta, merge_extra, retire_formation, virtual_car_id)
 from .road_load import road_load_part
 from .setup import build_fleet, build_free_leader, build_initial_state, member_vehicles, offsets
 from .timing import PhaseClock
@@ -239,6 +239,8 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             clock.lap("sumo_step")
         world.drain()  # a run that ended normally: the measurement sections' drain
     finally:
+        if len(forms) > 1 or forms[0].depart:
+            meta["formations"] = formations_meta(forms)
         world.close()
 
 

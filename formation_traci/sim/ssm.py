@@ -4,9 +4,9 @@ to ``ssm.parquet`` while the run goes on by ``record/ssm.py``).
 ``sumo.ssm = "members"`` (the default) equips only the formation members (``--device.ssm.explicit``):
 SUMO then measures every encounter of a member (as ego, with any foe within range) at the cost of a
 handful of devices instead of one per vehicle. Conflicts between background vehicles are measured
-from the recording by the analysis (``analysis/conflicts.py``). ``"all"`` equips every vehicle (the
-oracle the recording-based measures are checked against; ~10x the cost of a run without it).
-Thresholds and range are those of docs/outputs.md.
+from the recording by the analysis (``analysis/metrics/conflicts.py``). ``"all"`` equips every
+vehicle (the oracle the recording-based measures are checked against; ~10x the cost of a run without
+it). Thresholds and range are those of docs/outputs.md.
 """
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 ``expand_sweep(path)`` lists the cases, ``run_sweep(path, out_dir, ...)`` runs them (a local
 pool or a Dask cluster; resumable) into ``out_dir/summary.parquet``. Plotting them is
-analysis's job: ``analysis.sweep_report.analyze_sweep(out_dir)``. See docs/sweeps.md.
+analysis's job: ``analysis.report.sweep_report.analyze_sweep(out_dir)``. See docs/sweeps.md.
 
 Names are imported on first use, so the case process (``python -m
 formation_traci.sweep.case``) loads only what it needs.

@@ -135,7 +135,7 @@ def _run_twin(sc, spec: CaseSpec, row: dict) -> Path | None:
 
 def _analyse(run_dir: Path, row: dict, twin: Path | None = None) -> dict[str, Any]:
     from analysis.api import analyze_run
-    from analysis.load import NoTrajectoryData
+    from analysis.load.run_data import NoTrajectoryData
 
     try:
         a = analyze_run(run_dir, figures=False, baseline=twin)

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis.sweep_metrics import EFFECT_KEYS, METRICS  # noqa: F401 (re-exported)
+from analysis.report.sweep_metrics import EFFECT_KEYS, METRICS  # noqa: F401 (re-exported)
 
 ID_COLUMNS: tuple[str, ...] = ("case_id", "case_index", "seed")
 STATUS_COLUMNS: tuple[str, ...] = ("status", "reason", "t_end_s")
@@ -66,7 +66,7 @@ def _all_or_none(x: np.ndarray, fn) -> float | None:
 
 
 def _sumo_metrics(run_dir: Path, member_ids: set[str], meta: dict) -> dict[str, Any]:
-    from analysis.load import read_table  # skips damaged parts, never raises
+    from analysis.load.run_data import read_table  # skips damaged parts, never raises
 
     events, _ = read_table(run_dir / "events.parquet")
     n_coll = 0
@@ -92,7 +92,7 @@ def _sumo_metrics(run_dir: Path, member_ids: set[str], meta: dict) -> dict[str, 
 
 
 def _energy_metrics(members: pd.DataFrame) -> dict[str, Any]:
-    """Formation energy from the members' analysis/energy.py columns (sums, not means)."""
+    """Formation energy from the members' analysis/runs/energy.py columns (sums, not means)."""
     e, d = _col(members, "traction_energy_kwh"), _col(members, "distance_km")
     alone = _col(members, "energy_alone_kwh_per_100km") * d / 100.0
     ok = np.isfinite(e) & np.isfinite(d)
@@ -168,7 +168,7 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
         **_incidents(meta),
     }
     if (meta.get("scenario") or {}).get("road") is not None:
-        from analysis.section_measures import section_measures  # pandas, SUMO runs only
+        from analysis.runs.section_measures import section_measures  # pandas, SUMO runs only
 
         out.update(_sumo_metrics(run_dir, set(map(str, members.index)), meta))
         out.update(section_measures(run_dir, meta))
@@ -177,8 +177,21 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
 
 def traffic_only_values(run_dir: Path, meta: dict) -> dict[str, Any]:
     """The metrics of a road run no formation entered (a penetration study's 0 %): the
-    traffic's (SUMO's counts, the section measures) and the incidents; the members' None."""
-    from analysis.section_measures import section_measures
+    traffic's (SUMO's counts, the section measures) and the incidents; the members' None.
+
+    Parameters
+    ----------
+    run_dir : Path
+        Run directory (its SUMO and section tables).
+    meta : dict
+        ``run.json`` content.
+
+    Returns
+    -------
+    dict
+        Metric name -> float, int or None.
+    """
+    from analysis.runs.section_measures import section_measures
 
     return {**_sumo_metrics(run_dir, set(), meta), **section_measures(run_dir, meta), **_incidents(meta)}
 

@@ -161,12 +161,12 @@ def _versions() -> dict[str, str]:
 def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str],
                    effects: Path | None = None) -> pd.DataFrame:
     """summary.parquet (atomically); with ``effects``, the paired effects over the seeds
-    there too (sweeps with twins, analysis/effects.py)."""
+    there too (sweeps with twins, analysis/report/effects.py)."""
     df = summary_frame(list(rows.values()), swept)
     tmp = path.with_name(f".{path.name}.tmp")
     df.to_parquet(tmp, index=False)
     os.replace(tmp, path)
-    from analysis.effects import write_effects, write_means
+    from analysis.report.effects import write_effects, write_means
 
     if effects is not None:
         write_effects(df, list(swept), effects)

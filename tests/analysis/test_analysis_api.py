@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 
 from analysis import NoTrajectoryData, analyze_run, compare_runs
-from analysis.load import DamagedPartWarning
-from analysis.summary import MEMBER_METRICS
+from analysis.load.run_data import DamagedPartWarning
+from analysis.runs.summary import MEMBER_METRICS
 from analysis_synth import exp_error, make_run, trajectories, write_run
 
 E0 = {"m1": 1.0, "m2": 0.5, "m3": 0.25, "m4": 2.0}

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis import comfort
-from analysis.signals import peak_abs, percentile_abs, rms
+from analysis.metrics import comfort
+from analysis.metrics.signals import peak_abs, percentile_abs, rms
 
 DT = 0.01
 
@@ -83,8 +83,8 @@ def test_jerk_1s_peak_metric_is_the_ramp_rate_and_leaves_out_emergencies(tmp_pat
     0.5 s (12 m/s^3, a 1-s mean of 6) inside a recorded emergency brake, which is left out (and
     counts again when the events are not recorded)."""
     import analysis_synth as S
-    from analysis.load import load_run
-    from analysis.summary import DEFAULT_SETTINGS, compute_run
+    from analysis.load.run_data import load_run
+    from analysis.runs.summary import DEFAULT_SETTINGS, compute_run
 
     def a_lon(mid, t):
         if mid == "a":

@@ -1,13 +1,14 @@
-"""Conflicts from the recording (analysis/conflicts.py) and the classification of SUMO's extreme
-SSM records (analysis/conflict_run.py), on hand-made tables with numbers worked out by hand."""
+"""Conflicts from the recording (analysis/metrics/conflicts.py) and the classification of SUMO's
+extreme SSM records (analysis/runs/conflict_run.py), on hand-made tables with numbers worked out
+by hand."""
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import conflicts as cf
-from analysis.conflict_run import classify_extremes
+from analysis.metrics import conflicts as cf
+from analysis.runs.conflict_run import classify_extremes
 
 DT = 0.05
 CAR_L, CAR_W = 4.5, 1.8

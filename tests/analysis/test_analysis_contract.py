@@ -14,7 +14,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 PKG = ROOT / "analysis"
-MODULES = sorted(p.stem for p in PKG.glob("*.py") if p.stem != "__init__")
+SOURCES = sorted(PKG.rglob("*.py"))
+MODULES = sorted(".".join(p.relative_to(PKG).with_suffix("").parts) for p in SOURCES
+                 if p.stem != "__init__")  # e.g. "metrics.comfort"
 FORBIDDEN = {"libsumo", "traci", "sumolib"}
 
 
@@ -29,7 +31,7 @@ def imported_modules(path: Path) -> set[str]:
     return out
 
 
-@pytest.mark.parametrize("path", sorted(PKG.glob("*.py")), ids=lambda p: p.name)
+@pytest.mark.parametrize("path", SOURCES, ids=lambda p: p.relative_to(PKG).as_posix())
 def test_import_rules(path):
     mods = imported_modules(path)
     tops = {m.split(".")[0] for m in mods}
@@ -41,16 +43,16 @@ def test_import_rules(path):
         allowed |= {"formation_traci.errors"}
     assert {m for m in mods if m.startswith("formation_traci")} <= allowed, (
         f"{path.name} imports formation_traci beyond {sorted(allowed)}")
-    # the figure modules (figures.py, sweep_figures.py, handover_figures.py, traffic_figures.py,
-    # compare_figures.py) and their shared drawing helpers
-    if not path.name.endswith("figures.py") and path.name != "figure_kit.py":
+    # the figure modules (analysis/figures/: run, compare, traffic, hand-over and sweep figures
+    # and their shared drawing helpers)
+    if path.parent.name != "figures":
         assert "matplotlib" not in tops, f"{path.name} imports matplotlib"
-    if path.name not in ("report.py", "sweep_report.py"):
+    if path.name not in ("run_report.py", "sweep_report.py"):
         assert "html" not in tops and "<html" not in path.read_text().lower()
 
 
 def test_importing_analysis_pulls_neither_simulator_nor_matplotlib():
-    code = ("import sys, analysis, analysis.api, analysis.summary, analysis.iso2631; "
+    code = ("import sys, analysis, analysis.api, analysis.runs.summary, analysis.metrics.iso2631; "
             "bad = sorted(m for m in sys.modules if m.split('.')[0] in "
             "{'libsumo', 'traci', 'sumolib', 'matplotlib'}); print(bad)")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,

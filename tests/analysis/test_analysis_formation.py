@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis import formation
+from analysis.metrics import formation
 
 DT = 0.01
 

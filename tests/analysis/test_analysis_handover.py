@@ -1,9 +1,9 @@
-"""analysis/handover.py: one series across a switch between the formation and SUMO."""
+"""analysis/metrics/handover.py: one series across a switch between the formation and SUMO."""
 import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.handover import handover_track
+from analysis.metrics.handover import handover_track
 
 
 def _tables(kind, member_first):

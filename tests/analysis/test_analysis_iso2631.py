@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from analysis import iso2631 as iso
+from analysis.metrics import iso2631 as iso
 
 # Table 3 of ISO 2631-1:1997, Wk (x 1000), 0.5 ... 80 Hz
 WK_TABLE_HZ = np.array([0.5, 0.63, 0.8, 1, 1.25, 1.6, 2, 2.5, 3.15, 4, 5, 6.3, 8, 10, 12.5, 16,

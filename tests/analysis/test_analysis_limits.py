@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from analysis import limits
+from analysis.metrics import limits
 
 
 def test_episodes_and_time_of_a_constructed_mask():

@@ -10,7 +10,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from analysis.load import DamagedPartWarning, NoTrajectoryData, load_run
+from analysis.load.run_data import DamagedPartWarning, NoTrajectoryData, load_run
 from analysis_synth import OFFSETS, exp_error, make_run, trajectories, write_run
 
 

@@ -1,9 +1,9 @@
-"""analysis/maneuvers.py: maneuver intervals from events and the steady / maneuver split."""
+"""analysis/metrics/maneuvers.py: maneuver intervals from events and the steady / maneuver split."""
 import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.maneuvers import in_intervals, maneuver_intervals, phase_metrics
+from analysis.metrics.maneuvers import in_intervals, maneuver_intervals, phase_metrics
 
 
 def _events(rows):

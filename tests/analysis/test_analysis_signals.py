@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.signals import (contiguous_segments, count_episodes, peak_abs, percentile_abs,
-                              rms, time_where, trapezoid_integral)
+from analysis.metrics.signals import (contiguous_segments, count_episodes, peak_abs, percentile_abs,
+                                      rms, time_where, trapezoid_integral)
 
 
 def test_rms_of_sinusoid_over_whole_periods():

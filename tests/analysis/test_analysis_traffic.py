@@ -1,4 +1,4 @@
-"""Traffic-interaction measures (analysis.traffic) against closed-form answers."""
+"""Traffic-interaction measures (analysis.metrics.traffic) against closed-form answers."""
 from __future__ import annotations
 
 import math
@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import traffic as tr
+from analysis.metrics import traffic as tr
 
 CAR_L, CAR_W = 4.6, 1.8
 

@@ -10,9 +10,9 @@ import pytest
 
 import analysis_synth as S
 from analysis import analyze_run, compare_runs
-from analysis.load import DamagedPartWarning, load_run
-from analysis.summary import DEFAULT_SETTINGS, MEMBER_METRICS, compute_run
-from analysis.traffic_run import TRAFFIC_MEMBER_METRICS, load_baseline
+from analysis.load.run_data import DamagedPartWarning, load_run
+from analysis.runs.summary import DEFAULT_SETTINGS, MEMBER_METRICS, compute_run
+from analysis.runs.traffic_run import TRAFFIC_MEMBER_METRICS, load_baseline
 
 DT, T_END, V = 0.05, 6.0, 20.0
 OFFSETS = {"a": (0.0, 0.0), "b": (0.0, 3.5)}  # side by side, lanes 1 and 2
@@ -147,7 +147,7 @@ def test_outputs_and_figures(analysed):
 def test_birdseye_falls_back_to_a_png_strip_without_pillow(tmp_path, monkeypatch):
     import importlib.util
 
-    from analysis import figures
+    from analysis.figures import run_figures as figures
 
     run = road_run(tmp_path / "r", t_end=2.0)
     a = compute_run(load_run(run), FAST)
@@ -292,8 +292,8 @@ def long_run_with_traffic(run, t_end=600.0, n_vehicles=50):
 def test_a_mixed_formation_gets_each_members_own_body(tmp_path):
     """run.json records every member's body; a truck among cars is a truck in the analysis
     (each member's clearance uses its own outline, not the first member's)."""
-    from analysis.interaction_run import member_rows
-    from analysis.traffic import member_footprints
+    from analysis.runs.interaction_run import member_rows
+    from analysis.metrics.traffic import member_footprints
 
     car = {"length": 4.6, "width": 1.8, "a": 1.421, "front_overhang": 0.9}
     truck = {"length": 7.5, "width": 2.3, "a": 1.7, "front_overhang": 1.3}

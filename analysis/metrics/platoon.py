@@ -1,0 +1,112 @@
+"""String amplification of a formation's columns (issue 28, docs/platoon_laws.md): the
+metrics.json formation-level ``string_amplification``.
+
+Along a column (analysis/metrics/formation.py ``formation_columns``: one lateral offset, front to
+back) member k's speed error is its speed less its predecessor's, e_k(t) = v_k(t) - v_(k-1)(t)
+[m/s]; the amplification is max_t |e_last| / max_t |e_first| with ``first`` the member right behind
+the head and ``last`` the column's tail: <= 1 string stable (errors shrink down the column). For a
+linear homogeneous column e_k = Gamma e_(k-1) with Gamma = V_k / V_(k-1) the law's string
+transfer function, so over a steady sinusoid of frequency w the ratio is |Gamma(jw)|^(n-2).
+The record also holds |Gamma(jw)| estimated from the recorded speeds at the head's dominant
+frequency f0 (:func:`gamma_estimate`: the ratio of the speeds' DFT magnitudes at f0, member by
+member behind the first follower; ``gamma_mean`` their geometric mean).
+Peaks below :data:`SPEED_ERROR_FLOOR_MPS` count as that floor (the virtual structure's members
+each track the virtual car: their speed errors are round-off, and the ratio is 1, Gamma = 1).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from analysis.metrics import formation
+
+SPEED_ERROR_FLOOR_MPS = 1e-6
+"""Peak speed errors below this are round-off [m/s]."""
+
+COMPARE_ROWS = ("string_amplification", "gamma_mean")
+"""Formation-level rows of ``formation-traci compare`` (the run's first formation): our column
+against SUMO's CACC twin (docs/platoon_laws.md) side by side."""
+
+
+def compare_value(analysis, key: str):
+    """The comparison table's value of ``key`` for a RunAnalysis: run-level, or (a
+    :data:`COMPARE_ROWS` key) its first formation's record (None without one)."""
+    if key not in COMPARE_ROWS:
+        return analysis.run.get(key)
+    return analysis.formations[0].get(key) if analysis.formations else None
+
+
+def amplification(speeds: np.ndarray) -> tuple[float, float, float]:
+    """(ratio, peak |e_first| [m/s], peak |e_last| [m/s]) of a column's speeds (n >= 3 members,
+    front to back, shape (n, n_t), no NaN)."""
+    e = np.abs(np.diff(np.asarray(speeds, float), axis=0))  # row k-1: |v_k - v_(k-1)|
+    first = float(e[0].max())
+    last = float(e[-1].max())
+    return (max(last, SPEED_ERROR_FLOOR_MPS) / max(first, SPEED_ERROR_FLOOR_MPS), first, last)
+
+
+def formation_amplification(traj: pd.DataFrame, offsets: dict, dy_tol: float) -> list[dict]:
+    """One record per formation (trajectories' ``formation_id``): its largest column
+    amplification with the column's members (front to back) and the two peaks; None where no
+    column has three members with common samples."""
+    fids = traj.drop_duplicates("vehicle_id").set_index("vehicle_id")["formation_id"] \
+        if "formation_id" in traj.columns else None
+    out = []
+    groups = sorted(set(fids.loc[fids.index.isin(offsets)].astype(str))) if fids is not None \
+        else ["f0"]
+    for fid in groups:
+        own = {m: o for m, o in offsets.items() if fids is None or str(fids.get(m)) == fid}
+        best = None
+        for column in formation.formation_columns(own, dy_tol):
+            v = traj.loc[traj["vehicle_id"].isin(column)].pivot(
+                index="t", columns="vehicle_id", values="v")
+            present = [c for c in column if c in v.columns]
+            v = v[present].dropna()
+            if len(present) < 3 or len(v) == 0:
+                continue
+            r, first, last = amplification(v.to_numpy().T)
+            if best is None or r > best["string_amplification"]:
+                best = {"id": fid, "string_amplification": r, "column": present,
+                        "peak_speed_error_first_mps": first, "peak_speed_error_last_mps": last,
+                        **_gamma_record(v.to_numpy().T, np.diff(v.index.to_numpy()))}
+        out.append(best or {"id": fid, "string_amplification": None, "column": [],
+                            "peak_speed_error_first_mps": None, "peak_speed_error_last_mps": None,
+                            "gamma_f0_hz": None, "gamma": [], "gamma_mean": None})
+    return out
+
+
+def _gamma_record(v: np.ndarray, steps: np.ndarray) -> dict:
+    """The record's |Gamma| estimate (:func:`gamma_estimate`; None for uneven samples or fewer
+    than four members)."""
+    if v.shape[0] < 4 or len(steps) == 0 or np.ptp(steps) > 1e-9 * steps.max():
+        return {"gamma_f0_hz": None, "gamma": [], "gamma_mean": None}
+    f0, g = gamma_estimate(v, float(steps.mean()))
+    ok = np.isfinite(g) & (g > 0)
+    return {"gamma_f0_hz": f0, "gamma": [float(x) for x in g],
+            "gamma_mean": float(np.exp(np.log(g[ok]).mean())) if ok.all() else None}
+
+
+def dominant_frequency(v: np.ndarray, dt: float, f_lo: float = 0.02, f_hi: float = 2.0,
+                       df: float = 0.002) -> float:
+    """The frequency [Hz] of the largest DFT magnitude of ``v`` (its mean removed) on a grid
+    f_lo .. f_hi step df (samples every dt [s])."""
+    f = np.arange(f_lo, f_hi + df / 2, df)
+    return float(f[np.argmax(np.abs(dft_at(v, dt, f)))])
+
+
+def dft_at(v: np.ndarray, dt: float, f) -> np.ndarray:
+    """sum_k (v_k - mean v) exp(-2 pi i f k dt) at each frequency f [Hz]."""
+    v = np.asarray(v, float)
+    k = np.arange(v.shape[-1]) * dt
+    return np.exp(-2j * np.pi * np.outer(np.atleast_1d(f), k)) @ (v - v.mean(axis=-1, keepdims=True)).T
+
+
+def gamma_estimate(speeds: np.ndarray, dt: float) -> tuple[float, np.ndarray]:
+    """The string transfer function's magnitude |Gamma(j 2 pi f0)| estimated from a column's
+    speeds (front to back, (n, n_t), every dt [s]) at f0, the head's dominant frequency:
+    (f0 [Hz], |V_k(f0)| / |V_(k-1)(f0)| for k = 2 .. n-1, the pairs behind the first follower)."""
+    v = np.asarray(speeds, float)
+    f0 = dominant_frequency(v[0], dt)
+    mag = np.abs(dft_at(v, dt, f0)).ravel()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return f0, mag[2:] / mag[1:-1]
