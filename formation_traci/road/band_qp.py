@@ -11,8 +11,9 @@ functionals at a bound carry the force ``lam_j`` (of the sign that pushes into t
 others none. The active-set iteration (Nocedal & Wright, *Numerical Optimization*, 2nd ed.,
 algorithm 16.3, for bounds) keeps ``w`` in the box: it solves for the forces of the bound
 set, steps towards that solution until a free functional meets a bound (which joins the set),
-and releases the bound whose force points out of the box; each step lowers the energy, so
-it ends after finitely many steps.
+and releases the bounds whose force points out of the box (all of them at once: the
+minimiser over the larger free set lies downhill of the point); each step lowers the energy
+or adds a bound, so it ends after finitely many steps.
 """
 from __future__ import annotations
 
@@ -65,6 +66,9 @@ def box_forces(M, w0, lo, hi, max_steps: int = 2000) -> dict:
         ``A H^-1 A^T``.
     w0, lo, hi : sequences of float, (m,)
         The free fit's functionals and their bounds (lo < hi).
+
+    Cost: one small dense Cholesky per step, and a step per bound met: ~0.5 s on LuST at
+    0.6 m (a few bounds), ~100 s at 0.2 m (~70 bounds among ~350 points).
     """
     m = len(w0)
     w = [min(max(w0[i], lo[i]), hi[i]) for i in range(m)]
@@ -87,13 +91,11 @@ def box_forces(M, w0, lo, hi, max_steps: int = 2000) -> dict:
             bound[block] = hi[block] if target[block] > w[block] else lo[block]
             w[block] = bound[block]  # (w moved by alpha: the side is target's side of it)
             continue
-        # inside: release the bound whose force pulls out of the box, the worst first
-        worst, most = None, -_EPS
-        for j, v in lam.items():
-            into = v if bound[j] == lo[j] else -v  # at lo the force must push w up
-            if into < most:
-                worst, most = j, into
-        if worst is None:
+        # inside: release every bound whose force pulls out of the box (the minimiser over
+        # the larger free set lies downhill, and the next step stops at the first bound met)
+        out = [j for j, v in lam.items() if (v if bound[j] == lo[j] else -v) < -_EPS]
+        if not out:
             return lam
-        del bound[worst]
+        for j in out:
+            del bound[j]
     raise ValueError(f"the band fit did not settle in {max_steps} steps")
