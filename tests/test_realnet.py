@@ -101,18 +101,61 @@ def test_members_kept_off_sideways_junction_lanes_always_have_a_lane_where_they_
 
 
 def test_smoothed_reference_is_within_tolerance_and_gently_curved(net):
-    """OSM corners (up to 7.4 deg every ~58 m): the fixed 40 m fit turns the sharpest one into a
-    ~150 m radius; the tolerance-bounded fit stays within 0.6 m of SUMO's lane centre with a
-    smallest radius above 280 m (measured 311 m)."""
+    """OSM corners (up to 7.4 deg every ~58 m): the 80 m fit the tolerance allowed before issue
+    32 item 5 kept the sharpest one as a 311 m radius; the 160 m fit held within 0.6 m of SUMO's
+    lane centre has a smallest radius above 500 m (measured 529 m; within 0.6 m no line does
+    better than ~600 m there: 1.51 m/s^2 at 30 m/s, a linear programme over that corner). A
+    tighter tolerance is met too, with the corner kept sharper (0.3 m: 263 m)."""
     xy = geometric_route_shape(net, ROUTE, 1)
     line, length, dev = fit_within(xy, 0.6)
-    assert dev <= 0.6 and deviation(line, xy) == pytest.approx(dev)
+    assert length == 160.0 and dev <= 0.6 and deviation(line, xy) == pytest.approx(dev)
     s = np.linspace(300, line.length - 300, 20000)
-    assert 1 / np.abs(line.curvature(s)).max() > 280
-    tight, tight_length, tight_dev = fit_within(xy, 0.2)
-    # even the base 40 m fit is 0.25 m off this route: fit_within falls back to it
-    assert tight_length == 40.0 and tight_dev > 0.2
-    assert 1 / np.abs(tight.curvature(s)).max() < 200  # the corner kept sharp
+    assert 1 / np.abs(line.curvature(s)).max() > 500
+    tight, _, tight_dev = fit_within(xy, 0.3)
+    assert tight_dev <= 0.3
+    assert 1 / np.abs(tight.curvature(s)).max() < 300  # the corner kept sharp
+
+
+def _lane_distance(xy: np.ndarray, lane: np.ndarray) -> np.ndarray:
+    """Distance of points xy (n, 2) from a lane's centre polyline (m, 2) [m]."""
+    a, b = lane[:-1], lane[1:]
+    ab = b - a
+    L2 = (ab ** 2).sum(axis=1)
+    keep = L2 > 1e-9
+    a, ab, L2 = a[keep], ab[keep], L2[keep]
+    t = np.clip(((xy[:, None, :] - a[None]) * ab[None]).sum(axis=2) / L2[None], 0.0, 1.0)
+    return np.hypot(*np.moveaxis(xy[:, None, :] - (a[None] + t[..., None] * ab[None]), -1, 0)).min(axis=1)
+
+
+def test_members_feel_the_road_not_its_polyline_corners(tmp_path, net):
+    """Issue 32 item 5: 60 s at 30 m/s from s = 3500 m (1.8 km of a gentle left curve,
+    R ~ 2.3 km, drawn with 1.6-2.6 deg corners every ~90 m, and the junction jogs at 3.69 km).
+    The line used to follow the polyline (80 m fit: a_lat up to 1.07 m/s^2, lateral jerk
+    1.34 m/s^3, measured); now every member's peak |a_lat| <= 1.0 m/s^2 (measured 0.71) and
+    lateral jerk (0.1 s mean of d a_lat / dt at 100 Hz) <= 1.0 m/s^3 (0.30), after the first
+    3 s (the members start with a_lat = 0 on the curve). Tracking stays tight: |e_lat| <= 0.5 m
+    (0.12), and every member stays within road.fit_tolerance (0.6 m) of its SUMO lane's centre
+    (0.33: the line's own distance plus the tracking error)."""
+    p = tmp_path / "lust.toml"
+    p.write_text(SCENARIO)
+    sc = load_scenario(p, **{"road.start": 3500.0, "run.duration": 60.0})
+    res = run_scenario(sc, tmp_path / "out", scenario_path=p, progress=False)
+    assert res.status == "completed", res.reason
+    comfort = pd.read_parquet(tmp_path / "out" / "comfort.parquet")
+    tr = pd.read_parquet(tmp_path / "out" / "trajectories.parquet")
+    lanes = {"right": 0, "centre": 1, "left": 2}  # lanes -1, 0, +1 of reference lane 1
+    for vid, lane in lanes.items():
+        g = comfort[comfort.vehicle_id == vid].sort_values("t")
+        t, a = g.t.to_numpy(), g.a_lat.to_numpy()
+        jerk = np.convolve(np.gradient(a, t), np.ones(10) / 10, mode="same")
+        late = t >= 3.0
+        assert np.abs(a[late]).max() <= 1.0, vid
+        assert np.abs(jerk[late]).max() <= 1.0, vid
+        rows = tr[(tr.vehicle_id == vid) & (tr.t >= 3.0)]
+        assert np.abs(rows.e_lat).max() <= 0.5, vid
+        shape = geometric_route_shape(net, ROUTE, lane)
+        assert _lane_distance(rows[["x", "y"]].to_numpy(), shape).max() <= 0.6, vid
+    assert tr[tr.vehicle_id == "vc"].s.max() > 5200.0  # the whole stretch was driven
 
 
 def test_route_by_its_ends_and_lane_centres_from_sumo_shapes(scenario):

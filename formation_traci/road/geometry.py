@@ -39,7 +39,7 @@ import numpy as np
 from .bernstein import hermite_bpoly
 from .fast_line import frame_many, to_frenet_many
 from .line_fit import (_DEGREE, _GAUSS_NODES, _GAUSS_WEIGHTS, LINE_FIT_DEFAULT, LineFit,
-                       _fit_pspline, clean_polyline)
+                       _fit_pspline, chord_lengths, clean_polyline)
 from .line_pack import packed
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -109,11 +109,22 @@ class ReferenceLine:
         fit : LineFit
             Smoothing settings.
         """
+        pts = clean_polyline(xy, fit.min_segment, fit.max_segment)
+        return cls.from_curve(pts, _fit_pspline(chord_lengths(pts), pts, fit))
+
+    @classmethod
+    def from_curve(cls, pts: np.ndarray, curve: "BSpline") -> "ReferenceLine":
+        """The line of a fitted quintic spline c(u) (steps 3 on of the module docstring).
+
+        Parameters
+        ----------
+        pts : ndarray, shape (n, 2)
+            The cleaned polyline it was fitted to [m] (kept as ``points``).
+        curve : scipy BSpline
+            c(u) over the chord-length parameter u [m] (line_fit.py ``solve_pspline``).
+        """
         from scipy.spatial import cKDTree
 
-        pts = clean_polyline(xy, fit.min_segment, fit.max_segment)
-        u = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
-        curve = _fit_pspline(u, pts, fit)
         d1, d2, d3 = (curve.derivative(k) for k in (1, 2, 3))
         # arc length at the knots inside [0, U], by Gauss-Legendre per knot interval
         u_nodes = np.unique(curve.t[_DEGREE:len(curve.t) - _DEGREE])

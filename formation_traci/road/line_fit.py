@@ -84,6 +84,11 @@ def clean_polyline(xy, min_segment: float, max_segment: float) -> np.ndarray:
     return np.concatenate(out)
 
 
+def chord_lengths(pts: np.ndarray) -> np.ndarray:
+    """Cumulative chord length u [m] at the vertices of a polyline pts (n, 2) [m]."""
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+
+
 def _difference_matrix(n: int, order: int) -> sparse.csr_matrix:
     import scipy.sparse as sparse
 
@@ -93,9 +98,11 @@ def _difference_matrix(n: int, order: int) -> sparse.csr_matrix:
     return d
 
 
-def _fit_pspline(u: np.ndarray, pts: np.ndarray, fit: LineFit) -> BSpline:
-    """Penalised quintic regression spline of pts (n, 2) over parameter u [m] (scipy is
-    imported here: a line read from the road cache is not fitted)."""
+def pspline_system(u: np.ndarray, pts: np.ndarray, fit: LineFit):
+    """The normal equations of the penalised quintic regression spline of pts (n, 2) over
+    parameter u [m]: ``(knots, lhs, rhs)``, lhs a scipy.sparse matrix (n_coef, n_coef), rhs
+    (n_coef, 2). Rows added to it (road/smoothing.py pins the line to its tolerance band) keep
+    its bandwidth. scipy is imported here: a line read from the road cache is not fitted."""
     from scipy.interpolate import BSpline
 
     total = float(u[-1])
@@ -110,9 +117,21 @@ def _fit_pspline(u: np.ndarray, pts: np.ndarray, fit: LineFit) -> BSpline:
     density = len(u) / m  # data points per knot interval
     lam = density * (fit.smoothing_length / (2.0 * np.pi * h)) ** (2 * _PENALTY_ORDER)
     lhs = basis.T @ basis + lam * (pen.T @ pen)  # scipy.sparse's own loops: no BLAS
+    return knots, lhs, np.asarray(basis.T @ pts)
+
+
+def solve_pspline(knots: np.ndarray, lhs, rhs: np.ndarray) -> BSpline:
+    """The spline c(u) of the system of :func:`pspline_system` (or one with rows added)."""
+    from scipy.interpolate import BSpline
+
     bands = [lhs.diagonal(-k) for k in range(max(_DEGREE, _PENALTY_ORDER) + 1)]  # its bandwidth
-    coef = solve_banded_spd(bands, np.asarray(basis.T @ pts))
+    coef = solve_banded_spd(bands, rhs)
     return BSpline(knots, coef, _DEGREE, extrapolate=True)
+
+
+def _fit_pspline(u: np.ndarray, pts: np.ndarray, fit: LineFit) -> BSpline:
+    """Penalised quintic regression spline of pts (n, 2) over parameter u [m]."""
+    return solve_pspline(*pspline_system(u, pts, fit))
 
 
 def solve_banded_spd(bands, rhs) -> np.ndarray:
