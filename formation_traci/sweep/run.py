@@ -150,7 +150,7 @@ def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
     except Exception:
         return None, False
     if old.case != spec.case or old.base != spec.base or old.twin_dir != spec.twin_dir \
-            or old.warm_dir != spec.warm_dir \
+            or (old.warm_dir is None) != (spec.warm_dir is None) \
             or row.get("case_id") != spec.case.id:
         return None, False
     try:
@@ -210,10 +210,7 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         Dotted path -> value set in every case (the command line's ``--set``), checked
         against the base scenario before anything is created.
     shared_warmup : bool
-        Cases (and twins) with the same warm-up key start from one saved SUMO state of their
-        warm-up in ``warmups/`` instead of each simulating it (docs/sweeps.md, "The shared
-        warm-up": what differs from a run that simulates its own). False: every case
-        simulates its own warm-up, as a single run does.
+        Cases and twins of a warm-up key start from its SUMO state in ``warmups/`` (docs/sweeps.md).
 
     Returns
     -------
@@ -236,8 +233,7 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         swept = swept_dtypes([c.model_dump(mode="json") for c in sweep.cases], sweep.spec.swept())
         rows, todo = _resume(specs)
         n_skipped = len(specs) - len(todo)
-        meta = _sweep_meta(sweep, swept, scheduler, workers, len(specs), n_skipped, len(todo), baseline)
-        meta["shared_warmup"] = shared_warmup
+        meta = _sweep_meta(sweep, swept, scheduler, workers, len(specs), n_skipped, len(todo), baseline, shared_warmup)
         from ..record.writer import atomic_write_json
 
         atomic_write_json(out / SWEEP_JSON, meta)
@@ -292,13 +288,14 @@ def _resume(specs: list[CaseSpec]) -> tuple[dict[str, dict], list[CaseSpec]]:
 
 
 def _sweep_meta(sweep: Sweep, swept: dict[str, str], scheduler: str | None, workers: int | None,
-                n_cases: int, n_skipped: int, n_todo: int, baseline: bool = False) -> dict:
+                n_cases: int, n_skipped: int, n_todo: int, baseline: bool = False,
+                shared_warmup: bool = False) -> dict:
     """The content of ``sweep.json`` when the sweep starts (status running)."""
     return {"schema": SCHEMA, "status": "running", "sweep_file": str(sweep.path),
             "sweep_text": sweep.path.read_text(encoding="utf-8"), "sweep": sweep.raw,
             "base": str(sweep.base), "swept": sweep.spec.swept(), "grid_keys": list(sweep.spec.grid),
             "random_keys": list(sweep.random_keys), "sets": sweep.sets,
-            "baseline": baseline, "dtypes": swept,
+            "baseline": baseline, "shared_warmup": shared_warmup, "dtypes": swept,
             "metrics": {k: {"unit": u, "meaning": m} for k, (u, m) in METRICS.items()},
             "executor": {"kind": "dask" if scheduler else "local", "scheduler": scheduler,
                          "workers": None if scheduler else (workers or os.cpu_count())},
