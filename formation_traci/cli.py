@@ -137,6 +137,7 @@ def run(
     baseline: bool = typer.Option(False, "--baseline", help="road scenarios: the twin run with the same traffic and seed but no formation"),
     gui: bool = typer.Option(False, "--gui", help="road scenarios: watch in sumo-gui (traci backend; the view follows the formation)"),
     sets: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP),
+    warm_cache: Optional[Path] = typer.Option(None, "--warm-cache", metavar="DIR", help="road scenarios: start from the shared warm-up of this scenario's traffic in DIR, simulated once and saved there by the first run (docs/sweeps.md, 'The shared warm-up')"),
     strict: bool = typer.Option(False, "--strict", help="exit 1 when the run completed with incidents (a member collision, removed, stranded member or emergency brake)"),
 ) -> None:
     """Run SCENARIO headless and record it under OUT (run.json, trajectories.parquet, ...).
@@ -153,7 +154,8 @@ def run(
                                         **{k: v for k, v in opts.items() if v is not None}})
         if progress and sc.road is not None and sc.traffic.warmup > 0:
             typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)
-        res = run_scenario(sc, Path(out), scenario_path=scenario, force=force, progress=progress, baseline=baseline)
+        res = run_scenario(sc, Path(out), scenario_path=scenario, force=force, progress=progress, baseline=baseline,
+                           warm_cache=warm_cache)
     typer.echo(f"{res.status}: t_end={res.t_end:.2f} s, steps={res.steps_done}, out={res.out_dir}"
                + (f"\nreason: {res.reason}" if res.reason else "")
                + (f"\nINCIDENTS: {res.incident_summary} (run.json 'incidents', events.parquet)"
@@ -218,6 +220,7 @@ def sweep(
     progress: bool = typer.Option(True, "--progress/--no-progress"),
     baseline: bool = typer.Option(False, "--baseline", help="run each case's twin too (same traffic and seed, no formation) and summarise formation minus twin"),
     sets: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP + "; set in every case"),
+    shared_warmup: bool = typer.Option(False, "--shared-warmup/--no-shared-warmup", help="opt-in: road cases (and twins) with the same traffic, seed and SUMO set-up start from one saved SUMO state of their warm-up (DIR/warmups; docs/sweeps.md, 'The shared warm-up'); --no-shared-warmup: each case simulates its own"),
 ) -> None:
     """Run every case of a sweep (each in its own process), analyse each, write summary.parquet.
 
@@ -228,7 +231,7 @@ def sweep(
         with _outcome():
             res = run_sweep(sweep_file, Path(out), scheduler=scheduler, workers=workers,
                             progress=progress, baseline=baseline,
-                            sets=_set_overrides(sets, str(sweep_file)))
+                            sets=_set_overrides(sets, str(sweep_file)), shared_warmup=shared_warmup)
     except typer.Exit as exc:
         if exc.exit_code == 130:
             typer.echo("run the same command again to finish the sweep", err=True)

@@ -97,7 +97,7 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
 
 def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | None = None,
                  force: bool = False, progress: bool = True, baseline: bool = False,
-                 step_hook=None, transforms=()) -> RunResult:
+                 step_hook=None, transforms=(), warm_cache: str | Path | None = None) -> RunResult:
     """Run ``sc`` (free space, or on a SUMO road when it has a [road]) and record it.
 
     Writes ``run.json`` (status ``running`` at once, updated whenever every table is on disk
@@ -109,7 +109,9 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
     seed but without the formation. ``step_hook(k, t, adapter)`` is called after every SUMO
     step (fault injection, extensions). ``transforms``: callables Reference -> Reference
     applied to every step's reference in order (maneuvers, communication channels;
-    docs/architecture.md).
+    docs/architecture.md). ``warm_cache`` (road scenarios): a directory of shared warm-ups
+    (sim/warm_state.py): the run starts from the saved state of its warm-up key, simulated
+    once (docs/sweeps.md, "The shared warm-up"); None: the warm-up is simulated in the run.
 
     Raises ScenarioError or RunDirError (bad input; nothing created or changed), or
     Interrupted if a signal arrives before the run directory exists. ``out_dir`` is locked
@@ -132,13 +134,13 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
         run_sc = sc if plan is None or plan.scenario is None else plan.scenario  # flows' formations in
         try:
             return _run_in(run_sc, Path(out_dir), src, plan, baseline, step_hook, transforms, progress,
-                           stop, shown=sc)
+                           stop, shown=sc, warm_cache=warm_cache)
         finally:
             lock.release()
 
 
 def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, stop,
-            shown=None) -> RunResult:
+            shown=None, warm_cache=None) -> RunResult:
     """The run in its locked directory (see :func:`run_scenario`); ``shown``: the scenario as
     given (run.json 'scenario'), ``sc`` with its formation flows' formations."""
     stop.raising = False  # the record is set up whole: a signal now only sets the flag
@@ -146,6 +148,10 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
     if shown is not None and shown is not sc:
         meta["scenario"] = shown.model_dump(mode="json")
     meta["baseline"] = baseline
+    if warm_cache is not None and sc.road is not None:
+        from .warm_state import not_shareable
+        meta["warm_state"] = {"cache": str(Path(warm_cache).resolve()), "shared": False,
+                              "unshared": not_shareable(sc)}
     meta_path = out_dir / "run.json"
     _reserve(out_dir, _json_size(meta))
     atomic_write_json(meta_path, meta)

@@ -156,8 +156,7 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
     # -- network helpers -------------------------------------------------------------
     def add_route(self, route_id: str, edges: list[str]) -> None:
         self.api.route.add(route_id, edges)
-        lengths = np.array([self.api.lane.getLength(f"{e}_0") for e in edges])
-        self._routes[route_id] = (list(edges), lengths)
+        self.know_route(route_id, edges)
 
     def _advance_route_window(self, vid: str, lane_id: str) -> None:
         """Give member ``vid`` the route up to :data:`ROUTE_AHEAD_M` beyond the end of its

@@ -40,9 +40,23 @@ class VehicleSetup:
             have = list(self.api.lane.getDisallowed(lane))
             self.api.lane.setDisallowed(lane, sorted(set(have) | set(vclasses)))
 
-    def add_member_type(self, mt: MemberType) -> None:
+    def know_route(self, route_id: str, edges: list[str]) -> None:
+        """Keep a route SUMO already has (added by :meth:`add_route`, or in a loaded state)
+        with its edges' lengths [m] for the members' route windows."""
+        lengths = np.array([self.api.lane.getLength(f"{e}_0") for e in edges])
+        self._routes[route_id] = (list(edges), lengths)
+
+    def save_state(self, path) -> None:
+        """SUMO's saved state (``simulation.saveState``; with ``--save-state.rng`` its random
+        number generators too) into ``path`` (``.xml.gz``: compressed)."""
+        self.api.simulation.saveState(str(path))
+
+    def add_member_type(self, mt: MemberType, exists: bool = False) -> None:
+        """The members' vType ``mt`` (``exists``: SUMO has it already, from a loaded state:
+        its attributes are set again, the state keeps some with two decimals only)."""
         vt = self.api.vehicletype
-        vt.copy(mt.base, mt.id)
+        if not exists:
+            vt.copy(mt.base, mt.id)
         vt.setLength(mt.id, mt.length)
         vt.setWidth(mt.id, mt.width)
         vt.setColor(mt.id, (*mt.color, 255))

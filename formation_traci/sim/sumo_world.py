@@ -37,6 +37,7 @@ from .sumo_sense import NeighbourGuess, PackedLanes, sense_step
 from .sumo_types import Neighbours
 from .sumo_plan import MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import flow_vehicles_per_hour, write_routes
+from .warm_state import WarmSetup, merge_outputs, start_warm
 from .world import Sensed, sensed_of
 
 _NO_ROWS = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0, dtype=np.int64))
@@ -142,20 +143,19 @@ class SumoWorld(MemberHandover):
                                                  else plan.rigid[i]).tolist()})
                            for i, m in enumerate(meta["members"])]
         ad = self.adapter
+        setup = WarmSetup(tuple(f.id for f in sc.traffic.flows), meta["mu"], MEMBER_ROUTE, tuple(road.route),
+                          tuple({mt.id: mt for mt in self.mtypes}.values()), tuple(road.member_forbidden),
+                          tuple(MEMBER_VCLASS.values()))
         if sc.sumo.attach_port is not None:
             meta["sumo"]["args"] = f"attached to port {sc.sumo.attach_port}"
             meta["sumo"]["version"] = ad.attach(sc.sumo.attach_port)
-        else:
-            meta["sumo"]["version"] = ad.start(args)
+            setup.apply(ad)
+            for _ in range(warm_steps):
+                ad.simulation_step()
+        else:  # the warm-up simulated here, or started from its shared state (sim/warm_state.py)
+            meta["sumo"]["version"] = start_warm(ad, args, setup, warm_steps, self.sumo_dir,
+                                                 meta.get("warm_state"))
         meta["versions"]["sumo"] = meta["sumo"]["version"]
-        ad.count_departures([f.id for f in sc.traffic.flows])
-        ad.set_friction(meta["mu"])
-        ad.add_route(MEMBER_ROUTE, road.route)
-        for mt in {mt.id: mt for mt in self.mtypes}.values():
-            ad.add_member_type(mt)
-        ad.forbid_lanes(road.member_forbidden, MEMBER_VCLASS.values())
-        for _ in range(warm_steps):
-            ad.simulation_step()
 
     def drain(self) -> None:
         """After the formation's last step (a run that ended normally): the sections' drain
@@ -180,6 +180,7 @@ class SumoWorld(MemberHandover):
         t_sumo, departed = getattr(self, "_end", (t_sumo, self.adapter.departed))
         try:
             self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
+            merge_outputs(self.sumo_dir, self.meta.get("warm_state"))  # a shared warm-up's part
         finally:
             if self.plan.flow_keep is not None:
                 self.meta["formation_flows"] = flow_counts(self.plan, self.flows_inserted, t_sumo - t0,

@@ -35,6 +35,7 @@ class CaseSpec(BaseModel):
     case_dir: str  # absolute path of DIR/cases/<id>
     log_path: str  # absolute path of DIR/logs/<id>.log (written by the launcher)
     twin_dir: str | None = None  # absolute path of DIR/twins/<id> when the case's twin runs too
+    warm_dir: str | None = None  # absolute path of DIR/warmups: the shared warm-ups (None: off)
 
 
 def _plain(x: Any) -> Any:
@@ -101,7 +102,8 @@ def run_case(case_spec: dict | CaseSpec) -> dict[str, Any]:
         except ScenarioError as exc:
             row["reason"] = str(exc)
             return row
-        res = run_scenario(sc, out, scenario_path=spec.base, force=True, progress=False)
+        res = run_scenario(sc, out, scenario_path=spec.base, force=True, progress=False,
+                           warm_cache=spec.warm_dir)
         row.update(status=res.status, reason=res.reason, t_end_s=res.t_end)
         twin = _run_twin(sc, spec, row) if spec.twin_dir is not None and res.status == "completed" else None
         row.update(_analyse(out, row, twin))
@@ -126,11 +128,50 @@ def _run_twin(sc, spec: CaseSpec, row: dict) -> Path | None:
     if twin.exists():
         with DirLock(twin):
             clear_run(twin)
-    res = run_scenario(sc, twin, scenario_path=spec.base, force=True, progress=False, baseline=True)
-    if res.status != "completed":
-        row.update(status="failed", reason=f"twin {res.status}: {res.reason}")
+    if _shared_warmup(Path(spec.case_dir)):  # SUMO's state loads as in a fresh process only
+        status, reason = _twin_process(spec)
+    else:
+        res = run_scenario(sc, twin, scenario_path=spec.base, force=True, progress=False, baseline=True)
+        status, reason = res.status, res.reason
+    if status != "completed":
+        row.update(status="failed", reason=f"twin {status}: {reason}")
         return None
     return twin
+
+
+def _shared_warmup(run_dir: Path) -> bool:
+    """The run in ``run_dir`` started from a shared warm-up (run.json ``warm_state``)."""
+    try:
+        meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return bool((meta.get("warm_state") or {}).get("shared"))
+
+
+def _twin_process(spec: CaseSpec) -> tuple[str, str | None]:
+    """The twin of a case whose warm-up was shared, in a process of its own (``--twin``): a
+    process that ran a simulation loads SUMO's state differently (sim/warm_state.py)."""
+    import subprocess
+
+    res = subprocess.run([sys.executable, "-m", "formation_traci.sweep.case", "--twin",
+                          spec.model_dump_json()], capture_output=True, text=True)
+    if res.returncode != 0:
+        return "failed", f"twin process exit {res.returncode}: {(res.stderr or res.stdout).strip()[-1000:]}"
+    doc = json.loads(res.stdout.strip().splitlines()[-1])
+    return doc["status"], doc["reason"]
+
+
+def twin_main(spec_json: str) -> int:
+    """``--twin``: the case's twin here, from the shared warm-up; prints its status as JSON."""
+    from ..scenario import load_scenario
+    from ..sim.runner import run_scenario
+
+    spec = CaseSpec.model_validate_json(spec_json)
+    sc = load_scenario(spec.base, **spec.case.overrides)
+    res = run_scenario(sc, Path(spec.twin_dir), scenario_path=spec.base, force=True, progress=False,
+                       baseline=True, warm_cache=spec.warm_dir)
+    print(json.dumps({"status": res.status, "reason": res.reason}))
+    return 0
 
 
 def _analyse(run_dir: Path, row: dict, twin: Path | None = None) -> dict[str, Any]:
@@ -185,6 +226,8 @@ def main(argv: list[str] | None = None) -> int:
         Exit code: 0 once the row is written (whatever the run's status), 2 for bad usage.
     """
     argv = sys.argv[1:] if argv is None else argv
+    if len(argv) == 2 and argv[0] == "--twin":
+        return twin_main(argv[1])
     if len(argv) != 1:
         print("usage: python -m formation_traci.sweep.case SPEC_JSON", file=sys.stderr)
         return 2

@@ -30,6 +30,8 @@ SUMMARY = "summary.parquet"
 CASES_DIR = "cases"
 LOGS_DIR = "logs"
 TWINS_DIR = "twins"
+WARMUPS_DIR = "warmups"
+"""The shared warm-ups: SUMO's saved state per warm-up key (sim/warm_state.py)."""
 EFFECTS_CSV = "effects.csv"
 MEANS_CSV = "means.csv"
 """Per grid point the section measures' mean over the seeds and 95 % interval (road sweeps)."""
@@ -56,7 +58,7 @@ def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
-SWEEP_FILES = frozenset({SWEEP_JSON, SUMMARY, CASES_DIR, LOGS_DIR, LOCK_FILE, "sweep_report.html",
+SWEEP_FILES = frozenset({SWEEP_JSON, SUMMARY, CASES_DIR, LOGS_DIR, LOCK_FILE, WARMUPS_DIR, "sweep_report.html",
                          "sweep_stats.csv", "sweep_figures"})
 """Names a sweep (and ``analyze-sweep``) writes at the top of its directory."""
 
@@ -107,7 +109,8 @@ def _lock(out: Path):
             fcntl.flock(f, fcntl.LOCK_UN)
 
 
-def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool = False) -> CaseSpec:
+def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool = False,
+              shared_warmup: bool = False) -> CaseSpec:
     """The :class:`CaseSpec` of one case.
 
     Parameters
@@ -120,6 +123,9 @@ def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool = False) -> Ca
         Sweep directory (absolute).
     baseline : bool
         The case's twin runs too, into ``out/twins/<id>``.
+    shared_warmup : bool
+        Road cases start from their warm-up's saved state in ``out/warmups`` (simulated once
+        per warm-up key; docs/sweeps.md, "The shared warm-up").
 
     Returns
     -------
@@ -129,7 +135,8 @@ def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool = False) -> Ca
     case = sweep.cases[index]
     return CaseSpec(case=case, base=str(sweep.base), case_dir=str(out / CASES_DIR / case.id),
                     log_path=str(out / LOGS_DIR / f"{case.id}.log"),
-                    twin_dir=str(out / TWINS_DIR / case.id) if baseline else None)
+                    twin_dir=str(out / TWINS_DIR / case.id) if baseline else None,
+                    warm_dir=str(out / WARMUPS_DIR) if shared_warmup else None)
 
 
 def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
@@ -143,6 +150,7 @@ def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
     except Exception:
         return None, False
     if old.case != spec.case or old.base != spec.base or old.twin_dir != spec.twin_dir \
+            or (old.warm_dir is None) != (spec.warm_dir is None) \
             or row.get("case_id") != spec.case.id:
         return None, False
     try:
@@ -176,7 +184,7 @@ def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str],
 
 def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None = None,
               workers: int | None = None, progress: bool = True, baseline: bool = False,
-              sets: dict | None = None) -> SweepResult:
+              sets: dict | None = None, shared_warmup: bool = False) -> SweepResult:
     """Run every case of a sweep file that is not done yet and summarise them.
 
     Parameters
@@ -201,6 +209,8 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     sets : dict, optional
         Dotted path -> value set in every case (the command line's ``--set``), checked
         against the base scenario before anything is created.
+    shared_warmup : bool
+        Cases and twins of a warm-up key start from its SUMO state in ``warmups/`` (docs/sweeps.md).
 
     Returns
     -------
@@ -219,11 +229,11 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     sweep = load_sweep(sweep_path, sets)
     out = _make_sweep_dir(Path(out_dir))
     with raising_signals(), _lock(out):  # SIGTERM stops the cases like Ctrl-C
-        specs = [case_spec(sweep, i, out, baseline) for i in range(len(sweep.cases))]
+        specs = [case_spec(sweep, i, out, baseline, shared_warmup) for i in range(len(sweep.cases))]
         swept = swept_dtypes([c.model_dump(mode="json") for c in sweep.cases], sweep.spec.swept())
         rows, todo = _resume(specs)
         n_skipped = len(specs) - len(todo)
-        meta = _sweep_meta(sweep, swept, scheduler, workers, len(specs), n_skipped, len(todo), baseline)
+        meta = _sweep_meta(sweep, swept, scheduler, workers, len(specs), n_skipped, len(todo), baseline, shared_warmup)
         from ..record.writer import atomic_write_json
 
         atomic_write_json(out / SWEEP_JSON, meta)
@@ -278,13 +288,14 @@ def _resume(specs: list[CaseSpec]) -> tuple[dict[str, dict], list[CaseSpec]]:
 
 
 def _sweep_meta(sweep: Sweep, swept: dict[str, str], scheduler: str | None, workers: int | None,
-                n_cases: int, n_skipped: int, n_todo: int, baseline: bool = False) -> dict:
+                n_cases: int, n_skipped: int, n_todo: int, baseline: bool = False,
+                shared_warmup: bool = False) -> dict:
     """The content of ``sweep.json`` when the sweep starts (status running)."""
     return {"schema": SCHEMA, "status": "running", "sweep_file": str(sweep.path),
             "sweep_text": sweep.path.read_text(encoding="utf-8"), "sweep": sweep.raw,
             "base": str(sweep.base), "swept": sweep.spec.swept(), "grid_keys": list(sweep.spec.grid),
             "random_keys": list(sweep.random_keys), "sets": sweep.sets,
-            "baseline": baseline, "dtypes": swept,
+            "baseline": baseline, "shared_warmup": shared_warmup, "dtypes": swept,
             "metrics": {k: {"unit": u, "meaning": m} for k, (u, m) in METRICS.items()},
             "executor": {"kind": "dask" if scheduler else "local", "scheduler": scheduler,
                          "workers": None if scheduler else (workers or os.cpu_count())},
