@@ -99,3 +99,19 @@ def test_a_truck_8_m_behind_a_car_at_30_m_s_is_warned_with_the_numbers(tmp_path,
     assert "warning: member 'truck' is 2.72 m behind 'car'" in capfd.readouterr().err
     meta = _meta(tmp_path, COLUMN.format(rear="car2", preset="", along=-20.0), "cars")
     assert not any("in their column" in w for w in meta.get("warnings", []))
+
+
+def test_a_slot_overlapping_the_one_ahead_is_refused_when_read_even_if_the_member_starts_elsewhere(tmp_path):
+    """The truck's slot 4 m behind the car's (bumper gap -1.28 m) while it starts 40 m back
+    (``position``: the members do not overlap at t = 0): refused before anything runs."""
+    from formation_traci.sim.sumo_plan import prepare
+    truck = 'preset = "small_truck"\nspeed_gains = "table_3_6"'
+    ok = tmp_path / "ok.toml"
+    ok.write_text(COLUMN.format(rear="truck", preset=truck, along=-40.0))
+    x, y = (float(q) for q in prepare(load_scenario(ok), ok).pos0[1])
+    p = tmp_path / "bad.toml"
+    p.write_text(COLUMN.format(rear="truck", preset=f"{truck}\nposition = [{x!r}, {y!r}]", along=-4.0))
+    with pytest.raises(ScenarioError) as ei:
+        run_scenario(load_scenario(p), tmp_path / "out", scenario_path=p, progress=False)
+    assert [f for f, _ in ei.value.problems] == ["members.1.slot"] and "overlap" in str(ei.value)
+    assert not (tmp_path / "out").exists()
