@@ -131,7 +131,7 @@ def test_governor_step_is_the_composition_of_the_laws(k_others):
     v_vc, v_set, v_set_dot, tg, mg, a_max, d_em = 29.0, 30.0, 0.1, 1.2, 2.0, 2.0, 6.0
     a_vc, gap, idx, v_cap, a_cap = governor_step(m_s, m_d, slot_s, slot_d, half_w, v_m, active, v_vc, v_set,
                                                  v_set_dot, o_rear, o_d, o_hw, o_v, tg, mg, a_max, d_em,
-                                                 np.inf, np.inf, np.zeros(0, np.bool_))
+                                                 np.inf, np.inf, np.zeros(0, np.bool_), np.zeros(0))
     g_ref, vl_ref, idx_ref = vehicles_ahead(m_s, m_d, half_w, o_rear, o_d, o_hw, o_v)
     gs, vls, _ = vehicles_ahead(slot_s, slot_d, half_w, o_rear, o_d, o_hw, o_v)
     acc_slot = time_gap_accel(gs, np.full(n, v_vc), vls, tg, mg)

@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from formation_traci.control.governor import leader_accel
-from formation_traci.control.schedule import FOLLOW_SHARE, law_peak, scheduled_gain
+from formation_traci.control.schedule import FOLLOW_SHARE, GAIN_PRESETS, law_peak, scheduled_gain
 from formation_traci.scenario import load_scenario
 from formation_traci.sim.runner import run_scenario
 from test_incidents import LUST, TRUCK
@@ -58,6 +58,14 @@ def test_bundled_mixed_truck_holds_with_the_virtual_car_bounded_by_the_truck(tmp
     assert res.status == "completed", meta["incidents"]
     assert not any(meta["incidents"][k] for k in ("member_collisions", "member_removed", "stranded"))
     assert any("truck" in w and "0.513" in w for w in meta["warnings"])
+    # the truck's slot, 25 m behind car_centre's (bumper gap 25 - 3.0 - 2.279 = 19.72 m), is
+    # too close to stop behind it by its law from 22 m/s (sim/column_gaps.py): warned, numbers
+    b_t, b_c = law_peak(0.05, 1.3, 1.0), law_peak(*(lambda g: (g.g_min, g.g_max, g.k_min))(
+        GAIN_PRESETS["table_3_4"]))
+    need = 242.0 * (1 / b_t - 1 / b_c) + 22.0 * 0.05 + 2.0
+    assert [w[:w.index(" (")] for w in meta["warnings"] if "in their column" in w] == [
+        f"member 'truck' is 19.72 m behind 'car_centre' in their column; to stop behind it from "
+        f"the leader's top speed 22.00 m/s it needs {need:.2f} m"]
     vc = traj[traj.vehicle_id == "vc"]
     limit = FOLLOW_SHARE * law_peak(0.05, 1.3, 1.0)
     assert vc.a_lon.min() >= -limit - 1e-9 and vc.a_lon.min() < -0.9 * limit

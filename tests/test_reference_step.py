@@ -35,7 +35,7 @@ def composed(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, ha
     a_gov, gap, lead, v_cap, a_cap_req = governor_step(
         m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v, v_set, v_set_dot,
         nb_rear, nb_d, nb_half_w, nb_v, LIM.time_gap, LIM.min_gap, LIM.accel_max, LIM.decel_emergency, LIM.decel_follow,
-        LIM.decel_max, np.zeros(0, np.bool_))
+        LIM.decel_max, np.zeros(0, np.bool_), np.zeros(0))
     v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
     a_request = min(a_gov, a_limit)
     dt = DT_C * N_CTRL
@@ -96,7 +96,7 @@ def test_fused_reference_step_equals_the_laws_composed(seed, ramp):
         got = road_reference_step(G, prof, t, s, v, a_limit, along, slot_d, is_road, d_front,
                                   half_w, *sensed, LIM.packed(), PP.packed(), new.a_vc, new.a_cap,
                                   v_prev_new, has_prev, new.emergency, DT_C, vc, ramp, cap_from,
-                                  np.zeros(0, np.bool_))
+                                  np.zeros(0, np.bool_), np.zeros(0))
         new.a_vc, has_prev = got[1], True
         for w, g in zip(want[:9], got):
             assert np.asarray(w).tobytes() == np.asarray(g).tobytes()

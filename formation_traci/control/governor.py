@@ -83,17 +83,25 @@ def time_gap_accel(gap, v, v_lead, time_gap, min_gap):
 
 
 @kernel(error_model="python")
-def _gap_law(gap, v, v_lead, time_gap, min_gap):
-    """:func:`time_gap_accel` for one member."""
-    if not np.isfinite(gap):
-        return np.inf
-    law = K_GAP * (gap - min_gap - time_gap * v) + K_REL * (v_lead - v)
+def _closing_bound(law, gap, v, v_lead, min_gap):
+    """The bounds of :func:`time_gap_accel` on a gap law's acceleration ``law`` [m/s^2]: at
+    most -b_need when matching a slower leader's speed within gap - min_gap needs more than
+    B_COMFORT; at least -B_COMFORT behind a leader at least as fast."""
     if v_lead >= v:  # the gap opens by itself: never more than comfortable braking
         return max(law, -B_COMFORT)
     b_need = (v * v - v_lead * v_lead) / (2.0 * max(gap - min_gap, 0.1))
     if b_need > B_COMFORT:
         law = min(law, -b_need)
     return law
+
+
+@kernel(error_model="python")
+def _gap_law(gap, v, v_lead, time_gap, min_gap):
+    """:func:`time_gap_accel` for one member."""
+    if not np.isfinite(gap):
+        return np.inf
+    law = K_GAP * (gap - min_gap - time_gap * v) + K_REL * (v_lead - v)
+    return _closing_bound(law, gap, v, v_lead, min_gap)
 
 
 @kernel(error_model="python")
@@ -173,9 +181,26 @@ def member_caps(gap, v_lead, v, time_gap, min_gap, decel_emergency):
 
 
 @kernel(error_model="python")
+def mate_caps(gap, v_lead, v, spacing, time_gap, min_gap, decel_emergency):
+    """Caps of a member at speed ``v`` [m/s] behind a released member still inside the
+    formation, ``gap`` [m] ahead at ``v_lead`` [m/s]: a formation-mate, kept at the
+    formation's ``spacing`` [m] (the bumper gap of their slots), not at the traffic's
+    min_gap + time_gap v (issue 32: a released member 15 m ahead in a 20 m column is no
+    emergency). Speed cap v_lead + (gap - spacing) / time_gap (the gap error removed over
+    ``time_gap``; never below ``v`` behind a faster mate), acceleration cap
+    K_GAP (gap - spacing) + K_REL (v_lead - v) with the bounds of :func:`time_gap_accel`, not
+    below -decel_emergency."""
+    cap = max(v_lead + (gap - spacing) / time_gap, 0.0)
+    if v_lead >= v:
+        cap = max(cap, v)
+    law = _closing_bound(K_GAP * (gap - spacing) + K_REL * (v_lead - v), gap, v, v_lead, min_gap)
+    return cap, max(law, -decel_emergency)
+
+
+@kernel(error_model="python")
 def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
                   o_s_rear, o_d, o_half_w, o_v, time_gap, min_gap, accel_max, decel_emergency,
-                  decel_follow, decel_comfort, o_in_formation):
+                  decel_follow, decel_comfort, o_in_formation, o_mate_rear):
     """One step of the governor over all members (compiled; the laws are the functions above).
 
     Members at their front bumpers (``m_s_front`` [m], ``m_d`` [m]) and their slots
@@ -187,7 +212,10 @@ def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_v
     acceleration cap [m/s^2] (:func:`member_caps`). Vehicles flagged ``o_in_formation`` (a
     mask as long as the others, or empty: none) are not seen by the slots' laws (a released
     member inside the formation: the virtual car braking for it would brake the members ahead
-    of it, which it follows), only by the members' caps."""
+    of it, which it follows), only by the members' caps; ``o_mate_rear`` [m] (as long as the
+    others, or empty: none; NaN: not one) is the rear of the slot such a vehicle held, and a
+    member right behind it takes :func:`mate_caps` with the spacing of their slots (at least
+    min_gap) instead of :func:`member_caps`."""
     n = m_s_front.shape[0]
     gap, v_lead, index = _vehicles_ahead(m_s_front, m_d, half_w, o_s_rear, o_d, o_half_w, o_v)
     slot_rear = o_s_rear
@@ -202,7 +230,13 @@ def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_v
     a_cap = np.empty(n)
     for i in range(n):
         acc_slot[i] = _gap_law(gap_slot[i], v_vc, v_lead_slot[i], time_gap, min_gap)
-        v_cap[i], a_cap[i] = member_caps(gap[i], v_lead[i], v_m[i], time_gap, min_gap, decel_emergency)
+        j = index[i]
+        if j >= 0 and o_mate_rear.shape[0] == o_s_rear.shape[0] and np.isfinite(o_mate_rear[j]):
+            spacing = max(o_mate_rear[j] - slot_s_front[i], min_gap)
+            v_cap[i], a_cap[i] = mate_caps(gap[i], v_lead[i], v_m[i], spacing, time_gap, min_gap,
+                                           decel_emergency)
+        else:
+            v_cap[i], a_cap[i] = member_caps(gap[i], v_lead[i], v_m[i], time_gap, min_gap, decel_emergency)
     a_vc = _leader_law(v_vc, v_set, v_set_dot, acc_slot, active, accel_max, decel_emergency,
                        decel_follow, decel_comfort)
     return a_vc, gap, index, v_cap, a_cap

@@ -68,7 +68,7 @@ def group_reference_step(G, profs, prof_at, t_f, s, v, along, slot_d_road, is_ro
             slot_d_road[a:b], is_road[a:b], d_front[a:b], half_w[a:b], m_s[a:b], m_d[a:b],
             v_m[a:b], active[a:b], rear, dd, hw, vv, lims[f], pps[f], a_vc[f], a_cap_prev[a:b],
             v_prev[a:b], has_prev[f], emergency[a:b], dt_c, vc[:, a:b, :], ramps[f],
-            a_cap_from[a:b], fl)
+            a_cap_from[a:b], fl, np.empty(0))  # no released member: no maneuvers in a group
         has_prev[f] = True
         a_request[f] = a_req
         a_vc[f] = a_new

@@ -51,7 +51,7 @@ def ramp_advance(s, v, a, jerk, dt):
 def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, half_w,
                         m_s, m_d, v_m, active, nb_rear, nb_d, nb_half_w, nb_v, lim, pp,
                         a_vc_prev, a_cap_prev, v_prev, has_prev, emergency, dt_c, vc, ramp,
-                        a_cap_from, nb_in_formation):
+                        a_cap_from, nb_in_formation, nb_mate_rear):
     """One step of the road reference in one compiled call: the governor over the members and
     their neighbours (:func:`governor_step`, :func:`column_caps`; slot ``along`` the line
     ahead of the virtual car at ``s`` [m], across it ``slot_d_road`` [m] for road-frame slots,
@@ -61,7 +61,9 @@ def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, 
     (:func:`road_vc_rows`, control period ``dt_c`` [s]). With ``ramp`` the virtual car's
     acceleration goes from the last step's value to this step's within the step and
     ``a_cap_from`` receives the caps of the last step (the members' caps ramp the same way in
-    sim/fleet.py); without, both are held over the step. ``lim``: :meth:`GovernorLimits.packed`;
+    sim/fleet.py); without, both are held over the step. ``nb_in_formation``, ``nb_mate_rear``:
+    released members inside the formation and the rears of their slots (:func:`governor_step`,
+    :func:`mate_rears`). ``lim``: :meth:`GovernorLimits.packed`;
     ``pp``: :meth:`PlannerParams.packed`. The members' acceleration is their mean over the
     previous step (``v_prev`` [m/s], updated in place; zero at the first step, ``has_prev``
     False). One call instead of six: issue 18.
@@ -77,7 +79,7 @@ def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, 
     a_gov, gap, lead_idx, v_cap, a_cap_req = governor_step(
         m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v, v_set, v_set_dot,
         nb_rear, nb_d, nb_half_w, nb_v, lim[0], lim[1], lim[2], lim[3], lim[4],
-        lim[5], nb_in_formation)
+        lim[5], nb_in_formation, nb_mate_rear)
     v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
     a_request = a_limit if a_limit < a_gov else a_gov  # Python's min(a_gov, a_limit)
     dt = dt_c * vc.shape[0]
@@ -103,6 +105,27 @@ def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, 
         a_cap_from[:] = a_cap
     s_next, v_next = road_vc_rows(G, s, v, a_vc_prev if ramp else a_vc, a_vc, dt_c, vc)
     return a_request, a_vc, emergency_vc, s_next, v_next, gap, lead_idx, a_cap_req, a_cap
+
+
+_NO_MATES = np.zeros(0)
+
+
+def mate_rears(inside, nb_rear, nb_length, nb_d, active, slot_front, slot_d, is_road) -> np.ndarray:
+    """Rear [m] of the slot each released member inside the formation held, NaN for the
+    other neighbours: the slot (front bumper ``slot_front`` [m], across ``slot_d`` [m] for
+    road-frame slots) of the member out of the run nearest to the neighbour's front bumper,
+    less its length ``nb_length`` [m]. The members behind it keep the formation's spacing to
+    it (control/governor.py mate_caps; docs/model.md, "Leave without stranding")."""
+    out = np.full(len(nb_rear), np.nan)
+    gone = np.flatnonzero(~np.asarray(active, bool))
+    if not len(gone):
+        return out
+    for j in np.flatnonzero(inside):
+        front = nb_rear[j] + nb_length[j]
+        miss = np.abs(slot_front[gone] - front) + np.where(is_road[gone], np.abs(slot_d[gone] - nb_d[j]), 0.0)
+        k = gone[int(np.argmin(miss))]
+        out[j] = slot_front[k] - nb_length[j]
+    return out
 
 
 @dataclass(frozen=True)
@@ -179,7 +202,7 @@ class RoadReference:
             self.is_road, self.d_front, self.half_w, sensed.m_s, sensed.m_d, sensed.v_m,
             sensed.active, sensed.nb_rear, sensed.nb_d, sensed.nb_half_w, sensed.nb_v, self.lim,
             pl.pp, pl.a_vc, pl.a_cap, self._v_prev, self._has_prev, pl.emergency, self.dt_c, vc, self.ramp, a_cap_from,
-            sensed.nb_in_formation)
+            sensed.nb_in_formation, self.mate_rears(sensed))
         self._has_prev = True
         self._next = (s_next, v_next)
         truth = vc[0, 0].copy()  # period 0: road_leader_at(G, s, v, a_vc) and s
@@ -190,6 +213,15 @@ class RoadReference:
                                "a_request": a_request, "a_cap_request": a_cap_req,
                                "emergency": pl.emergency_vc,
                                "emergency_members": pl.emergency.copy()})
+
+    def mate_rears(self, sensed) -> np.ndarray:
+        """:func:`mate_rears` of this step's slots (empty when no released member is inside
+        the formation)."""
+        inside = sensed.nb_in_formation
+        if not inside.any():
+            return _NO_MATES
+        return mate_rears(inside, sensed.nb_rear, sensed.nb.length, sensed.nb_d, sensed.active,
+                          self.s + self.along + self.d_front, self.slot_d, self.is_road)
 
     def commit(self) -> None:
         self.s, self.v = (float(q) for q in self._next)

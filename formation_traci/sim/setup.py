@@ -69,6 +69,12 @@ def profile(spec, scale: float = 1.0) -> Profile:
     return Profile.constant(spec * scale)
 
 
+def top_speed(sc: Scenario, speed_profile: Profile) -> float:
+    """The leader's highest speed [m/s] over the run (its profile every 0.05 s)."""
+    t = np.arange(0.0, sc.run.duration + 1e-9, 0.05)
+    return max(float(speed_profile(float(ti))[0]) for ti in t)
+
+
 def follow_limit(sc: Scenario, gains: np.ndarray, speed_profile: Profile, meta: dict) -> float:
     """The largest acceleration and braking [m/s^2] the virtual car may ask of every member on a
     road: FOLLOW_SHARE of the smallest peak of the members' speed laws (control/schedule.py

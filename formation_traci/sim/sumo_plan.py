@@ -16,6 +16,7 @@ from ..road.targets import road_targets
 from ..scenario.formations import formation_setups
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
+from .column_gaps import check_column_bodies
 from .messages import SUMO_ARGS as SUMO_QUIET
 from .road_setup import (Road, build_road, check_no_overlap, check_route_ends, check_slots,
                          initial_check_limit, rectangles_overlap, slot_offsets)
@@ -101,6 +102,7 @@ def _formation_plan(setup, road: Road, source) -> RoadPlan:
         if m.speed is not None:
             speed0[i] = m.speed
     check_no_overlap(sc, pos0, heading0, vehicles, source)
+    check_column_bodies(sc, slots, is_road, vehicles, source)  # members placed off their slots too
     return RoadPlan(road, veh, slots, rigid, is_road, pos0, heading0, speed0, tuple(vehicles),
                     tuple(m.id for m in sc.members), tuple(m.preset for m in sc.members))
 

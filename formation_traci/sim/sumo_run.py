@@ -52,7 +52,8 @@ def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld,
     members are ``plan``'s (``gains``: their rows of sim/fleet.py Fleet.gains)."""
     from ..control.reference_road import GovernorLimits, RoadReference
     from .fleet import initial_state
-    from .setup import follow_limit, profile, road_mu
+    from .column_gaps import column_gap_warnings
+    from .setup import follow_limit, profile, road_mu, top_speed
     from .sumo_plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
 
     run, ld, line = sc.run, sc.leader, plan.road.line
@@ -65,6 +66,8 @@ def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld,
                             min(ld.accel_max, ADHESION_SHARE_COMFORT * mu_g, follow),
                             min(ld.decel_max, ADHESION_SHARE_COMFORT * mu_g),
                             min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g), follow)
+    column_gap_warnings(sc, plan.slots, plan.is_road, plan.vehicles, gains, top_speed(sc, speed_profile),
+                        limits.decel_emergency, meta)
     s0, v0 = float(sc.road.start), speed_profile(0.0)[0]
     tg0 = initial_targets(plan.road, plan.slots, plan.rigid, plan.is_road, s0, v0, 0.0)
     yaw0 = plan.speed0 * line.curvature(line.to_frenet(plan.pos0)[0])
