@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from analysis.api import analyze_run, compare_runs
-from analysis.platoon import amplification
+from analysis.metrics.platoon import amplification
 from formation_traci.scenario import load_scenario
 from formation_traci.sim.runner import run_scenario
 from run_helpers import cli
