@@ -174,8 +174,8 @@ class ReferenceTrafficWatch:
 class ReferenceEmergencyWatch:
     """EmergencyWatch without its shortcut: every step, who brakes hard now against before."""
 
-    def __init__(self, rec, ids):
-        self.rec, self.who = rec, [*ids, "vc"]
+    def __init__(self, rec, ids, vc_ids=None):
+        self.rec, self.who = rec, [*ids, *(vc_ids or ["vc"])]
         self.on = np.zeros(len(self.who), dtype=bool)
 
     def __call__(self, t, info):

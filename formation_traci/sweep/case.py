@@ -162,7 +162,18 @@ def _twin_process(spec: CaseSpec) -> tuple[str, str | None]:
 
 
 def twin_main(spec_json: str) -> int:
-    """``--twin``: the case's twin here, from the shared warm-up; prints its status as JSON."""
+    """``--twin``: the case's twin here, from the shared warm-up; prints its status as JSON.
+
+    Parameters
+    ----------
+    spec_json : str
+        The case's CaseSpec as JSON text.
+
+    Returns
+    -------
+    int
+        Exit code: 0 once the twin ran (whatever its status).
+    """
     from ..scenario import load_scenario
     from ..sim.runner import run_scenario
 
