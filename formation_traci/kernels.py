@@ -7,8 +7,9 @@ reference the ``jit_off`` tests run (README, CI).
 
 Three chores live here:
 
-* one line on stderr when kernels are compiled for the first time in a process (a cold
-  numba cache costs tens of seconds; the user should not see a silent stall);
+* what the user is told while kernels compile (a cold numba cache costs tens of seconds;
+  the user should not see a silent stall): the notice with how long it takes, a failure, a
+  slow compilation, the time it took (formation_traci/kernel_notice.py);
 * numba keys its on-disk cache on the file that defines a function only, not on the files
   of the functions it calls: a digest of every module that defines kernels is stored next
   to each cache directory, and a directory whose digest differs is emptied of kernels;
@@ -16,23 +17,24 @@ Three chores live here:
   only: :class:`_QuickLoadCache` loads it without first initialising numba's compiler
   registries (its ``target_context.refresh()``, which imports all of numba's lowering
   modules and scipy.linalg: 0.3-0.6 s of every warm start, issue 18). A compilation
-  initialises them itself (numba's compiler refreshes its contexts).
+  initialises them itself (numba's compiler refreshes its contexts). It also reads
+  numba's runtime from the cache and leaves the kernel's bitcode unparsed until a
+  compilation links it (formation_traci/kernel_load.py, issue 33).
 """
 from __future__ import annotations
 
 import hashlib
 import math
-import sys
 import types
 from pathlib import Path
 
 import numpy as np
 from numba import njit
-from numba.core import event
 from numba.core.caching import FunctionCache
-from numba.core.runtime import nrt
 
-_NOTICE = "formation-traci: compiling the numba kernels (first run only, cached afterwards) ..."
+from . import kernel_load, kernel_notice
+
+_NOTICE = kernel_notice.NOTICE
 _STAMP = "formation_kernels.digest"
 
 
@@ -64,8 +66,9 @@ def _drop_stale_cache(dispatcher) -> None:
     try:
         stamp = Path(path) / _STAMP
         if (stamp.read_text().strip() if stamp.exists() else None) != _DIGEST:
-            for f in Path(path).glob("*.nb[ic]"):
-                f.unlink()
+            for pattern in ("*.nb[ic]",) + kernel_load.PATTERNS:
+                for f in Path(path).glob(pattern):
+                    f.unlink()
             stamp.parent.mkdir(parents=True, exist_ok=True)
             stamp.write_text(_DIGEST)
     except OSError:  # pragma: no cover - read-only install: the shipped cache is current
@@ -78,9 +81,17 @@ class _QuickLoadCache(FunctionCache):
 
     def load_overload(self, sig, target_context):
         try:
-            nrt.rtsys.initialize(target_context)  # the runtime the machine code calls
-            with self._guard_against_spurious_io_errors():
-                return self._load_overload(sig, target_context)
+            kernel_load.init_runtime(target_context, self._cache_path)  # the runtime (NRT)
+            codegen = target_context.codegen()
+            lazy = kernel_load.lazy_unserialize(codegen, self._cache_path)
+            if lazy is not None:  # this one load: no parse of the bitcode (kernel_load.py)
+                codegen.unserialize_library = lazy
+            try:
+                with self._guard_against_spurious_io_errors():
+                    return self._load_overload(sig, target_context)
+            finally:
+                if lazy is not None:
+                    del codegen.unserialize_library
         except AttributeError:  # numba's internals moved (another version): its own load
             return FunctionCache.load_overload(self, sig, target_context)
         return None  # an I/O error swallowed by the guard: numba compiles
@@ -111,29 +122,10 @@ def rebind(fn, **names):
     return njit(error_model="numpy")(copy)
 
 
-class _CompileNotice(event.Listener):
-    """Prints :data:`_NOTICE` once, when numba starts compiling one of our kernels."""
-
-    printed = False
-
-    def on_start(self, ev):
-        disp = (ev.data or {}).get("dispatcher")
-        mod = getattr(getattr(disp, "py_func", None), "__module__", "") or ""
-        if not _CompileNotice.printed and mod.startswith("formation_traci"):
-            _CompileNotice.printed = True
-            print(_NOTICE, file=sys.stderr, flush=True)
-
-    def on_end(self, ev):
-        pass
-
-
-event.register("numba:compile", _CompileNotice())
-
-
 def compiled_in_this_process() -> bool:
     """True once numba has compiled one of our kernels in this process (the notice was
     printed): the cache was cold (sim/warm.py then compiles the other scenario kinds' too)."""
-    return _CompileNotice.printed
+    return kernel_notice.WATCH.printed
 
 
 # --- scalar helpers with numpy's semantics (NaN propagates like np.maximum / np.minimum) ---

@@ -175,19 +175,19 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
                 build = lambda: with_comm(sc, road_run(sc, plan, rec, out_dir, meta, baseline,  # noqa: E731
                                                        step_hook, stop.is_set), baseline)
             steps = step_loop(sc, _with_transforms(build, transforms), rec, meta)
-        if progress:
-            from tqdm import tqdm
-            bar = tqdm(total=n_steps, unit="step", desc=sc.name or "run", mininterval=0.5)
         for k, t in steps:
             stop.raising = False  # from the first step on, a signal ends the run after its step
             rec.end_step(k, t)
             done = rec.written_up_to()  # every table is on disk up to this time [s]
             if done is not None:
                 _progress_meta(meta_path, meta, done, int(round(done / sc.run.step)))
-            if bar is not None and k == 0:
-                bar.reset()  # the ETA counts steps only, not compilation or SUMO's warm-up
-            elif bar is not None:
+            if bar is not None:
                 bar.update(1)
+            elif progress and k == 1:
+                # the bar from the first step on: its ETA counts steps only (not compilation or
+                # SUMO's warm-up), and tqdm's import (~25 ms) is not part of the start-up
+                from tqdm import tqdm
+                bar = tqdm(total=n_steps, initial=1, unit="step", desc=sc.name or "run", mininterval=0.5)
             if stop.is_set():
                 break
     except Interrupted:

@@ -17,11 +17,14 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from .demand import route_point
+
+if TYPE_CHECKING:  # pandas (~0.15 s to import, with pyarrow) is imported where the tables are
+    import pandas as pd  # written, after the run: never before its first step (issue 33)
 
 PREFIX = "section_"
 """Detector ids: ``section_<k>_<lane>``."""
@@ -139,6 +142,8 @@ def read_passages(xml: Path, t0: float, members: set[str], plan: dict) -> pd.Dat
     ``section``, ``lane`` (index), ``t`` [s, formation time], ``v`` [m/s], ``length`` [m],
     ``vtype``, ``member`` (a formation member: the leader of the vehicle behind it, never
     one of the timed vehicles). A damaged file gives what was parsed."""
+    import pandas as pd
+
     rows = []
     if xml.exists():
         try:
@@ -161,6 +166,8 @@ def read_passages(xml: Path, t0: float, members: set[str], plan: dict) -> pd.Dat
 def read_lane_changes(xml: Path, t0: float, members: set[str]) -> pd.DataFrame:
     """SUMO's ``--lanechange-output`` -> ``vehicle_id``, ``t`` [s, formation time], ``from_lane``,
     ``to_lane`` (lane ids); members left out."""
+    import pandas as pd
+
     rows = []
     if xml.exists():
         try:
@@ -179,6 +186,8 @@ def write_tables(out_dir: Path, plan: dict | None, departures: list[tuple[str, f
     lane changes since its previous passage) and ``departures.parquet`` (``vehicle_id``,
     ``depart`` [s, formation time]: every vehicle SUMO inserted, warm-up and drain included).
     Returns run.json's ``sections`` entry."""
+    import pandas as pd
+
     dep = pd.DataFrame(departures, columns=["vehicle_id", "depart"])
     dep["depart"] = dep["depart"].astype(float) - t0
     dep = dep[~dep["vehicle_id"].isin(members)].reset_index(drop=True)

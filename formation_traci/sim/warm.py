@@ -10,7 +10,7 @@ compiled) does nothing here.
 """
 from __future__ import annotations
 
-from .. import kernels
+from .. import kernel_notice, kernels
 
 
 def compile_every_kind() -> bool:
@@ -24,4 +24,5 @@ def compile_every_kind() -> bool:
 
     for warm in (maneuvers, comm, free_space):
         warm()
+    kernel_notice.WATCH.finished()  # how long the compilation took (stderr)
     return True
