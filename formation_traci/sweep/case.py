@@ -143,10 +143,18 @@ def _analyse(run_dir: Path, row: dict, twin: Path | None = None) -> dict[str, An
         return {} if row["status"] not in RUN_FINISHED else {"status": "failed",
                                                         "reason": f"analysis: {exc}"}
     meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-    out = metric_values(run_dir, a.members, meta)
+    out = metric_values(run_dir, a.members, meta, _formations(run_dir))
     if twin is not None:
         out.update(twin_values(_traffic_run(run_dir)))
     return out
+
+
+def _formations(run_dir: Path) -> list:
+    """metrics.json's ``formations`` records as written by the analysis."""
+    try:
+        return json.loads((run_dir / "metrics.json").read_text(encoding="utf-8")).get("formations") or []
+    except (OSError, ValueError):
+        return []
 
 
 def _traffic_run(run_dir: Path) -> dict:
