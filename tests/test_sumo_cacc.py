@@ -95,7 +95,7 @@ def test_gaps_stay_at_sumo_cacc_desired_gap(twin):
 def test_rows_carry_the_formation_and_the_string_amplification_is_computed(twin, tmp_path):
     """The followers' rows are in the same tables as our members' (formation 'f0', member
     ids); metrics.json's string_amplification is the tail's over the first follower's peak
-    speed error of the recorded speeds (analysis/platoon.py), over the whole column."""
+    speed error of the recorded speeds (analysis/metrics/platoon.py), over the whole column."""
     out, df = twin
     assert set(df.vehicle_id) == set(IDS) | {"vc"}
     assert (df.formation_id == "f0").all()

@@ -10,6 +10,9 @@ transfer function, so over a steady sinusoid of frequency w the ratio is |Gamma(
 The record also holds |Gamma(jw)| estimated from the recorded speeds at the head's dominant
 frequency f0 (:func:`gamma_estimate`: the ratio of the speeds' DFT magnitudes at f0, member by
 member behind the first follower; ``gamma_mean`` their geometric mean).
+The record's ``min_gap_m`` is the smallest bumper-to-bumper gap between consecutive members
+of any of the formation's columns over the run (:func:`column_min_gap`; negative: the bodies
+overlap), with the follower (``min_gap_member``) and the time (``min_gap_t_s``).
 Peaks below :data:`SPEED_ERROR_FLOOR_MPS` count as that floor (the virtual structure's members
 each track the virtual car: their speed errors are round-off, and the ratio is 1, Gamma = 1).
 """
@@ -19,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.metrics import formation
+from analysis.metrics.footprint import member_footprints
 
 SPEED_ERROR_FLOOR_MPS = 1e-6
 """Peak speed errors below this are round-off [m/s]."""
@@ -45,10 +49,34 @@ def amplification(speeds: np.ndarray) -> tuple[float, float, float]:
     return (max(last, SPEED_ERROR_FLOOR_MPS) / max(first, SPEED_ERROR_FLOOR_MPS), first, last)
 
 
-def formation_amplification(traj: pd.DataFrame, offsets: dict, dy_tol: float) -> list[dict]:
+def column_min_gap(traj: pd.DataFrame, column: list, bodies: dict) -> tuple:
+    """(gap [m], follower id, t [s]) of the smallest bumper-to-bumper gap between consecutive
+    members of ``column`` (front to back): the centres of gravity's distance along the
+    follower's heading less the predecessor's CoG-to-rear and the follower's CoG-to-front
+    (``bodies``: id -> analysis/metrics/footprint.py Footprint; control/laws/platoon.py ``gap_at``);
+    (None, None, None) without common samples."""
+    w = traj.loc[traj["vehicle_id"].isin(column)].pivot(index="t", columns="vehicle_id",
+                                                         values=["x", "y", "heading"])
+    best = (None, None, None)
+    for ahead, me in zip(column, column[1:]):
+        if me not in w["x"] or ahead not in w["x"] or me not in bodies or ahead not in bodies:
+            continue
+        h = w["heading"][me]
+        g = ((w["x"][ahead] - w["x"][me]) * np.cos(h) + (w["y"][ahead] - w["y"][me]) * np.sin(h)
+             - (bodies[ahead].length - bodies[ahead].cog_to_front) - bodies[me].cog_to_front).dropna()
+        if len(g) and (best[0] is None or g.min() < best[0]):
+            best = (float(g.min()), str(me), float(g.idxmin()))
+    return best
+
+
+def formation_amplification(traj: pd.DataFrame, offsets: dict, dy_tol: float,
+                            meta: dict | None = None) -> list[dict]:
     """One record per formation (trajectories' ``formation_id``): its largest column
     amplification with the column's members (front to back) and the two peaks; None where no
-    column has three members with common samples."""
+    column has three members with common samples. With run.json (``meta``: the members' bodies,
+    analysis/metrics/footprint.py) also the smallest gap of its columns (``min_gap_m``,
+    ``min_gap_member``, ``min_gap_t_s``; None without ``meta``)."""
+    bodies = {} if meta is None else member_footprints(meta.get("scenario"), meta.get("members"))
     fids = traj.drop_duplicates("vehicle_id").set_index("vehicle_id")["formation_id"] \
         if "formation_id" in traj.columns else None
     out = []
@@ -56,8 +84,11 @@ def formation_amplification(traj: pd.DataFrame, offsets: dict, dy_tol: float) ->
         else ["f0"]
     for fid in groups:
         own = {m: o for m, o in offsets.items() if fids is None or str(fids.get(m)) == fid}
-        best = None
+        best, gap = None, (None, None, None)
         for column in formation.formation_columns(own, dy_tol):
+            g = column_min_gap(traj, column, bodies)
+            if g[0] is not None and (gap[0] is None or g[0] < gap[0]):
+                gap = g
             v = traj.loc[traj["vehicle_id"].isin(column)].pivot(
                 index="t", columns="vehicle_id", values="v")
             present = [c for c in column if c in v.columns]
@@ -69,9 +100,10 @@ def formation_amplification(traj: pd.DataFrame, offsets: dict, dy_tol: float) ->
                 best = {"id": fid, "string_amplification": r, "column": present,
                         "peak_speed_error_first_mps": first, "peak_speed_error_last_mps": last,
                         **_gamma_record(v.to_numpy().T, np.diff(v.index.to_numpy()))}
-        out.append(best or {"id": fid, "string_amplification": None, "column": [],
-                            "peak_speed_error_first_mps": None, "peak_speed_error_last_mps": None,
-                            "gamma_f0_hz": None, "gamma": [], "gamma_mean": None})
+        out.append({**(best or {"id": fid, "string_amplification": None, "column": [],
+                                "peak_speed_error_first_mps": None, "peak_speed_error_last_mps": None,
+                                "gamma_f0_hz": None, "gamma": [], "gamma_mean": None}),
+                    "min_gap_m": gap[0], "min_gap_member": gap[1], "min_gap_t_s": gap[2]})
     return out
 
 

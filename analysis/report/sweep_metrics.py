@@ -37,6 +37,8 @@ METRICS: dict[str, tuple[str, str]] = {
     "leader_age_p95_s": ("s", "max of each member's 95th percentile of that age"),
     "comm_timeouts": ("-", "SUMO runs: comm_timeout events (a member fell back: no state for longer than comm.timeout_s)"),
     **SECTION_METRICS,
+    "min_gap_m": ("m", "smallest bumper-to-bumper gap between consecutive members of a column over the run (metrics.json formations min_gap_m; negative: bodies overlap)"),
+    "law_fallbacks": ("-", "law_fallback events (a CACC member's beacons timed out: it ran ACC, controller.fallback_acc)"),
     "stretch_coverage": ("-", "with twins: share of the background vehicles in the measured stretch timed over all of it in both runs"),
     "matched_share": ("-", "with twins: share of those vehicles matched by id in the other run"),
     **{f"fx_{k}": (u, f"with twins: formation run minus its twin, {m}") for k, (u, m) in {

@@ -293,4 +293,4 @@ def compute_run(data: RunData, settings: AnalysisSettings = DEFAULT_SETTINGS,
                        comm_age=comm_age,
                        formations=tuple(formation_amplification(
                            traj, {m.id: m.offset for m in members
-                                  if np.isfinite(m.offset).all()}, settings.column_dy_tol_m)))
+                                  if np.isfinite(m.offset).all()}, settings.column_dy_tol_m, meta)))

@@ -100,8 +100,10 @@ class CommChannel:
 
     error_against_truth = True  # the loop records ex .. y_des against the true virtual car
 
-    def __init__(self, channel: Channel, member_ids, n_ctrl: int, timeout_s: float, veh, ld):
+    def __init__(self, channel: Channel, member_ids, n_ctrl: int, timeout_s: float, veh, ld,
+                 law_fallback: bool = True):
         n = len(member_ids)
+        self.law_fallback = bool(law_fallback)  # CACC members fall back to ACC (sim/loop.py)
         self.ch, self.ids = channel, list(member_ids)
         self.n_ctrl, self.timeout = int(n_ctrl), float(timeout_s)
         self.veh, self.ld = veh, ld

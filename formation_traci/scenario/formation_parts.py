@@ -69,6 +69,10 @@ class ControllerSpec(Strict):
     cacc_path: CaccPathSpec = CaccPathSpec()
     cacc_ploeg: CaccPloegSpec = CaccPloegSpec()
     sumo_cacc: SumoCaccSpec = SumoCaccSpec()
+    fallback_acc: bool = Field(
+        True, description="a cacc_path / cacc_ploeg member whose [comm] beacons time out runs ACC "
+        "(controller.acc) until they return; false: it keeps its CACC law on what the channel "
+        "gives it (docs/platoon_laws.md, 'Fallback under bursty loss')")
     k: PosFloat = Field(1.0, description="position gain of (2.7) [m/s]")
     k_theta: PosFloat = Field(3.0, description="heading gain of (2.8) [1/s]")
     speed_gains: GAIN_TABLES | GainSpec = Field(

@@ -149,7 +149,7 @@ def _radio_links(forms, fleet: Fleet) -> list:
     :func:`_law_fallbacks` watches each step (none: nothing to do per step)."""
     rows = np.arange(fleet.cfg.n)
     return [(rows[f.members], tr) for f in forms for tr in f.transforms
-            if isinstance(tr, CommChannel)]
+            if isinstance(tr, CommChannel) and tr.law_fallback]
 
 
 def _law_fallbacks(links, fleet: Fleet, t: float, rec) -> None:

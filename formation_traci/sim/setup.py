@@ -195,7 +195,8 @@ def comm_channel(sc: Scenario, n_ctrl: int) -> CommChannel:
     ids = [m.id for m in sc.members]
     ch = build_channel([link_params(sc.comm, i) for i in ids], sc.run.seed, sc.run.duration,
                        sc.run.control_step, sc.comm.beacon_hz, sc.comm.outages)
-    return CommChannel(ch, ids, n_ctrl, sc.comm.timeout_s, vehicle_params(sc), sc.leader)
+    return CommChannel(ch, ids, n_ctrl, sc.comm.timeout_s, vehicle_params(sc), sc.leader,
+                       law_fallback=sc.controller.fallback_acc)
 
 
 def with_comm(sc: Scenario, parts, baseline: bool = False):

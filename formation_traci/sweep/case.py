@@ -199,7 +199,7 @@ def _analyse(run_dir: Path, row: dict, twin: Path | None = None) -> dict[str, An
             return traffic_only_values(run_dir, meta)
         return {"status": "failed", "reason": f"analysis: {exc}"}
     meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-    out = metric_values(run_dir, a.members, meta)
+    out = metric_values(run_dir, a.members, meta, _formations(run_dir))
     if twin is not None:
         out.update(twin_values(_traffic_run(run_dir)))
     return out
@@ -212,6 +212,14 @@ def _no_formation_entered(meta: dict) -> bool:
     flows = meta.get("formation_flows") or {}
     return (sc.get("road") is not None and float(sc.get("depart") or 0.0) >= float(meta.get("t_end") or 0.0)
             and not sc.get("formations") and not any(f.get("inserted") for f in flows.values()))
+
+
+def _formations(run_dir: Path) -> list:
+    """metrics.json's ``formations`` records as written by the analysis."""
+    try:
+        return json.loads((run_dir / "metrics.json").read_text(encoding="utf-8")).get("formations") or []
+    except (OSError, ValueError):
+        return []
 
 
 def _traffic_run(run_dir: Path) -> dict:

@@ -23,7 +23,7 @@ WALL_COLUMNS: tuple[str, ...] = ("wall_s", "host", "pid")
 COUNT_METRICS = frozenset({"n_unsettled", "collisions", "member_collisions", "member_removed",
                            "stranded", "sumo_collision_artefacts", "emergency_brakes", "requested_veh", "inserted_veh",
                            "comm_timeouts", "conflicts_ttc", "conflicts_ttc_formation", "conflicts_drac",
-                           "conflicts_drac_formation"})
+                           "conflicts_drac_formation", "law_fallbacks"})
 
 
 def empty_row(case: dict, status: str, reason: str | None) -> dict[str, Any]:
@@ -123,7 +123,8 @@ def twin_values(traffic_run: dict) -> dict[str, Any]:
     return {k: (None if v is None else float(v)) for k, v in out.items()}
 
 
-def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str, Any]:
+def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict,
+                  formations=()) -> dict[str, Any]:
     """The :data:`METRICS` of one analysed run.
 
     Parameters
@@ -134,12 +135,15 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
         ``AnalysisResult.members``: one row per member.
     meta : dict
         ``run.json`` content.
+    formations : sequence of dict
+        The analysis' formation records (metrics.json ``formations``: ``min_gap_m``).
 
     Returns
     -------
     dict
         Metric name -> float, int or None (not available).
     """
+    gaps = [f["min_gap_m"] for f in formations if f.get("min_gap_m") is not None]
     ts = _col(members, "settling_time_s")
     above = sum(np.nan_to_num(_col(members, f"t_lat_{b}_s"))
                 for b in ("medium", "uncomfortable", "beyond"))
@@ -165,6 +169,8 @@ def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict) -> dict[str,
         "leader_age_mean_s": _max(_col(members, "leader_age_mean_s")),
         "leader_age_p95_s": _max(_col(members, "leader_age_p95_s")),
         "comm_timeouts": None,
+        "min_gap_m": float(min(gaps)) if gaps else None,
+        "law_fallbacks": int((meta.get("event_counts") or {}).get("law_fallback", 0)),
         **_incidents(meta),
     }
     if (meta.get("scenario") or {}).get("road") is not None:
