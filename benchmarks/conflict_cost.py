@@ -69,7 +69,7 @@ def _conflict_analysis(run: Path) -> dict:
 
 def child(mode: str, duration: float) -> dict:
     from formation_traci.scenario import load_scenario
-    from formation_traci.sim.runner import run_scenario
+    from formation_traci.runner import run_scenario
     sc = load_scenario(SCENARIO, **{"run.duration": duration, "sumo.ssm": mode, "traffic.sections.enabled": False})
     out = Path(tempfile.mkdtemp(prefix="conflict_cost_")) / "run"
     t0, c0 = time.perf_counter(), time.process_time()

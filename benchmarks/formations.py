@@ -54,7 +54,7 @@ def scenario(k: int, duration: float, warmup: float, vph: float, seed: int) -> d
 
 def child_formations(k, duration, warmup, vph, seed) -> dict:
     from formation_traci.scenario import parse_scenario
-    from formation_traci.sim.runner import run_scenario
+    from formation_traci.runner import run_scenario
     sc = parse_scenario(scenario(k, duration, warmup, vph, seed), "benchmark")
     out = Path(tempfile.mkdtemp(prefix="bench_f_"))
     counted = []
@@ -76,9 +76,9 @@ def child_twin(k, duration, warmup, vph, seed) -> dict:
     the end of the warm-up, driven by SUMO (maxSpeed 30 m/s, no dawdling)."""
     from formation_traci.models.params import PASSENGER_CAR as car
     from formation_traci.scenario import parse_scenario
-    from formation_traci.sim.sumo_adapter import SumoAdapter
-    from formation_traci.sim.sumo_plan import sumo_args
-    from formation_traci.sim.traffic import write_routes
+    from formation_traci.sumo.adapter import SumoAdapter
+    from formation_traci.sumo.plan import sumo_args
+    from formation_traci.sumo.traffic import write_routes
     sc = parse_scenario(scenario(k, duration, warmup, vph, seed), "benchmark")
     out = Path(tempfile.mkdtemp(prefix="bench_t_"))
     routes = write_routes(out / "traffic.rou.xml", [(sc.traffic.flows[0], ob.route_edges(), vph * 3)],

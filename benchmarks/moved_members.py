@@ -43,7 +43,7 @@ def main() -> None:
     import overhead as ob  # noqa: E402  (reads BENCH_EDGE_M)
     import libsumo as api
     from formation_traci.scenario import parse_scenario
-    from formation_traci.sim.sumo_plan import sumo_args
+    from formation_traci.sumo.plan import sumo_args
 
     sc = parse_scenario(ob.scenario(5, a.duration, None, 1), "moved_members")
     out = Path(tempfile.mkdtemp(prefix="moved_"))
@@ -89,7 +89,7 @@ def main() -> None:
 
 def advance_route_windows(api, ids, edges, edge_m, window, x_front) -> None:
     """Each placed member carries its route only to the end of the next edge, as a run's
-    members do (sim/sumo_adapter.py ``_advance_route_window``): ``moveToXY`` with keepRoute = 1
+    members do (sumo/adapter.py ``_advance_route_window``): ``moveToXY`` with keepRoute = 1
     measures its distance to every lane of the route, ~100 us per call on the whole 120-edge
     route. ``edge_m``: length of an edge [m]; ``x_front``: each member's front bumper x [m]."""
     from libsumo import TraCIException
@@ -108,7 +108,7 @@ RECORD_RADIUS_M = 300.0
 
 
 def subscribe_as_a_run(api, ids) -> None:
-    """The subscriptions of a formation run (sim/sumo_adapter.py, sim/sumo_neighbours.py)."""
+    """The subscriptions of a formation run (sumo/adapter.py, sumo/neighbours.py)."""
     from libsumo import constants as tc
 
     for vid in ids:

@@ -139,7 +139,7 @@ def meet(me: str, other: str) -> float:
 
 def child_formation(n, duration, flow_end, seed):
     from formation_traci.scenario import parse_scenario
-    from formation_traci.sim.runner import run_scenario
+    from formation_traci.runner import run_scenario
     sc = parse_scenario(scenario(n, duration, flow_end, seed), "benchmark")
     out = Path(tempfile.mkdtemp(prefix="bench_"))
     waited = []
@@ -166,7 +166,7 @@ def twin_routes(sc, out: Path, duration: float, n: int) -> Path:
     """SUMO routes of the benchmark traffic of ``sc`` plus, for n > 0, the n members as SUMO
     vehicles of the members' size (maxSpeed SPEED, no dawdling) in their slots' lanes."""
     from formation_traci.models.params import PASSENGER_CAR
-    from formation_traci.sim.traffic import write_routes
+    from formation_traci.sumo.traffic import write_routes
     routes = write_routes(out / "traffic.rou.xml", [(sc.traffic.flows[0], route_edges(), 1500 * 3)],
                           duration + 1)
     if n:
@@ -185,8 +185,8 @@ def twin_routes(sc, out: Path, duration: float, n: int) -> Path:
 def child_sumo(n, duration, flow_end, seed):
     """The twin (n > 0: members as SUMO vehicles) or the bare traffic (n = 0)."""
     from formation_traci.scenario import parse_scenario
-    from formation_traci.sim.sumo_adapter import SumoAdapter
-    from formation_traci.sim.sumo_plan import sumo_args
+    from formation_traci.sumo.adapter import SumoAdapter
+    from formation_traci.sumo.plan import sumo_args
     sc = parse_scenario(scenario(max(n, 1), duration, flow_end, seed), "benchmark")
     out = Path(tempfile.mkdtemp(prefix="bench_"))
     t0 = time.perf_counter()

@@ -28,7 +28,7 @@ def formation(duration: float, seed: int) -> None:
     import pandas as pd
     import overhead as ob
     from formation_traci.scenario import parse_scenario
-    from formation_traci.sim.runner import run_scenario
+    from formation_traci.runner import run_scenario
     out = Path(tempfile.mkdtemp(prefix="queue_")) / "run"
     run_scenario(parse_scenario(ob.scenario(5, duration, None, seed), "queue"), out, progress=False)
     tr = pd.read_parquet(out / "trajectories.parquet")
@@ -44,7 +44,7 @@ def twin(duration: float, seed: int) -> None:
     import libsumo as api
     import overhead as ob
     from formation_traci.scenario import parse_scenario
-    from formation_traci.sim.sumo_plan import sumo_args
+    from formation_traci.sumo.plan import sumo_args
     sc = parse_scenario(ob.scenario(5, duration, None, seed), "queue")
     out = Path(tempfile.mkdtemp(prefix="queue_"))
     api.start(["sumo"] + sumo_args(sc, ob.long_net(), ob.twin_routes(sc, out, duration, 5), out, duration + 1))

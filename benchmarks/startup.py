@@ -5,7 +5,7 @@
 Each measurement is a fresh ``python`` process that runs a scenario for one step (free space:
 scenarios/thesis/dynamic_case4_straight.toml; SUMO: scenarios/highway/straight_3lane_light.toml
 without warm-up), timed from before the process is spawned to its exit. *Cold*: numba's
-on-disk cache (NUMBA_CACHE_DIR) and the road cache (sim/road_cache.py, below it) empty, so
+on-disk cache (NUMBA_CACHE_DIR) and the road cache (sumo/road_cache.py, below it) empty, so
 every kernel compiles and the reference line is fitted; *warm*: the same cache directory again
 (kernels and line loaded from disk). Python writes and reads its bytecode (``__pycache__``,
 as an installed package has it; PYTHONDONTWRITEBYTECODE is dropped for the child: without
@@ -46,7 +46,7 @@ CASES = {
 CHILD = """
 import sys, tempfile, time
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from formation_traci.sim.recorder import Recorder
 _end_step = Recorder.end_step
 def _timed_end_step(self, k, t):  # the first simulated step (k = 1) is recorded: its wall time

@@ -5,7 +5,7 @@
 Runs ``scenarios/studies/comm.toml`` (18 cases: 3 delays x 3 losses x 2 seeds, 60 s warm-up,
 60 s of formation) twice on the local pool, one sweep after the other on the same machine:
 ``--no-shared-warmup`` (every case simulates its 60 s of traffic) and the default (each of
-the two warm-up keys, one per seed, simulated once: sim/warm_state.py). Before them one case
+the two warm-up keys, one per seed, simulated once: sumo/warm_state.py). Before them one case
 runs untimed so that both find numba's and the road's caches warm. ``--quick``: the corner
 cases only (delay 0 and 0.3 s, loss none and bursty, both seeds: 8 cases).
 

@@ -33,7 +33,7 @@ def draw(name: str, work: Path) -> Path:
     from analysis.api import analyze_run
     from analysis.figures.handover_figures import handover_figure
     from formation_traci.scenario import load_scenario
-    from formation_traci.sim.runner import run_scenario
+    from formation_traci.runner import run_scenario
 
     path = ROOT / "scenarios" / "maneuvers" / f"{name}.toml"
     out = work / name

@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from analysis.api import analyze_run  # noqa: E402
 from formation_traci.scenario import load_scenario  # noqa: E402
-from formation_traci.sim.runner import run_scenario  # noqa: E402
+from formation_traci.runner import run_scenario  # noqa: E402
 
 CASES = [f"{kind}_{law}" for kind in ("sinusoid", "braking")
          for law in ("virtual_structure", "acc", "cacc_path", "cacc_ploeg")] + ["sinusoid_acc_short_gap"]

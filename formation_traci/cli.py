@@ -146,7 +146,7 @@ def run(
     ``failed``, 130 for ``interrupted`` (docs/reliability.md)."""
     with _outcome():
         from .scenario import load_scenario
-        from .sim.runner import run_scenario
+        from .runner import run_scenario
 
         opts = {"run.duration": duration, "run.seed": seed, "vehicle.model": model,
                 **({"sumo.backend": "traci", "sumo.gui": True} if gui else {})}

@@ -1,5 +1,5 @@
 """Test setup: tests/ importable, for the shared scaffolding in run_helpers.py; the road cache
-(sim/road_cache.py) of the session in a temporary directory, never the user's cache."""
+(sumo/road_cache.py) of the session in a temporary directory, never the user's cache."""
 import atexit
 import os
 import shutil

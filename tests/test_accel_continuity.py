@@ -15,7 +15,7 @@ from analysis.metrics import iso2631
 from analysis.runs.summary import crest_factor_issues
 from formation_traci.control.reference_road import ramp_advance
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 CURVED = ROOT / "scenarios" / "highway" / "curved_3lane.toml"

@@ -13,7 +13,7 @@ from formation_traci.control.schedule import YAW_GAINS_RETUNED
 from formation_traci.models.linear import closed_loop_lateral
 from formation_traci.models.params import PASSENGER_CAR, make_tires
 from formation_traci.scenario import parse_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 K = YAW_GAINS_RETUNED.g_max
 

@@ -7,7 +7,7 @@ import pandas as pd
 
 from formation_traci.scenario import load_scenario
 from formation_traci.control.governor import column_caps
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 INF = np.inf
 

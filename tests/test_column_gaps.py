@@ -11,7 +11,7 @@ from formation_traci.models.params import PASSENGER_CAR, SMALL_TRUCK
 from formation_traci.scenario import load_scenario
 from formation_traci.scenario.load import ScenarioError
 from formation_traci.sim.column_gaps import check_column_bodies, column_pairs, needed_gap
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 CAR_REAR = PASSENGER_CAR.length - PASSENGER_CAR.cog_to_front_bumper  # CoG to rear bumper, 2.279 m
 TRUCK_FRONT = SMALL_TRUCK.cog_to_front_bumper  # 3.0 m
@@ -104,7 +104,7 @@ def test_a_truck_8_m_behind_a_car_at_30_m_s_is_warned_with_the_numbers(tmp_path,
 def test_a_slot_overlapping_the_one_ahead_is_refused_when_read_even_if_the_member_starts_elsewhere(tmp_path):
     """The truck's slot 4 m behind the car's (bumper gap -1.28 m) while it starts 40 m back
     (``position``: the members do not overlap at t = 0): refused before anything runs."""
-    from formation_traci.sim.sumo_plan import prepare
+    from formation_traci.sumo.plan import prepare
     truck = 'preset = "small_truck"\nspeed_gains = "table_3_6"'
     ok = tmp_path / "ok.toml"
     ok.write_text(COLUMN.format(rear="truck", preset=truck, along=-40.0))

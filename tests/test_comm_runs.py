@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from formation_traci.sweep import expand_sweep
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -12,7 +12,7 @@ from analysis.metrics import traffic as tr
 from analysis.runs.conflict_run import classify_extremes
 from analysis.runs.traffic_run import background_rows, member_rows
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 # A slow formation (12 m/s) inserted into 1800 veh/h/lane: the vehicles coming from behind at
 # ~30 m/s meet it with TTC < 3 s (SUMO's threshold), and one is caught by the member's insertion.

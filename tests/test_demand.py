@@ -6,8 +6,8 @@ import pandas as pd
 import pytest
 
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
-from formation_traci.sim.traffic import requested_vehicles
+from formation_traci.runner import run_scenario
+from formation_traci.sumo.traffic import requested_vehicles
 from formation_traci.sweep import run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]

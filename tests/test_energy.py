@@ -22,7 +22,7 @@ from formation_traci.models.params import PASSENGER_CAR, bicycle_params, make_ti
 from formation_traci.models.resistance import aero_force, road_load, rolling_force
 from formation_traci.scenario import ScenarioError, load_scenario
 from formation_traci.sim.road_load import road_ratios
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 G = 9.81

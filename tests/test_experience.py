@@ -64,7 +64,7 @@ from analysis.load.run_data import describe_issues  # noqa: E402
 from analysis.metrics.propagation import propagation  # noqa: E402
 from analysis.report.headline import verdicts  # noqa: E402
 from formation_traci.scenario import load_scenario  # noqa: E402
-from formation_traci.sim.runner import run_scenario  # noqa: E402
+from formation_traci.runner import run_scenario  # noqa: E402
 
 THESIS = "scenarios/thesis/dynamic_case4_straight.toml"
 

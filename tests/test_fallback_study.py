@@ -14,7 +14,7 @@ import pytest
 
 from analysis.api import analyze_run
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 IDS = [f"p{i}" for i in range(8)]

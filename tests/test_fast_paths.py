@@ -22,8 +22,8 @@ from formation_traci.road.bernstein import ball_tree, clearance, hermite_bpoly
 from formation_traci.road.fast_line import LEAF_SIZE, WINDOW
 from formation_traci.road.geometry import ReferenceLine
 from formation_traci.road.lanes import LaneShapes
-from formation_traci.sim.events import PLACEMENT_TOLERANCE
-from formation_traci.sim.sumo_types import cog_to_sumo, cog_to_sumo_rows, sumo_to_cog, sumo_to_cog_rows
+from formation_traci.sumo.events import PLACEMENT_TOLERANCE
+from formation_traci.sumo.types import cog_to_sumo, cog_to_sumo_rows, sumo_to_cog, sumo_to_cog_rows
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -124,7 +124,7 @@ def reference_lane_xy(lane, pos, lat):
 
 
 def test_lane_shape_points_equal_the_numpy_ones_bit_for_bit():
-    """The per-member lane point of sumo_gap (sim/sumo_sense.py lane_point has its arithmetic),
+    """The per-member lane point of sumo_gap (sumo/sense.py lane_point has its arithmetic),
     on curved and real lanes (positions before, on, between and past the shape points; lateral offsets both ways)."""
     import sumolib
     rng = np.random.default_rng(3)
@@ -158,7 +158,7 @@ def test_a_run_does_not_import_pandas(tmp_path):
     """pyarrow's pa.array imported pandas on its first call; the recorder no longer calls it."""
     code = ("import sys\n"
             "from formation_traci.scenario import load_scenario\n"
-            "from formation_traci.sim.runner import run_scenario\n"
+            "from formation_traci.runner import run_scenario\n"
             f"sc = load_scenario({str(ROOT / 'scenarios/thesis/dynamic_case4_straight.toml')!r}, "
             "**{'run.duration': 0.5})\n"
             f"r = run_scenario(sc, {str(tmp_path / 'run')!r}, progress=False)\n"
@@ -190,7 +190,7 @@ def test_py_hypot_is_pythons_math_hypot_bit_for_bit():
 
 
 def reference_sumo_gap(shapes, pos, heading, d_front, front, angle, lanes, lane_pos, lat):
-    """sim/sumo_world.py sumo_gap as it was (Python loop over LaneShapes.xy), with SUMO's
+    """sumo/world.py sumo_gap as it was (Python loop over LaneShapes.xy), with SUMO's
     front bumper converted to the CoG as sumo_adapter.read_members did."""
     px, py = np.ascontiguousarray(pos[:, 0]), np.ascontiguousarray(pos[:, 1])
     xs, ys, _ = sumo_to_cog_rows(front, angle, d_front)
@@ -208,12 +208,12 @@ NO_NEIGHBOUR = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empt
 
 @pytest.mark.jit_off  # also as plain Python (NUMBA_DISABLE_JIT=1)
 def test_compiled_member_sense_equals_the_python_sumo_gap_and_projection():
-    """sim/sumo_sense.py sense_step: the members' s, d, speed and sumo_gap in one compiled
+    """sumo/sense.py sense_step: the members' s, d, speed and sumo_gap in one compiled
     call, bit for bit the Python loop over LaneShapes.xy, FastLine.to_frenet and np.hypot it
     replaces (curved and real lanes, members off their lane, out of SUMO, no lane)."""
     import sumolib
     from formation_traci.road.line_pack import FastLine, packed
-    from formation_traci.sim.sumo_sense import PackedLanes, sense_step
+    from formation_traci.sumo.sense import PackedLanes, sense_step
     rng = np.random.default_rng(5)
     line = lines()[2]
     fast = FastLine(float(line.length), packed(line))
@@ -257,11 +257,11 @@ def test_compiled_member_sense_equals_the_python_sumo_gap_and_projection():
 
 @pytest.mark.jit_off  # also as plain Python (NUMBA_DISABLE_JIT=1)
 def test_compiled_neighbour_sense_equals_the_numpy_one_whatever_the_guess():
-    """sim/sumo_sense.py sense_step's neighbours (SUMO's front bumper converted, projected
+    """sumo/sense.py sense_step's neighbours (SUMO's front bumper converted, projected
     with last step's s as the guess, in the same call as the members) give what
     sumo_to_cog_rows, FastLine.to_frenet without a guess and the numpy arithmetic gave."""
     from formation_traci.road.line_pack import FastLine, packed
-    from formation_traci.sim.sumo_sense import NeighbourGuess, sense_step
+    from formation_traci.sumo.sense import NeighbourGuess, sense_step
     rng = np.random.default_rng(9)
     no_lane = (np.empty(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3)))
     used = 0
@@ -323,8 +323,8 @@ def test_member_read_shortcuts_record_what_the_full_loops_record(tmp_path, monke
     shortcut and the full loop were taken."""
     import pyarrow.parquet as pq
     from formation_traci.scenario import load_scenario
-    from formation_traci.sim import events, sumo_adapter
-    from formation_traci.sim.runner import run_scenario
+    from formation_traci.sumo import adapter as sumo_adapter, events
+    from formation_traci.runner import run_scenario
     path = ROOT / "scenarios" / "maneuvers" / "lanedrop_reshape.toml"
     calls = {"full": 0, "reads": 0}
     fast_track = sumo_adapter.SumoAdapter._track_lanes

@@ -10,8 +10,8 @@ import pandas as pd
 import pytest
 
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
-from formation_traci.sim.events import MAX_REFUSED
+from formation_traci.runner import run_scenario
+from formation_traci.sumo.events import MAX_REFUSED
 
 ROOT = Path(__file__).resolve().parents[1]
 LIGHT = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
@@ -73,7 +73,7 @@ def test_refused_moves_are_recorded_and_the_member_dropped(tmp_path):
     lane, at the largest lateral offset the sublane model allows (2.25 m from the lane centre,
     so 1.25 m from where the model put it): a placement_mismatch event. The right member
     carries on."""
-    from formation_traci.sim.sumo_plan import MEMBER_VCLASS
+    from formation_traci.sumo.plan import MEMBER_VCLASS
     member_class = MEMBER_VCLASS["passenger_car"]  # members have their own class (docs/sumo.md)
 
     def hook(k, t, adapter):

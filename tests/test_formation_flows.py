@@ -8,8 +8,8 @@ import pandas as pd
 import pytest
 
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.sim.runner import run_scenario
-from formation_traci.sim.formation_flows import expand_flows, flow_period
+from formation_traci.runner import run_scenario
+from formation_traci.sumo.formation_flows import expand_flows, flow_period
 
 SC = """
 name = "flow"

@@ -11,7 +11,7 @@ import pytest
 import toy_law
 from formation_traci.control.laws import register_law
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 RUN = '[run]\nduration = 6.0\n[vehicle]\nmodel = "{model}"\n'
 WEST = ('[leader]\nspeed = 20.0\n'

@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
-from formation_traci.sim.sumo_adapter import GUI_VIEW
+from formation_traci.runner import run_scenario
+from formation_traci.sumo.adapter import GUI_VIEW
 
 ROOT = Path(__file__).resolve().parents[1]
 LIGHT = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"

@@ -11,7 +11,7 @@ import toy_law
 from formation_traci.control.laws import DEFAULT_LAW, law_names, register_law
 from formation_traci.models.integrator import HELD, rk4_for
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from run_helpers import cli, free_toml
 
 

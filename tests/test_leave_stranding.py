@@ -4,7 +4,7 @@ slot law braked for the released member (15 m ahead of the rear slot, inside the
 which followed the front member, which followed the virtual car: all three down to 0.7 m/s; and
 the rear member, braked at 8 m/s^2 for it, released that braking at 0.8 m/s^3 and stood for
 11 s with v_ref 26 m/s. Now a released member inside the formation is not seen by the slot law
-(sim/join.py inside_formation) and braking beyond decel_max is released at 20 m/s^3 once the
+(sumo/join.py inside_formation) and braking beyond decel_max is released at 20 m/s^3 once the
 emergency is over (leader.emergency_release). Then (the rest of the reported case): the members
 behind a released member inside the formation treated it as traffic, wanting 2 m + 1.5 s x 25 m/s
 = 39.5 m where the column had 15.4 m: an emergency brake at the hand-over (request 4.98 m/s^2), a
@@ -22,7 +22,7 @@ from formation_traci.control.governor import K_GAP, K_REL, member_caps, mate_cap
 from formation_traci.control.longitudinal import plan_accel
 from formation_traci.control.reference_road import mate_rears
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from test_incidents import LUST
 
 EXIT = f"""name = "lust-exit-leave"

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 WIDTH = 3.2  # m, every lane
 SPACING = {"e1": 3.3, "e2": 3.6}  # m, between lane centres
@@ -122,7 +122,7 @@ def test_reshape_goals_in_lanes_are_sumos_lane_centres(gap_run):
 
 @pytest.fixture(scope="module")
 def gap_road(gap_net, tmp_path_factory):
-    from formation_traci.sim.road_setup import build_road
+    from formation_traci.sumo.road_setup import build_road
     path = tmp_path_factory.mktemp("gaproad") / "gap.toml"
     path.write_text(SCENARIO.format(net=gap_net))
     sc = load_scenario(path)
@@ -132,7 +132,7 @@ def gap_road(gap_net, tmp_path_factory):
 def test_lane_centres_are_sumos_on_the_edge_at_an_arc_length(gap_road):
     """One mapping (road/lanes.py LaneCentres) for the initial slots and the maneuvers: lane k
     of the edge at s, relative to the reference lane; a shift keeps the place in the lane."""
-    from formation_traci.sim.road_setup import slot_offsets
+    from formation_traci.sumo.road_setup import slot_offsets
     sc, road = gap_road
     lanes = road.lanes
     np.testing.assert_allclose(lanes.across([-1, 0, 1, 2], 1000.0), [-3.2, 0.0, 3.3, 6.6], atol=1e-9)

@@ -14,7 +14,7 @@ import pytest
 from formation_traci.control.governor import leader_accel
 from formation_traci.control.schedule import FOLLOW_SHARE, GAIN_PRESETS, law_peak, scheduled_gain
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from test_incidents import LUST, TRUCK
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -13,7 +13,7 @@ import pytest
 from formation_traci.models.linear import steady_state_yaw_gain
 from formation_traci.models.params import PASSENGER_CAR, make_tires
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 DIR = Path(__file__).resolve().parents[1] / "scenarios" / "thesis" / "open_loop"
 

@@ -14,7 +14,7 @@ from analysis.api import analyze_run
 from analysis.metrics.platoon import amplification
 
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from formation_traci.sim.setup import build_fleet, column_predecessors
 
 PLATOON = Path(__file__).resolve().parents[1] / "scenarios" / "platoon"

@@ -12,8 +12,8 @@ from formation_traci.road.geometry import route_lanes
 from formation_traci.road.lanes import geometric_route_lanes, geometric_route_shape
 from formation_traci.road.smoothing import deviation, fit_within
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.sim.runner import run_scenario
-from formation_traci.sim.road_setup import build_road
+from formation_traci.runner import run_scenario
+from formation_traci.sumo.road_setup import build_road
 
 ROOT = Path(__file__).resolve().parents[1]
 LUST = ROOT.parent / "shared" / "realnet" / "LuSTMotorway.net.xml"
@@ -160,7 +160,7 @@ def test_members_feel_the_road_not_its_polyline_corners(tmp_path, net):
 
 def test_route_by_its_ends_and_lane_centres_from_sumo_shapes(scenario):
     road = build_road(load_scenario(scenario), scenario)
-    assert road.route == ROUTE  # the mainline between the two end edges (sim/routes.py)
+    assert road.route == ROUTE  # the mainline between the two end edges (sumo/routes.py)
     d = road.lane_d["-30668#1"]
     np.testing.assert_allclose(np.diff(d), 3.3, atol=0.02)  # 3.2 m lanes, centres 3.3 m apart
 
@@ -183,7 +183,7 @@ def test_rightmost_reference_lane_is_accepted_and_stays_in_its_lane(tmp_path, sc
     """With lane 0 as reference (slots in lanes 0, 1, 2) the formation used to swerve a lane in
     each on-ramp junction or be refused as 'off the road'; now it is accepted and the reference
     line stays within the fit tolerance of lane 0's centre on every 3-lane edge."""
-    from formation_traci.sim.sumo_plan import prepare
+    from formation_traci.sumo.plan import prepare
     p = tmp_path / "right.toml"
     p.write_text(SCENARIO.replace("lane = 1\n", "lane = 0\n").replace("lanes = -1 }", "lanes = 2 }"))
     plan = prepare(load_scenario(p), p)
@@ -194,7 +194,7 @@ def test_rightmost_reference_lane_is_accepted_and_stays_in_its_lane(tmp_path, sc
 
 
 def test_sumo_messages_are_events_on_the_formation_clock(tmp_path):
-    from formation_traci.sim.messages import record_messages, summary_line
+    from formation_traci.sumo.messages import record_messages, summary_line
     log = tmp_path / "messages.log"
     log.write_text("Warning: Vehicle 'a' performs emergency braking on lane 'x_0' with decel=9.1, "
                    "wished=4.5, severity=1.0, time=44.15.\n"

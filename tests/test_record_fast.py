@@ -14,9 +14,9 @@ import pytest
 from formation_traci.control.formation import LeaderState
 from formation_traci.record.columns import SIGNAL_COLUMNS
 from formation_traci.sim import recorder as recorder_module
-from formation_traci.sim.events import EmergencyWatch, LaneTracker, MemberWatch, TrafficWatch
+from formation_traci.sumo.events import EmergencyWatch, LaneTracker, MemberWatch, TrafficWatch
 from formation_traci.sim.recorder import MAX_SLIP, Recorder
-from formation_traci.sim.sumo_types import Neighbours
+from formation_traci.sumo.types import Neighbours
 
 IDS = ["m0", "m1", "m2", "m3"]
 PERIODS = 5
@@ -228,7 +228,7 @@ def test_traffic_and_emergency_watches_report_what_the_full_loops_report():
 
 def _straightforward(monkeypatch):
     """The recording as it was: the rows column by column, the watches' full loops."""
-    from formation_traci.sim import sumo_world
+    from formation_traci.sumo import world as sumo_world
 
     def add_step(self, t, sig, extra, mask, truth, written=False):
         assert not written
@@ -263,7 +263,7 @@ def test_runs_write_the_files_the_straightforward_recording_writes(tmp_path, mon
     from pathlib import Path
 
     from formation_traci.scenario import load_scenario
-    from formation_traci.sim.runner import run_scenario
+    from formation_traci.runner import run_scenario
 
     root = Path(__file__).resolve().parents[1]
     if case == "highway":

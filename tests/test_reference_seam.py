@@ -16,7 +16,7 @@ from formation_traci.road.line_pack import packed
 from formation_traci.road.geometry import reference_line_from_net
 from formation_traci.road.targets import road_target_at
 from formation_traci.scenario import parse_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from sumo_nets import net_path
 
 SCENARIO = """

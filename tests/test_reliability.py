@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from formation_traci.scenario import ScenarioError, load_scenario, parse_scenario
 from formation_traci.scenario.schema import Scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from run_helpers import meta_of, free_toml, spawn, wait_for
 
 ROOT = Path(__file__).resolve().parents[1]

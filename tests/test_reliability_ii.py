@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from run_helpers import cli, free_toml, meta_of, spawn, wait_for
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from run_helpers import cli, meta_of, spawn, wait_for
 from test_reliability_ii import free, previous_run, road, tmpfs
 

@@ -1,4 +1,4 @@
-"""The road cache (sim/road_cache.py) and the warm start without scipy (issue 18, set-up).
+"""The road cache (sumo/road_cache.py) and the warm start without scipy (issue 18, set-up).
 
 A run from a cached reference line is the run from a fitted one, bit for bit; a damaged
 entry is rebuilt; a warm process (numba and road caches filled) loads neither scipy's fitting
@@ -20,9 +20,9 @@ import formation_traci.road.smoothing as smoothing
 from formation_traci.road.geometry import ReferenceLine
 from formation_traci.road.line_pack import packed
 from formation_traci.scenario import load_scenario
-from formation_traci.sim import road_cache, road_setup
-from formation_traci.sim.road_setup import build_road
-from formation_traci.sim.runner import run_scenario
+from formation_traci.sumo import road_cache, road_setup
+from formation_traci.sumo.road_setup import build_road
+from formation_traci.runner import run_scenario
 from sumo_nets import net_path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -162,7 +162,7 @@ def test_an_unwritable_cache_is_skipped(tmp_path, monkeypatch):
 FIRST_STEP = """
 import sys
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from sumo_nets import net_path
 path, out, extra = sys.argv[1], sys.argv[2], eval(sys.argv[3])
 sc = load_scenario(path, **{"run.duration": 0.05, **extra})
@@ -202,7 +202,7 @@ WRITER = """
 import sys
 from pathlib import Path
 from formation_traci.scenario import load_scenario
-from formation_traci.sim import road_cache, road_setup
+from formation_traci.sumo import road_cache, road_setup
 from formation_traci.road.line_pack import packed
 path = Path(sys.argv[1])
 road = road_setup.build_road(load_scenario(path), path)  # fitted (or read) once

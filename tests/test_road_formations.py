@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 THREE = ROOT / "scenarios" / "highway" / "three_formations.toml"
@@ -111,7 +111,7 @@ def test_formation_fields_are_checked_and_named(tmp_path):
     on_top = ('\n[[formations]]\nid = "twin"\nleader = { speed = 24.0 }\n'
               'members = [{ id = "t1", slot = { along = 0.0, lanes = 0 } }]\n')
     with pytest.raises(ScenarioError) as exc:
-        from formation_traci.sim.sumo_plan import prepare
+        from formation_traci.sumo.plan import prepare
         p = _bad(tmp_path, on_top)
         prepare(load_scenario(p), p)
     assert exc.value.problems[0][0] == "formations.2.members.0"

@@ -16,8 +16,8 @@ from formation_traci.road.geometry import load_net
 from formation_traci.scenario import load_scenario
 from formation_traci.scenario.load import ScenarioError
 from formation_traci.scenario.schema import RouteEnds
-from formation_traci.sim.road_setup import build_road
-from formation_traci.sim.routes import resolve_route
+from formation_traci.sumo.road_setup import build_road
+from formation_traci.sumo.routes import resolve_route
 from sumo_nets import net_path
 
 ROOT = Path(__file__).resolve().parents[1]

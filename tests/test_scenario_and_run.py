@@ -10,7 +10,7 @@ import pytest
 
 from formation_traci.record.columns import TRAJECTORY_COLUMNS
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.sim.runner import RunDirExists, run_scenario
+from formation_traci.runner import RunDirExists, run_scenario
 from run_helpers import free_toml
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -107,6 +107,16 @@ def test_no_two_folders_import_each_other():
     assert not pairs, pairs
 
 
+def test_the_generic_loop_is_apart_from_sumo():
+    """sim/ (the loop, World, fleet, recorder) imports nothing of sumo/ and sumo/ builds on
+    sim/ (issue 26 item 5); only the top-level runner.py chooses between them."""
+    edges = folder_edges()
+    assert "formation_traci.sumo" not in edges.get("formation_traci.sim", set())
+    assert "formation_traci.sim" in edges.get("formation_traci.sumo", set())
+    sumo_users = {f for f, dst in edges.items() if "formation_traci.sumo" in dst}
+    assert "formation_traci.sim" not in sumo_users, sumo_users
+
+
 def violations() -> set[str]:
     found = set()
     for p in modules().values():
@@ -135,7 +145,7 @@ def test_one_module_imports_libsumo():
                 [node.module or ""] if isinstance(node, ast.ImportFrom) else []
             if any(n.split(".")[0] in ("libsumo", "traci") for n in names):
                 users.add(name)
-    assert users == {"formation_traci.sim.sumo_adapter"}, users
+    assert users == {"formation_traci.sumo.adapter"}, users
 
 
 def test_the_checker_finds_a_circle(tmp_path, monkeypatch):

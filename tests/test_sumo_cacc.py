@@ -1,4 +1,4 @@
-"""SUMO's own CACC as a baseline twin (``controller.law = "sumo_cacc"``, sim/sumo_driven.py,
+"""SUMO's own CACC as a baseline twin (``controller.law = "sumo_cacc"``, sumo/driven.py,
 docs/platoon_laws.md "SUMO's CACC twin"): real SUMO on the bundled sinusoid, cut to 10 s (the
 leader's sinusoid starts at 5 s)."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 from analysis.api import analyze_run, compare_runs
 from analysis.metrics.platoon import amplification
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from run_helpers import cli
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "platoon" / "sinusoid_sumo_cacc.toml"

@@ -8,7 +8,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 HIGHWAY = sorted((ROOT / "scenarios" / "highway").glob("*.toml"))
@@ -57,7 +57,7 @@ def test_bundled_highway_scenario_runs_to_the_end(tmp_path, path):
     assert any(out.joinpath("background.parquet").glob("part-*.parquet"))
     _smooth_longitudinal(members, events)
     # length, width and type are read once per vehicle: they must be those of its vType
-    from formation_traci.sim.traffic import CAR, TRUCK
+    from formation_traci.sumo.traffic import CAR, TRUCK
     bg = pd.read_parquet(out / "background.parquet")
     if len(bg):
         for kind, spec in (("car", CAR), ("truck", TRUCK)):
@@ -281,7 +281,7 @@ def test_members_carry_a_window_of_a_long_route_of_many_edges(tmp_path):
     and the members still cross every edge boundary exactly where the model puts them."""
     import subprocess
     import sumolib
-    from formation_traci.sim.sumo_adapter import ROUTE_AHEAD_M
+    from formation_traci.sumo.adapter import ROUTE_AHEAD_M
     n_edges, edge_m = 15, 200.0
     (tmp_path / "seg.nod.xml").write_text("<nodes>" + "".join(
         f'<node id="n{i}" x="{i * edge_m}" y="0"/>' for i in range(n_edges + 1)) + "</nodes>")
@@ -330,7 +330,7 @@ def test_a_released_member_drives_on_as_an_ordinary_vehicle_class():
     a member handed over to SUMO's driver (leave, exit leave) becomes a passenger car or truck
     again, so SUMO may route it over those lanes (e.g. LuST's exits, entered from lane 0 by a
     lane closed to members)."""
-    from formation_traci.sim.sumo_adapter import MemberType, SumoAdapter
+    from formation_traci.sumo.adapter import MemberType, SumoAdapter
     ad = SumoAdapter("libsumo")
     ad.start(["-n", str(ROOT / "sumo_nets" / "straight3.net.xml"), "--no-step-log", "true", "--end", "100"])
     try:

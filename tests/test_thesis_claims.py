@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 
 THESIS = Path(__file__).resolve().parents[1] / "scenarios" / "thesis"
 

@@ -88,7 +88,7 @@ def lust_pair(tmp_path_factory):
         pytest.skip("needs ../shared/realnet beside the checkout")
     from analysis.api import analyze_run
     from formation_traci.scenario import load_scenario
-    from formation_traci.sim.runner import run_scenario
+    from formation_traci.runner import run_scenario
 
     d = tmp_path_factory.mktemp("lust_twin")
     p = d / "lust.toml"

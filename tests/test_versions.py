@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from formation_traci.sim.runner import RECORDED_DISTRIBUTIONS, versions
+from formation_traci.runner import RECORDED_DISTRIBUTIONS, versions
 from formation_traci.versions import installed_versions, platform_name
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -82,7 +82,7 @@ class Watch:  # records which thread imports pyarrow (finds nothing itself)
 sys.meta_path.insert(0, Watch())
 from formation_traci.scenario import load_scenario
 from formation_traci.sim.recorder import Recorder
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 seen = []
 end_step = Recorder.end_step
 def hook(self, k, t):

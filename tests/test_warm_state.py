@@ -1,4 +1,4 @@
-"""The shared warm-up (sim/warm_state.py, docs/sweeps.md "The shared warm-up"): the key, the
+"""The shared warm-up (sumo/warm_state.py, docs/sweeps.md "The shared warm-up"): the key, the
 merge of SUMO's outputs, and with real SUMO (each run a process of its own, as in a sweep):
 runs from the state are value-identical to each other, start from the unshared run's traffic,
 and differ from it only by what SUMO's state does not hold (the documented exception)."""
@@ -14,13 +14,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from formation_traci.sim.sumo_types import MemberType
-from formation_traci.sim.warm_state import WarmSetup, merge_outputs, warm_key
+from formation_traci.sumo.types import MemberType
+from formation_traci.sumo.warm_state import WarmSetup, merge_outputs, warm_key
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
 STEP = 0.05  # run.step of SCENARIO [s]
-ACCEL, EMERGENCY_DECEL = 2.6, 9.0  # the cars' accel and emergencyDecel (sim/traffic.py) [m/s^2]
+ACCEL, EMERGENCY_DECEL = 2.6, 9.0  # the cars' accel and emergencyDecel (sumo/traffic.py) [m/s^2]
 MAX_SPEED_LAT = 1.0  # SUMO's default maxSpeedLat of the background vTypes [m/s]
 SETUP = WarmSetup(("main",), 1.0, "formation_route", ("entry", "main"),
                   (MemberType("member_passenger_car", 4.5, 1.8, 1.5, (255, 0, 0), "custom1"),), (), ("custom1",))

@@ -5,9 +5,9 @@ import numpy as np
 import pandas as pd
 
 import formation_traci.sim.loop as loop
-import formation_traci.sim.sumo_run as sumo_run
+import formation_traci.sumo.run as sumo_run
 from formation_traci.scenario import load_scenario
-from formation_traci.sim.runner import run_scenario
+from formation_traci.runner import run_scenario
 from run_helpers import free_toml
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
@@ -57,7 +57,7 @@ def _check(out, member, dt):
 def test_free_space_member_retires_and_spawns_again(tmp_path, monkeypatch):
     tr = OutAndBack(0)
     _capture(monkeypatch, loop, "free_space_run", tr)
-    monkeypatch.setattr("formation_traci.sim.runner.free_space_run", loop.free_space_run)
+    monkeypatch.setattr("formation_traci.runner.free_space_run", loop.free_space_run)
     p = tmp_path / "s.toml"
     p.write_text(free_toml(3.0))
     res = run_scenario(load_scenario(p), tmp_path / "run", force=True, progress=False,

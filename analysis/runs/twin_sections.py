@@ -3,7 +3,7 @@
 the whole stretch in both runs, and every measure over a named population.
 
 Reads ``sections.parquet``, ``departures.parquet`` and ``events.parquet`` of both runs (written
-by formation_traci/sim/sections.py); pure functions of those tables, no file written here.
+by formation_traci/sumo/sections.py); pure functions of those tables, no file written here.
 """
 from __future__ import annotations
 

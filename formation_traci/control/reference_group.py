@@ -3,7 +3,7 @@
 :func:`group_reference_step` runs :func:`~.reference_road.road_reference_step`, the very
 kernel a formation alone runs, for every running formation of a group over its own rows of
 the joined arrays, each formation seeing as its neighbours every vehicle of the joined table
-(SUMO's vehicles and every member, sim/sumo_peers.py) but its own members; a formation that
+(SUMO's vehicles and every member, sumo/peers.py) but its own members; a formation that
 is not running (waiting to depart, or retired) gets its virtual car standing at its s and no
 virtual-car row. The numbers are those of the formations' references computed one by one.
 """

@@ -132,7 +132,7 @@ FCD_COLUMNS: tuple[Column, ...] = (
     Column("lane_pos", "float64", "m", "SUMO's position of the front bumper along the lane"),
     Column("slope", "float64", "deg", "road slope"),
 )
-"""Columns of ``sumo/fcd.parquet`` (sim/fcd.py), one naming in both ``sumo.fcd_frame`` s; the
+"""Columns of ``sumo/fcd.parquet`` (sumo/fcd.py), one naming in both ``sumo.fcd_frame`` s; the
 formation frame's units (the sumo frame's differ: :data:`FCD_SUMO_UNITS`)."""
 
 FCD_SUMO_UNITS = {"t": "s (SUMO time)", "x": "m (front bumper)", "y": "m (front bumper)",

@@ -80,7 +80,7 @@ class ReferenceLine:
     The line is its arrays (:data:`ARRAYS`): scipy's objects of the fit (``curve``,
     ``curve_d1..3``, ``u_of_s``, ``tree``) are made from them when first asked for, and the
     evaluation runs on the packed buffer (road/line_pack.py), so a line read back from the
-    road cache (sim/road_cache.py) needs no scipy.
+    road cache (sumo/road_cache.py) needs no scipy.
     """
 
     length: float  # arc length of the fitted curve [m]

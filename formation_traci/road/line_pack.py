@@ -122,5 +122,5 @@ def packed(line) -> np.ndarray:
 
 def keep_packed(line, G: np.ndarray) -> None:
     """Keep ``G``, the buffer :func:`packed` built for ``line`` in an earlier process (read
-    back from the road cache, sim/road_cache.py), on the ReferenceLine ``line``."""
+    back from the road cache, sumo/road_cache.py), on the ReferenceLine ``line``."""
     line._made["G"] = G

@@ -43,7 +43,7 @@ class FormationSetup:
 
 def formation_setups(sc: Scenario, flow_of: dict | None = None) -> list[FormationSetup]:
     """:class:`FormationSetup` of every formation, the top-level one first; ``flow_of``:
-    formation id -> the flow that inserts it (sim/formation_flows.py)."""
+    formation id -> the flow that inserts it (sumo/formation_flows.py)."""
     flow_of = flow_of or {}
     out = []
     for j, (fid, view) in enumerate(formation_views(sc)):

@@ -1,6 +1,6 @@
 """The platoon laws' tables of ``[controller]`` (docs/platoon_laws.md): our laws' parameters
 (control/laws) and ``controller.sumo_cacc``, the vType of SUMO's own CACC car-following model
-that drives the followers when ``controller.law = "sumo_cacc"`` (sim/sumo_driven.py)."""
+that drives the followers when ``controller.law = "sumo_cacc"`` (sumo/driven.py)."""
 from __future__ import annotations
 
 from pydantic import Field

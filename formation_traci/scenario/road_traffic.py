@@ -10,7 +10,7 @@ from .base import NonNegFloat, Pair, PosFloat, Strict
 
 
 class RouteEnds(Strict):
-    """A route by its two ends (and via points), joined along the mainline (sim/routes.py)."""
+    """A route by its two ends (and via points), joined along the mainline (sumo/routes.py)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True, strict=True)
     from_: str | Pair = Field(alias="from", description="first edge id, or an [x, y] network position [m]")

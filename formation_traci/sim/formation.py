@@ -139,7 +139,7 @@ def join_info(refs: list[Reference], n_nb: int | None = None) -> dict:
     """The generators' diagnostics of several formations as one: per-member arrays joined in
     formation order, per-formation values as one array (one per virtual car). ``n_nb``: how
     many neighbours the world itself sensed; a lead vehicle index at or beyond it is another
-    formation's member (sim/sumo_peers.py), given as -1 (no vehicle of the traffic)."""
+    formation's member (sumo/peers.py), given as -1 (no vehicle of the traffic)."""
     info = {}
     for key in dict.fromkeys(k for r in refs for k in r.info):
         vals = [r.info.get(key) for r in refs]

@@ -6,7 +6,7 @@
   vehicle that our clearance confirms;
 * ``member_removed``: a member SUMO no longer has or that was taken out after refused moves;
 * ``emergency_brakes``: the virtual car or a member starts braking harder than comfortable
-  (``emergency_brake`` events, sim/events.py EmergencyWatch);
+  (``emergency_brake`` events, sumo/events.py EmergencyWatch);
 * ``stranded``: a member in the run below :data:`STRANDED_SPEED` for more than
   :data:`STRANDED_TIME` while its speed reference (eq 2.6) is above :data:`STRANDED_V_REF`:
   it stands while the formation wants it to drive;
@@ -105,7 +105,7 @@ class Incidents:
     """Counts the incidents of a run (module docstring) and records their events.
 
     :meth:`step` at every recorded step (the members' signal rows); :meth:`sumo_collisions`
-    with the collisions SUMO reported for the step (sim/sumo_world.py); :meth:`counts` for
+    with the collisions SUMO reported for the step (sumo/world.py); :meth:`counts` for
     run.json."""
 
     def __init__(self, rec, ids, vehicles, pairs: bool = True):
@@ -197,7 +197,7 @@ class Incidents:
 def clearance_lookup(inc: Incidents | None, ids, active, pos, heading, nb):
     """``clearance_of(a, b)`` for :meth:`Incidents.sumo_collisions`: our signed body clearance
     [m] of two vehicles by id (members: our CoG ``pos`` and ``heading``; SUMO's vehicles: their
-    body as sensed, ``nb``: sim/sumo_types.py Neighbours; NaN for one out of the run or out of
+    body as sensed, ``nb``: sumo/types.py Neighbours; NaN for one out of the run or out of
     sight)."""
     index = {m: i for i, m in enumerate(ids)}
     nb_index = {} if nb is None else {vid: j for j, vid in enumerate(nb.ids)}

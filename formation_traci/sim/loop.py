@@ -4,7 +4,7 @@
     -> stop? -> controllers and models (sim/fleet.py) -> actuate -> world step
 
 Free space and SUMO differ only in the World and the reference generator they bring
-(:func:`free_space_run`, sim/sumo_run.py ``road_run``). docs/architecture.md has the
+(:func:`free_space_run`, sumo/run.py ``road_run``). docs/architecture.md has the
 picture and where a maneuver planner or a communication channel plugs in.
 """
 from __future__ import annotations
@@ -212,7 +212,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
                 rec.add_vcs(t, ref.truth)
             clock.lap("record")
             yield k, t
-            clock.lap("record")  # the caller's share: the step's end, part files, progress (sim/runner.py)
+            clock.lap("record")  # the caller's share: the step's end, part files, progress (runner.py)
             if k == n_steps:
                 break
             stop = _stop_reason(forms, world, t, state, rec, group)

@@ -73,8 +73,8 @@ class Recorder:
             self.background = ChunkedTable(out_dir / "background.parquet", BACKGROUND_COLUMNS,
                                            chunk_rows=BACKGROUND_CHUNK_ROWS)
         self.event_counts: dict[str, int] = {}
-        self.incidents = None  # sim/incidents.py Incidents: set by the runner (sim/runner.py)
-        self.ssm = None  # record.ssm.SsmConverter: set by sim/sumo_world.py when SUMO's SSM device is on
+        self.incidents = None  # sim/incidents.py Incidents: set by the runner (runner.py)
+        self.ssm = None  # record.ssm.SsmConverter: set by sumo/world.py when SUMO's SSM device is on
         self._latest: dict[str, float] = {}
         self._reported = -np.inf
         self._fast_init(n)
@@ -345,7 +345,7 @@ class Recorder:
         self.event_counts[kind] = self.event_counts.get(kind, 0) + 1
 
     def add_background(self, t, nb, s, d):
-        """SUMO's vehicles near the formation at t [s] (``nb``: sim/sumo_types.py Neighbours,
+        """SUMO's vehicles near the formation at t [s] (``nb``: sumo/types.py Neighbours,
         ``s``, ``d`` their Frenet coordinates [m]): one write per block of columns; the
         string columns' codes are reused while the vehicles, their types and lanes are those
         of the step before (the usual step)."""

@@ -58,7 +58,7 @@ class RoadLoad:
 def road_load_part(sc: Scenario, veh, road=None, line=None):
     """The run's ``road_load`` part for the members' chassis ``veh`` (one VehicleParams, or
     one per member): None without resistances (nothing to compute), else
-    :class:`RoadLoad` on a road (``road``: sim/road_setup.py Road, ``line``: its reference
+    :class:`RoadLoad` on a road (``road``: sumo/road_setup.py Road, ``line``: its reference
     line) or :class:`FreeSpaceLoad` (None when the drag interaction is off: ratio 1)."""
     if not sc.energy.resistances:
         return None

@@ -128,7 +128,7 @@ def build_fleet(sc: Scenario) -> FleetConfig:
         speed_gains=_member_gains(sc, "speed_gains"),
         yaw_gains=_member_gains(sc, "yaw_gains"),
         physics_step=sc.run.physics_step,
-        law=DEFAULT_LAW if ctl.law in SUMO_LAWS else ctl.law,  # SUMO's: sim/sumo_driven.py
+        law=DEFAULT_LAW if ctl.law in SUMO_LAWS else ctl.law,  # SUMO's: sumo/driven.py
         pred=column_predecessors(sc),
         bumpers=tuple((v.a + v.front_overhang, v.length - v.a - v.front_overhang)
                       for v in vehicles),

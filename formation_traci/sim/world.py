@@ -1,4 +1,4 @@
-"""The World protocol: what the step loop (sim/runner.py) asks of free space and of SUMO.
+"""The World protocol: what the step loop (runner.py) asks of free space and of SUMO.
 
 Per step: ``sense`` (what the world reports at the start of the step, for the reference
 generator and the recorder) -> ``observe`` (events and surroundings once the reference is

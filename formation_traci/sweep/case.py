@@ -95,7 +95,7 @@ def run_case(case_spec: dict | CaseSpec) -> dict[str, Any]:
             with DirLock(out):  # RunDirBusy if the case still runs in another process
                 clear_run(out)
         from ..scenario import ScenarioError, load_scenario
-        from ..sim.runner import run_scenario
+        from ..runner import run_scenario
 
         try:
             sc = load_scenario(spec.base, **spec.case.overrides)
@@ -122,7 +122,7 @@ def _run_twin(sc, spec: CaseSpec, row: dict) -> Path | None:
     """The case's twin (same scenario and seed, no formation) into ``spec.twin_dir``, after
     the formation run in this process (one libsumo simulation at a time). A twin that does
     not complete fails the case: its paired columns would be missing."""
-    from ..sim.runner import run_scenario
+    from ..runner import run_scenario
 
     twin = Path(spec.twin_dir)
     if twin.exists():
@@ -150,7 +150,7 @@ def _shared_warmup(run_dir: Path) -> bool:
 
 def _twin_process(spec: CaseSpec) -> tuple[str, str | None]:
     """The twin of a case whose warm-up was shared, in a process of its own (``--twin``): a
-    process that ran a simulation loads SUMO's state differently (sim/warm_state.py)."""
+    process that ran a simulation loads SUMO's state differently (sumo/warm_state.py)."""
     import subprocess
 
     res = subprocess.run([sys.executable, "-m", "formation_traci.sweep.case", "--twin",
@@ -175,7 +175,7 @@ def twin_main(spec_json: str) -> int:
         Exit code: 0 once the twin ran (whatever its status).
     """
     from ..scenario import load_scenario
-    from ..sim.runner import run_scenario
+    from ..runner import run_scenario
 
     spec = CaseSpec.model_validate_json(spec_json)
     sc = load_scenario(spec.base, **spec.case.overrides)

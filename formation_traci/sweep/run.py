@@ -31,7 +31,7 @@ CASES_DIR = "cases"
 LOGS_DIR = "logs"
 TWINS_DIR = "twins"
 WARMUPS_DIR = "warmups"
-"""The shared warm-ups: SUMO's saved state per warm-up key (sim/warm_state.py)."""
+"""The shared warm-ups: SUMO's saved state per warm-up key (sumo/warm_state.py)."""
 EFFECTS_CSV = "effects.csv"
 MEANS_CSV = "means.csv"
 """Per grid point the section measures' mean over the seeds and 95 % interval (road sweeps)."""
@@ -161,7 +161,7 @@ def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
 
 
 def _versions() -> dict[str, str]:
-    from ..sim.runner import versions
+    from ..runner import versions
 
     return versions(("dask", "distributed"))
 

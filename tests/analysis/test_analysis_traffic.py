@@ -286,7 +286,7 @@ def test_member_footprint_from_run_json_members_body():
 def test_runner_records_the_member_body(tmp_path):
     from formation_traci.models.params import SMALL_TRUCK
     from formation_traci.scenario import load_scenario
-    from formation_traci.sim.runner import run_scenario
+    from formation_traci.runner import run_scenario
     import json
     root = Path(__file__).resolve().parents[2]
     sc = load_scenario(root / "scenarios" / "thesis" / "dynamic_case1.toml",

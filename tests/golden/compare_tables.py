@@ -27,7 +27,7 @@ def bundled() -> list[Path]:
 
 def run_all(out: Path, duration: float | None) -> None:
     from formation_traci.scenario import load_scenario
-    from formation_traci.sim.runner import run_scenario
+    from formation_traci.runner import run_scenario
 
     out.mkdir(parents=True, exist_ok=True)
     for path in bundled():

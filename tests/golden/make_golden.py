@@ -37,7 +37,7 @@ def overrides(kind: str) -> dict:
 def trajectory(path: Path, kind: str, out_dir: Path) -> pd.DataFrame:
     """Run one bundled scenario (with the set's overrides) and return its golden columns."""
     from formation_traci.scenario import load_scenario
-    from formation_traci.sim.runner import run_scenario
+    from formation_traci.runner import run_scenario
 
     sc = load_scenario(path, **overrides(kind))
     res = run_scenario(sc, out_dir, scenario_path=path, progress=False, force=True)

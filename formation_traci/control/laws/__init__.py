@@ -42,7 +42,7 @@ PLATOON_LAWS = ("acc", "cacc_path", "cacc_ploeg")
 
 SUMO_LAWS = ("sumo_cacc",)
 """Laws SUMO's own car-following model runs (no kernel here; road runs only,
-sim/sumo_driven.py): the column's head runs the virtual structure, SUMO drives the followers."""
+sumo/driven.py): the column's head runs the virtual structure, SUMO drives the followers."""
 
 _RUNTIME: dict[str, ModuleType] = {}
 

@@ -63,7 +63,7 @@ class ManeuverPlanner:
     def __init__(self, specs, slots0: np.ndarray, lanes: LaneCentres | float, limits_spec,
                  lengths, widths, ids, room: RoomFn | None = None,
                  follow: tuple[float, float] = (0.0, 0.0), d_front=None):
-        """``lanes``: the road's lane centres (sim/road_setup.py Road.lanes), or a lane width
+        """``lanes``: the road's lane centres (sumo/road_setup.py Road.lanes), or a lane width
         [m] for uniform lanes (no network)."""
         self.specs = list(specs)
         self.plan = hold_plan(slots0)

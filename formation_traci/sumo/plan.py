@@ -16,15 +16,15 @@ from ..road.targets import road_targets
 from ..scenario.formations import formation_setups
 from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
-from .column_gaps import check_column_bodies
+from ..sim.column_gaps import check_column_bodies
 from .messages import SUMO_ARGS as SUMO_QUIET
 from .road_setup import (Road, build_road, check_no_overlap, check_route_ends, check_slots,
                          initial_check_limit, rectangles_overlap, slot_offsets)
-from .setup import member_vehicles, profile, vehicle_params
+from ..sim.setup import member_vehicles, profile, vehicle_params
 from .formation_flows import expand_flows
 from .ssm import ssm_args
-from .sumo_adapter import MemberType
-from .sumo_options import check_options, place_outputs
+from .adapter import MemberType
+from .options import check_options, place_outputs
 
 MEMBER_ROUTE = "formation_route"
 ADHESION_SHARE_COMFORT = 0.5
@@ -54,7 +54,7 @@ class RoadPlan:
     ids: tuple[str, ...] = ()  # every member's id
     presets: tuple[str | None, ...] = ()  # every member's own preset (None: vehicle.preset)
     formations: tuple = ()  # (FormationSetup, its RoadPlan, its rows: slice) of each formation
-    scenario: Scenario | None = None  # the scenario with its formation flows' formations (sim/formation_flows.py)
+    scenario: Scenario | None = None  # the scenario with its formation flows' formations (sumo/formation_flows.py)
     flow_keep: dict | None = None  # traffic flow id -> the share of its demand it keeps (penetration)
 
 

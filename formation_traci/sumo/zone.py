@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from .road_setup import rectangles_overlap
-from .sumo_plan import INSERT_CLEAR_TIME
+from .plan import INSERT_CLEAR_TIME
 
 
 def middle_member(active, along, across) -> int:

@@ -42,7 +42,7 @@ ENV = "FORMATION_TRACI_CACHE"
 """Environment variable: the cache directory, or ``off``."""
 _CODE = ("road/geometry.py", "road/line_fit.py", "road/smoothing.py", "road/band_qp.py",
          "road/bernstein.py", "road/line_pack.py", "road/fast_line.py", "road/lanes.py", "kernels.py",
-         "sim/road_cache.py", "sim/road_setup.py")
+         "sumo/road_cache.py", "sumo/road_setup.py")
 """Modules whose source is part of the key (paths below the package)."""
 _CODE_DIGEST: list = []
 MAX_ENTRIES = 64

@@ -176,7 +176,7 @@ _REFERENCE_CACHE: dict = {}
 def _reference(net_file: str, route: tuple, lane: int, tolerance: float, net):
     """Geometric lanes of the reference lane along the route, and the line fitted to them
     within ``tolerance`` [m] (road/smoothing.py); kept per network file (and its mtime),
-    route, lane and tolerance in the process, and on disk (sim/road_cache.py)."""
+    route, lane and tolerance in the process, and on disk (sumo/road_cache.py)."""
     key = (net_file, os.stat(net_file).st_mtime_ns, route, lane, tolerance)
     if key not in _REFERENCE_CACHE:
         from . import road_cache

@@ -1,4 +1,4 @@
-"""What the SUMO adapter (sim/sumo_adapter.py, the only module that imports libsumo/traci)
+"""What the SUMO adapter (sumo/adapter.py, the only module that imports libsumo/traci)
 shares with the rest of the package, without importing SUMO: its constants, the frame
 conversions and the small dataclasses of its results.
 
@@ -6,7 +6,7 @@ SUMO's vehicle position is the front bumper and its angle is degrees clockwise f
 ours is the centre of gravity (CoG) and radians counter-clockwise from +x. The conversions
 are here, once: :func:`cog_to_sumo` / :func:`sumo_to_cog` on arrays, and the compiled
 :func:`cog_to_sumo_rows` of the per-step moves (the same arithmetic, bit for bit; the per-step
-reads convert inside sim/sumo_sense.py's ``sense_step``, with :func:`sumo_to_cog_rows`'s
+reads convert inside sumo/sense.py's ``sense_step``, with :func:`sumo_to_cog_rows`'s
 arithmetic, tests/test_fast_paths.py).
 """
 from __future__ import annotations
@@ -114,7 +114,7 @@ class MemberType:
     max_speed: float = 70.0  # [m/s] above anything a member reaches, so SUMO never clamps
     ssm_device: bool = False  # SUMO's SSM device on members of this type (sumo.ssm = "members")
     # what SUMO's own driver model uses (a member placed by moveToXY ignores them; one SUMO
-    # drives, sim/sumo_driven.py, does not): the vType copied (its car-following model and its
+    # drives, sumo/driven.py, does not): the vType copied (its car-following model and its
     # parameters; a CACC one from an additional file), minGap [m], accel, decel, emergency
     # decel [m/s^2]
     base: str = "DEFAULT_VEHTYPE"
@@ -127,7 +127,7 @@ class MemberType:
 @dataclass(frozen=True)
 class StepEvents:
     """What SUMO reported during one step (ids are SUMO vehicle ids). Frozen: a quiet step
-    returns one shared instance (sim/sumo_adapter.py ``step``)."""
+    returns one shared instance (sumo/adapter.py ``step``)."""
 
     collisions: list[tuple[str, str, str]] = field(default_factory=list)  # (collider, victim, lane)
     teleports: list[str] = field(default_factory=list)

@@ -17,18 +17,18 @@ import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..interrupt import Interrupted, stop_on_signals
-from ..record.rundir import RUN_FINISHED, RunDirError, RunDirExists, RUN_SCHEMA, open_out_dir  # noqa: F401
-from ..record.writer import atomic_write_json
-from ..scenario.load import ScenarioError
-from ..scenario.schema import Scenario
-from ..versions import installed_versions, platform_name
-from .loop import ModelRangeError, check_finite, free_space_run, step_loop  # noqa: F401
-from ..scenario.formations import formation_views
-from .formation import virtual_car_id
-from .incidents import Incidents, verdict
-from .recorder import Recorder
-from .setup import member_vehicles, road_mu, with_comm
+from .interrupt import Interrupted, stop_on_signals
+from .record.rundir import RUN_FINISHED, RunDirError, RunDirExists, RUN_SCHEMA, open_out_dir  # noqa: F401
+from .record.writer import atomic_write_json
+from .scenario.formations import formation_views
+from .scenario.load import ScenarioError
+from .scenario.schema import Scenario
+from .sim.formation import virtual_car_id
+from .sim.incidents import Incidents, verdict
+from .sim.loop import ModelRangeError, check_finite, free_space_run, step_loop  # noqa: F401
+from .sim.recorder import Recorder
+from .sim.setup import member_vehicles, road_mu, with_comm
+from .versions import installed_versions, platform_name
 
 
 @dataclass(frozen=True)
@@ -110,7 +110,7 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
     step (fault injection, extensions). ``transforms``: callables Reference -> Reference
     applied to every step's reference in order (maneuvers, communication channels;
     docs/architecture.md). ``warm_cache`` (road scenarios): a directory of shared warm-ups
-    (sim/warm_state.py): the run starts from the saved state of its warm-up key, simulated
+    (sumo/warm_state.py): the run starts from the saved state of its warm-up key, simulated
     once (docs/sweeps.md, "The shared warm-up"); None: the warm-up is simulated in the run.
 
     Raises ScenarioError or RunDirError (bad input; nothing created or changed), or
@@ -124,7 +124,7 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
         plan = None
         protect = [src] if src is not None else []
         if sc.road is not None:  # road, route, lanes and slots are checked before anything runs
-            from .sumo_plan import prepare
+            from .sumo.plan import prepare
             plan = prepare(sc, src)
             protect.append(plan.road.net_file)
             if "," in os.path.abspath(out_dir):
@@ -149,7 +149,7 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
         meta["scenario"] = shown.model_dump(mode="json")
     meta["baseline"] = baseline
     if warm_cache is not None and sc.road is not None:
-        from .warm_state import not_shareable
+        from .sumo.warm_state import not_shareable
         meta["warm_state"] = {"cache": str(Path(warm_cache).resolve()), "shared": False,
                               "unshared": not_shareable(sc)}
     meta_path = out_dir / "run.json"
@@ -165,13 +165,13 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
         if stop.is_set():
             raise Interrupted(stop.signame)
         if sc.open_loop is not None:
-            from .open_loop import open_loop_steps
+            from .sim.open_loop import open_loop_steps
             steps = open_loop_steps(sc, rec, out_dir)
         else:
             if sc.road is None:
                 build = lambda: with_comm(sc, free_space_run(sc, rec))  # noqa: E731
             else:
-                from .sumo_run import road_run
+                from .sumo.run import road_run
                 build = lambda: with_comm(sc, road_run(sc, plan, rec, out_dir, meta, baseline,  # noqa: E731
                                                        step_hook, stop.is_set), baseline)
             steps = step_loop(sc, _with_transforms(build, transforms), rec, meta)
@@ -205,7 +205,7 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
             bar.close()
         status, reason = _finish(meta_path, meta, rec, steps, status, reason, t, k)
     if status in RUN_FINISHED:
-        from .warm import compile_every_kind
+        from .sim.warm import compile_every_kind
         compile_every_kind()  # a cold cache: the other scenario kinds' kernels too (sim/warm.py)
     return RunResult(out_dir, status, reason, float(meta["t_end"]), int(meta["steps_done"]),
                      meta["incidents"], meta["incident_summary"])

@@ -1,10 +1,10 @@
 """Members handed between the formation and SUMO's driver (a leave's release, a join's
-take-over or entry): a mixin of sim/sumo_world.py SumoWorld, which has the attributes used
+take-over or entry): a mixin of sumo/world.py SumoWorld, which has the attributes used
 here (adapter, rec, ids, sumo_ids, active, in_sumo, released, adopting, fleet, v_after)."""
 from __future__ import annotations
 
 from .join import adopt, enter, take_over
-from .sumo_adapter import SumoError
+from .adapter import SumoError
 from .traffic import CAR
 
 
@@ -14,7 +14,7 @@ class MemberHandover:
     def release(self, t: float, i: int, exit_edge: str = "") -> None:
         """Leave: hand member i over to SUMO's own driver model where it is (its lane,
         position and speed); it drives on as an ordinary vehicle with a SUMO car's
-        acceleration and deceleration (sim/traffic.py CAR), routed to ``exit_edge`` when
+        acceleration and deceleration (sumo/traffic.py CAR), routed to ``exit_edge`` when
         given, and is no longer controlled."""
         vid = self.sumo_ids[i]
         if not self.active[i] or not self.inserted or self.baseline:
@@ -32,7 +32,7 @@ class MemberHandover:
 
     def take_over(self, t: float, i: int, vid: str, sensed, where=None) -> None:
         """Join: SUMO vehicle ``vid`` becomes member i where it is, or (``where`` = (s, d, v))
-        member i's own vehicle enters the road under SUMO's driver (sim/join.py); a baseline
+        member i's own vehicle enters the road under SUMO's driver (sumo/join.py); a baseline
         twin has no formation to join."""
         if not self.inserted or self.baseline:
             return
@@ -54,7 +54,7 @@ class MemberHandover:
                 self.take_over(t, c.member, c.vehicle, sensed, c.where)
 
     def adopt(self, state, ref):
-        """The fleet state with the vehicles taken over in this step written in (sim/join.py)."""
+        """The fleet state with the vehicles taken over in this step written in (sumo/join.py)."""
         if self.adopting:
             adopt(self.fleet, state, ref, self.adopting)
         return state

@@ -1,18 +1,18 @@
-"""Formation flows on the SUMO side (sim/formation_flows.py has the rule): is there room for a
+"""Formation flows on the SUMO side (sumo/formation_flows.py has the rule): is there room for a
 due formation, and the counts of formations requested and inserted (run.json
 ``formation_flows``)."""
 from __future__ import annotations
 
 import numpy as np
 
-from .sumo_zone import has_room
+from .zone import has_room
 
 LOOK_BEHIND_M, LOOK_AHEAD_M = 150.0, 250.0
 """The stretch around a due formation's members whose vehicles may block its entry [m]."""
 
 
 def room_for(world, rows: slice, state) -> bool:
-    """Are the insertion zones (sim/sumo_zone.py ``insertion_zone``) of the members ``rows``
+    """Are the insertion zones (sumo/zone.py ``insertion_zone``) of the members ``rows``
     at their state's poses free of SUMO's vehicles and of the members of the run that SUMO
     does not have yet?"""
     pos, _, heading = world.fleet.kinematics(state)

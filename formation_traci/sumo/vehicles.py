@@ -2,7 +2,7 @@
 members' vehicle types, the release of a member to SUMO's own driver model, and (join) a
 vehicle SUMO drives until a member takes it over.
 
-A mixin of the SUMO adapter (sim/sumo_adapter.py, the only module that imports
+A mixin of the SUMO adapter (sumo/adapter.py, the only module that imports
 libsumo/traci): it works on the adapter's ``api`` (the libsumo or traci module) and imports
 no SUMO itself.
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .sumo_types import (LANE_CHANGE_MODE_DEFAULT, ORDINARY_CLASS, SPEED_MODE_DEFAULT, MemberType,
+from .types import (LANE_CHANGE_MODE_DEFAULT, ORDINARY_CLASS, SPEED_MODE_DEFAULT, MemberType,
                          SumoError)
 
 
@@ -137,7 +137,7 @@ class VehicleSetup:
 
     def drive_with_sumo(self, vid: str) -> None:
         """Member ``vid`` (inserted, placed once) is driven by its vType's own car-following
-        model from now on (sim/sumo_driven.py): SUMO's safe-speed checks on (the default speed
+        model from now on (sumo/driven.py): SUMO's safe-speed checks on (the default speed
         mode), lane changes off (it keeps its lane), no moveToXY."""
         self.api.vehicle.setSpeedMode(vid, SPEED_MODE_DEFAULT)
         self.api.vehicle.setLaneChangeMode(vid, 0)

@@ -8,18 +8,18 @@ from pathlib import Path
 import numpy as np
 
 from ..scenario.schema import Scenario
-from .sumo_plan import RoadPlan
-from .sumo_world import SumoWorld
+from .plan import RoadPlan
+from .world import SumoWorld
 
 
 def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
              baseline: bool = False, step_hook=None, should_stop=None):
     """World, reference generators and fleet of a road run (loop.step_loop runs them)."""
-    from .formation import Formation, join_configs, join_states, virtual_car_id
-    from .loop import RunParts, one_formation
-    from .road_load import road_load_part
-    from .setup import build_fleet
-    from .sumo_driven import world_and_fleet
+    from ..sim.formation import Formation, join_configs, join_states, virtual_car_id
+    from ..sim.loop import RunParts, one_formation
+    from ..sim.road_load import road_load_part
+    from ..sim.setup import build_fleet
+    from .driven import world_and_fleet
 
     parts = plan.formations or ((None, plan, slice(0, len(sc.members))),)
     views = [sc if setup is None else setup.view for setup, _, _ in parts]
@@ -51,10 +51,10 @@ def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld,
     """(reference generator, transforms, initial state) of the formation ``sc`` sees, whose
     members are ``plan``'s (``gains``: their rows of sim/fleet.py Fleet.gains)."""
     from ..control.reference_road import GovernorLimits, RoadReference
-    from .fleet import initial_state
-    from .column_gaps import column_gap_warnings
-    from .setup import follow_limit, profile, road_mu, top_speed
-    from .sumo_plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
+    from ..sim.fleet import initial_state
+    from ..sim.column_gaps import column_gap_warnings
+    from ..sim.setup import follow_limit, profile, road_mu, top_speed
+    from .plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
 
     run, ld, line = sc.run, sc.leader, plan.road.line
     n_ctrl = int(round(run.step / run.control_step))

@@ -51,7 +51,7 @@ _LINE = re.compile(r"^\s+(?:-(\w), )?--(\S+)(?: (\S+))?")
 @functools.lru_cache(maxsize=1)
 def sumo_option_table() -> dict[str, tuple[str, str, str]]:
     """Every option of the SUMO binary: name or abbreviation -> (name, type, section)."""
-    from .sumo_adapter import sumo_binary
+    from .adapter import sumo_binary
 
     text = subprocess.run([sumo_binary(), "--help"], capture_output=True, text=True, timeout=60).stdout
     table: dict[str, tuple[str, str, str]] = {}

@@ -1,4 +1,4 @@
-"""A step's sense in one compiled call (sim/sumo_world.py ``SumoWorld.sense``).
+"""A step's sense in one compiled call (sumo/world.py ``SumoWorld.sense``).
 
 :func:`sense_step` gives, for every member, its arc length and lateral offset along the
 reference line (road/fast_line.py ``to_frenet_many``), its speed, and how far SUMO has it from
@@ -6,7 +6,7 @@ our pose (``sumo_gap``: the larger of the CoG distance and the distance between 
 bumper and the point SUMO's lane, lane position and lateral lane position give on SUMO's lane
 shapes); for every neighbour its centre and heading (SUMO's front bumper converted) and its
 place along the line. :class:`PackedLanes` packs the lane shapes of road/lanes.py ``LaneShapes`` into two
-arrays the kernel reads. The arithmetic is that of ``LaneShapes.xy``, sim/sumo_types.py's
+arrays the kernel reads. The arithmetic is that of ``LaneShapes.xy``, sumo/types.py's
 conversions and ``math.hypot`` (:func:`~..kernels.py_hypot`), bit for bit
 (tests/test_fast_paths.py).
 """
@@ -18,7 +18,7 @@ import numpy as np
 
 from ..kernels import kernel, py_hypot
 from ..road.fast_line import to_frenet_many
-from .sumo_types import cog_to_sumo_one, sumo_to_cog_one
+from .types import cog_to_sumo_one, sumo_to_cog_one
 
 
 class PackedLanes:

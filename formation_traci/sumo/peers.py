@@ -1,6 +1,6 @@
 """Several formations on one road: each sees the members of the others as traffic.
 
-SUMO's neighbour reads leave every member out (sim/sumo_neighbours.py); a formation's
+SUMO's neighbour reads leave every member out (sumo/neighbours.py); a formation's
 governor, gap and lane checks must still see the members of the other formations. Each
 step :class:`Peers` keeps every member as a neighbour row (body centre, heading, speed,
 acceleration, body, lane, road coordinates: the same fields SUMO's vehicles have in
@@ -14,9 +14,9 @@ from itertools import compress
 
 import numpy as np
 
-from .world import sensed_of
-from .sumo_types import Neighbours
-from .world import Sensed
+from ..sim.world import sensed_of
+from .types import Neighbours
+from ..sim.world import Sensed
 
 
 class Peers:

@@ -1,6 +1,6 @@
 """The vehicles near the members, read through SUMO's subscriptions.
 
-A mixin of the SUMO adapter (sim/sumo_adapter.py, the only module that imports
+A mixin of the SUMO adapter (sumo/adapter.py, the only module that imports
 libsumo/traci): it works on the adapter's ``api`` (the libsumo or traci module) and
 ``tc`` (its constants) and imports no SUMO itself.
 """
@@ -10,7 +10,7 @@ from operator import itemgetter
 
 import numpy as np
 
-from .sumo_types import Neighbours, sumo_to_cog
+from .types import Neighbours, sumo_to_cog
 
 
 def _nobody() -> Neighbours:
@@ -73,7 +73,7 @@ class NeighbourReads:
 
     def neighbour_rows(self, all_vehicles: bool):
         """Non-member vehicles from the context subscriptions (or from all subscriptions),
-        sorted by id, in SUMO's frame (sim/sumo_sense.py ``sense_step`` converts it into
+        sorted by id, in SUMO's frame (sumo/sense.py ``sense_step`` converts it into
         :class:`Neighbours`): ids, vTypes, front bumper (m, 2) [m], angle [deg], speed [m/s],
         acceleration [m/s^2], length [m], width [m], lane ids, lane index; None when there
         is none."""

@@ -1,4 +1,4 @@
-"""SUMO as the World of a road run (over the one libsumo adapter, sim/sumo_adapter.py).
+"""SUMO as the World of a road run (over the one libsumo adapter, sumo/adapter.py).
 
 sense: read back where SUMO put the members (removed, placement mismatch, lane changes)
 and the vehicles near them; observe: traffic events and background rows; actuate: insert
@@ -18,27 +18,27 @@ from ..road.line_pack import FastLine, packed
 from ..scenario.schema import Scenario
 from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch,
                      TrafficWatch, log_sumo_events)
-from .sumo_zone import clear_insertion_zone, middle_member, subscribe_context
+from .zone import clear_insertion_zone, middle_member, subscribe_context
 from .sections import drain as drain_stretch
 from .sections import plan_sections
 from .sections import sumo_options as section_options
 from .sections import write_tables as write_sections
-from .incidents import clearance_lookup
+from ..sim.incidents import clearance_lookup
 from .demand import measure_plan, traffic_meta
 from .join import inside_formation
 from .messages import sumo_outputs_meta
-from .sumo_adapter import SumoAdapter
-from .formation import virtual_car_id
-from .sumo_neighbours import NOBODY
-from .sumo_flows import counted_entry, flow_counts, room_for
-from .sumo_handover import MemberHandover
-from .sumo_peers import Peers
-from .sumo_sense import NeighbourGuess, PackedLanes, sense_step
-from .sumo_types import Neighbours
-from .sumo_plan import MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
+from .adapter import SumoAdapter
+from ..sim.formation import virtual_car_id
+from .neighbours import NOBODY
+from .flow_inserts import counted_entry, flow_counts, room_for
+from .handover import MemberHandover
+from .peers import Peers
+from .sense import NeighbourGuess, PackedLanes, sense_step
+from .types import Neighbours
+from .plan import MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import flow_vehicles_per_hour, write_routes
 from .warm_state import WarmSetup, merge_outputs, start_warm
-from .world import Sensed, sensed_of
+from ..sim.world import Sensed, sensed_of
 
 _NO_ROWS = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0, dtype=np.int64))
 """sense_step's SUMO rows of the members when they are not in SUMO (not inserted yet, a baseline)."""
@@ -62,8 +62,8 @@ class SumoWorld(MemberHandover):
         self.out_dir, self.sumo_dir = out_dir, out_dir / "sumo"
         self.active = np.ones(n, dtype=bool)  # members in the run
         self.in_sumo = np.zeros(n, dtype=bool)  # members SUMO has (inserted, not removed)
-        self.moved = np.ones(n, dtype=bool)  # members placed by moveToXY (False: SUMO drives, sim/sumo_driven.py)
-        self.adds: list[str] = []  # further SUMO additional files (sim/sumo_driven.py: its vTypes)
+        self.moved = np.ones(n, dtype=bool)  # members placed by moveToXY (False: SUMO drives, sumo/driven.py)
+        self.adds: list[str] = []  # further SUMO additional files (sumo/driven.py: its vTypes)
         self._every = np.arange(n)
         for mv in sc.maneuvers:  # a joining member enters when it takes a vehicle over
             if mv.kind == "join":
@@ -75,11 +75,11 @@ class SumoWorld(MemberHandover):
         self.active &= ~self.waiting
         self.pending = np.flatnonzero(self.active)  # spawned, inserted at the next actuate
         self.sumo_ids = list(self.ids)  # SUMO's vehicle of each member (join: the one taken over)
-        self.adopting = []  # take-overs to write into the fleet state (sim/join.py)
+        self.adopting = []  # take-overs to write into the fleet state (sumo/join.py)
         self.route_id = MEMBER_ROUTE
         self.slot_index = np.arange(n, dtype=float)  # the 'slot' column; maneuvers change it
         self.inserted = False
-        self.sections = None  # the measurement sections (sim/sections.py), set at start
+        self.sections = None  # the measurement sections (sumo/sections.py), set at start
         self.should_stop = None  # polled by the drain (the run's stop flag: Ctrl-C ends it)
         self.all_bg = sc.traffic.record_radius is None or baseline
         self.ctx_owner = [None] * len(self.groups)  # each formation's context subscription
@@ -152,14 +152,14 @@ class SumoWorld(MemberHandover):
             setup.apply(ad)
             for _ in range(warm_steps):
                 ad.simulation_step()
-        else:  # the warm-up simulated here, or started from its shared state (sim/warm_state.py)
+        else:  # the warm-up simulated here, or started from its shared state (sumo/warm_state.py)
             meta["sumo"]["version"] = start_warm(ad, args, setup, warm_steps, self.sumo_dir,
                                                  meta.get("warm_state"))
         meta["versions"]["sumo"] = meta["sumo"]["version"]
 
     def drain(self) -> None:
         """After the formation's last step (a run that ended normally): the sections' drain
-        (sim/sections.py): the members leave SUMO, SUMO runs on until the stretch is empty.
+        (sumo/sections.py): the members leave SUMO, SUMO runs on until the stretch is empty.
         What the run reports of its traffic stays the formation's part (the tables, the
         demand, the detectors, SUMO's messages and conflicts up to now)."""
         if self.sections is None or not self.adapter._started:
@@ -234,7 +234,7 @@ class SumoWorld(MemberHandover):
             sensed.nb = Neighbours(ids, types, x, y, psi, v, a, length, width, lane_ids, lane_index)
             sensed.nb_s, sensed.nb_d, sensed.nb_v = s[n:], d[n:], v
             self._nb_guess.keep(ids, sensed.nb_s)
-            if self.released:  # released members inside the formation (sim/join.py)
+            if self.released:  # released members inside the formation (sumo/join.py)
                 sensed.nb_in_formation = inside_formation(self.released, sensed, m_s + self.d_front,
                                                           self.plan.vehicles, self.active)
         ev = self.ev
@@ -292,7 +292,7 @@ class SumoWorld(MemberHandover):
 
     def has_room(self, t: float, rows: slice, state) -> bool:
         """Room on the road for the members ``rows`` where their state puts them (a formation
-        flow's formation enters only then: sim/sumo_flows.py)."""
+        flow's formation enters only then: sumo/flow_inserts.py)."""
         return room_for(self, rows, state)
 
     def retire(self, t: float, rows, why: str) -> None:
@@ -308,14 +308,14 @@ class SumoWorld(MemberHandover):
 
     def sensed_for(self, sensed: Sensed, rows: slice) -> Sensed:
         """What the formation of fleet rows ``rows`` senses: its members, and as its
-        neighbours SUMO's vehicles and the other formations' members (sim/sumo_peers.py)."""
+        neighbours SUMO's vehicles and the other formations' members (sumo/peers.py)."""
         if self.peers is None:
             return sensed_of(sensed, rows)
         return self.peers.sensed_for(sensed, rows, self.active & self.in_sumo)
 
     def joined_neighbours(self, sensed: Sensed):
         """SUMO's vehicles and every member in SUMO as one neighbour table for a formation
-        group (sim/formation_group.py, sim/sumo_peers.py Peers.table)."""
+        group (sim/formation_group.py, sumo/peers.py Peers.table)."""
         return self.peers.table(sensed, self.active & self.in_sumo)
 
     def stop_reason(self, t: float):
@@ -325,7 +325,7 @@ class SumoWorld(MemberHandover):
 
     def _subscribe_contexts(self) -> None:
         """One context subscription per formation with members in SUMO, on a member near its
-        middle (sim/sumo_zone.py), renewed when that member left."""
+        middle (sumo/zone.py), renewed when that member left."""
         here = self.active & self.in_sumo if len(self.groups) > 1 else self.active
         for g, rows in enumerate(self.groups):
             owner = self.ctx_owner[g]
@@ -343,7 +343,7 @@ class SumoWorld(MemberHandover):
         v_after = self.fleet.speed(state)
         self.a_mean = (v_after - v_before) / self.sc.run.step
         self.v_after = v_after
-        if self.true_v is not None:  # the members' true speeds for the FCD (sim/fcd.py)
+        if self.true_v is not None:  # the members' true speeds for the FCD (sumo/fcd.py)
             self.true_v[int(round(t_next / self.sc.run.step))] = np.where(self.active, v_after, np.nan)
         ids, ad = self.ids, self.adapter
         act_idx = np.flatnonzero(self.active & self.in_sumo & self.moved)

@@ -3,7 +3,7 @@ key and saved as SUMO's state, every run with that key started from it (docs/swe
 "The shared warm-up").
 
 A road run steps SUMO ``traffic.warmup / run.step`` times before its first step
-(sim/sumo_world.py ``SumoWorld.start``). What those steps give depends only on what SUMO was
+(sumo/world.py ``SumoWorld.start``). What those steps give depends only on what SUMO was
 started with and what was set up before them: the :func:`warm_key` hashes exactly that (SUMO's
 command line with the run's own directory taken out, the content of every file it names: network,
 routes as written, additional files; the members' route and vTypes, the friction, the lanes
@@ -12,7 +12,7 @@ differ only in what SUMO does not see before the formation enters (the controlle
 maneuvers ...) and their twins share a key.
 
 ``start_warm`` with a cache directory: the first run of a key simulates the warm-up in a process
-of its own (``python -m formation_traci.sim.warm_state JOB``), which saves SUMO's state with its
+of its own (``python -m formation_traci.sumo.warm_state JOB``), which saves SUMO's state with its
 random number generators (``--save-state.rng``, ``--save-state.precision 17``), the vehicles
 inserted so far and SUMO's outputs of the warm-up into ``DIR/<key>/`` (a temporary directory
 renamed when complete: a run never sees half an entry). Runs of the same key at the same time
@@ -48,7 +48,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from .sumo_types import MemberType, SumoError
+from .types import MemberType, SumoError
 
 FORMAT = "formation-traci/warm-state/1"
 """Changes when what an entry holds or how it is made changes (part of the key)."""
@@ -65,7 +65,7 @@ MERGED_TEXT = ("messages.log",)
 
 @dataclass(frozen=True)
 class WarmSetup:
-    """What a road run sets up in SUMO before the warm-up (sim/sumo_world.py start)."""
+    """What a road run sets up in SUMO before the warm-up (sumo/world.py start)."""
 
     flow_ids: tuple[str, ...]  # flows whose insertions are counted
     mu: float  # friction of every edge [-]
@@ -192,7 +192,7 @@ def produce(entry: Path, args: list[str], sumo_dir: Path, setup: WarmSetup, warm
         job = {"args": [a.replace(str(sumo_dir), str(tmp)) for a in args] + STATE_OPTIONS,
                "setup": setup.to_json(), "warm_steps": int(warm_steps), "out": str(tmp)}
         (tmp / "job.json").write_text(json.dumps(job), encoding="utf-8")
-        res = subprocess.run([sys.executable, "-m", "formation_traci.sim.warm_state", str(tmp / "job.json")],
+        res = subprocess.run([sys.executable, "-m", "formation_traci.sumo.warm_state", str(tmp / "job.json")],
                              capture_output=True, text=True)
         if res.returncode != 0 or not (tmp / WARM_JSON).is_file():
             raise SumoError(f"the shared warm-up did not complete (exit {res.returncode}): "
@@ -206,7 +206,7 @@ def produce(entry: Path, args: list[str], sumo_dir: Path, setup: WarmSetup, warm
 def simulate(job: dict) -> None:
     """The producing process: SUMO's warm-up as a run does it, then its state and the
     vehicles it inserted (``warm.json``)."""
-    from .sumo_adapter import SumoAdapter
+    from .adapter import SumoAdapter
 
     out = Path(job["out"])
     ad = SumoAdapter("libsumo")
@@ -300,7 +300,7 @@ def merge_outputs(sumo_dir: Path, info: dict | None) -> None:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
-        print("usage: python -m formation_traci.sim.warm_state JOB_JSON", file=sys.stderr)
+        print("usage: python -m formation_traci.sumo.warm_state JOB_JSON", file=sys.stderr)
         return 2
     simulate(json.loads(Path(argv[0]).read_text(encoding="utf-8")))
     return 0

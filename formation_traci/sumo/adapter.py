@@ -3,11 +3,11 @@
 It owns starting/stepping/closing SUMO, inserting and placing the formation members with
 ``vehicle.moveToXY``, batched reads through subscriptions. The frame conversions (SUMO's
 front bumper and degrees clockwise from north against our CoG and radians counter-clockwise
-from +x), the constants and the result dataclasses are in sim/sumo_types.py; the neighbour
-reads in sim/sumo_neighbours.py and the socket connection in sim/sumo_connect.py work on the
+from +x), the constants and the result dataclasses are in sumo/types.py; the neighbour
+reads in sumo/neighbours.py and the socket connection in sumo/connect.py work on the
 module object this adapter imports (``self.api``) and import no SUMO themselves. Outside
 these modules code sees only numpy arrays and the small dataclasses. Friction, member types and
-the release of a member are in sim/sumo_vehicles.py (the same way). SUMO behaviours relied
+the release of a member are in sumo/vehicles.py (the same way). SUMO behaviours relied
 on here are documented in docs/sumo.md (each with the test that shows it).
 """
 from __future__ import annotations
@@ -16,10 +16,10 @@ from operator import add, itemgetter, le
 
 import numpy as np
 
-from .sumo_connect import attach_socket, follow_view, start_socket
-from .sumo_neighbours import NeighbourReads
-from .sumo_vehicles import VehicleSetup
-from .sumo_types import (GUI_VIEW, GUI_ZOOM, KEEP_ROUTE, LANE_CHANGE_MODE_DEFAULT,  # noqa: F401
+from .connect import attach_socket, follow_view, start_socket
+from .neighbours import NeighbourReads
+from .vehicles import VehicleSetup
+from .types import (GUI_VIEW, GUI_ZOOM, KEEP_ROUTE, LANE_CHANGE_MODE_DEFAULT,  # noqa: F401
                          MATCH_THRESHOLD, ORDINARY_CLASS, REMOVED_REASONS, ROUTE_AHEAD_M,
                          SPEED_MODE_DEFAULT,
                          START_TIMEOUT_S, MemberType, Neighbours, StepEvents, SumoError,
@@ -95,7 +95,7 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
         return self.version
 
     def _start_socket(self, cmd: list[str]) -> str:
-        """traci: SUMO as a process, connected within START_TIMEOUT_S (sim/sumo_connect.py)."""
+        """traci: SUMO as a process, connected within START_TIMEOUT_S (sumo/connect.py)."""
         self.version, self._proc = start_socket(self.api, cmd)
         self._started = True
         return self.version
@@ -292,7 +292,7 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
                 pass  # removed during the step: the next read_members reports it
 
     def read_members(self, ids: list[str]):
-        """Where SUMO put each member, in SUMO's frame (sim/sumo_sense.py converts it): front
+        """Where SUMO put each member, in SUMO's frame (sumo/sense.py converts it): front
         bumper (n, 2) [m], angle (n,) [deg, CW from north], lane ids, lane index, lateral
         position in the lane [m], lane position of the front bumper [m]; ``present`` is False
         for members SUMO no longer has (NaN, '' and -1 there). One subscription read; per

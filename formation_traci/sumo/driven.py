@@ -31,9 +31,9 @@ import numpy as np
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
 from ..record.columns import SIGNAL_COLUMNS
-from .fleet import Fleet
-from .sumo_types import sumo_to_cog
-from .sumo_world import SumoWorld
+from ..sim.fleet import Fleet
+from .types import sumo_to_cog
+from .world import SumoWorld
 
 SUMO_CACC = "sumo_cacc"
 """``controller.law`` of this module (control/laws SUMO_LAWS)."""

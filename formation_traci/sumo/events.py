@@ -39,7 +39,7 @@ class MemberWatch:
         self.rec.add_event(t, "member_removed", self.ids[i], "", "SUMO no longer has the member")
 
     def placement(self, t, gap_sumo, n_off: int):
-        """``n_off``: how many gaps exceed PLACEMENT_TOLERANCE (sim/sumo_sense.py counts them)."""
+        """``n_off``: how many gaps exceed PLACEMENT_TOLERANCE (sumo/sense.py counts them)."""
         if n_off == 0 and not self._off:
             return  # every member where the model put it, now and at the last read (the usual step)
         off = gap_sumo > PLACEMENT_TOLERANCE

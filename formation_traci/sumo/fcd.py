@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from ..record.columns import FCD_COLUMNS, FCD_SUMO_UNITS
-from .sumo_adapter import sumo_to_cog
+from .adapter import sumo_to_cog
 from .traffic import BASE_TYPES
 
 RENAME = {"timestep_time": "t", "vehicle_id": "vehicle_id", "vehicle_type": "type",
@@ -70,7 +70,7 @@ def rewrite_fcd(path: Path, frame: str, t0: float, member_d_front: dict[str, flo
 
 def true_speeds(by_step: dict | None, ids) -> dict | None:
     """Member id -> its speed [m/s] at every step index (NaN: not recorded) from
-    ``by_step`` (step index -> the members' speeds), for sim/fcd.py."""
+    ``by_step`` (step index -> the members' speeds), for sumo/fcd.py."""
     if not by_step:
         return None
     v = np.full((max(by_step) + 1, len(ids)), np.nan)
