@@ -27,7 +27,10 @@ def bundled() -> list[Path]:
 
 def run_all(out: Path, duration: float | None) -> None:
     from formation_traci.scenario import load_scenario
-    from formation_traci.runner import run_scenario
+    try:
+        from formation_traci.runner import run_scenario
+    except ImportError:  # a checkout before issue 26 moved it above sim/ and sumo/
+        from formation_traci.sim.runner import run_scenario
 
     out.mkdir(parents=True, exist_ok=True)
     for path in bundled():
