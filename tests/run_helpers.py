@@ -27,16 +27,25 @@ def free_toml(duration, *, name: str | None = None, step: float | None = None,
             "position = [-2.0, 2.0]\n")
 
 
+def _runner() -> CliRunner:
+    """A runner whose ``output`` holds stdout and stderr in the order they were written (click
+    >= 8.2 always; before, with mix_stderr): the terminal's last lines are the last lines."""
+    try:
+        return CliRunner(mix_stderr=True)
+    except TypeError:  # click >= 8.2: no mix_stderr, output is both streams in order
+        return CliRunner()
+
+
 def cli(*args, cwd=None):
     """The real command line in this process: (exit code, stdout + stderr)."""
     old = os.getcwd()
     try:
         if cwd is not None:
             os.chdir(cwd)
-        res = CliRunner().invoke(app, [str(a) for a in args])
+        res = _runner().invoke(app, [str(a) for a in args])
     finally:
         os.chdir(old)
-    text = res.output + (res.stderr if res.stderr_bytes is not None else "")
+    text = res.output  # stdout and stderr in the order a terminal shows them
     if res.exception is not None and not isinstance(res.exception, SystemExit):
         text += f"\nTraceback: {type(res.exception).__name__}: {res.exception}"
     return res.exit_code, text
