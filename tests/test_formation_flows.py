@@ -50,10 +50,20 @@ def test_the_period_follows_from_the_share_of_the_flow(tmp_path):
     p.write_text(SC)
     sc = load_scenario(p)
     assert flow_period(sc, sc.formation_flows[0], {"main": 3}) == pytest.approx(24.0)
-    run_sc, flow_of, keep = expand_flows(sc, {"main": 3})
+    run_sc, flow_of, keep, _ = expand_flows(sc, {"main": 3})
     assert [f.depart for f in run_sc.formations] == pytest.approx([0.0, 24.0, 48.0, 72.0, 96.0])
     assert [m.id for m in run_sc.formations[1].members] == ["pen.1.m1", "pen.1.m2"]
     assert set(flow_of.values()) == {"pen"} and keep["main"] == pytest.approx(0.9)
+
+
+def test_a_traffic_flow_may_be_called_of_flow(tmp_path):
+    """The share a traffic flow keeps and the formation flows' sources are apart: a traffic
+    flow with the id 'of_flow' keeps 90 % of its demand (it once collided with a reserved key
+    and kept all of it)."""
+    p = tmp_path / "s.toml"
+    p.write_text(SC.replace('"main"', '"of_flow"'))
+    run_sc, flow_of, keep, share_of = expand_flows(load_scenario(p), {"of_flow": 3})
+    assert keep == {"of_flow": pytest.approx(0.9)} and share_of == {"pen": "of_flow"}
 
 
 def test_a_penetration_flow_inserts_its_share_and_retires_at_the_route_end(tmp_path):

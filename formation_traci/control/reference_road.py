@@ -148,6 +148,13 @@ class GovernorLimits:
                          self.decel_follow, self.decel_max])
 
 
+def end_of_road(t: float, end_margin: float) -> tuple[str, str, str]:
+    """The stop of a formation whose front came within ``end_margin`` [m] of its route's end
+    at ``t`` [s]: (event kind, detail, why)."""
+    return ("end_of_road", f"formation front within {end_margin} m of the route end",
+            f"end of the route reached at t = {t:.2f} s")
+
+
 class RoadReference:
     """The virtual car of a road run: s [m] and v [m/s] along the line, the governor's
     acceleration per step; ``slots`` / ``rigid`` (n, 2) with NaN rows for the other kind."""
@@ -244,10 +251,12 @@ class RoadReference:
             got = self._parked = (self.s, ref)
         return got[1].with_(t=float(t))
 
+    @property
+    def reach(self) -> float:
+        """How far ahead of the virtual car [m] the run stops: the formation's front plus
+        ``end_margin``."""
+        return float(np.max(self.along + self.d_front)) + self.end_margin
+
     def stop_reason(self, t: float):
         """('end_of_road', message) when the formation's front nears the route's end."""
-        if self.s + float(np.max(self.along + self.d_front)) + self.end_margin > self.length:
-            return ("end_of_road",
-                    f"formation front within {self.end_margin} m of the route end",
-                    f"end of the route reached at t = {t:.2f} s")
-        return None
+        return end_of_road(t, self.end_margin) if self.s + self.reach > self.length else None

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..control.reference import Reference
 from ..control.reference_group import group_reference_step
-from ..control.reference_road import RoadReference
+from ..control.reference_road import RoadReference, end_of_road
 from .fleet_state import FleetState
 from .formation import depart_due, retire_formation
 
@@ -57,7 +57,7 @@ class FormationGroup:
         self.a_cap_prev = cat(lambda g: g.longitudinal.a_cap)
         self.v_prev, self.emergency = cat(lambda g: g._v_prev), cat(lambda g: g.longitudinal.emergency)
         self.has_prev = np.zeros(len(gens), dtype=np.bool_)
-        self.reach = np.array([float(np.max(g.along + g.d_front)) + g.end_margin for g in gens])
+        self.reach = np.array([g.reach for g in gens])
         self.end_margin = np.array([g.end_margin for g in gens])
         self._next = None
 
@@ -114,7 +114,5 @@ class FormationGroup:
         every formation is done."""
         run = self.running()
         for i in np.flatnonzero(run & (self.s + self.reach > self.length)):
-            retire_formation(self.forms[i], world, t, state, rec, (
-                "end_of_road", f"formation front within {self.end_margin[i]} m of the route end",
-                f"end of the route reached at t = {t:.2f} s"))
+            retire_formation(self.forms[i], world, t, state, rec, end_of_road(t, self.end_margin[i]))
         return all(f.status == "done" for f in self.forms)

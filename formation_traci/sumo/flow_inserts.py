@@ -51,7 +51,7 @@ def flow_counts(plan, inserted: dict, t_end: float, departures, t0: float) -> di
     and those that entered (inserted), the members that entered, and for a penetration flow
     the share of formation vehicles among all that entered during the run (its members and
     the ``of_flow`` traffic flow's vehicles SUMO inserted after the warm-up ``t0`` [s])."""
-    out, of_flow = {}, plan.flow_keep.get("of_flow", {})
+    out, of_flow = {}, plan.flow_share_of
     for setup, p, _ in plan.formations:
         if setup.flow:
             c = out.setdefault(setup.flow, {"requested": 0, "inserted": inserted.get(setup.flow, 0),

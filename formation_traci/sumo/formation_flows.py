@@ -38,10 +38,10 @@ def flow_period(sc: Scenario, flow, lanes_of: dict) -> float:
 
 def expand_flows(sc: Scenario, lanes_of: dict, source=None):
     """(the scenario with every flow's formations as [[formations]] entries and no flows,
-    formation id -> its flow's id, traffic flow id -> the share of its demand it keeps, plus
-    ``of_flow``: formation flow id -> the traffic flow it is a share of, or '')."""
+    formation id -> its flow's id, traffic flow id -> the share of its demand it keeps,
+    formation flow id -> the traffic flow it is a share of, or '')."""
     if not sc.formation_flows:
-        return sc, {}, {}
+        return sc, {}, {}, {}
     out, flow_of, keep = list(sc.formations), {}, {}
     for j, fl in enumerate(sc.formation_flows):
         period = flow_period(sc, fl, lanes_of)
@@ -59,8 +59,8 @@ def expand_flows(sc: Scenario, lanes_of: dict, source=None):
         for k in range(count):
             out.append(_instance(fl, k, fl.begin + k * period))
             flow_of[out[-1].id] = fl.id
-    keep["of_flow"] = {fl.id: fl.of_flow or "" for fl in sc.formation_flows}
-    return sc.model_copy(update={"formations": out, "formation_flows": []}), flow_of, keep
+    share_of = {fl.id: fl.of_flow or "" for fl in sc.formation_flows}
+    return sc.model_copy(update={"formations": out, "formation_flows": []}), flow_of, keep, share_of
 
 
 def _instance(fl, k: int, t: float) -> FormationSpec:

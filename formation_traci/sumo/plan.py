@@ -56,13 +56,14 @@ class RoadPlan:
     formations: tuple = ()  # (FormationSetup, its RoadPlan, its rows: slice) of each formation
     scenario: Scenario | None = None  # the scenario with its formation flows' formations (sumo/formation_flows.py)
     flow_keep: dict | None = None  # traffic flow id -> the share of its demand it keeps (penetration)
+    flow_share_of: dict | None = None  # formation flow id -> the traffic flow it is a share of, or ''; None: no formation flow
 
 
 def prepare(sc: Scenario, source: Path | None) -> RoadPlan:
     """Resolve and check the road and the formations; raises ScenarioError before anything runs."""
     road = build_road(sc, source)
     check_options(list(sc.sumo.options), source)
-    run_sc, flow_of, keep = expand_flows(sc, {f: lanes for f, (_, lanes) in road.flow_routes.items()}, source)
+    run_sc, flow_of, keep, share_of = expand_flows(sc, {f: lanes for f, (_, lanes) in road.flow_routes.items()}, source)
     parts, at = [], 0
     for setup in formation_setups(run_sc, flow_of):
         plan = _named_fields(setup.field, source, lambda: _formation_plan(setup, road, source))
@@ -75,7 +76,7 @@ def prepare(sc: Scenario, source: Path | None) -> RoadPlan:
     return RoadPlan(road, parts[0][1].veh, cat("slots"), cat("rigid"), cat("is_road"), cat("pos0"),
                     cat("heading0"), cat("speed0"), sum((p.vehicles for _, p, _ in parts), ()),
                     sum((p.ids for _, p, _ in parts), ()), sum((p.presets for _, p, _ in parts), ()),
-                    tuple(parts), run_sc, keep or None)
+                    tuple(parts), run_sc, keep if share_of else None, share_of or None)
 
 
 def _formation_plan(setup, road: Road, source) -> RoadPlan:

@@ -119,7 +119,7 @@ class SumoWorld(MemberHandover):
         for f in sc.traffic.flows:
             edges, lanes = road.flow_routes[f.id]
             vph = flow_vehicles_per_hour(f, lanes)
-            if self.plan.flow_keep and f.id in self.plan.flow_keep and f.id != "of_flow":  # a formation flow's share
+            if self.plan.flow_keep and f.id in self.plan.flow_keep:  # a formation flow's share
                 vph *= self.plan.flow_keep[f.id]
             flows.append((f, edges, vph))
         routes = write_routes(self.sumo_dir / "traffic.rou.xml", flows, t_sumo_end)
@@ -182,7 +182,7 @@ class SumoWorld(MemberHandover):
             self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
             merge_outputs(self.sumo_dir, self.meta.get("warm_state"))  # a shared warm-up's part
         finally:
-            if self.plan.flow_keep is not None:
+            if self.plan.flow_share_of is not None:
                 self.meta["formation_flows"] = flow_counts(self.plan, self.flows_inserted, t_sumo - t0,
                                                            self.adapter.departures, t0)
             if hasattr(self, "flows"):
@@ -287,7 +287,7 @@ class SumoWorld(MemberHandover):
         self.active[rows] = True
         self.waiting[rows] = False
         self.pending = np.union1d(self.pending, rows).astype(np.int64)
-        if self.plan.flow_keep is not None:
+        if self.plan.flow_share_of is not None:
             counted_entry(self.plan, self.flows_inserted, rows)
 
     def has_room(self, t: float, rows: slice, state) -> bool:
