@@ -101,3 +101,24 @@ def test_a_flow_needs_exactly_one_rule_and_a_known_flow(tmp_path):
     p.write_text(SC.replace('of_flow = "main"', 'of_flow = "side"'))
     with pytest.raises(ScenarioError, match="formation_flows.0.of_flow"):
         load_scenario(p)
+
+
+def test_the_group_step_equals_the_per_formation_path(tmp_path, monkeypatch):
+    """Plain road formations are stepped as one group (sim/formation_group.py); the loop's
+    per-formation path (the group switched off) gives the same files bit for bit, through
+    departures, formations waiting for room and retirements at the route end."""
+    p = tmp_path / "s.toml"
+    p.write_text(SC.replace("duration = 120.0", "duration = 100.0"))
+    sc = load_scenario(p)
+    res = run_scenario(sc, tmp_path / "group", scenario_path=p, progress=False)
+    import formation_traci.sim.loop as loop
+    monkeypatch.setattr(loop, "group_of", lambda forms, world: None)
+    alone = run_scenario(sc, tmp_path / "each", scenario_path=p, progress=False)
+    assert res.status == alone.status == "completed", (res.reason, alone.reason)
+    for name in ("trajectories", "events", "comfort", "background"):
+        a = pd.read_parquet(tmp_path / "group" / f"{name}.parquet")
+        b = pd.read_parquet(tmp_path / "each" / f"{name}.parquet")
+        pd.testing.assert_frame_equal(a, b, check_exact=True)
+    meta = [json.loads((tmp_path / d / "run.json").read_text()) for d in ("group", "each")]
+    assert meta[0]["formations"] == meta[1]["formations"]
+    assert any(f["left_s"] is not None for f in meta[0]["formations"].values())  # some retired

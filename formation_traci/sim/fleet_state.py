@@ -27,6 +27,12 @@ class FleetState:
         if self.u_last is not None:
             self.u_last[rows] = 0.0 if held.u_last is None else held.u_last
 
+    def hold_where(self, mask: np.ndarray, held: "FleetState") -> None:
+        """Rows where ``mask`` (n,) set to those of ``held`` (a state of every row, in place)."""
+        self.x[mask], self.theta_star[mask], self.speed_in[mask] = held.x[mask], held.theta_star[mask], held.speed_in[mask]
+        if self.u_last is not None:
+            self.u_last[mask] = held.u_last[mask]
+
     def rows(self, rows: slice) -> "FleetState":
         """A copy of rows ``rows`` (a formation's own state)."""
         return FleetState(self.x[rows].copy(), self.theta_star[rows].copy(), self.speed_in[rows].copy(),

@@ -167,15 +167,19 @@ def depart_due(f: Formation, world, t: float, state: FleetState, blocked: set) -
     f.status, f.depart = "running", t
 
 
-def retire_formation(f: Formation, world, t: float, state: FleetState, rec, stop) -> None:
+def retire_formation(f: Formation, world, t: float, state: FleetState, rec, stop,
+                     active: np.ndarray | None = None) -> None:
     """Formation ``f`` ends (its generator's ``stop`` = (event kind, detail, why): the end of
     its route): the event for its virtual car, its members out of the world (member_retired),
-    their state held from now on."""
+    their state held from now on. ``active``: the step's reference's members in the run,
+    cleared for ``f``'s members (no comfort row of theirs after t)."""
     kind, detail, why = stop
     if kind:
         rec.add_event(t, kind, f.vc_id, "", detail)
     world.retire(t, np.arange(f.members.start, f.members.stop), f"formation {f.id}: {why}")
     f.status, f.held, f.left = "done", state.rows(f.members), t
+    if active is not None:
+        active[f.members] = False
 
 
 def formations_meta(forms: list) -> dict:

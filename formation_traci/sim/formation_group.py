@@ -8,7 +8,8 @@ every formation of a run of several on a road is such a formation (:func:`group_
 results are those of the per-formation path, bit for bit (the golden of
 scenarios/highway/three_formations.toml, recorded with the per-formation path, pins it).
 Departures, a flow's room check and a retirement at the end of the route stay per formation
-(sim/formation.py depart_due, retire_formation): they happen once per formation, not per step.
+(sim/formation.py depart_due, retire_formation): they happen once per formation, not per step;
+per step the group reads its own arrays (status, departure time, the parked rows' held state).
 """
 from __future__ import annotations
 
@@ -19,6 +20,9 @@ from ..control.reference_group import group_reference_step
 from ..control.reference_road import RoadReference, end_of_road
 from .fleet_state import FleetState
 from .formation import depart_due, retire_formation
+
+WAITING, RUNNING, DONE = 0, 1, 2
+_CODE = {"waiting": WAITING, "running": RUNNING, "done": DONE}
 
 _NO_TABLE = (np.empty(0), np.empty(0), np.empty(0), np.empty(0), np.zeros(0, dtype=np.bool_),
              np.empty(0, dtype=np.int64))
@@ -60,18 +64,26 @@ class FormationGroup:
         self.reach = np.array([g.reach for g in gens])
         self.end_margin = np.array([g.end_margin for g in gens])
         self._next = None
+        self.status = np.array([_CODE[f.status] for f in forms], dtype=np.int8)
+        self.depart = np.array([f.depart for f in forms], dtype=float)
+        self.counts = np.diff(self.starts)
+        self._held = None  # every row's held state (a parked formation's rows), at the first settle
 
-    def running(self) -> np.ndarray:
-        return np.array([f.status == "running" for f in self.forms])
+    def _sync(self, i: int) -> None:
+        """Formation i's status and departure time after depart_due or retire_formation."""
+        f = self.forms[i]
+        self.status[i], self.depart[i] = _CODE[f.status], f.depart
+        if f.status == "done" and self._held is not None:
+            self._held.hold(f.members, f.held)
 
     def references(self, world, k: int, t: float, sensed, state: FleetState):
         """The joined Reference of the step starting at t [s] (the loop's (raw, reference,
         error reference): all three the same, a group has no transforms)."""
         blocked: set = set()
-        for f in self.forms:
-            if f.status == "waiting" and t >= f.depart - 1e-9:
-                depart_due(f, world, t, state, blocked)
-        run = self.running()
+        for i in np.flatnonzero((self.status == WAITING) & (t >= self.depart - 1e-9)):
+            depart_due(self.forms[i], world, t, state, blocked)
+            self._sync(i)
+        run = self.status == RUNNING
         nb_rear, nb_d, nb_half_w, nb_v, nb_in_f, owner = (
             _NO_TABLE if sensed.nb is None else world.joined_neighbours(sensed))
         n, k_f = len(self.frame), len(self.forms)
@@ -79,7 +91,7 @@ class FormationGroup:
         a_cap_from, gap, a_cap_req, a_cap = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
         lead_idx = np.empty(n, dtype=np.int64)
         a_request, s_next, v_next = np.empty(k_f), np.empty(k_f), np.empty(k_f)
-        t_f = np.array([t - f.depart for f in self.forms])
+        t_f = t - self.depart
         group_reference_step(
             self.G, self.profs, self.prof_at, t_f, self.s, self.v, self.along, self.slot_d,
             self.is_road, self.d_front, self.half_w, sensed.m_s, sensed.m_d, sensed.v_m,
@@ -105,14 +117,21 @@ class FormationGroup:
         end; the members of the others are held."""
         run, s_next, v_next = self._next
         self.s, self.v = np.where(run, s_next, self.s), np.where(run, v_next, self.v)
-        for f in self.forms:
-            if f.status != "running":
-                state.hold(f.members, f.held)
+        parked = self.status != RUNNING
+        if not parked.any():
+            return
+        if self._held is None:
+            self._held = state.copy()
+            if self._held.u_last is None:  # FleetState.hold: zeros where a held state has none
+                self._held.u_last = np.zeros(len(state.theta_star))
+            for i in np.flatnonzero(parked):
+                self._held.hold(self.forms[i].members, self.forms[i].held)
+        state.hold_where(np.repeat(parked, self.counts), self._held)
 
-    def stop(self, world, t: float, state: FleetState, rec) -> bool:
+    def stop(self, world, t: float, state: FleetState, rec, active=None) -> bool:
         """Retire every running formation whose front nears the end of its route; True when
         every formation is done."""
-        run = self.running()
-        for i in np.flatnonzero(run & (self.s + self.reach > self.length)):
-            retire_formation(self.forms[i], world, t, state, rec, end_of_road(t, self.end_margin[i]))
-        return all(f.status == "done" for f in self.forms)
+        for i in np.flatnonzero((self.status == RUNNING) & (self.s + self.reach > self.length)):
+            retire_formation(self.forms[i], world, t, state, rec, end_of_road(t, self.end_margin[i]), active)
+            self._sync(i)
+        return bool((self.status == DONE).all())

@@ -215,7 +215,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             clock.lap("record")  # the caller's share: the step's end, part files, progress (runner.py)
             if k == n_steps:
                 break
-            stop = _stop_reason(forms, world, t, state, rec, group)
+            stop = _stop_reason(forms, world, t, state, rec, group, ref.active)
             if stop is not None:
                 vc_id, (kind, detail, why) = stop
                 if kind:
@@ -254,13 +254,14 @@ def _settle(forms, state: FleetState) -> None:
             state.hold(f.members, f.held)
 
 
-def _stop_reason(forms, world, t, state: FleetState, rec, group=None):
+def _stop_reason(forms, world, t, state: FleetState, rec, group=None, active=None):
     """(virtual car id, (event kind, detail, why)) of the first formation whose generator
     ends the run (end of road), or of the world (no member left); None: go on. With several
     formations, one that reaches the end of its route is retired (its members leave the
-    world, its event recorded) and the run goes on while another runs or waits to depart."""
+    world, its event recorded, no more rows of it in ``active``: the step's reference's) and the
+    run goes on while another runs or waits to depart."""
     if group is not None:
-        if group.stop(world, t, state, rec):
+        if group.stop(world, t, state, rec, active):
             return VIRTUAL_CAR_ID, ("", "", f"every formation reached the end of its route by t = {t:.2f} s")
     elif len(forms) == 1 and not forms[0].depart:
         stop = forms[0].generator.stop_reason(t)
@@ -270,7 +271,7 @@ def _stop_reason(forms, world, t, state: FleetState, rec, group=None):
         for f in forms:
             stop = f.generator.stop_reason(t) if f.status == "running" else None
             if stop is not None:
-                retire_formation(f, world, t, state, rec, stop)
+                retire_formation(f, world, t, state, rec, stop, active)
         if all(f.status == "done" for f in forms):
             return VIRTUAL_CAR_ID, ("", "", f"every formation reached the end of its route by t = {t:.2f} s")
     stop = world.stop_reason(t)
