@@ -92,7 +92,8 @@ class _QuickLoadCache(FunctionCache):
             finally:
                 if lazy is not None:
                     del codegen.unserialize_library
-        except AttributeError:  # numba's internals moved (another version): its own load
+        except Exception:  # numba's internals moved (another version): its own load (a
+            # genuine failure of the cache raises there again, as numba alone would)
             return FunctionCache.load_overload(self, sig, target_context)
         return None  # an I/O error swallowed by the guard: numba compiles
 

@@ -39,11 +39,11 @@ CALL = ("import sys, numpy as np, probe\n"
         "    print(name, repr(np.asarray(getattr(probe, name)(x)).tolist()))\n")
 
 
-def _call(tmp_path: Path, *names: str) -> dict:
+def _call(tmp_path: Path, *names: str, before: str = "") -> dict:
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"),
                PYTHONPATH=os.pathsep.join([str(tmp_path), str(ROOT)]))
     env.pop("NUMBA_DISABLE_JIT", None)
-    cp = subprocess.run([sys.executable, "-c", CALL, *names], env=env, cwd=tmp_path,
+    cp = subprocess.run([sys.executable, "-c", before + CALL, *names], env=env, cwd=tmp_path,
                         capture_output=True, text=True, timeout=300)
     assert cp.returncode == 0, cp.stderr
     return {ln.split(" ", 1)[0]: eval(ln.split(" ", 1)[1]) for ln in cp.stdout.splitlines()}
@@ -73,6 +73,21 @@ def test_a_kernel_read_lazily_gives_the_compiled_values_and_links_into_a_new_com
     # lengths' side file written again, the recompiled total's written (the first total's,
     # if its bitcode differs, stays truncated: read by no kernel)
     assert sum(f.read_text().endswith("\nend") for f in cache.glob("symbols-*.nbsym")) >= 2
+
+
+MOVED = ("import formation_traci.kernel_load as kl\n"
+         "def moved(*args):\n"
+         "    raise TypeError('numba internals of another version')\n"
+         "kl.{name} = moved\n")
+
+
+def test_numba_internals_that_changed_fall_back_to_numbas_own_load(tmp_path):
+    """Another numba whose internals kernel_load.py reads have changed (a TypeError, not only
+    an AttributeError): the kernel is read from the cache by numba's own load, same values."""
+    (tmp_path / "probe.py").write_text(PROBE)
+    cold = _call(tmp_path, "lengths", "total")
+    for name in ("lazy_unserialize", "init_runtime"):
+        assert _call(tmp_path, "lengths", "total", before=MOVED.format(name=name)) == cold
 
 
 def _ours(fn):
