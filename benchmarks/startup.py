@@ -49,8 +49,8 @@ from formation_traci.scenario import load_scenario
 from formation_traci.runner import run_scenario
 from formation_traci.sim.recorder import Recorder
 _end_step = Recorder.end_step
-def _timed_end_step(self, k, t):  # the first simulated step (k = 1) is recorded: its wall time
-    _end_step(self, k, t)
+def _timed_end_step(self, k, t, report=None):  # the first simulated step (k = 1) is recorded: its wall time
+    _end_step(self, k, t, report)
     if k == 1:
         print("FIRST_STEP", time.time())
 Recorder.end_step = _timed_end_step

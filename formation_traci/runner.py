@@ -177,10 +177,8 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
             steps = step_loop(sc, _with_transforms(build, transforms), rec, meta)
         for k, t in steps:
             stop.raising = False  # from the first step on, a signal ends the run after its step
-            rec.end_step(k, t)
-            done = rec.written_up_to()  # every table is on disk up to this time [s]
-            if done is not None:
-                _progress_meta(meta_path, meta, done, int(round(done / sc.run.step)))
+            rec.end_step(k, t, lambda done: _progress_meta(  # every table on disk up to done [s]
+                meta_path, meta, done, int(round(done / sc.run.step))))
             if bar is not None:
                 bar.update(1)
             elif progress and k == 1:

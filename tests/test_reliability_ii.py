@@ -345,6 +345,37 @@ def test_sigkill_leaves_all_four_tables_readable_to_the_same_time(tmp_path):
     assert list(tables["events"].columns)[0] == "t"
 
 
+def test_a_slow_writer_never_leaves_a_table_more_than_one_part_ahead_of_run_json(tmp_path):
+    """The background table's writer made slow (1.5 s a part, a busy machine: seen on CI with
+    the trajectories two parts ahead of run.json): before every cut the last cut's parts are
+    awaited and reported, so a kill finds no table more than one part ahead of run.json."""
+    out = tmp_path / "run"
+    sc = road(tmp_path, duration=3000.0, warmup=0.0, vph=800)
+    code = ("import sys, time\nimport formation_traci.sim.recorder as r\n"
+            "import formation_traci.record.writer as w\n"
+            "r.STEPS_PER_CHUNK = 100\n"
+            "_write = w.ChunkedTable._write\n"
+            "def slow(self, *a, **k):\n"
+            "    if self.directory.name == 'background.parquet':\n"
+            "        time.sleep(1.5)\n"
+            "    return _write(self, *a, **k)\n"
+            "w.ChunkedTable._write = slow\n"
+            "from formation_traci.cli import main\nsys.argv[1:] = sys.argv[2:]\nmain()\n")
+    proc = subprocess.Popen([sys.executable, "-c", code, "-", "run", str(sc), "--out", str(out), "--no-progress"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert wait_for(lambda: meta_of(out).get("t_end", 0) > 9.0, timeout=180)
+        time.sleep(4.0)  # the simulation goes on meanwhile: with free writers, ~2 more parts
+    finally:
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.communicate(timeout=30)
+    meta = meta_of(out)
+    traj = pd.read_parquet(out / "trajectories.parquet")
+    bg = pd.read_parquet(out / "background.parquet")
+    assert meta["t_end"] <= traj.t.max() <= meta["t_end"] + 5.0 + 1e-6, (meta["t_end"], traj.t.max())
+    assert bg.t.max() >= meta["t_end"] - 0.05
+
+
 # -- 7. sweeps: signals reach the case processes; a running case is never started twice ----------
 def _sweep(tmp_path, duration) -> Path:
     path = tmp_path / "sweep.toml"

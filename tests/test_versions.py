@@ -85,8 +85,8 @@ from formation_traci.sim.recorder import Recorder
 from formation_traci.runner import run_scenario
 seen = []
 end_step = Recorder.end_step
-def hook(self, k, t):
-    end_step(self, k, t)
+def hook(self, k, t, report=None):
+    end_step(self, k, t, report)
     if k == 1:
         seen.append(any(m == "pyarrow" or m.startswith("pyarrow.") for m in sys.modules))
 Recorder.end_step = hook

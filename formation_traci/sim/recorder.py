@@ -119,14 +119,29 @@ class Recorder:
             out["ssm"] = self.ssm.table
         return out
 
-    def end_step(self, k: int, t: float) -> None:
+    def end_step(self, k: int, t: float, report=None) -> None:
         """Every row of step ``k`` (time t [s]) is recorded; every STEPS_PER_CHUNK steps every
-        table is cut at t, so after a crash all of them are readable up to the same time."""
+        table is cut at t, so after a crash all of them are readable up to the same time.
+        ``report(t_done)`` is called when every table is on disk up to a later time
+        (:meth:`written_up_to`; run.json's progress). At the step before a cut the parts of
+        the last cut are awaited and reported (a table whose buffer is full writes its part
+        while the cut step is recorded), so no table is ever more than one part ahead of what
+        was reported, however far the writer threads lag (a busy machine)."""
+        if (k + 2) % STEPS_PER_CHUNK == 0:
+            for table in self.tables().values():
+                table.wait()  # the last cut on disk (the writers are normally done long before)
+        self._report(report)
         if (k + 1) % STEPS_PER_CHUNK == 0:
             if self.ssm is not None:
                 self.ssm.update()
             for table in self.tables().values():
                 table.flush(mark=t)
+
+    def _report(self, report) -> None:
+        if report is not None:
+            done = self.written_up_to()
+            if done is not None:
+                report(done)
 
     def written_up_to(self) -> float | None:
         """Time [s] up to which every table is on disk, if it moved on since the last call
