@@ -11,6 +11,7 @@ from ..record.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, DEFAULT_FORMA
                               EVENT_COLUMNS, FILLED_BY_CALLER, SIGNAL_COLUMNS, TRAJECTORY_COLUMNS,
                               VIRTUAL_CAR_ID)
 from ..record.writer import ChunkedTable
+from .table_cuts import TableCuts
 
 
 STEPS_PER_CHUNK = 1200
@@ -28,7 +29,7 @@ MAX_SPEED = 60.0
 _VC_COLUMNS = ("t", "x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "s", "d")
 
 
-class Recorder:
+class Recorder(TableCuts):
     """Owns the run's tables; every ``add_*`` appends rows, :meth:`flush` writes the rest.
 
     ``formation_of`` maps vehicle ids (members, the virtual car) to their formation's id: the
@@ -98,6 +99,7 @@ class Recorder:
         self._sig_limits = np.array([limits.get(c, np.inf) for c in SIGNAL_COLUMNS])
         self._any_out = False
         self._fixed_tables = [tb for name, tb in self.tables().items() if name != "ssm"]
+        self.steps_per_chunk = STEPS_PER_CHUNK
         cf = self.comfort
         self._cf_t, self._cf_vals = cf.column("t"), cf.block(("v", "a_lon", "a_lat"))
         self._cf_ids = cf.column("vehicle_id")
@@ -118,54 +120,6 @@ class Recorder:
         if self.ssm is not None and self.ssm.table is not None:
             out["ssm"] = self.ssm.table
         return out
-
-    def end_step(self, k: int, t: float, report=None) -> None:
-        """Every row of step ``k`` (time t [s]) is recorded; every STEPS_PER_CHUNK steps every
-        table is cut at t, so after a crash all of them are readable up to the same time.
-        ``report(t_done)`` is called when every table is on disk up to a later time
-        (:meth:`written_up_to`; run.json's progress). At the step before a cut the parts of
-        the last cut are awaited and reported (a table whose buffer is full writes its part
-        while the cut step is recorded), so no table is ever more than one part ahead of what
-        was reported, however far the writer threads lag (a busy machine)."""
-        if (k + 2) % STEPS_PER_CHUNK == 0:
-            for table in self.tables().values():
-                table.wait()  # the last cut on disk (the writers are normally done long before)
-        self._report(report)
-        if (k + 1) % STEPS_PER_CHUNK == 0:
-            if self.ssm is not None:
-                self.ssm.update()
-            for table in self.tables().values():
-                table.flush(mark=t)
-
-    def _report(self, report) -> None:
-        if report is not None:
-            done = self.written_up_to()
-            if done is not None:
-                report(done)
-
-    def written_up_to(self) -> float | None:
-        """Time [s] up to which every table is on disk, if it moved on since the last call
-        (else None): progress reported from it is never ahead of the data."""
-        if not any([tb.news for tb in self._fixed_tables]) and (
-                self.ssm is None or self.ssm.table is None or not self.ssm.table.news):
-            return None  # no part completed since the last call: nothing moved on
-        tables = self.tables()
-        for name, table in tables.items():
-            done = table.written_up_to()
-            if done is not None:
-                self._latest[name] = done
-        if len(self._latest) < len(tables) or any(n not in self._latest for n in tables):
-            return None
-        t = min(self._latest[n] for n in tables)
-        if t <= self._reported:
-            return None
-        self._reported = t
-        return t
-
-    def on_disk(self) -> dict:
-        """What each table has on disk: part files, rows and the time [s] it is complete to."""
-        return {name: {"parts": tb.parts_on_disk, "rows": tb.rows_on_disk, "complete_to_s": tb.last_on_disk}
-                for name, tb in self.tables().items()}
 
     def add_signal_rows(self, t, sig: np.ndarray, extra: dict, mask=None):
         """Record the members from the compiled path: ``sig`` is the (n, len(SIGNAL_COLUMNS))
@@ -393,22 +347,3 @@ class Recorder:
             "x": nb.x, "y": nb.y, "heading": nb.heading, "v": nb.v, "a": nb.a,
             "length": nb.length, "width": nb.width, "lane": bg.codes(nb.lane_ids),
             "lane_index": nb.lane_index.astype(np.int32), "s": s, "d": d}, len(nb.ids))
-
-    def flush(self, t_end: float | None = None) -> list[tuple[str, BaseException]]:
-        """End of the run: write what is buffered; empty tables get a zero-row part. Never
-        raises: returns (table, error) for each table that could not be written whole (e.g.
-        disk full); the parts written before stay readable."""
-        errors = []
-        if self.ssm is not None:
-            try:
-                self.ssm.update()
-            except Exception as exc:
-                errors.append(("ssm", exc))
-        for name, table in self.tables().items():
-            try:
-                if t_end is not None:
-                    table.flush(mark=t_end)
-                table.close()
-            except Exception as exc:
-                errors.append((name, exc))
-        return errors
