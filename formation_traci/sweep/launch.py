@@ -1,8 +1,9 @@
 """Supervise one case process: the task both executors run (a thread here, or a Dask task).
 
-The case runs as ``python -m formation_traci.sweep.case SPEC_JSON`` in its own process
-and session, so every case has a fresh interpreter and its own libsumo, whatever runs the
-task. The supervisor turns every way the process can end into a row: the row it wrote,
+The case runs as ``python -m formation_traci.sweep.case SPEC_JSON`` would, in its own process
+and session, so every case has a fresh process and its own libsumo, whatever runs the task:
+forked from a server that has imported what a case imports (sweep/forked.py), or a new
+interpreter where that cannot hold. The supervisor turns every way the process can end into a row: the row it wrote,
 or ``failed`` with the exit code or signal and the last line of its log.
 """
 from __future__ import annotations
@@ -19,6 +20,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..record.rundir import RUN_FINISHED, is_locked
+from . import forked
 from .case import CASE_JSON, CaseSpec, write_case_json
 from .row import empty_row
 
@@ -45,7 +47,34 @@ def case_command(spec_json: str) -> list[str]:
     return [sys.executable, "-m", "formation_traci.sweep.case", spec_json]
 
 
-def _supervise(proc: subprocess.Popen, should_stop: Callable[[], bool] | None,
+_DEFAULT_COMMAND = case_command
+
+
+def start_case(spec_json: str, log, log_path: Path):
+    """Start the case process: forked from the preloaded server (sweep/forked.py) when it can
+    be and the command is :func:`case_command`'s, else ``subprocess.Popen`` of the command.
+
+    Parameters
+    ----------
+    spec_json : str
+        The :class:`CaseSpec` as JSON text.
+    log : file
+        The case log, open for appending (the process's standard output and error).
+    log_path : Path
+        Its path (a forked process opens it itself).
+
+    Returns
+    -------
+    subprocess.Popen or forked.ForkedCase
+        The process: ``pid``, ``poll()``, ``wait(timeout)``, ``send_signal(sig)``.
+    """
+    if case_command is _DEFAULT_COMMAND and forked.usable():
+        return forked.ForkedCase(spec_json, str(log_path))
+    return subprocess.Popen(case_command(spec_json), stdin=subprocess.DEVNULL, stdout=log,
+                            stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def _supervise(proc, should_stop: Callable[[], bool] | None,
                timeout_s: float | None) -> tuple[int, bool, bool]:
     t0 = time.monotonic()
     kill_at, stopped, timed_out = None, False, False
@@ -71,8 +100,9 @@ def signal_group(proc: subprocess.Popen, sig: int) -> None:
 
     Parameters
     ----------
-    proc : subprocess.Popen
-        The case process, started with ``start_new_session=True``.
+    proc : subprocess.Popen or forked.ForkedCase
+        The case process, in its own session (``start_new_session=True``, or forked.py's
+        ``setsid``).
     sig : int
         The signal.
 
@@ -160,8 +190,7 @@ def launch_case(case_spec: dict | CaseSpec, should_stop: Callable[[], bool] | No
             stamp = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
             log.write(f"--- {spec.case.id}: started {stamp} on {socket.gethostname()}\n")
             log.flush()
-            proc = subprocess.Popen(case_command(spec.model_dump_json()), stdin=subprocess.DEVNULL,
-                                    stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+            proc = start_case(spec.model_dump_json(), log, log_path)
             pid = proc.pid
             try:
                 rc, stopped, timed_out = _supervise(proc, should_stop, timeout_s)

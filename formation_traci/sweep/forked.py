@@ -1,0 +1,134 @@
+"""Case processes forked from a server that has imported what a case imports (issue 33).
+
+A case process spends ~1.7-2 s importing numpy, numba, scipy, pandas, pyarrow, pydantic,
+libsumo and this package before its run starts: a third of a short case. Python's
+``forkserver`` start method keeps one server process per sweep that imports these once
+(:data:`PRELOAD`, before any case runs, with no thread started); each case is a fresh
+process forked from it. So every case still has its own process, interpreter state and
+libsumo (nothing of one case reaches another: the server never runs a case), started in
+milliseconds instead of seconds. The case process is what ``python -m
+formation_traci.sweep.case SPEC_JSON`` would be: its own session (the supervisor signals its
+group), standard output and error appended to the case log, the sweep's current environment
+and working directory, the exit code of :func:`formation_traci.sweep.case.main`.
+
+Where this cannot hold, the supervisor starts the process as before (sweep/launch.py): on a
+platform without ``fork`` (Windows), in a daemonic process (a Dask worker by default), or when a variable read at import time (``NUMBA_*``,
+``PYTHON*``) differs from the server's, or with ``FORMATION_TRACI_CASE_START=exec``.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+
+ENV = "FORMATION_TRACI_CASE_START"
+"""``fork`` (default: from the preloaded server) or ``exec`` (a new interpreter per case)."""
+
+PRELOAD = (
+    "numpy", "numba", "numba.np.arrayobj", "numba.np.npyimpl", "pandas", "pyarrow.parquet",
+    "pyarrow.dataset", "pyarrow.pandas_compat", "xml.sax.expatreader", "libsumo", "sumolib",
+    "formation_traci.sweep.case", "formation_traci.runner", "formation_traci.sumo.run",
+    "formation_traci.sumo.road_cache", "formation_traci.sumo.fcd", "formation_traci.sumo.driven",
+    "formation_traci.sim.warm", "analysis.api", "analysis.report.run_report",
+    "analysis.metrics.propagation",
+)
+"""Modules the server imports once: what a case process imports (a module missing here is
+imported by the case itself, as before)."""
+
+_IMPORT_TIME_VARS = ("NUMBA_", "PYTHON")
+"""Environment variables read when a module is imported: the server's must be the sweep's."""
+
+_lock = threading.Lock()
+_context = None  # multiprocessing's forkserver context, once started
+_server_env: dict[str, str] = {}
+
+
+def _import_time_env(env) -> dict[str, str]:
+    return {k: v for k, v in env.items() if k.startswith(_IMPORT_TIME_VARS)}
+
+
+def usable() -> bool:
+    """True if cases can be forked from the preloaded server here and now."""
+    if os.environ.get(ENV, "fork") != "fork" or not hasattr(os, "fork"):
+        return False
+    import multiprocessing
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return False
+    if multiprocessing.current_process().daemon:  # a Dask worker: may not have children of its own
+        return False
+    return _context is None or _import_time_env(os.environ) == _server_env
+
+
+def _server():
+    """The forkserver context, its preload set before the server's first start."""
+    global _context, _server_env
+    with _lock:
+        if _context is None:
+            import multiprocessing
+            ctx = multiprocessing.get_context("forkserver")
+            ctx.set_forkserver_preload(list(PRELOAD))
+            _server_env = _import_time_env(os.environ)
+            _context = ctx
+        return _context
+
+
+class ForkedCase:
+    """A case process forked from the server, with the part of ``subprocess.Popen``'s
+    interface the supervisor uses: ``pid``, ``poll()``, ``wait(timeout)``, ``send_signal``."""
+
+    def __init__(self, spec_json: str, log_path: str):
+        ctx = _server()
+        self._proc = ctx.Process(target=case_entry, name="formation-traci-case",
+                                 args=(spec_json, log_path, dict(os.environ), os.getcwd()))
+        self._proc.start()
+        self.pid = self._proc.pid
+
+    def poll(self) -> int | None:
+        return self._proc.exitcode
+
+    def wait(self, timeout: float | None = None) -> int:
+        self._proc.join(timeout)
+        code = self._proc.exitcode
+        if code is None:
+            raise subprocess.TimeoutExpired("case process", timeout)
+        return code
+
+    def send_signal(self, sig: int) -> None:
+        os.kill(self.pid, sig)
+
+
+def case_entry(spec_json: str, log_path: str, env: dict, cwd: str) -> None:
+    """The forked case process: its own session, the log as its output, the sweep's
+    environment and directory, then the case (exit code that of ``case.main``)."""
+    os.setsid()  # its own process group: the supervisor's signals reach it and its children
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # the server ignores Ctrl-C
+    fd = os.open(log_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    null = os.open(os.devnull, os.O_RDONLY)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.dup2(null, 0)
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    os.close(fd)
+    os.close(null)
+    os.environ.clear()
+    os.environ.update(env)
+    os.chdir(cwd)
+    from .case import main
+    code = main([spec_json])
+    _shutdown()
+    sys.exit(code)
+
+
+def _shutdown() -> None:
+    """What an interpreter does at its exit and a forked process skips: wait for the threads
+    still running (a part file being written), run the ``atexit`` functions, flush."""
+    import atexit
+    shutdown = getattr(threading, "_shutdown", None)
+    if shutdown is not None:
+        shutdown()
+    atexit._run_exitfuncs()
+    sys.stdout.flush()
+    sys.stderr.flush()

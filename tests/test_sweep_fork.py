@@ -1,0 +1,105 @@
+"""Case processes forked from the preloaded server (formation_traci/sweep/forked.py, issue 33).
+
+Real sweeps, real SUMO: a forked case gives the same files as a case started as a new
+interpreter, runs in a process and session of its own, sees the sweep's environment at the
+time it starts, and stops on the supervisor's signals like one started with Popen.
+"""
+import json
+import os
+from pathlib import Path
+
+import pandas as pd
+
+from formation_traci.sweep import forked, launch, run_sweep
+from formation_traci.sweep.row import WALL_COLUMNS
+
+ROOT = Path(__file__).resolve().parents[1]
+THESIS = ROOT / "scenarios" / "thesis" / "case_2_3_1_straight.toml"
+HIGHWAY = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
+
+
+def sweep_file(directory: Path, base: Path, body: str) -> Path:
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / "s.toml"
+    path.write_text(f'base = "{os.path.relpath(base, directory)}"\n{body}', encoding="utf-8")
+    return path
+
+
+SUMO_BODY = ('seeds = [1, 2]\n[overrides]\n"run.duration" = 2.0\n"traffic.warmup" = 5.0\n'
+             '[grid]\n"leader.speed" = [25.0, 30.0]\n')
+
+
+def test_forked_cases_equal_new_interpreter_cases_file_for_file(tmp_path, monkeypatch):
+    path = sweep_file(tmp_path, HIGHWAY, SUMO_BODY)
+    assert forked.usable()
+    fork = run_sweep(path, tmp_path / "fork", workers=2, progress=False)
+    monkeypatch.setenv(forked.ENV, "exec")
+    assert not forked.usable()
+    new = run_sweep(path, tmp_path / "exec", workers=2, progress=False)
+    a, b = (r.summary.drop(columns=list(WALL_COLUMNS)) for r in (fork, new))
+    assert (a["status"] == "completed").all(), a["reason"].tolist()
+    pd.testing.assert_frame_equal(a, b, check_exact=True)
+    for case in a["case_id"]:
+        for table in ("trajectories", "background", "events", "comfort"):
+            ta = pd.read_parquet(fork.out_dir / "cases" / case / f"{table}.parquet")
+            tb = pd.read_parquet(new.out_dir / "cases" / case / f"{table}.parquet")
+            pd.testing.assert_frame_equal(ta, tb, check_exact=True)
+    pids = fork.summary["pid"].astype(int).tolist()
+    assert len(set(pids)) == len(pids) and os.getpid() not in pids  # one process per case
+    assert forked._context is not None  # the first sweep went through the server
+
+
+def test_a_forked_case_has_its_own_session_the_sweeps_environment_and_its_log(tmp_path, monkeypatch):
+    path = sweep_file(tmp_path, THESIS, 'seeds = [1]\n[overrides]\n"run.duration" = 0.5\n'
+                                        '[grid]\n"controller.k" = [1.0]\n')
+    run_sweep(path, tmp_path / "first", workers=1, progress=False)  # the server is running now
+    monkeypatch.setenv("FORMATION_TRACI_PROBE", "set after the server started")
+    seen = tmp_path / "seen.json"
+    probe = ("import json, os, sys\n"
+             f"json.dump({{'env': os.environ.get('FORMATION_TRACI_PROBE'), 'cwd': os.getcwd(), "
+             f"'pid': os.getpid(), 'pgid': os.getpgid(0), 'sid': os.getsid(0), 'ppid': os.getppid()}}, "
+             f"open({str(seen)!r}, 'w'))\nprint('probe out'); print('probe err', file=sys.stderr)\n")
+    monkeypatch.chdir(tmp_path)
+    proc = forked.ForkedCase.__new__(forked.ForkedCase)
+    ctx = forked._server()
+    log = tmp_path / "probe.log"
+    proc._proc = ctx.Process(target=_probe_entry, args=(probe, str(log), dict(os.environ), os.getcwd()))
+    proc._proc.start()
+    proc.pid = proc._proc.pid
+    assert proc.wait(60) == 0
+    got = json.loads(seen.read_text())
+    assert got["env"] == "set after the server started" and got["cwd"] == str(tmp_path)
+    assert got["pid"] == got["pgid"] == got["sid"] == proc.pid  # its own session and group
+    assert got["ppid"] != os.getpid()  # forked by the server, not by the sweep
+    assert log.read_text().splitlines() == ["probe out", "probe err"]
+
+
+def _probe_entry(code, log_path, env, cwd):
+    """case_entry with the case replaced by ``code`` (same session, output and environment)."""
+    import formation_traci.sweep.case as case
+
+    def main(argv):
+        exec(code, {})
+        return 0
+    case.main = main
+    forked.case_entry("{}", log_path, env, cwd)
+
+
+def test_a_variable_read_at_import_that_changed_starts_a_new_interpreter(monkeypatch):
+    forked._server()
+    assert forked.usable()
+    monkeypatch.setenv("NUMBA_OPT", "1" if os.environ.get("NUMBA_OPT") != "1" else "2")
+    assert not forked.usable()  # the server imported numba with the old value
+
+
+def test_a_forked_case_past_its_timeout_is_stopped_and_recorded(tmp_path):
+    path = sweep_file(tmp_path, THESIS, 'seeds = [1]\ntimeout_s = 8.0\n[grid]\n'
+                                        '"run.duration" = [0.5, 200000.0]\n')
+    assert forked.usable()
+    res = run_sweep(path, tmp_path / "out", workers=2, progress=False)
+    st = res.summary.set_index("case_id")
+    assert st.loc["c0000-duration0.5-s1", "status"] == "completed"
+    slow = st.loc["c0001-duration200000.0-s1"]
+    assert slow["status"] == "failed" and "timeout" in slow["reason"]
+    assert 8.0 <= slow["wall_s"] < 8.0 + launch.GRACE_S  # SIGTERM reached it: it stopped in time
+    assert 0.0 < slow["t_end_s"] < 200000.0  # the run stopped at a step and was recorded
