@@ -1,29 +1,40 @@
-"""A sweep with the shared warm-up against the same sweep where every case simulates its own.
+"""The comm study as a sweep today (issue 33's reference) against the same sweep the ways
+that make it cheaper: case processes forked from the preloaded server, and the shared warm-up.
 
-    python benchmarks/sweep_warmup.py [--quick] [--workers N] [--keep DIR]
+    python benchmarks/sweep_warmup.py [--quick] [--workers N] [--keep DIR] [--rounds N]
 
 Runs ``scenarios/studies/comm.toml`` (18 cases: 3 delays x 3 losses x 2 seeds, 60 s warm-up,
-60 s of formation) twice on the local pool, one sweep after the other on the same machine:
-``--no-shared-warmup`` (every case simulates its 60 s of traffic) and the default (each of
-the two warm-up keys, one per seed, simulated once: sumo/warm_state.py). Before them one case
-runs untimed so that both find numba's and the road's caches warm. ``--quick``: the corner
-cases only (delay 0 and 0.3 s, loss none and bursty, both seeds: 8 cases).
+60 s of formation) on the local pool, one sweep after the other on the same machine:
 
-Prints each sweep's wall time (from the call to the summary written), then the summaries
-compared value for value except the columns that depend on the machine and the clock
-(formation_traci/sweep/row.py WALL_COLUMNS), and ends with the two fixed lines
+- ``today``: every case a new interpreter (``FORMATION_TRACI_CASE_START=exec``, as before issue
+  33) simulating its own 60 s of traffic (``--no-shared-warmup``);
+- ``forked``: every case forked from the server that has imported what a case imports
+  (sweep/forked.py, the default now), each simulating its own warm-up;
+- ``shared``: forked, and each of the two warm-up keys (one per seed) simulated once
+  (sumo/warm_state.py, ``--shared-warmup``).
 
-    sweep wall ratio: X.XX          (shared / unshared wall time)
+Before them one case runs untimed so that all find numba's and the road's caches warm;
+``--rounds`` repeats the three in turn (medians). ``--quick``: the corner cases only (delay 0
+and 0.3 s, loss none and bursty, both seeds: 8 cases). Each sweep's wall time is from the
+call to the summary written (the forked sweeps include starting their server). The
+summaries are compared with today's value for value except the columns that depend on the
+machine and the clock (formation_traci/sweep/row.py WALL_COLUMNS). It ends with the two fixed
+lines for ``shared`` (the study the cheapest way) against ``today``:
+
+    sweep wall ratio: X.XX
     summaries identical: yes|no
 
-With SUMO 1.28 and the sublane model the answer is "no": a run from SUMO's saved state starts
-the lane-change model's memory from zero (docs/sweeps.md, "The shared warm-up"); the lines
-before say how many metric columns differ and by how much.
+With SUMO 1.28 and the sublane model the second is "no" for ``shared``: a run from SUMO's saved
+state starts the lane-change model's memory from zero (docs/sweeps.md, "The shared warm-up");
+the lines before say how many metric columns differ and by how much, and give ``forked``
+against ``today`` (value-identical: the same processes' work, started another way).
 """
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
+import statistics
 import sys
 import tempfile
 import time
@@ -54,12 +65,21 @@ def _sweep_file(tmp: Path, quick: bool, prime: bool = False) -> Path:
     return path
 
 
-def _timed_sweep(path: Path, out: Path, workers: int | None, shared: bool):
-    from formation_traci.sweep import run_sweep
+WAYS = {"today": ("exec", False), "forked": ("fork", False), "shared": ("fork", True)}
+"""Each way's case start (FORMATION_TRACI_CASE_START) and shared warm-up."""
 
-    t0 = time.perf_counter()
-    res = run_sweep(path, out, workers=workers, progress=False, shared_warmup=shared)
-    return time.perf_counter() - t0, res
+
+def _timed_sweep(path: Path, out: Path, workers: int | None, way: str):
+    from formation_traci.sweep import forked, run_sweep
+
+    start, shared = WAYS[way]
+    os.environ[forked.ENV] = start
+    try:
+        t0 = time.perf_counter()
+        res = run_sweep(path, out, workers=workers, progress=False, shared_warmup=shared)
+        return time.perf_counter() - t0, res
+    finally:
+        del os.environ[forked.ENV]
 
 
 def compare(a, b) -> tuple[bool, list[str]]:
@@ -92,23 +112,29 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="8 corner cases instead of 18")
     ap.add_argument("--workers", type=int, default=None, help="cases at once (default: cores)")
     ap.add_argument("--keep", type=Path, default=None, help="keep the sweep directories here")
+    ap.add_argument("--rounds", type=int, default=1, help="the three sweeps this many times in turn")
     args = ap.parse_args(argv)
     tmp = Path(tempfile.mkdtemp(prefix="sweep-warmup-"))
     root = args.keep or tmp
     try:
-        _timed_sweep(_sweep_file(tmp, False, prime=True), root / "prime", args.workers, False)
+        _timed_sweep(_sweep_file(tmp, False, prime=True), root / "prime", args.workers, "today")
         path = _sweep_file(tmp, args.quick)
-        t_u, r_u = _timed_sweep(path, root / "unshared", args.workers, False)
-        print(f"unshared: {r_u.n_cases} cases ({r_u.n_completed} completed) in {t_u:.1f} s")
-        t_s, r_s = _timed_sweep(path, root / "shared", args.workers, True)
-        n_keys = len([p for p in (root / "shared" / "warmups").iterdir() if p.is_dir()])
-        print(f"shared:   {r_s.n_cases} cases ({r_s.n_completed} completed) in {t_s:.1f} s, "
-              f"{n_keys} warm-ups simulated")
-        same, lines = compare(r_u.summary, r_s.summary)
-        if lines:
-            print(f"{len(lines)} summary columns differ (shared against unshared):")
-            print("\n".join(lines))
-        print(f"sweep wall ratio: {t_s / t_u:.2f}")
+        walls: dict[str, list[float]] = {w: [] for w in WAYS}
+        results = {}
+        for r in range(args.rounds):
+            for way in (WAYS if r % 2 == 0 else list(WAYS)[::-1]):
+                t, results[way] = _timed_sweep(path, root / f"{way}{r}", args.workers, way)
+                walls[way].append(t)
+                print(f"round {r + 1} {way:6s}: {results[way].n_cases} cases "
+                      f"({results[way].n_completed} completed) in {t:.1f} s", flush=True)
+        wall = {w: statistics.median(v) for w, v in walls.items()}
+        for way in ("forked", "shared"):
+            same, lines = compare(results["today"].summary, results[way].summary)
+            print(f"{way} / today: wall {wall[way] / wall['today']:.2f}, summaries "
+                  f"{'value-identical' if same else f'differ in {len(lines)} columns'}")
+            if lines:
+                print("\n".join(lines))
+        print(f"sweep wall ratio: {wall['shared'] / wall['today']:.2f}")
         print(f"summaries identical: {'yes' if same else 'no'}")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
