@@ -103,3 +103,19 @@ def test_a_forked_case_past_its_timeout_is_stopped_and_recorded(tmp_path):
     assert slow["status"] == "failed" and "timeout" in slow["reason"]
     assert 8.0 <= slow["wall_s"] < 8.0 + launch.GRACE_S  # SIGTERM reached it: it stopped in time
     assert 0.0 < slow["t_end_s"] < 200000.0  # the run stopped at a step and was recorded
+
+
+def test_a_server_that_cannot_start_a_case_leaves_the_cases_to_new_interpreters(tmp_path, monkeypatch):
+    path = sweep_file(tmp_path, THESIS, 'seeds = [1]\n[overrides]\n"run.duration" = 0.5\n'
+                                        '[grid]\n"controller.k" = [1.0, 2.0]\n')
+    monkeypatch.setattr(forked, "_failed", [])
+
+    class Broken:
+        def __init__(self, *args):
+            raise EOFError("the server died")  # what multiprocessing raises then
+
+    monkeypatch.setattr(forked, "ForkedCase", Broken)
+    assert forked.usable()
+    res = run_sweep(path, tmp_path / "out", workers=1, progress=False)
+    assert (res.summary["status"] == "completed").all(), res.summary["reason"].tolist()
+    assert not forked.usable() and forked._failed == ["EOFError: the server died"]

@@ -13,7 +13,8 @@ and working directory, the exit code of :func:`formation_traci.sweep.case.main`.
 
 Where this cannot hold, the supervisor starts the process as before (sweep/launch.py): on a
 platform without ``fork`` (Windows), in a daemonic process (a Dask worker by default), or when a variable read at import time (``NUMBA_*``,
-``PYTHON*``) differs from the server's, or with ``FORMATION_TRACI_CASE_START=exec``.
+``PYTHON*``) differs from the server's, with ``FORMATION_TRACI_CASE_START=exec``, or once the
+server has failed to start a case (it could not import what it preloads, say).
 """
 from __future__ import annotations
 
@@ -41,6 +42,7 @@ _IMPORT_TIME_VARS = ("NUMBA_", "PYTHON")
 """Environment variables read when a module is imported: the server's must be the sweep's."""
 
 _lock = threading.Lock()
+_failed: list[str] = []  # why the server could not start a case (then: new interpreters)
 _context = None  # multiprocessing's forkserver context, once started
 _server_env: dict[str, str] = {}
 
@@ -51,7 +53,7 @@ def _import_time_env(env) -> dict[str, str]:
 
 def usable() -> bool:
     """True if cases can be forked from the preloaded server here and now."""
-    if os.environ.get(ENV, "fork") != "fork" or not hasattr(os, "fork"):
+    if _failed or os.environ.get(ENV, "fork") != "fork" or not hasattr(os, "fork"):
         return False
     import multiprocessing
     if "forkserver" not in multiprocessing.get_all_start_methods():
@@ -72,6 +74,11 @@ def _server():
             _server_env = _import_time_env(os.environ)
             _context = ctx
         return _context
+
+
+def give_up(exc: BaseException) -> None:
+    """The server failed to start a case (``exc``): later cases start as new interpreters."""
+    _failed.append(f"{type(exc).__name__}: {exc}")
 
 
 class ForkedCase:

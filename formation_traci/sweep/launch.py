@@ -69,7 +69,10 @@ def start_case(spec_json: str, log, log_path: Path):
         The process: ``pid``, ``poll()``, ``wait(timeout)``, ``send_signal(sig)``.
     """
     if case_command is _DEFAULT_COMMAND and forked.usable():
-        return forked.ForkedCase(spec_json, str(log_path))
+        try:
+            return forked.ForkedCase(spec_json, str(log_path))
+        except Exception as exc:  # the server did not start or died: new interpreters from now on
+            forked.give_up(exc)
     return subprocess.Popen(case_command(spec_json), stdin=subprocess.DEVNULL, stdout=log,
                             stderr=subprocess.STDOUT, start_new_session=True)
 
