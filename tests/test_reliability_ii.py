@@ -392,15 +392,13 @@ def _alive(pid: int) -> bool:
 
 
 def _case_pid(case_dir: Path) -> int:
-    """Pid of the case process running into ``case_dir`` (from /proc)."""
-    for entry in Path("/proc").iterdir():
-        try:
-            cmd = (entry / "cmdline").read_bytes().decode(errors="replace")
-        except OSError:
-            continue
-        if "formation_traci.sweep.case" in cmd and str(case_dir) in cmd:
-            return int(entry.name)
-    raise AssertionError("no case process found")
+    """Pid of the case process running into ``case_dir``: the holder of its lock (a forked case
+    process has the command line of the server it was forked from, not its own)."""
+    from formation_traci.record.rundir import LOCK_NAME
+
+    holder = (case_dir / LOCK_NAME).read_text()
+    assert "formation_traci/sweep/case.py" in holder, holder  # the case process, not another
+    return int(holder.split()[1])
 
 
 def test_sigterm_to_a_sweep_stops_its_case_processes(tmp_path):

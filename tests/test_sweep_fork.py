@@ -57,7 +57,8 @@ def test_a_forked_case_has_its_own_session_the_sweeps_environment_and_its_log(tm
     seen = tmp_path / "seen.json"
     probe = ("import json, os, sys\n"
              f"json.dump({{'env': os.environ.get('FORMATION_TRACI_PROBE'), 'cwd': os.getcwd(), "
-             f"'pid': os.getpid(), 'pgid': os.getpgid(0), 'sid': os.getsid(0), 'ppid': os.getppid()}}, "
+             f"'pid': os.getpid(), 'pgid': os.getpgid(0), 'sid': os.getsid(0), 'ppid': os.getppid(), "
+             f"'argv': sys.argv}}, "
              f"open({str(seen)!r}, 'w'))\nprint('probe out'); print('probe err', file=sys.stderr)\n")
     monkeypatch.chdir(tmp_path)
     proc = forked.ForkedCase.__new__(forked.ForkedCase)
@@ -71,6 +72,7 @@ def test_a_forked_case_has_its_own_session_the_sweeps_environment_and_its_log(tm
     assert got["env"] == "set after the server started" and got["cwd"] == str(tmp_path)
     assert got["pid"] == got["pgid"] == got["sid"] == proc.pid  # its own session and group
     assert got["ppid"] != os.getpid()  # forked by the server, not by the sweep
+    assert got["argv"][0].endswith(os.path.join("formation_traci", "sweep", "case.py"))  # as with -m
     assert log.read_text().splitlines() == ["probe out", "probe err"]
 
 

@@ -123,8 +123,9 @@ def case_entry(spec_json: str, log_path: str, env: dict, cwd: str) -> None:
     os.environ.clear()
     os.environ.update(env)
     os.chdir(cwd)
-    from .case import main
-    code = main([spec_json])
+    from . import case
+    sys.argv = [case.__file__, spec_json]  # as `python -m`'s: the run directory's lock names it
+    code = case.main([spec_json])
     _shutdown()
     sys.exit(code)
 
