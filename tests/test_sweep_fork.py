@@ -9,6 +9,7 @@ import os
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from formation_traci.sweep import forked, launch, run_sweep
 from formation_traci.sweep.row import WALL_COLUMNS
@@ -25,13 +26,31 @@ def sweep_file(directory: Path, base: Path, body: str) -> Path:
     return path
 
 
+def _stop_server() -> None:
+    import multiprocessing.forkserver as fs
+
+    fs._forkserver._stop()  # multiprocessing's own hook for its tests
+    forked._context = None
+
+
+@pytest.fixture(autouse=True)
+def fresh_server(monkeypatch):
+    """Each test forks from a server started in its own environment: one started by an earlier
+    test would not have, for one, the PYTHONHASHSEED that a Dask cluster (test_sweep.py) sets
+    in this process, and rightly refuses to fork then (forked.unusable_reason)."""
+    _stop_server()
+    monkeypatch.setattr(forked, "_failed", [])
+    yield
+    _stop_server()
+
+
 SUMO_BODY = ('seeds = [1, 2]\n[overrides]\n"run.duration" = 2.0\n"traffic.warmup" = 5.0\n'
              '[grid]\n"leader.speed" = [25.0, 30.0]\n')
 
 
 def test_forked_cases_equal_new_interpreter_cases_file_for_file(tmp_path, monkeypatch):
     path = sweep_file(tmp_path, HIGHWAY, SUMO_BODY)
-    assert forked.usable()
+    assert forked.usable(), forked.unusable_reason()
     fork = run_sweep(path, tmp_path / "fork", workers=2, progress=False)
     monkeypatch.setenv(forked.ENV, "exec")
     assert not forked.usable()
@@ -89,7 +108,7 @@ def _probe_entry(code, log_path, env, cwd):
 
 def test_a_variable_read_at_import_that_changed_starts_a_new_interpreter(monkeypatch):
     forked._server()
-    assert forked.usable()
+    assert forked.usable(), forked.unusable_reason()
     monkeypatch.setenv("NUMBA_OPT", "1" if os.environ.get("NUMBA_OPT") != "1" else "2")
     assert not forked.usable()  # the server imported numba with the old value
 
@@ -97,7 +116,7 @@ def test_a_variable_read_at_import_that_changed_starts_a_new_interpreter(monkeyp
 def test_a_forked_case_past_its_timeout_is_stopped_and_recorded(tmp_path):
     path = sweep_file(tmp_path, THESIS, 'seeds = [1]\ntimeout_s = 8.0\n[grid]\n'
                                         '"run.duration" = [0.5, 200000.0]\n')
-    assert forked.usable()
+    assert forked.usable(), forked.unusable_reason()
     res = run_sweep(path, tmp_path / "out", workers=2, progress=False)
     st = res.summary.set_index("case_id")
     assert st.loc["c0000-duration0.5-s1", "status"] == "completed"
@@ -110,14 +129,12 @@ def test_a_forked_case_past_its_timeout_is_stopped_and_recorded(tmp_path):
 def test_a_server_that_cannot_start_a_case_leaves_the_cases_to_new_interpreters(tmp_path, monkeypatch):
     path = sweep_file(tmp_path, THESIS, 'seeds = [1]\n[overrides]\n"run.duration" = 0.5\n'
                                         '[grid]\n"controller.k" = [1.0, 2.0]\n')
-    monkeypatch.setattr(forked, "_failed", [])
-
     class Broken:
         def __init__(self, *args):
             raise EOFError("the server died")  # what multiprocessing raises then
 
     monkeypatch.setattr(forked, "ForkedCase", Broken)
-    assert forked.usable()
+    assert forked.usable(), forked.unusable_reason()
     res = run_sweep(path, tmp_path / "out", workers=1, progress=False)
     assert (res.summary["status"] == "completed").all(), res.summary["reason"].tolist()
     assert not forked.usable() and forked._failed == ["EOFError: the server died"]

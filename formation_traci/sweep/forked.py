@@ -53,14 +53,25 @@ def _import_time_env(env) -> dict[str, str]:
 
 def usable() -> bool:
     """True if cases can be forked from the preloaded server here and now."""
-    if _failed or os.environ.get(ENV, "fork") != "fork" or not hasattr(os, "fork"):
-        return False
+    return unusable_reason() is None
+
+
+def unusable_reason() -> str | None:
+    """Why cases cannot be forked here and now (None: they can)."""
+    if _failed:
+        return f"the server failed to start a case: {_failed[0]}"
+    if os.environ.get(ENV, "fork") != "fork":
+        return f"{ENV}={os.environ[ENV]}"
     import multiprocessing
-    if "forkserver" not in multiprocessing.get_all_start_methods():
-        return False
+    if not hasattr(os, "fork") or "forkserver" not in multiprocessing.get_all_start_methods():
+        return "no fork on this platform"
     if multiprocessing.current_process().daemon:  # a Dask worker: may not have children of its own
-        return False
-    return _context is None or _import_time_env(os.environ) == _server_env
+        return "a daemonic process"
+    env = _import_time_env(os.environ)
+    if _context is not None and env != _server_env:
+        changed = sorted(k for k in env.keys() | _server_env.keys() if env.get(k) != _server_env.get(k))
+        return f"changed since the server started: {', '.join(changed)}"
+    return None
 
 
 def _server():
