@@ -46,12 +46,11 @@ STEP_SYMBOL = "libsumo::Simulation::step(double)"
 
 def _work(kb: int):
     """Our layer's stand-in: ``kb`` kB of fresh numpy arrays and Python objects written, then
-    dropped (returns a value so nothing is optimised away)."""
+    dropped."""
     import numpy as np
     a = np.ones(max(1, kb * 1024 // 16))  # half the bytes as one array, written twice
     a += 1.0
-    junk = [{"i": i} for i in range(max(1, kb * 2))]  # ~250 B per dict: the other half
-    return float(a[-1]) + len(junk)
+    [{"i": i} for i in range(max(1, kb * 2))]  # ~250 B per dict: the other half
 
 
 def child_sumo(variant: str, duration: float, seed: int, work_kb: int) -> dict:
@@ -82,7 +81,7 @@ def child_sumo(variant: str, duration: float, seed: int, work_kb: int) -> dict:
                                      [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION,
                                       tc.VAR_LANE_ID, tc.VAR_LANE_INDEX])
     steps, dt = int(round(duration / sc.run.step)), sc.run.step
-    t_step, spent = 0.0, 0.0
+    t_step = 0.0
     for _ in range(steps):
         if moved:
             for vid in ids:
@@ -91,7 +90,7 @@ def child_sumo(variant: str, duration: float, seed: int, work_kb: int) -> dict:
                 api.vehicle.moveToXY(vid, "", -1, x + ob.SPEED * dt, y, 90.0, 1, 5.0)
                 api.vehicle.setPreviousSpeed(vid, ob.SPEED)
         if variant == "moved+work":
-            spent += _work(work_kb)
+            _work(work_kb)
         t0 = time.perf_counter()
         api.simulationStep()
         t_step += time.perf_counter() - t0

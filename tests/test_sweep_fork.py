@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+import test_sweep  # tests/ is importable (conftest.py): its sweep-file helper
 
 from formation_traci.sweep import forked, launch, run_sweep
 from formation_traci.sweep.row import WALL_COLUMNS
@@ -20,10 +21,7 @@ HIGHWAY = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
 
 
 def sweep_file(directory: Path, base: Path, body: str) -> Path:
-    directory.mkdir(parents=True, exist_ok=True)
-    path = directory / "s.toml"
-    path.write_text(f'base = "{os.path.relpath(base, directory)}"\n{body}', encoding="utf-8")
-    return path
+    return test_sweep.sweep_file(directory, "s.toml", base, body)
 
 
 def _stop_server() -> None:
@@ -34,13 +32,23 @@ def _stop_server() -> None:
 
 
 @pytest.fixture(autouse=True)
-def fresh_server(monkeypatch):
+def forks(monkeypatch):
     """Each test forks from a server started in its own environment: one started by an earlier
     test would not have, for one, the PYTHONHASHSEED that a Dask cluster (test_sweep.py) sets
-    in this process, and rightly refuses to fork then (forked.unusable_reason)."""
+    in this process, and rightly refuses to fork then (forked.unusable_reason). Yields the
+    list of the forked cases' pids (a case started as a new interpreter is not in it)."""
     _stop_server()
     monkeypatch.setattr(forked, "_failed", [])
-    yield
+    pids = []
+    real = forked.ForkedCase
+
+    class Counted(real):
+        def __init__(self, *args):
+            super().__init__(*args)
+            pids.append(self.pid)
+
+    monkeypatch.setattr(forked, "ForkedCase", Counted)
+    yield pids
     _stop_server()
 
 
@@ -48,7 +56,7 @@ SUMO_BODY = ('seeds = [1, 2]\n[overrides]\n"run.duration" = 2.0\n"traffic.warmup
              '[grid]\n"leader.speed" = [25.0, 30.0]\n')
 
 
-def test_forked_cases_equal_new_interpreter_cases_file_for_file(tmp_path, monkeypatch):
+def test_forked_cases_equal_new_interpreter_cases_file_for_file(tmp_path, monkeypatch, forks):
     path = sweep_file(tmp_path, HIGHWAY, SUMO_BODY)
     assert forked.usable(), forked.unusable_reason()
     fork = run_sweep(path, tmp_path / "fork", workers=2, progress=False)
@@ -64,8 +72,8 @@ def test_forked_cases_equal_new_interpreter_cases_file_for_file(tmp_path, monkey
             tb = pd.read_parquet(new.out_dir / "cases" / case / f"{table}.parquet")
             pd.testing.assert_frame_equal(ta, tb, check_exact=True)
     pids = fork.summary["pid"].astype(int).tolist()
+    assert sorted(pids) == sorted(forks)  # every case of the first sweep forked, none of the second
     assert len(set(pids)) == len(pids) and os.getpid() not in pids  # one process per case
-    assert forked._context is not None  # the first sweep went through the server
 
 
 def test_a_forked_case_has_its_own_session_the_sweeps_environment_and_its_log(tmp_path, monkeypatch):
@@ -114,7 +122,7 @@ def test_a_variable_read_at_import_that_changed_starts_a_new_interpreter(monkeyp
     assert not forked.usable()  # the server imported numba with the old value
 
 
-def test_a_forked_case_past_its_timeout_is_stopped_and_recorded(tmp_path):
+def test_a_forked_case_past_its_timeout_is_stopped_and_recorded(tmp_path, forks):
     path = sweep_file(tmp_path, THESIS, 'seeds = [1]\ntimeout_s = 8.0\n[grid]\n'
                                         '"run.duration" = [0.5, 200000.0]\n')
     assert forked.usable(), forked.unusable_reason()
@@ -125,6 +133,7 @@ def test_a_forked_case_past_its_timeout_is_stopped_and_recorded(tmp_path):
     assert slow["status"] == "failed" and "timeout" in slow["reason"]
     assert 8.0 <= slow["wall_s"] < 8.0 + launch.GRACE_S  # SIGTERM reached it: it stopped in time
     assert 0.0 < slow["t_end_s"] < 200000.0  # the run stopped at a step and was recorded
+    assert sorted(res.summary["pid"].astype(int)) == sorted(forks)  # both cases were forked
 
 
 def test_a_server_that_cannot_start_a_case_leaves_the_cases_to_new_interpreters(tmp_path, monkeypatch):

@@ -12,9 +12,10 @@ group), standard output and error appended to the case log, the sweep's current 
 and working directory, the exit code of :func:`formation_traci.sweep.case.main`.
 
 Where this cannot hold, the supervisor starts the process as before (sweep/launch.py): on a
-platform without ``fork`` (Windows), in a daemonic process (a Dask worker by default), or when a variable read at import time (``NUMBA_*``,
-``PYTHON*``) differs from the server's, with ``FORMATION_TRACI_CASE_START=exec``, or once the
-server has failed to start a case (it could not import what it preloads, say).
+platform without ``fork`` (Windows), in a daemonic process (a Dask worker by default), when a
+variable read at import or interpreter start (``NUMBA_*``, ``PYTHON*``) differs from the
+server's, with ``FORMATION_TRACI_CASE_START=exec``, or once the server has failed to start a
+case (it could not import what it preloads, say): :func:`unusable_reason` says which.
 """
 from __future__ import annotations
 

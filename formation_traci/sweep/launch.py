@@ -3,8 +3,8 @@
 The case runs as ``python -m formation_traci.sweep.case SPEC_JSON`` would, in its own process
 and session, so every case has a fresh process and its own libsumo, whatever runs the task:
 forked from a server that has imported what a case imports (sweep/forked.py), or a new
-interpreter where that cannot hold. The supervisor turns every way the process can end into a row: the row it wrote,
-or ``failed`` with the exit code or signal and the last line of its log.
+interpreter where that cannot hold. The supervisor turns every way the process can end into a
+row: the row it wrote, or ``failed`` with the exit code or signal and the last line of its log.
 """
 from __future__ import annotations
 
@@ -48,6 +48,7 @@ def case_command(spec_json: str) -> list[str]:
 
 
 _DEFAULT_COMMAND = case_command
+"""A replaced :func:`case_command` (tests put other programs in a case's place) is run as given."""
 
 
 def start_case(spec_json: str, log, log_path: Path):
