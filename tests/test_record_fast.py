@@ -245,6 +245,7 @@ def _straightforward(monkeypatch):
         if len(nb.ids):
             self._append_background(t, nb, s, d)
 
+    monkeypatch.setenv("FORMATION_TRACI_FUSED", "off")  # sumo/fused_path.py writes rows of its own
     monkeypatch.setattr(Recorder, "signal_rows", lambda self, mask: None)
     monkeypatch.setattr(Recorder, "period_rows", lambda self, m, mask: None)
     monkeypatch.setattr(Recorder, "add_step", add_step)

@@ -124,11 +124,17 @@ class Incidents:
         self.n = dict.fromkeys(("member_collisions", "stranded", "sumo_collision_artefacts"), 0)
 
     def step(self, t: float, sig: np.ndarray, active: np.ndarray) -> None:
+        worst = math.inf
         if self.pairs:
             worst = member_clearances(sig, _X, _Y, _H, self.shift, self.length, self.width,
                                       active, self.clear)
-            if worst < 0.0 or self.contact.any():
-                self._contacts(t)
+        self.after_clearances(t, sig, active, worst)
+
+    def after_clearances(self, t: float, sig: np.ndarray, active: np.ndarray, worst: float) -> None:
+        """:meth:`step` once the clearances are in ``self.clear`` (``worst``: the smallest)
+        [m]: contacts and stranded members."""
+        if self.pairs and (worst < 0.0 or self.contact.any()):
+            self._contacts(t)
         v, v_ref = sig[:, _V], sig[:, _VREF]
         slow = active & (v < STRANDED_SPEED) & (v_ref > STRANDED_V_REF)
         if slow.any() or self.is_stranded.any():

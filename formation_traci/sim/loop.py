@@ -55,6 +55,7 @@ class RunParts:
     formations: list[Formation]
     timing: dict | None = None  # run.json timing_s, or None: not timed
     road_load: object = None  # sim/road_load.py: (state, sensed, ref) -> (drag ratio, grade)
+    fused: object = None  # (parts, rec, sc) -> the run's compiled usual step or None (sumo/fused_path.py)
 
 
 def one_formation(world, generator, fleet: Fleet, state: FleetState, transforms=(), **kw) -> RunParts:
@@ -173,17 +174,22 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
     sig = np.full((fleet.cfg.n, len(SIGNAL_COLUMNS)), np.nan)
     sig_true = sig.copy()
     periods = np.empty((0, fleet.cfg.n, 3))  # step_recording's comfort buffer
-    err_cols = [SIGNAL_COLUMNS.index(c) for c in ERROR_COLUMNS]
     perfect = np.zeros(fleet.cfg.n)  # leader_age_s without a channel
     clock = PhaseClock({} if parts.timing is None else parts.timing)
     plans = [(f, f.sensing, f.true_error) for f in forms]  # the transforms are fixed now
     links = _radio_links(forms, fleet)
     group = group_of(forms, world)  # plain road formations: one compiled call for all
+    fused = None if parts.fused is None else parts.fused(parts, rec, sc)
     try:
         world.start()  # inside: a signal or a failure during SUMO's start or warm-up closes SUMO
         for k in range(n_steps + 1):
             t = k * step
             clock.start()
+            if fused is not None and fused.ready(k, t, state, clock):  # the usual step: one compiled call
+                state = fused.step(k, t, state, clock)
+                yield k, t
+                fused.finish(k, t + step, state, clock)
+                continue
             sensed = world.sense(k, t, state)
             sensed.extra.setdefault("leader_age_s", perfect)
             clock.lap("sumo_read")
@@ -196,20 +202,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
             world.observe(t, sensed, ref)
             if parts.road_load is not None:  # drag ratio and grade, held over the step
                 fleet.set_road_load(*parts.road_load(state, sensed, ref))
-            if world.records_members:
-                true_vc = ref_err is not ref
-                rows = None if true_vc else rec.signal_rows(ref.active)  # rows in the same call
-                written = fleet.signals_into(state, ref, sig, t, rows)
-                if true_vc:  # the error against the true virtual car
-                    fleet.signals(state, ref.with_(vc=ref_err.vc), out=sig_true)
-                    sig[:, err_cols] = sig_true[:, err_cols]
-                rec.add_step(t, sig, sensed.extra, ref.active, ref.truth, written)
-                if rec.incidents is not None:  # collisions between members, stranded members
-                    rec.incidents.step(t, sig, ref.active)
-            elif ref.truth.ndim == 1:
-                rec.add_vc(t, ref.leader(), s=float(ref.truth[7]))
-            else:  # a twin of several formations: their virtual cars on the road
-                rec.add_vcs(t, ref.truth)
+            _record(world, fleet, rec, t, state, sensed, ref, ref_err, sig, sig_true)
             clock.lap("record")
             yield k, t
             clock.lap("record")  # the caller's share: the step's end, part files, progress (runner.py)
@@ -242,6 +235,29 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
         if len(forms) > 1 or forms[0].depart:
             meta["formations"] = formations_meta(forms)
         world.close()
+
+
+_ERROR_COLS = [SIGNAL_COLUMNS.index(c) for c in ERROR_COLUMNS]
+
+
+def _record(world, fleet: Fleet, rec, t, state, sensed, ref, ref_err, sig, sig_true) -> None:
+    """The step's rows at t [s]: the members' signals (into ``sig``; with the error against
+    the true virtual car when ``ref_err`` is not ``ref``), the road columns, the virtual cars,
+    the members' incidents; a twin records its virtual cars only."""
+    if world.records_members:
+        true_vc = ref_err is not ref
+        rows = None if true_vc else rec.signal_rows(ref.active)  # rows in the same call
+        written = fleet.signals_into(state, ref, sig, t, rows)
+        if true_vc:  # the error against the true virtual car
+            fleet.signals(state, ref.with_(vc=ref_err.vc), out=sig_true)
+            sig[:, _ERROR_COLS] = sig_true[:, _ERROR_COLS]
+        rec.add_step(t, sig, sensed.extra, ref.active, ref.truth, written)
+        if rec.incidents is not None:  # collisions between members, stranded members
+            rec.incidents.step(t, sig, ref.active)
+    elif ref.truth.ndim == 1:
+        rec.add_vc(t, ref.leader(), s=float(ref.truth[7]))
+    else:  # a twin of several formations: their virtual cars on the road
+        rec.add_vcs(t, ref.truth)
 
 
 def _settle(forms, state: FleetState) -> None:

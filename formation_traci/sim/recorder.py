@@ -126,9 +126,7 @@ class Recorder(TableCuts):
         array of fleet.Fleet.signals (columns in trajectory order), ``extra`` the road and
         SUMO columns (s, d, lane_index, sumo_gap; (n,) arrays), ``mask`` the members still in
         the run."""
-        ix = self._sig_index
-        slip = np.fmax(np.abs(sig[:, ix["slip_front"]]), np.abs(sig[:, ix["slip_rear"]]))
-        self._flag_range(t, slip, sig[:, ix["friction_usage"]], sig[:, ix["v"]], mask)
+        self.flag_range(t, sig, mask)
         codes = self.codes
         if mask is not None and not mask.all():
             sig, codes = sig[mask], codes[mask]
@@ -142,6 +140,14 @@ class Recorder(TableCuts):
         for name in FILLED_BY_CALLER[2:]:
             tr.column(name)[sl] = extra.get(name, np.nan)
         tr.commit(n)
+
+    def flag_range(self, t, sig: np.ndarray, mask=None) -> None:
+        """A ``model_range`` event for every member (of ``mask``) whose signals (``sig`` as in
+        :meth:`add_signal_rows`) left the model's range since the last call (slip, friction
+        usage, speed)."""
+        ix = self._sig_index
+        slip = np.fmax(np.abs(sig[:, ix["slip_front"]]), np.abs(sig[:, ix["slip_rear"]]))
+        self._flag_range(t, slip, sig[:, ix["friction_usage"]], sig[:, ix["v"]], mask)
 
     def add_comfort_rows(self, t, sig: np.ndarray, mask=None):
         """The members' speed and accelerations at one control period (``sig`` as in
@@ -326,18 +332,25 @@ class Recorder(TableCuts):
         if at + n > bg.chunk_rows:  # a part ends inside: the rows split over two parts
             self._append_background(t, nb, s, d)
             return
-        key = self._bg_key
-        if not (nb.ids == key[0] and nb.types == key[1] and nb.lane_ids == key[2]):
-            self._bg_key = (list(nb.ids), list(nb.types), list(nb.lane_ids))
-            self._bg_codes = np.array([bg.codes(nb.ids), bg.codes(nb.types), bg.codes(nb.lane_ids)])
+        codes = self.background_codes(nb.ids, nb.types, nb.lane_ids)
         fl, ints, e = self._bg_floats, self._bg_ints, at + n
         fl[0, at:e] = t
         fl[1:8, at:e] = (nb.x, nb.y, nb.heading, nb.v, nb.a, nb.length, nb.width)
         fl[8, at:e] = s
         fl[9, at:e] = d
-        ints[0:3, at:e] = self._bg_codes
+        ints[0:3, at:e] = codes
         ints[3, at:e] = nb.lane_index
         bg.commit(n)
+
+    def background_codes(self, ids, types, lane_ids) -> np.ndarray:
+        """The background table's codes (3, m) of the vehicles ``ids``, their ``types`` and
+        lanes, reused while they are those of the last call (the usual step)."""
+        key = self._bg_key
+        if not (ids == key[0] and types == key[1] and lane_ids == key[2]):
+            bg = self.background
+            self._bg_key = (list(ids), list(types), list(lane_ids))
+            self._bg_codes = np.array([bg.codes(ids), bg.codes(types), bg.codes(lane_ids)])
+        return self._bg_codes
 
     def _append_background(self, t, nb, s, d):
         """:meth:`add_background` written out column by column (ChunkedTable.append)."""

@@ -12,11 +12,12 @@ on here are documented in docs/sumo.md (each with the test that shows it).
 """
 from __future__ import annotations
 
-from operator import add, itemgetter, le
+from operator import itemgetter
 
 import numpy as np
 
 from .connect import attach_socket, follow_view, start_socket
+from .member_reads import MemberReads
 from .neighbours import NeighbourReads
 from .vehicles import VehicleSetup
 from .types import (GUI_VIEW, GUI_ZOOM, KEEP_ROUTE, LANE_CHANGE_MODE_DEFAULT,  # noqa: F401
@@ -47,7 +48,7 @@ def _api(backend: str):
     return api, tc
 
 
-class SumoAdapter(NeighbourReads, VehicleSetup):
+class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
     """One SUMO simulation. Call :meth:`start`, then per step :meth:`read_members` ->
     :meth:`place` -> :meth:`step` -> :meth:`set_true_speeds`, and :meth:`close` at the end
     (also after errors)."""
@@ -250,19 +251,6 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
             self._front = np.array([self.members[vid].d_front for vid in ids], dtype=float)
         return self._front
 
-    def _overlapped_lane(self, lane_id: str, lane_index: int, lat: float, width: float):
-        """The neighbour lane a member's body reaches into (lateral position ``lat`` [m] on
-        lane ``lane_id``, body ``width`` [m]), or None."""
-        if not lane_id or lane_id.startswith(":"):
-            return None
-        lane_w, n_lanes, edge = self._lane_geo(lane_id)
-        if abs(lat) + width / 2 <= lane_w / 2:
-            return None
-        other = lane_index + (1 if lat > 0 else -1)
-        if other < 0 or other >= n_lanes:
-            return None
-        return f"{edge}_{other}"
-
     def step(self) -> StepEvents:
         """One SUMO step; returns the collisions, teleports and arrivals it reported."""
         try:
@@ -290,88 +278,6 @@ class SumoAdapter(NeighbourReads, VehicleSetup):
                 set_speed(vid, vi, ai)
             except self.api.TraCIException:
                 pass  # removed during the step: the next read_members reports it
-
-    def read_members(self, ids: list[str]):
-        """Where SUMO put each member, in SUMO's frame (sumo/sense.py converts it): front
-        bumper (n, 2) [m], angle (n,) [deg, CW from north], lane ids, lane index, lateral
-        position in the lane [m], lane position of the front bumper [m]; ``present`` is False
-        for members SUMO no longer has (NaN, '' and -1 there). One subscription read; per
-        member only what changed (its lane) costs more."""
-        if not ids:
-            return self._read_some_members(ids, [])
-        res = self.api.vehicle.getAllSubscriptionResults()
-        rows = [res.get(vid) for vid in ids]
-        if not all(rows):
-            return self._read_some_members(ids, rows)
-        pos, ang, lanes, lane_index, lat, lane_pos = zip(*map(self._member_get, rows))
-        lanes = list(lanes)
-        self._track_lanes(ids, lanes, lane_index, lat)
-        here = self._all_here
-        if len(here) != len(ids):
-            here = self._all_here = np.ones(len(ids), dtype=bool)
-            here.flags.writeable = False  # shared between steps
-        ang, lat, lane_pos = np.array((ang, lat, lane_pos), dtype=float)  # rows of one array
-        return (np.array(pos, dtype=float), ang, lanes, np.array(lane_index, dtype=np.int64), lat,
-                lane_pos, here)
-
-    def _read_some_members(self, ids, rows):
-        """:meth:`read_members` when SUMO no longer has some of the members (NaN, '' and -1)."""
-        n = len(ids)
-        here = [i for i, r in enumerate(rows) if r]
-        front = np.full((n, 2), np.nan)
-        ang, lat, lane_pos = (np.full(n, np.nan) for _ in range(3))
-        lane_index, lanes = np.full(n, -1, dtype=np.int64), [""] * n
-        for i, vid in enumerate(ids):
-            if not rows[i]:
-                self._member_lane.pop(vid, None)
-                self._overlap.pop(vid, None)
-        if here:
-            sub = [ids[i] for i in here]
-            fs, angs, ls, lis, lts, lps, _ = self.read_members(sub)
-            front[here], ang[here], lane_index[here], lat[here], lane_pos[here] = fs, angs, lis, lts, lps
-            for j, i in enumerate(here):
-                lanes[i] = ls[j]
-        return front, ang, lanes, lane_index, lat, lane_pos, np.array([bool(r) for r in rows], dtype=bool)
-
-    def _track_lanes(self, ids, lanes, lane_index, lat) -> None:
-        """Per member: its lane as read, the neighbour lane its body reaches into (for
-        :meth:`place`) and its route window, which moves on when it entered a new edge.
-        Nothing to do while the same members are on the lanes of the last read, each inside
-        its lane, with no overlap and every route window checked on its lane (the usual
-        step: :attr:`_settled`)."""
-        settled = self._settled
-        if (settled is not None and not self._overlap and lanes == settled[1] and ids == settled[0]
-                and all(map(le, map(add, map(abs, lat), settled[2]), settled[3]))):
-            return
-        member_lane, overlap, window_lane = self._member_lane, self._overlap, self._window_lane
-        for vid, lane, li, lt in zip(ids, lanes, lane_index, lat):
-            member_lane[vid] = lane
-            other = self._overlapped_lane(lane, li, lt, self.members[vid].width)
-            if other is not None:
-                overlap[vid] = other
-            elif overlap:
-                overlap.pop(vid, None)
-            if window_lane.get(vid) != lane:
-                self._advance_route_window(vid, lane)
-        self._settled = None
-        if all(window_lane.get(vid) == lane for vid, lane in zip(ids, lanes)):
-            self._settled = (list(ids), lanes, [self.members[vid].width / 2 for vid in ids],
-                             [self._half_lane(lane) for lane in lanes])
-
-    def _half_lane(self, lane_id: str) -> float:
-        """Half the width of a lane [m] for :meth:`_track_lanes` (inf: never overlapped)."""
-        if not lane_id or lane_id.startswith(":"):
-            return np.inf
-        return self._lane_geo(lane_id)[0] / 2
-
-    def _lane_geo(self, lane_id: str) -> tuple[float, int, str]:
-        """A lane's width [m], its edge's number of lanes and the edge id (read once)."""
-        geo = self._lane_geometry.get(lane_id)
-        if geo is None:
-            edge = lane_id.rsplit("_", 1)[0]
-            geo = self._lane_geometry[lane_id] = (self.api.lane.getWidth(lane_id),
-                                                  self.api.edge.getLaneNumber(edge), edge)
-        return geo
 
     def remove_vehicle(self, vid: str) -> None:
         """Take a vehicle out of SUMO. Its subscriptions are dropped first: libsumo 1.28 raises

@@ -33,9 +33,10 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
                         "governor": 0.0, "control_model": 0.0, "record": 0.0}
     load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, plan.road.line)
     if not plan.formations:  # one formation from t = 0
+        from .fused_path import fused_path
         gen, transforms, state = built[0]
         return one_formation(world, gen, fleet, state, transforms=transforms,
-                             timing=meta["timing_s"], road_load=load)
+                             timing=meta["timing_s"], road_load=load, fused=fused_path)
     forms = []
     for (setup, _, rows), (gen, transforms, state) in zip(parts, built):
         waits = setup.depart > 0 or bool(setup.flow)

@@ -1,0 +1,253 @@
+"""The usual step of a road run as one compiled call (issue 33, item 1).
+
+:func:`fused_step` runs, for every member of every formation, what the loop (sim/loop.py
+``step_loop``) runs in a step where nothing out of the ordinary happens, in the loop's order
+and through the very kernels the loop calls one by one:
+
+    sense      sim/fleet.py kinematics_rows, sumo/sense.py sense_step
+    reference  control/reference_group.py group_reference_step (road_reference_step per
+               formation: governor, planner, the virtual car's rows)
+    observe    the neighbours' background rows
+    record     sim/fleet.py member_signals (the members' trajectory and comfort rows), the
+               road and SUMO columns, one virtual-car row per formation,
+               sim/incidents.py member_clearances
+    control    sim/fleet.py step_members (every control period, the comfort rows of periods
+               1 .. n_ctrl - 1)
+    actuate    the new state's poses in SUMO's frame (sumo/types.py cog_to_sumo_rows), the
+               members' speeds and mean accelerations over the step
+
+Everything a step writes goes into arrays the caller owns (the tables' buffers at the rows
+it names, the planners' state in place); events, string columns and SUMO's calls stay in
+Python (sumo/fused_path.py), which also decides which steps are usual. The results are those
+of the loop's step, bit for bit (tests/test_fused_step.py).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..control.reference_group import group_reference_step
+from ..kernels import kernel
+from ..models.bicycle import S
+from ..models.state import KINEMATIC
+from ..sim.fleet import kinematics_rows, member_signals, step_members
+from ..sim.incidents import member_clearances
+from .sense import sense_step
+from .types import cog_to_sumo_rows
+
+OUT_OF_RANGE = 1
+"""fused_step flag: a recorded signal is beyond the recorder's limits (a model_range event)."""
+NOT_FINITE = 2
+"""fused_step flag: the members' new state is not finite (sim/loop.py ModelRangeError)."""
+SLOW = 4
+"""fused_step flag: a member stands while its speed reference does not (sim/incidents.py)."""
+EMERGENCY = 8
+"""fused_step flag: the virtual car or a member is on emergency braking (sumo/events.py)."""
+
+
+@kernel
+def fused_step(kind, P, law, L, gains, pred, n_sub, dt_c, step, x, theta_star, speed_in, u_last,
+               G, lane_table, lane_points, tolerance, s_guess, d_front, front, angle, lane_pos,
+               lat, li, nb_front, nb_angle, nb_length, nb_width, nb_guess, nb_v, nb_a,
+               profs, prof_at, t, s, v, along, slot_d, is_road, half_w, starts, lims, pps, a_vc,
+               emergency_vc, a_cap_prev, v_prev, has_prev, emergency, ramps, frame, slots,
+               vc, a_cap_from, a_request, s_next, v_next, gap, lead_idx, a_cap_req, a_cap, truth,
+               sig, cols, limits, traj, traj_ids, at, comfort, comfort_ids, c_at, comfort_cols,
+               extras, slot_index, lane_index, vc_cols, vc_codes,
+               bg_floats, bg_ints, bg_at, bg_codes, nb_lane_index,
+               inc_cols, inc_shift, inc_length, inc_width, inc_clear, stranded,
+               periods, v_m, m_gap, place, pos, vel, heading):
+    """One usual step of the road run at t [s] (module docstring). Arguments, in groups:
+
+    fleet     ``kind`` .. ``u_last``: sim/fleet.py step_members' (the state x, theta_star,
+              speed_in, u_last at t; ``step`` the SUMO step [s]);
+    sense     ``G`` .. ``nb_a``: sumo/sense.py sense_step's (the members' and the neighbours'
+              SUMO rows; ``nb_v``, ``nb_a`` the neighbours' speeds [m/s] and accelerations
+              [m/s^2]);
+    reference ``profs`` .. ``truth``: control/reference_group.py group_reference_step's, every
+              formation running (``s``, ``v``, ``a_vc``, ``emergency_vc``, ``has_prev`` and the
+              planners' arrays updated in place), ``frame``, ``slots`` the members' slots;
+    record    ``sig`` (n, signal columns) the members' signals; member_signals' table
+              arguments (``traj`` the trajectory table's float block, ``at`` its first row
+              of the step, ``comfort`` .. ``comfort_cols`` the comfort table's; ``limits``
+              the recorder's: a signal beyond them is flagged and its row written all the
+              same, as the recorder writes it); ``extras``
+              the trajectory's road and SUMO columns (s, d, lane_index, sumo_gap, slot,
+              leader_age_s: record/columns.py FILLED_BY_CALLER) at the same rows;
+              ``vc_cols`` the float-block rows of t, x, y, heading, v, yaw_rate, a_lon,
+              a_lat, s, d of a virtual-car row, ``vc_codes`` each formation's vehicle_id code;
+              ``bg_floats``, ``bg_ints`` the background table's blocks from row ``bg_at``
+              with the neighbours' string codes ``bg_codes`` (3, m) and lane indices;
+    incidents ``inc_cols`` (x, y, heading, v, v_ref columns of ``sig``), the bodies and the
+              clearance matrix of sim/incidents.py member_clearances, ``stranded`` (speed
+              [m/s], reference [m/s] of a stranded member);
+    control   ``periods`` (n_ctrl, n, 3) step_members' comfort buffer (its rows written at
+              c_at + n of the comfort table);
+    out       ``v_m`` the members' speeds [m/s] as sensed, ``m_gap`` their distance to
+              where SUMO has them [m] (the sumo_gap column), ``place`` (5, n): SUMO's front bumper x, y [m],
+              angle [deg], speed [m/s] and mean acceleration [m/s^2] over the step of the new
+              state, ``pos``, ``vel``, ``heading`` its CoG kinematics.
+
+    Returns (x, theta_star, speed_in, u_last) after the step, the members' and the
+    neighbours' arc lengths and offsets (n + m,) [m], the count of members farther than
+    ``tolerance`` from where SUMO has them, the smallest clearance between members [m] and
+    the flags OUT_OF_RANGE | NOT_FINITE | SLOW | EMERGENCY."""
+    n = x.shape[0]
+    pos0, vel0, hd0 = kinematics_rows(x, speed_in, kind)  # sense (SumoWorld.sense)
+    s_all, d_all, v_sense, g, n_off, nb_x, nb_y, nb_psi, rear, nb_half_w = sense_step(
+        G, pos0, vel0, s_guess, hd0, d_front, front, angle, lane_pos, lat, li, lane_table,
+        lane_points, tolerance, nb_front, nb_angle, nb_length, nb_width, nb_guess)
+    for i in range(n):
+        v_m[i] = v_sense[i]
+        m_gap[i] = g[i]
+    active = np.ones(n, dtype=np.bool_)
+    flags = _reference(G, profs, prof_at, t, s, v, along, slot_d, is_road, d_front, half_w,
+                       s_all[:n], d_all[:n], v_sense, active, rear, d_all[n:], nb_half_w, nb_v,
+                       starts, lims, pps, a_vc, emergency_vc, a_cap_prev, v_prev, has_prev,
+                       emergency, dt_c, vc, ramps, a_cap_from, a_request, s_next, v_next, gap,
+                       lead_idx, a_cap_req, a_cap, truth)
+    _background_rows(bg_floats, bg_ints, bg_at, t, nb_x, nb_y, nb_psi, nb_v, nb_a, nb_length,
+                     nb_width, s_all[n:], d_all[n:], bg_codes, nb_lane_index)
+    v_cap = np.full(n, np.inf)
+    no_limits = np.full(limits.shape[0], np.inf)  # the rows are written whatever the values
+    member_signals(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, G, frame, vc,
+                   slots, v_cap, a_cap, a_cap_from, dt_c, cols, sig, t, no_limits, traj,
+                   traj_ids, at, comfort, comfort_ids, c_at, comfort_cols)
+    flags |= _road_columns(sig, limits, extras, at, s_all, d_all, lane_index, g, slot_index, traj,
+                           traj_ids, vc_cols, vc_codes, t, truth, inc_cols, stranded)
+    worst = member_clearances(sig, inc_cols[0], inc_cols[1], inc_cols[2], inc_shift, inc_length,
+                              inc_width, active, inc_clear)
+    x1, ts1, sp1, ul1 = step_members(x, theta_star, speed_in, u_last, kind, P, law, L, gains,
+                                     pred, G, frame, vc, slots, v_cap, a_cap, a_cap_from, dt_c,
+                                     n_sub, periods, t, comfort, comfort_ids,
+                                     c_at + n if periods.shape[0] > 1 else -1)
+    flags |= _placed(kind, x, speed_in, x1, sp1, d_front, step, place, pos, vel, heading)
+    return x1, ts1, sp1, ul1, s_all, d_all, n_off, worst, flags
+
+
+@kernel
+def _reference(G, profs, prof_at, t, s, v, along, slot_d, is_road, d_front, half_w, m_s, m_d,
+               v_m, active, nb_rear, nb_d, nb_half_w, nb_v, starts, lims, pps, a_vc,
+               emergency_vc, a_cap_prev, v_prev, has_prev, emergency, dt_c, vc, ramps,
+               a_cap_from, a_request, s_next, v_next, gap, lead_idx, a_cap_req, a_cap, truth):
+    """Every formation's reference at t [s] (group_reference_step, every formation running,
+    no released member among the neighbours); returns EMERGENCY when a virtual car or a
+    member is on emergency braking, else 0."""
+    k = s.shape[0]
+    m = nb_rear.shape[0]
+    group_reference_step(G, profs, prof_at, np.full(k, t), s, v, along, slot_d, is_road,
+                         d_front, half_w, m_s, m_d, v_m, active, nb_rear, nb_d, nb_half_w, nb_v,
+                         np.zeros(m, dtype=np.bool_), np.full(m, -1, dtype=np.int64), starts,
+                         lims, pps, a_vc, emergency_vc, a_cap_prev, v_prev, has_prev, emergency,
+                         dt_c, vc, ramps, a_cap_from, np.ones(k, dtype=np.bool_), a_request,
+                         s_next, v_next, gap, lead_idx, a_cap_req, a_cap, truth)
+    for f in range(k):
+        if emergency_vc[f]:
+            return EMERGENCY
+    for i in range(emergency.shape[0]):
+        if emergency[i]:
+            return EMERGENCY
+    return 0
+
+
+@kernel
+def _background_rows(fl, ints, at, t, x, y, psi, v, a, length, width, s, d, codes, lane_index):
+    """The neighbours' rows of the background table from row ``at`` (Recorder.add_background):
+    ``fl``, ``ints`` its float and integer blocks, ``codes`` (3, m) the ids', types' and
+    lanes' string codes."""
+    for j in range(x.shape[0]):
+        r = at + j
+        fl[0, r] = t
+        fl[1, r] = x[j]
+        fl[2, r] = y[j]
+        fl[3, r] = psi[j]
+        fl[4, r] = v[j]
+        fl[5, r] = a[j]
+        fl[6, r] = length[j]
+        fl[7, r] = width[j]
+        fl[8, r] = s[j]
+        fl[9, r] = d[j]
+        for q in range(3):
+            ints[q, r] = codes[q, j]
+        ints[3, r] = lane_index[j]
+
+
+@kernel
+def _road_columns(sig, limits, extras, at, s_all, d_all, lane_index, gap, slot_index, traj,
+                  traj_ids, vc_cols, vc_codes, t, truth, inc_cols, stranded):
+    """After member_signals: the members' road and SUMO columns at rows ``at`` .. of the
+    trajectory table (Recorder.add_step's ``extra``), each running formation's virtual-car
+    row after them; returns OUT_OF_RANGE (a signal beyond the recorder's ``limits``:
+    member_signals' test) | SLOW (a member stands while its speed reference does not:
+    sim/incidents.py)."""
+    flags = 0
+    n = sig.shape[0]
+    for i in range(n):
+        for q in range(sig.shape[1]):
+            if abs(sig[i, q]) > limits[q]:
+                flags |= OUT_OF_RANGE
+        if sig[i, inc_cols[3]] < stranded[0] and sig[i, inc_cols[4]] > stranded[1]:
+            flags |= SLOW
+        r = at + i
+        extras[0, r] = s_all[i]
+        extras[1, r] = d_all[i]
+        extras[2, r] = lane_index[i]
+        extras[3, r] = gap[i]
+        extras[4, r] = slot_index[i]
+        extras[5, r] = 0.0
+    e = at + n
+    for f in range(truth.shape[0]):
+        if truth[f, 0] == truth[f, 0]:
+            _vc_row(traj, e, vc_cols, t, truth[f])
+            traj_ids[e] = vc_codes[f]
+            e += 1
+    return flags
+
+
+@kernel
+def _placed(kind, x, speed_in, x1, sp1, d_front, step, place, pos, vel, heading):
+    """The new state (x1, sp1) as SumoWorld.actuate places it: into ``place`` (5, n) SUMO's
+    front bumper x, y [m] and angle [deg], the speed [m/s] and the mean acceleration over the
+    ``step`` [s] [m/s^2]; its CoG ``pos``, ``vel``, ``heading``. Returns NOT_FINITE when the
+    new state is not finite (sim/loop.py check_finite), else 0."""
+    n = x.shape[0]
+    flags = 0
+    for i in range(n):
+        for q in range(x1.shape[1]):
+            if not math.isfinite(x1[i, q]):
+                flags = NOT_FINITE
+    p1, v1, h1 = kinematics_rows(x1, sp1, kind)
+    xf, yf, ang = cog_to_sumo_rows(p1[:, 0].copy(), p1[:, 1].copy(), h1, d_front)
+    for i in range(n):
+        before = x[i, S.V] if kind != KINEMATIC else speed_in[i]
+        after = x1[i, S.V] if kind != KINEMATIC else sp1[i]
+        place[0, i] = xf[i]
+        place[1, i] = yf[i]
+        place[2, i] = ang[i]
+        place[3, i] = after
+        place[4, i] = (after - before) / step
+        pos[i, 0] = p1[i, 0]
+        pos[i, 1] = p1[i, 1]
+        vel[i, 0] = v1[i, 0]
+        vel[i, 1] = v1[i, 1]
+        heading[i] = h1[i]
+    return flags
+
+
+@kernel
+def _vc_row(traj, e, cols, t, truth):
+    """Row ``e`` of the trajectory float block ``traj``: a virtual car (``truth``: x, y,
+    theta, v, omega, v_dot, omega_dot, s; control/reference.py Reference.truth) at t [s],
+    every member-only column NaN (sim/recorder.py Recorder._vc_row; ``cols``: the rows of t,
+    x, y, heading, v, yaw_rate, a_lon, a_lat, s, d)."""
+    for q in range(traj.shape[0]):
+        traj[q, e] = np.nan
+    s = truth[7]
+    traj[cols[0], e] = t
+    for q in range(5):
+        traj[cols[1 + q], e] = truth[q]
+    traj[cols[6], e] = truth[5]
+    traj[cols[7], e] = truth[3] * truth[4]
+    traj[cols[8], e] = s
+    traj[cols[9], e] = 0.0 if s == s else np.nan

@@ -1,0 +1,143 @@
+"""The usual step as one compiled call (sumo/fused_path.py, issue 33 item 1) writes the files
+the loop's own step writes, byte for byte, whatever happens in the run: real SUMO through
+libsumo, each case run twice, with the fused step and with ``FORMATION_TRACI_FUSED=off``.
+
+Each case also checks that the fused step took most of the run's steps (a fused path that
+silently never ran would pass the comparison) and that the run had the events the case is
+about (a case that no longer provokes them would test nothing)."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from formation_traci.runner import run_scenario
+from formation_traci.scenario import load_scenario
+from formation_traci.sim import recorder as recorder_module
+from formation_traci.sumo import fused_path
+from formation_traci.sumo.plan import MEMBER_VCLASS
+
+ROOT = Path(__file__).resolve().parents[1]
+LIGHT = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
+MEDIUM = ROOT / "scenarios" / "highway" / "straight_3lane_medium.toml"
+HEAVY = ROOT / "scenarios" / "highway" / "straight_wedge5_heavy.toml"
+
+
+def _cut_in(k, t, ad):
+    """At step 40 a SUMO car is put beside the formation 25 m ahead of the right member; at
+    step 60 it changes into that member's lane."""
+    api = ad.api
+    if k == 40:
+        car = [v for v in api.vehicle.getIDList() if v not in ad.members][0]
+        x, y = api.vehicle.getPosition("right")
+        ang = api.vehicle.getAngle("right")
+        dx, dy = math.sin(math.radians(ang)), math.cos(math.radians(ang))
+        api.vehicle.setLaneChangeMode(car, 0)
+        api.vehicle.moveToXY(car, "", -1, x + 25 * dx - 3.5 * dy, y + 25 * dy + 3.5 * dx, ang, 1)
+        api.vehicle.setSpeed(car, api.vehicle.getSpeed("right"))
+        _cut_in.car = car
+    if k == 60:
+        api.vehicle.changeLane(_cut_in.car, api.vehicle.getLaneIndex("right"), 3.0)
+
+
+def _brake_the_cars_ahead(k, t, ad):
+    """At step 40 the SUMO car ahead of each member brakes to a stop at 8 m/s^2."""
+    if k == 40:
+        for m in ad.members:
+            lead = ad.api.vehicle.getLeader(m, 150.0)
+            if lead and lead[0] not in ad.members:
+                ad.api.vehicle.setDecel(lead[0], 8.0)
+                ad.api.vehicle.setEmergencyDecel(lead[0], 9.0)
+                ad.api.vehicle.slowDown(lead[0], 0.0, 3.0)
+
+
+def _remove_left(k, t, ad):
+    if k == 40:
+        ad.remove_vehicle("left")
+
+
+def _car_onto_centre(k, t, ad):
+    if k == 30:
+        api = ad.api
+        other = [v for v in api.vehicle.getIDList() if v not in ad.members][0]
+        x, y = api.vehicle.getPosition("centre")
+        api.vehicle.moveToXY(other, "", -1, x - 1.0, y, api.vehicle.getAngle("centre"), 1)
+
+
+def _close_two_lanes(k, t, ad):
+    if k == 20:
+        cls = MEMBER_VCLASS["passenger_car"]
+        for i in range(3):
+            ad.api.lane.setDisallowed(f"main_{i}", [cls])
+        ad.api.lane.setAllowed("main_0", [cls])
+
+
+# name: (scenario, overrides, step hook, events the run must have, recorder speed limit
+# [m/s], steps per part file); a member out of the run ends the fused steps (the members left
+# run the loop's own step), so those cases ask for the steps before it only
+MOST = 0.5
+UNTIL_REMOVED = {"member removed by SUMO": 35 / 120, "refused moves, placement mismatch": 15 / 120}
+CASES = {
+    "a cut-in, tables cut every 10 steps": (
+        LIGHT, {"run.duration": 8.0, "traffic.warmup": 20.0}, _cut_in,
+        {"lane_change", "cut_in", "emergency_brake"}, None, 10),
+    "heavy traffic": (HEAVY, {"run.duration": 10.0, "traffic.warmup": 40.0}, None, {"lane_change"},
+                      None, None),
+    "emergency braking": (
+        MEDIUM, {"run.duration": 12.0, "traffic.warmup": 30.0}, _brake_the_cars_ahead,
+        {"emergency_brake", "emergency_end"}, None, None),
+    "member removed by SUMO": (
+        LIGHT, {"run.duration": 6.0, "traffic.warmup": 20.0}, _remove_left, {"member_removed"}, None, None),
+    "collision with a SUMO car": (
+        LIGHT, {"run.duration": 6.0, "traffic.warmup": 20.0}, _car_onto_centre, {"collision"}, None, None),
+    "refused moves, placement mismatch": (
+        LIGHT, {"run.duration": 6.0, "traffic.warmup": 20.0}, _close_two_lanes,
+        {"move_refused", "placement_mismatch"}, None, None),
+    "signals out of range": (
+        LIGHT, {"run.duration": 8.0, "traffic.warmup": 20.0, "leader.speed": 31.0}, None,
+        {"model_range"}, 30.5, None),
+    "end of the route": (
+        LIGHT, {"run.duration": 60.0, "traffic.warmup": 20.0, "road.start": 5550.0}, None,
+        {"end_of_road"}, None, None),
+}
+
+
+def _run(tmp_path, name, case, monkeypatch, fused: bool):
+    path, overrides, hook, _, v_max, chunk = case
+    if v_max is not None:
+        monkeypatch.setattr(recorder_module, "MAX_SPEED", v_max)
+    if chunk is not None:
+        monkeypatch.setattr(recorder_module, "STEPS_PER_CHUNK", chunk)
+    monkeypatch.setenv(fused_path.SWITCH, "on" if fused else "off")
+    out = tmp_path / name
+    res = run_scenario(load_scenario(path, **overrides), out, scenario_path=path, progress=False,
+                       step_hook=hook)
+    return res, out
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_fused_steps_write_the_files_of_the_loops_own_steps(tmp_path, monkeypatch, name):
+    case = CASES[name]
+    taken = []
+    step = fused_path.FusedPath.step
+    monkeypatch.setattr(fused_path.FusedPath, "step",
+                        lambda self, *a: taken.append(a[0]) or step(self, *a))
+    fused, a = _run(tmp_path, "fused", case, monkeypatch, True)
+    n_fused = len(taken)
+    loop, b = _run(tmp_path, "loop", case, monkeypatch, False)
+    assert len(taken) == n_fused  # the switch turned the fused path off
+    share = UNTIL_REMOVED.get(name, MOST)
+    assert n_fused > share * fused.steps_done, f"only {n_fused} of {fused.steps_done} steps fused"
+    ev = pd.read_parquet(a / "events.parquet")
+    assert case[3] <= set(ev.kind), f"the case provoked {sorted(set(ev.kind))}"
+    assert (fused.status, fused.reason, fused.steps_done) == (loop.status, loop.reason, loop.steps_done)
+    ma, mb = (json.loads((d / "run.json").read_text()) for d in (a, b))
+    for key in ("incidents", "incident_summary", "event_counts", "tables", "stopped_early", "t_end"):
+        assert ma.get(key) == mb.get(key), key
+    parts = {p.relative_to(a).as_posix() for p in a.rglob("*.parquet") if p.is_file()}
+    assert parts == {p.relative_to(b).as_posix() for p in b.rglob("*.parquet") if p.is_file()}
+    for part in sorted(parts):
+        assert (a / part).read_bytes() == (b / part).read_bytes(), part
