@@ -247,9 +247,7 @@ def outputs_applied_at(psi, v, beta, r, delta, a_ref, ddelta, P, i):
     """:func:`outputs_at` with the applied wheel steering rate ``ddelta`` [rad/s]."""
     alpha_f, alpha_r, _, _, f_lf, f_max, _ = forces_at(v, beta, r, delta, a_ref, P, i)
     d = rhs_applied_at(psi, v, beta, r, delta, a_ref, ddelta, P, i)
-    course_rate = d[4] + r
-    a_lon = d[3] * np.cos(beta) - v * np.sin(beta) * course_rate
-    a_lat = d[3] * np.sin(beta) + v * np.cos(beta) * course_rate
+    a_lon, a_lat = body_accelerations(v, beta, r, d[3], d[4])
     usage = np.hypot(a_lon, a_lat) / (P[i, _MU] * G)
     power = f_lf * (v * np.cos(beta) * np.cos(delta)
                     + (v * np.sin(beta) + P[i, _A] * r) * np.sin(delta))
@@ -258,6 +256,16 @@ def outputs_applied_at(psi, v, beta, r, delta, a_ref, ddelta, P, i):
         ratio = P[i, _DRAG]
         drag = aero_force(v, P[i, _CD], P[i, _AREA], P[i, _RHO], ratio)
     return a_lon, a_lat, alpha_f, alpha_r, f_lf, f_max, usage, d[6], power, drag, ratio
+
+
+@kernel
+def body_accelerations(v, beta, r, v_dot, beta_dot):
+    """Accelerations of the centre of gravity in the body frame [m/s^2], (a_lon, a_lat), of a
+    state with speed v [m/s], side slip beta [rad] and yaw rate r [rad/s] whose speed and
+    side slip change at v_dot [m/s^2] and beta_dot [rad/s] (:func:`outputs_applied_at`)."""
+    course_rate = beta_dot + r
+    return (v_dot * np.cos(beta) - v * np.sin(beta) * course_rate,
+            v_dot * np.sin(beta) + v * np.cos(beta) * course_rate)
 
 
 OUTPUT_NAMES = ("a_lon", "a_lat", "slip_front", "slip_rear", "traction_force",

@@ -49,6 +49,14 @@ def rk4_row(kind, s, u0, u1, P, i, h, n_sub, w, stages):
     The input is (u0, u1) held, or with ``stages`` of shape (n_sub, 3, 2) the input at the
     stage times t0, t0 + h/2, t0 + h of each sub-step (a time-varying input); ``w`` is
     scratch of shape (5, len(s))."""
+    rk4_row_from(kind, s, u0, u1, P, i, h, n_sub, w, stages, False)
+
+
+@kernel
+def rk4_row_from(kind, s, u0, u1, P, i, h, n_sub, w, stages, k1_given):
+    """:func:`rk4_row`; with ``k1_given`` the first sub-step's first stage, the right-hand
+    side at ``s`` under the input at t0, is already in ``w[0]`` (sim/fleet.py step_members
+    computes it first for the comfort table's accelerations: the same numbers, once)."""
     m = s.shape[0]
     hh = 0.5 * h
     h6 = h / 6.0
@@ -63,7 +71,8 @@ def rk4_row(kind, s, u0, u1, P, i, h, n_sub, w, stages):
             a0, a1 = stages[q, 0, 0], stages[q, 0, 1]
             b0, b1 = stages[q, 1, 0], stages[q, 1, 1]
             c0, c1 = stages[q, 2, 0], stages[q, 2, 1]
-        rhs_into(kind, s, a0, a1, P, i, k1)
+        if not (k1_given and q == 0):
+            rhs_into(kind, s, a0, a1, P, i, k1)
         for a in range(m):
             y[a] = s[a] + hh * k1[a]
         rhs_into(kind, y, b0, b1, P, i, k2)
@@ -118,4 +127,5 @@ def rk4_for(model):
     fixes = {"model_rhs": model.rhs_into, "model_constrain": getattr(model, "constrain", None)}
     if fixes["model_constrain"] is None:
         fixes["model_constrain"] = rebind(_none)
-    return rebind(rk4_row, rhs_into=rebind(_rhs, **fixes), constrain=rebind(_constrain, **fixes))
+    steps = rebind(rk4_row_from, rhs_into=rebind(_rhs, **fixes), constrain=rebind(_constrain, **fixes))
+    return rebind(rk4_row, rk4_row_from=steps)

@@ -24,7 +24,7 @@ from ..control.schedule import GainSchedule
 from ..control.targets import desired_point_at
 from ..kernels import kernel, maximum, substeps
 from ..models import bicycle, kinematic
-from ..models.integrator import HELD, rk4_row
+from ..models.integrator import HELD, rhs_into, rk4_row_from
 from ..models.params import _DRAG, _GRADE, BicycleParams, N_PARAMS, pack_params
 from ..models.bicycle import S
 from ..models.state import DYNAMIC, KINEMATIC, motion_at
@@ -120,11 +120,17 @@ def step_members(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, 
             U0[i] = res[0]
             U1[i] = res[1]
             tsd[i] = res[4]
-            if comfort.shape[0] == vc.shape[0]:
+            if kind == KINEMATIC and comfort.shape[0] == vc.shape[0]:
                 _comfort_values(kind, x, i, P, res, comfort, j)
         for i in range(n):
             theta_star[i] = theta_star[i] + tsd[i] * dt_c
-            rk4_row(kind, x[i], U0[i], U1[i], P, i, h, n_sub, w, HELD)
+            k1 = kind != KINEMATIC and comfort.shape[0] == vc.shape[0]
+            if k1:  # the period's accelerations from RK4's first stage: its own numbers
+                rhs_into(kind, x[i], U0[i], U1[i], P, i, w[0])
+                comfort[j, i, 0] = x[i, S.V]
+                comfort[j, i, 1], comfort[j, i, 2] = bicycle.body_accelerations(
+                    x[i, S.V], x[i, S.BETA], x[i, S.R], w[0, S.V], w[0, S.BETA])
+            rk4_row_from(kind, x[i], U0[i], U1[i], P, i, h, n_sub, w, HELD, k1)
             if kind == KINEMATIC:
                 speed_in[i] = maximum(U0[i], 0.0)
         for i in range(n):
@@ -144,19 +150,14 @@ def step_members(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, 
 
 @kernel
 def _comfort_values(kind, x, i, P, res, out, j):
-    """Speed [m/s], a_lon and a_lat [m/s^2] of member i into out[j, i] (as
-    :func:`_signal_values` computes them from the same inputs)."""
-    if kind == KINEMATIC:
-        vk = maximum(res[0], 0.0)
-        out[j, i, 0] = vk
-        out[j, i, 1] = res[5]
-        out[j, i, 2] = vk * res[1]
-        return
-    a_lon, a_lat, sf, sr, f_lf, f_max, usage, rate, power, drag, ratio = bicycle.outputs_of(
-        x[i], res[0], res[1], P, i)
-    out[j, i, 0] = x[i, S.V]
-    out[j, i, 1] = a_lon
-    out[j, i, 2] = a_lat
+    """Speed [m/s], a_lon and a_lat [m/s^2] of member i on the kinematic model into out[j, i]
+    (as :func:`_signal_values` computes them from the same inputs; the dynamic model's come
+    from RK4's first stage in :func:`step_members`, which :func:`_signal_values`' outputs_of
+    computes alike)."""
+    vk = maximum(res[0], 0.0)
+    out[j, i, 0] = vk
+    out[j, i, 1] = res[5]
+    out[j, i, 2] = vk * res[1]
 
 
 @kernel
