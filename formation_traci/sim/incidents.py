@@ -121,6 +121,7 @@ class Incidents:
         self.is_stranded = np.zeros(n, dtype=bool)
         self._sumo_prev: set = set()  # (collider, victim) SUMO reported at the last report
         self._standing = False  # any member in slow_since
+        self.busy = False  # a contact, a stranded or standing member: after_clearances has work
         self.n = dict.fromkeys(("member_collisions", "stranded", "sumo_collision_artefacts"), 0)
 
     def step(self, t: float, sig: np.ndarray, active: np.ndarray) -> None:
@@ -142,6 +143,7 @@ class Incidents:
         elif self._standing:
             self.slow_since[:] = np.nan
             self._standing = False
+        self.busy = bool(self._standing or self.contact.any() or self.is_stranded.any())
 
     def _contacts(self, t):
         n = len(self.ids)

@@ -77,6 +77,10 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         v = self.api.vehicle
         self._move_xy = v.moveToXY if fast is None else fast.vehicle_moveToXY
         self._set_previous_speed = v.setPreviousSpeed if fast is None else fast.vehicle_setPreviousSpeed
+        # libsumo's simulationStep also runs its step listeners (traci's API): the package adds none
+        self._sim_step = self.api.simulationStep if fast is None else fast.simulation_step
+        self._all_results = (v.getAllSubscriptionResults if fast is None
+                             else fast.vehicle_getAllSubscriptionResults)
         self._started = False
         self.departed: dict[str, int] = {}  # flow id -> vehicles SUMO inserted (see count_departures)
         self.departures: list[tuple[str, float]] = []  # (vehicle id, SUMO time [s]) of every insertion
@@ -200,9 +204,9 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
 
     def _member_vars(self):
         tc = self.tc
-        self._member_get = itemgetter(tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_LANE_ID,
-                                      tc.VAR_LANE_INDEX, tc.VAR_LANEPOSITION_LAT,
-                                      tc.VAR_LANEPOSITION)
+        self._member_keys = (tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_LANE_ID, tc.VAR_LANE_INDEX,
+                             tc.VAR_LANEPOSITION_LAT, tc.VAR_LANEPOSITION)
+        self._member_get = itemgetter(*self._member_keys)
         return [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_LANE_ID, tc.VAR_LANE_INDEX,
                 tc.VAR_LANEPOSITION, tc.VAR_LANEPOSITION_LAT]
 
@@ -254,7 +258,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
     def step(self) -> StepEvents:
         """One SUMO step; returns the collisions, teleports and arrivals it reported."""
         try:
-            self.api.simulationStep()
+            self._sim_step(0.0)
         except Exception as exc:
             raise SumoError(f"SUMO raised during the step to t = {self.time:.2f} s: {exc}") from exc
         sim = self.api.simulation
@@ -272,8 +276,12 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
     def set_true_speeds(self, ids: list[str], v, a) -> None:
         """Tell SUMO each member's true speed [m/s] and acceleration [m/s^2] (it would infer
         a half-step-late mean speed clamped to the lane limit from the distance moved)."""
+        self.tell_speeds(ids, np.maximum(v, 0.0).tolist(), a.tolist())
+
+    def tell_speeds(self, ids: list[str], v: list[float], a: list[float]) -> None:
+        """:meth:`set_true_speeds` with the speeds (not below 0) and accelerations as lists."""
         set_speed = self._set_previous_speed
-        for vid, vi, ai in zip(ids, np.maximum(v, 0.0).tolist(), a.tolist()):
+        for vid, vi, ai in zip(ids, v, a):
             try:
                 set_speed(vid, vi, ai)
             except self.api.TraCIException:

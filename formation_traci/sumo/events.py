@@ -163,10 +163,13 @@ class RefusalWatch:
         self.rec, self.ids = rec, ids
         self.sumo_ids = ids if sumo_ids is None else sumo_ids  # SUMO's id of each member (join)
         self.run = np.zeros(len(ids), dtype=int)
+        self.counting = False  # a member's run of refusals is under way (self.run.any())
 
     def __call__(self, t, act_idx, refused: dict, active, adapter) -> None:
         if not refused:  # every move taken (the usual step)
-            self.run[act_idx] = 0
+            if self.counting:
+                self.run[act_idx] = 0
+                self.counting = bool(self.run.any())
             return
         for i in act_idx:
             vid = self.ids[i]
@@ -180,3 +183,4 @@ class RefusalWatch:
                 adapter.remove_vehicle(self.sumo_ids[i])
                 self.rec.add_event(t, "member_removed", vid, "",
                                    f"dropped after {MAX_REFUSED} refused moves in a row")
+        self.counting = bool(self.run.any())

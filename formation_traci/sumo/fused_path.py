@@ -27,6 +27,7 @@ from ..control.reference_road import RoadReference
 from ..record.columns import COMFORT_COLUMNS, FILLED_BY_CALLER, SIGNAL_COLUMNS
 from ..sim.fleet import step_members
 from ..sim.incidents import STRANDED_SPEED, STRANDED_V_REF, _H, _V, _VREF, _X, _Y
+from ..sim.fleet_state import FleetState
 from ..sim.loop import check_finite
 from .events import PLACEMENT_TOLERANCE
 from .fused_step import EMERGENCY, NOT_FINITE, OUT_OF_RANGE, SLOW, fused_step
@@ -36,9 +37,11 @@ SWITCH = "FORMATION_TRACI_FUSED"
 """Environment variable: ``off`` runs every step through the loop's own path (a diagnostic:
 the files are the same either way, tests/test_fused_step.py)."""
 
-_NO_NB = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0), np.empty(0),
-          np.empty(0), np.empty((3, 0), dtype=np.int32), np.empty(0, dtype=np.int64))
-"""The neighbours' arrays of a step with no vehicle near the formation."""
+_VC_COLUMNS = ("t", "x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "s", "d")
+"""The float columns of a virtual-car row (sim/recorder.py Recorder._vc_row), fused_step's order."""
+
+_NO_NB = (np.empty((0, 7)), np.empty(0), np.empty((3, 0), dtype=np.int32), np.empty(0, dtype=np.int64))
+"""fused_step's neighbour arguments for a step with no vehicle near the formation."""
 
 
 class _NbView:
@@ -76,42 +79,49 @@ class FusedPath:
     control periods' rows, the moves and SUMO's step)."""
 
     def __init__(self, parts, rec, sc):
-        self.world, self.fleet, self.rec = parts.world, parts.fleet, rec
-        self.gen = parts.formations[0].generator
-        fl, gen, n = self.fleet, self.gen, parts.fleet.cfg.n
-        self.n, self.step_s = n, sc.run.step
+        self.world, self.fleet, self.rec = w, fl, _ = parts.world, parts.fleet, rec
+        self.gen = gen = parts.formations[0].generator
+        self.planner = pl = gen.longitudinal
+        self.n = n = fl.cfg.n
+        self.step_s = float(sc.run.step)
         self.reach = gen.reach  # fixed for a run: the formation's front plus the end margin [m]
         self.n_steps = int(round(sc.run.duration / sc.run.step))
-        self.fleet_args = (fl.kind, fl.P, fl.law, fl.L, fl.gains, fl.pred, fl.n_sub(gen.dt_c),
-                           gen.dt_c, float(sc.run.step))
-        pl = gen.longitudinal
-        self.ref_args = (gen.prof, np.array([0, len(gen.prof)], dtype=np.int64))
-        self.ref_members = (gen.along, gen.slot_d, gen.is_road, gen.half_w,
-                            np.array([0, n], dtype=np.int64), gen.lim[None, :], pl.pp[None, :])
-        self.planner = pl
-        self.ramps = np.array([gen.ramp])
+        self.ids = list(fl.cfg.ids)
+        # the planner's scalars as arrays of one formation (synchronised with it every step)
+        self.s, self.v, self.a_vc = np.empty(1), np.empty(1), np.empty(1)
+        self.em_vc, self.has_prev = np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.bool_)
         self.vc = np.empty((gen.n_ctrl, n, 8))
-        self.outs = tuple(np.empty(n) for _ in range(2))  # a_cap_from, gap
+        self.a_cap_from, self.gap, self.a_cap_req, self.a_cap = (np.empty(n) for _ in range(4))
         self.lead_idx = np.empty(n, dtype=np.int64)
-        self.caps = (np.empty(n), np.empty(n))  # a_cap_req, a_cap
-        self.per_f = tuple(np.empty(1) for _ in range(3))  # a_request, s_next, v_next
+        self.a_request, self.s_next, self.v_next = np.empty(1), np.empty(1), np.empty(1)
         self.truth = np.empty((1, 8))
         self.sig = np.full((n, len(SIGNAL_COLUMNS)), np.nan)
-        floats = rec._floats
-        self.vc_cols = np.array([floats.index(c) for c in
-                                 ("t", "x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "s", "d")],
-                                dtype=np.int64)
-        self.comfort_cols = rec._comfort_from
+        vc_cols = np.array([rec._floats.index(c) for c in _VC_COLUMNS], dtype=np.int64)
         inc = rec.incidents
-        self.inc_args = (np.array([_X, _Y, _H, _V, _VREF], dtype=np.int64), inc.shift, inc.length,
-                         inc.width, inc.clear, np.array([STRANDED_SPEED, STRANDED_V_REF]))
         self.periods = np.empty((gen.n_ctrl, n, 3))
-        self.v_m, self.m_gap, self.place = np.empty(n), np.empty(n), np.empty((5, n))
+        self.v_m, self.m_gap, self.place = np.empty(n), np.empty(n), np.empty((6, n))
         self.kin = (np.empty((n, 2)), np.empty((n, 2)), np.empty(n))
+        self.run_args = (
+            fl.kind, fl.P, fl.law, fl.L, fl.gains, fl.pred, fl.n_sub(gen.dt_c), gen.dt_c,
+            self.step_s, w.line.G, PLACEMENT_TOLERANCE, w.d_front, gen.prof,
+            np.array([0, len(gen.prof)], dtype=np.int64), gen.along, gen.slot_d, gen.is_road,
+            gen.half_w, np.array([0, n], dtype=np.int64), gen.lim[None, :], pl.pp[None, :],
+            np.array([gen.ramp]), gen.frame, gen.slots, self.s, self.v, self.a_vc, self.em_vc,
+            self.has_prev, pl.a_cap, gen._v_prev, pl.emergency, self.vc, self.a_cap_from,
+            self.a_request, self.s_next, self.v_next, self.gap, self.lead_idx, self.a_cap_req,
+            self.a_cap, self.truth, self.sig, fl.cols, rec._sig_limits, rec._float_block,
+            rec._traj_ids, rec._cf_block, rec._cf_ids, rec._comfort_from, rec._extra_block,
+            w.slot_index, vc_cols, rec.vc_codes, rec._bg_floats, rec._bg_ints,
+            np.array([_X, _Y, _H, _V, _VREF], dtype=np.int64), inc.shift, inc.length, inc.width,
+            inc.clear, np.array([STRANDED_SPEED, STRANDED_V_REF]), self.periods, self.v_m,
+            self.m_gap, self.place, *self.kin)
+        self._same = (pl.a_cap, gen._v_prev, pl.emergency, w.slot_index)  # kept in place
         self._lanes_key = None  # the settled lanes the packed rows below are of
         self._li = self._lane_index = None
         self._all = np.arange(n)
-        self._nb = None  # this step's neighbours: (ids, lane ids, lane index) for the watches
+        self._all_in = np.ones(n, dtype=np.bool_).tobytes()
+        self._rows = self._nb_rows = None
+        self._flags = 0
         if len(FILLED_BY_CALLER) != 8 or len(COMFORT_COLUMNS) != 6:
             raise ValueError("fused_step writes the road and SUMO columns of record/columns.py")
 
@@ -123,7 +133,8 @@ class FusedPath:
         w, rec, gen, n = self.world, self.rec, self.gen, self.n
         if (k >= self.n_steps or not w.inserted or len(w.pending) or w.released or w.adopting
                 or rec._any_out or gen.s + self.reach > gen.length
-                or (k + 1) % rec.steps_per_chunk == 0 or not w.active.all() or not w.in_sumo.all()):
+                or (k + 1) % rec.steps_per_chunk == 0 or w.active.tobytes() != self._all_in
+                or w.in_sumo.tobytes() != self._all_in or self._moved(w)):
             return False
         ev = w.ev
         if ev is not None and (ev.collisions or ev.teleports):
@@ -133,48 +144,47 @@ class FusedPath:
                 or cf.rows_buffered + n * self.periods.shape[0] > cf.chunk_rows):
             return False
         rows = w.adapter.settled_members(w.sumo_ids)
-        if rows is None or rows[2] != w.members._settled:
+        if rows is None or rows[1] != w.members._settled:
             return False
-        nb = w.adapter.neighbour_rows(w.all_bg)
+        nb = w.adapter.neighbour_table(w.all_bg)
         if nb is not None and rec.background.rows_buffered + len(nb[0]) > rec.background.chunk_rows:
             return False
         self._rows, self._nb_rows = rows, nb
         clock.lap("sumo_read")
         return True
 
+    def _moved(self, w) -> bool:
+        """True when an array the compiled step keeps was replaced (not changed in place)."""
+        a_cap, v_prev, emergency, slot = self._same
+        return not (self.planner.a_cap is a_cap and self.gen._v_prev is v_prev
+                    and self.planner.emergency is emergency and w.slot_index is slot)
+
     # ------------------------------------------------------------------ the step
     def step(self, k: int, t: float, state, clock):
         """The usual step k at t [s] (after :meth:`ready`): the compiled call, the step's
         events and rows; returns the members' state at t + step."""
-        w, rec, gen, n = self.world, self.rec, self.gen, self.n
-        front, ang, lanes, lane_pos, lat, lane_idx = self._rows
-        li, lane_index = self._packed(lanes, lane_idx)
+        w, rec, gen, pl, n = self.world, self.rec, self.gen, self.planner, self.n
+        members, lanes, lane_idx = self._rows
+        if lanes != self._lanes_key:  # the packed rows of the members' lanes (sumo/sense.py)
+            self._lanes_key = lanes
+            self._li = w.packed_lanes.indices(lanes)
+            self._lane_index = np.array(lane_idx, dtype=np.int64).astype(float)
         nb = self._nb_rows
         if nb is None:
-            nb_ids = None
-            nb_in = _NO_NB
+            nb_ids, nb_in = None, _NO_NB
         else:
-            nb_ids, types, nb_front, nb_ang, nb_v, nb_a, length, width, lane_ids, nb_li = nb
-            nb_in = (nb_front, nb_ang, length, width, w._nb_guess(nb_ids), nb_v, nb_a,
-                     rec.background_codes(nb_ids, types, lane_ids), nb_li)
-        pl, tr, cf, bg = self.planner, rec.traj, rec.comfort, rec.background
-        s, v = np.array([gen.s]), np.array([gen.v])
-        a_vc, em_vc = np.array([pl.a_vc]), np.array([pl.emergency_vc])
-        has_prev = np.array([gen._has_prev])
-        at, c_at = tr.rows_buffered, cf.rows_buffered
+            nb_ids, types, lane_ids, table, nb_li = nb
+            nb_in = (table, w._nb_guess(nb_ids), rec.background_codes(nb_ids, types, lane_ids), nb_li)
+        self.s[0], self.v[0], self.a_vc[0] = gen.s, gen.v, pl.a_vc
+        self.em_vc[0], self.has_prev[0] = pl.emergency_vc, gen._has_prev
+        tr, cf = rec.traj, rec.comfort
         x, ts, sp, ul, s_all, d_all, n_off, worst, flags = fused_step(
-            *self.fleet_args, state.x, state.theta_star, state.speed_in, self.fleet._u_last(state),
-            w.line.G, w.packed_lanes.table, w.packed_lanes.points, PLACEMENT_TOLERANCE, w.m_s, w.d_front, front, ang, lane_pos, lat, li, *nb_in[:7],
-            *self.ref_args, t, s, v, *self.ref_members, a_vc, em_vc, pl.a_cap, gen._v_prev,
-            has_prev, pl.emergency, self.ramps, gen.frame, gen.slots, self.vc, self.outs[0],
-            self.per_f[0], self.per_f[1], self.per_f[2], self.outs[1], self.lead_idx,
-            self.caps[0], self.caps[1], self.truth, self.sig, self.fleet.cols, rec._sig_limits,
-            rec._float_block, rec._traj_ids, at, rec._cf_block, rec._cf_ids, c_at,
-            self.comfort_cols, rec._extra_block, w.slot_index, lane_index, self.vc_cols,
-            rec.vc_codes, rec._bg_floats, rec._bg_ints, bg.rows_buffered, nb_in[7], nb_in[8],
-            *self.inc_args, self.periods, self.v_m, self.m_gap, self.place, *self.kin)
-        gen._has_prev, pl.a_vc, pl.emergency_vc = True, float(a_vc[0]), bool(em_vc[0])
-        self._next, self._flags = (float(self.per_f[1][0]), float(self.per_f[2][0])), flags
+            *self.run_args, t, state.x, state.theta_star, state.speed_in, self.fleet._u_last(state),
+            w.packed_lanes.table, w.packed_lanes.points, w.m_s, members, self._li,
+            self._lane_index, *nb_in, tr.rows_buffered, cf.rows_buffered,
+            rec.background.rows_buffered)
+        gen._has_prev, pl.a_vc, pl.emergency_vc = True, float(self.a_vc[0]), bool(self.em_vc[0])
+        self._flags = flags
         w.m_s = s_all[:n]
         if nb_ids is not None:
             w._nb_guess.keep(nb_ids, s_all[n:])
@@ -182,7 +192,7 @@ class FusedPath:
         tr.commit(n + 1)
         cf.commit(n)
         clock.lap("fused_step")
-        return type(state)(x, ts, sp, ul)
+        return FleetState(x, ts, sp, ul)
 
     def _events(self, t, n_off, flags, worst, nb) -> None:
         """The step's events in the loop's order: placement (sense), emergency braking and
@@ -193,58 +203,57 @@ class FusedPath:
             w.members.placement(t, self.m_gap, n_off)
         if flags & EMERGENCY or w.emergency._any_on:
             w.emergency(t, {"emergency_members": self.planner.emergency.copy(),
-                            "emergency": self.planner.emergency_vc, "a_request": self.per_f[0][0],
-                            "a_cap_request": self.caps[0]})
-        view = _NO_VIEW if nb is None else _NbView(nb[0], nb[8], nb[9])
-        w.traffic(t, view, self.lead_idx, self.outs[1], self.v_m, w.active)
-        if nb is not None:
+                            "emergency": self.planner.emergency_vc,
+                            "a_request": self.a_request[0], "a_cap_request": self.a_cap_req})
+        if nb is None:
+            w.traffic(t, _NO_VIEW, self.lead_idx, self.gap, self.v_m, w.active)
+        else:
+            w.traffic(t, _NbView(nb[0], nb[2], nb[4]), self.lead_idx, self.gap, self.v_m, w.active)
             rec.background.commit(len(nb[0]))
         if flags & OUT_OF_RANGE:
             rec.flag_range(t, self.sig, w.active)
         inc = rec.incidents
-        if worst < 0.0 or flags & SLOW or inc.contact.any() or inc.is_stranded.any() or inc._standing:
+        if worst < 0.0 or flags & SLOW or inc.busy:
             inc.after_clearances(t, self.sig, w.active, worst)
-
-    def _packed(self, lanes: list[str], lane_idx):
-        """The packed lane rows (sumo/sense.py PackedLanes) and the lane indices [-] of the
-        members' settled lanes (the same until a member changes lanes)."""
-        if lanes != self._lanes_key:
-            self._lanes_key = lanes
-            self._li = self.world.packed_lanes.indices(lanes)
-            self._lane_index = np.array(lane_idx, dtype=np.int64).astype(float)
-        return self._li, self._lane_index
 
     # ------------------------------------------------------------------ after the step
     def finish(self, k: int, t_next: float, state, clock) -> None:
         """After the loop handed step k on: its control periods' comfort rows, the
         generator's virtual car at the step's end, the moves and SUMO's step (``clock``: the
         loop's sim/timing.py PhaseClock)."""
-        w, rec, ad, n = self.world, self.rec, self.world.adapter, self.n
+        w, ad, n = self.world, self.world.adapter, self.n
         clock.lap("record")  # the loop's caller: the step's end, part files, progress (runner.py)
         if self.periods.shape[0] > 1:
-            rec.comfort.commit((self.periods.shape[0] - 1) * n)
-        self.gen.s, self.gen.v = self._next
+            self.rec.comfort.commit((self.periods.shape[0] - 1) * n)
+        self.gen.s, self.gen.v = float(self.s_next[0]), float(self.v_next[0])
         if self._flags & NOT_FINITE:
-            check_finite(state, list(self.fleet.cfg.ids), t_next)
+            check_finite(state, self.ids, t_next)
         place = self.place
         w.v_after, w.a_mean = place[3].copy(), place[4].copy()
         if w.true_v is not None:
             w.true_v[int(round(t_next / self.step_s))] = w.v_after.copy()
-        w._kin = (state, *(a.copy() for a in self.kin))
-        move, refused = ad._move_xy, {}
-        for i, (vid, a, b, c) in enumerate(zip(w.sumo_ids, place[0].tolist(), place[1].tolist(),
-                                               place[2].tolist())):
-            try:
-                move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
-            except ad.api.TraCIException as exc:  # sumo/adapter.py place's message
-                x, y = self.kin[0][i]
-                refused[vid] = f"moveToXY refused for {vid} at ({x:.2f}, {y:.2f}): {exc}"
-        w.refusals(t_next, self._all, refused, w.active, ad)
+        w._kin = (state, *self.kin)  # the next sense's, if the loop's step takes it
+        refused = _move(ad, w.sumo_ids, place, self.kin[0])
+        if refused or w.refusals.counting:
+            w.refusals(t_next, self._all, refused, w.active, ad)
         clock.lap("sumo_place")
         w.ev = ad.step()
         if w.step_hook is not None:
             w.step_hook(k, t_next, ad)
-        ad.set_true_speeds(w.sumo_ids, w.v_after, w.a_mean)
+        ad.tell_speeds(w.sumo_ids, place[5].tolist(), place[4].tolist())
         if w.all_bg:
             ad.subscribe_departed()
         clock.lap("sumo_step")
+
+
+def _move(ad, ids, place, pos) -> dict:
+    """moveToXY every member to its pose in ``place`` (SUMO's frame); returns the refused
+    ones, {SUMO id: message} (sumo/adapter.py ``place``'s messages, CoG ``pos``)."""
+    move, refused = ad._move_xy, {}
+    for i, (vid, a, b, c) in enumerate(zip(ids, place[0].tolist(), place[1].tolist(),
+                                           place[2].tolist())):
+        try:
+            move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
+        except ad.api.TraCIException as exc:
+            refused[vid] = f"moveToXY refused for {vid} at ({pos[i, 0]:.2f}, {pos[i, 1]:.2f}): {exc}"
+    return refused

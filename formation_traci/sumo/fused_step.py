@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from ..control.reference_group import group_reference_step
-from ..kernels import kernel
+from ..kernels import kernel, maximum
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
 from ..sim.fleet import kinematics_rows, member_signals, step_members
@@ -47,57 +47,68 @@ EMERGENCY = 8
 
 
 @kernel
-def fused_step(kind, P, law, L, gains, pred, n_sub, dt_c, step, x, theta_star, speed_in, u_last,
-               G, lane_table, lane_points, tolerance, s_guess, d_front, front, angle, lane_pos,
-               lat, li, nb_front, nb_angle, nb_length, nb_width, nb_guess, nb_v, nb_a,
-               profs, prof_at, t, s, v, along, slot_d, is_road, half_w, starts, lims, pps, a_vc,
-               emergency_vc, a_cap_prev, v_prev, has_prev, emergency, ramps, frame, slots,
+def fused_step(kind, P, law, L, gains, pred, n_sub, dt_c, step, G, tolerance, d_front,
+               profs, prof_at, along, slot_d, is_road, half_w, starts, lims, pps, ramps, frame,
+               slots, s, v, a_vc, emergency_vc, has_prev, a_cap_prev, v_prev, emergency,
                vc, a_cap_from, a_request, s_next, v_next, gap, lead_idx, a_cap_req, a_cap, truth,
-               sig, cols, limits, traj, traj_ids, at, comfort, comfort_ids, c_at, comfort_cols,
-               extras, slot_index, lane_index, vc_cols, vc_codes,
-               bg_floats, bg_ints, bg_at, bg_codes, nb_lane_index,
+               sig, cols, limits, traj, traj_ids, comfort, comfort_ids, comfort_cols, extras,
+               slot_index, vc_cols, vc_codes, bg_floats, bg_ints,
                inc_cols, inc_shift, inc_length, inc_width, inc_clear, stranded,
-               periods, v_m, m_gap, place, pos, vel, heading):
-    """One usual step of the road run at t [s] (module docstring). Arguments, in groups:
+               periods, v_m, m_gap, place, pos, vel, heading,
+               t, x, theta_star, speed_in, u_last, lane_table, lane_points, s_guess, members, li,
+               lane_index, nb, nb_guess, bg_codes, nb_lane_index, at, c_at, bg_at):
+    """One usual step of the road run at t [s] (module docstring). The run's arrays come
+    first (the same objects every step), then the step's. In groups:
 
-    fleet     ``kind`` .. ``u_last``: sim/fleet.py step_members' (the state x, theta_star,
-              speed_in, u_last at t; ``step`` the SUMO step [s]);
-    sense     ``G`` .. ``nb_a``: sumo/sense.py sense_step's (the members' and the neighbours'
-              SUMO rows; ``nb_v``, ``nb_a`` the neighbours' speeds [m/s] and accelerations
-              [m/s^2]);
-    reference ``profs`` .. ``truth``: control/reference_group.py group_reference_step's, every
-              formation running (``s``, ``v``, ``a_vc``, ``emergency_vc``, ``has_prev`` and the
-              planners' arrays updated in place), ``frame``, ``slots`` the members' slots;
+    fleet     ``kind`` .. ``step``: sim/fleet.py step_members' (``step`` the SUMO step [s]);
+              the state ``x``, ``theta_star``, ``speed_in``, ``u_last`` at t;
+    sense     ``G``, ``tolerance``, ``d_front``, ``lane_table``, ``lane_points``,
+              ``s_guess``, ``nb_guess``: sumo/sense.py sense_step's; ``members`` (n, 5) the
+              members' SUMO rows (front bumper x, y [m], angle [deg], lateral position [m],
+              lane position [m]: sumo/member_reads.py settled_members), ``li`` their packed
+              lane rows, ``lane_index`` their lane indices [-]; ``nb`` (m, 7) the neighbours'
+              (front bumper x, y [m], angle [deg], speed [m/s], acceleration [m/s^2], length,
+              width [m]: sumo/neighbours.py neighbour_table);
+    reference ``profs`` .. ``slots`` and ``s`` .. ``truth``:
+              control/reference_group.py group_reference_step's, every formation running
+              (``s``, ``v``, ``a_vc``, ``emergency_vc``, ``has_prev`` one per formation and
+              the planners' arrays, updated in place; ``frame``, ``slots`` the members'
+              slots);
     record    ``sig`` (n, signal columns) the members' signals; member_signals' table
               arguments (``traj`` the trajectory table's float block, ``at`` its first row
-              of the step, ``comfort`` .. ``comfort_cols`` the comfort table's; ``limits``
-              the recorder's: a signal beyond them is flagged and its row written all the
-              same, as the recorder writes it); ``extras``
-              the trajectory's road and SUMO columns (s, d, lane_index, sumo_gap, slot,
-              leader_age_s: record/columns.py FILLED_BY_CALLER) at the same rows;
-              ``vc_cols`` the float-block rows of t, x, y, heading, v, yaw_rate, a_lon,
-              a_lat, s, d of a virtual-car row, ``vc_codes`` each formation's vehicle_id code;
-              ``bg_floats``, ``bg_ints`` the background table's blocks from row ``bg_at``
-              with the neighbours' string codes ``bg_codes`` (3, m) and lane indices;
+              of the step, ``comfort``, ``comfort_ids``, ``c_at``, ``comfort_cols`` the
+              comfort table's; ``limits`` the recorder's: a signal beyond them is flagged and
+              its row written all the same, as the recorder writes it); ``extras`` the
+              trajectory's road and SUMO columns (s, d, lane_index, sumo_gap, slot,
+              leader_age_s: record/columns.py FILLED_BY_CALLER) at the same rows; ``vc_cols``
+              the float-block rows of t, x, y, heading, v, yaw_rate, a_lon, a_lat, s, d of a
+              virtual-car row, ``vc_codes`` each formation's vehicle_id code; ``bg_floats``,
+              ``bg_ints`` the background table's blocks from row ``bg_at`` with the
+              neighbours' string codes ``bg_codes`` (3, m) and lane indices;
     incidents ``inc_cols`` (x, y, heading, v, v_ref columns of ``sig``), the bodies and the
               clearance matrix of sim/incidents.py member_clearances, ``stranded`` (speed
               [m/s], reference [m/s] of a stranded member);
     control   ``periods`` (n_ctrl, n, 3) step_members' comfort buffer (its rows written at
               c_at + n of the comfort table);
     out       ``v_m`` the members' speeds [m/s] as sensed, ``m_gap`` their distance to
-              where SUMO has them [m] (the sumo_gap column), ``place`` (5, n): SUMO's front bumper x, y [m],
-              angle [deg], speed [m/s] and mean acceleration [m/s^2] over the step of the new
-              state, ``pos``, ``vel``, ``heading`` its CoG kinematics.
+              where SUMO has them [m] (the sumo_gap column), ``place`` (6, n): SUMO's front
+              bumper x, y [m], angle [deg], the speed [m/s] and mean acceleration [m/s^2]
+              over the step of the new state and the speed SUMO is told (not below 0), and
+              ``pos``, ``vel``, ``heading`` its CoG kinematics.
 
     Returns (x, theta_star, speed_in, u_last) after the step, the members' and the
     neighbours' arc lengths and offsets (n + m,) [m], the count of members farther than
     ``tolerance`` from where SUMO has them, the smallest clearance between members [m] and
     the flags OUT_OF_RANGE | NOT_FINITE | SLOW | EMERGENCY."""
     n = x.shape[0]
+    nb_length = nb[:, 5].copy()
+    nb_width = nb[:, 6].copy()
+    nb_v = nb[:, 3].copy()
     pos0, vel0, hd0 = kinematics_rows(x, speed_in, kind)  # sense (SumoWorld.sense)
     s_all, d_all, v_sense, g, n_off, nb_x, nb_y, nb_psi, rear, nb_half_w = sense_step(
-        G, pos0, vel0, s_guess, hd0, d_front, front, angle, lane_pos, lat, li, lane_table,
-        lane_points, tolerance, nb_front, nb_angle, nb_length, nb_width, nb_guess)
+        G, pos0, vel0, s_guess, hd0, d_front, members[:, 0:2].copy(), members[:, 2].copy(),
+        members[:, 4].copy(), members[:, 3].copy(), li, lane_table, lane_points, tolerance,
+        nb[:, 0:2].copy(), nb[:, 2].copy(), nb_length, nb_width, nb_guess)
     for i in range(n):
         v_m[i] = v_sense[i]
         m_gap[i] = g[i]
@@ -107,7 +118,7 @@ def fused_step(kind, P, law, L, gains, pred, n_sub, dt_c, step, x, theta_star, s
                        starts, lims, pps, a_vc, emergency_vc, a_cap_prev, v_prev, has_prev,
                        emergency, dt_c, vc, ramps, a_cap_from, a_request, s_next, v_next, gap,
                        lead_idx, a_cap_req, a_cap, truth)
-    _background_rows(bg_floats, bg_ints, bg_at, t, nb_x, nb_y, nb_psi, nb_v, nb_a, nb_length,
+    _background_rows(bg_floats, bg_ints, bg_at, t, nb_x, nb_y, nb_psi, nb_v, nb[:, 4], nb_length,
                      nb_width, s_all[n:], d_all[n:], bg_codes, nb_lane_index)
     v_cap = np.full(n, np.inf)
     no_limits = np.full(limits.shape[0], np.inf)  # the rows are written whatever the values
@@ -207,9 +218,10 @@ def _road_columns(sig, limits, extras, at, s_all, d_all, lane_index, gap, slot_i
 
 @kernel
 def _placed(kind, x, speed_in, x1, sp1, d_front, step, place, pos, vel, heading):
-    """The new state (x1, sp1) as SumoWorld.actuate places it: into ``place`` (5, n) SUMO's
-    front bumper x, y [m] and angle [deg], the speed [m/s] and the mean acceleration over the
-    ``step`` [s] [m/s^2]; its CoG ``pos``, ``vel``, ``heading``. Returns NOT_FINITE when the
+    """The new state (x1, sp1) as SumoWorld.actuate places it: into ``place`` (6, n) SUMO's
+    front bumper x, y [m] and angle [deg], the speed [m/s], the mean acceleration over the
+    ``step`` [s] [m/s^2] and the speed SUMO is told (np.maximum(v, 0)); its CoG ``pos``,
+    ``vel``, ``heading``. Returns NOT_FINITE when the
     new state is not finite (sim/loop.py check_finite), else 0."""
     n = x.shape[0]
     flags = 0
@@ -227,6 +239,7 @@ def _placed(kind, x, speed_in, x1, sp1, d_front, step, place, pos, vel, heading)
         place[2, i] = ang[i]
         place[3, i] = after
         place[4, i] = (after - before) / step
+        place[5, i] = maximum(after, 0.0)  # np.maximum(v, 0.0): sumo/adapter.py set_true_speeds
         pos[i, 0] = p1[i, 0]
         pos[i, 1] = p1[i, 1]
         vel[i, 0] = v1[i, 0]

@@ -52,22 +52,23 @@ class MemberReads:
     def settled_members(self, ids: list[str]):
         """:meth:`read_members`' rows when every member of ``ids`` is in SUMO on the lane of the
         last read and inside it (nothing for :meth:`_track_lanes` to do, so nothing changes
-        here): front bumper (n, 2) [m], angle [deg], lane ids, lane position [m], lateral
-        position [m], lane indices; None otherwise (sumo/fused_path.py: :meth:`read_members`
-        then reads)."""
+        here): a table (n, 5) of front bumper x, y [m], angle [deg], lateral position [m] and
+        lane position [m], the lane ids and the lane indices; None otherwise
+        (sumo/fused_path.py: :meth:`read_members` then reads)."""
         settled = self._settled
         if settled is None or self._overlap or ids != settled[0]:
             return None
-        get = self.api.vehicle.getAllSubscriptionResults().get
+        get = self._all_results().get
         rows = [get(vid) for vid in ids]
         if not all(rows):
             return None
-        pos, ang, lanes, lane_index, lat, lane_pos = zip(*map(self._member_get, rows))
-        lanes = list(lanes)
-        if lanes != settled[1] or not all(map(le, map(add, map(abs, lat), settled[2]), settled[3])):
+        pos, ang, lane, index, lat, lane_pos = self._member_keys
+        lanes = [r[lane] for r in rows]
+        if lanes != settled[1] or not all(map(le, map(add, (abs(r[lat]) for r in rows), settled[2]),
+                                              settled[3])):
             return None
-        ang, lat, lane_pos = np.array((ang, lat, lane_pos), dtype=float)
-        return np.array(pos, dtype=float), ang, lanes, lane_pos, lat, lane_index
+        tb = np.array([(*r[pos], r[ang], r[lat], r[lane_pos]) for r in rows], dtype=float)
+        return tb, lanes, [r[index] for r in rows]
 
     def _read_some_members(self, ids, rows):
         """:meth:`read_members` when SUMO no longer has some of the members (NaN, '' and -1)."""

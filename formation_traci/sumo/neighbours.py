@@ -6,7 +6,6 @@ libsumo/traci): it works on the adapter's ``api`` (the libsumo or traci module) 
 """
 from __future__ import annotations
 
-from operator import itemgetter
 
 import numpy as np
 
@@ -45,8 +44,8 @@ class NeighbourReads:
     def _neighbour_vars(self):
         """Variables that change every step; length, width and type are read once per vehicle."""
         tc = self.tc
-        self._neighbour_get = itemgetter(tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED,
-                                         tc.VAR_ACCELERATION, tc.VAR_LANE_INDEX, tc.VAR_LANE_ID)
+        self._nb_keys = (tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION,
+                         tc.VAR_LANE_INDEX, tc.VAR_LANE_ID)
         return [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VAR_LANE_ID,
                 tc.VAR_LANE_INDEX]
 
@@ -76,7 +75,20 @@ class NeighbourReads:
         sorted by id, in SUMO's frame (sumo/sense.py ``sense_step`` converts it into
         :class:`Neighbours`): ids, vTypes, front bumper (m, 2) [m], angle [deg], speed [m/s],
         acceleration [m/s^2], length [m], width [m], lane ids, lane index; None when there
-        is none."""
+        is none (:meth:`neighbour_table`'s columns as arrays of their own)."""
+        got = self.neighbour_table(all_vehicles)
+        if got is None:
+            return None
+        ids, types, lane_ids, tb, lane_index = got
+        front = np.ascontiguousarray(tb[:, :2])
+        ang, v, a, length, width = np.ascontiguousarray(tb[:, 2:].T)  # rows of one copy
+        return ids, types, front, ang, v, a, length, width, lane_ids, lane_index
+
+    def neighbour_table(self, all_vehicles: bool):
+        """:meth:`neighbour_rows` as (ids, vTypes, lane ids, table (m, 7) of front bumper x, y
+        [m], angle [deg], speed [m/s], acceleration [m/s^2], length, width [m], lane index
+        (m,)); one conversion of the subscription rows (sumo/fused_path.py), None when no
+        vehicle is near."""
         if all_vehicles:
             rows = {vid: r for vid, r in self.api.vehicle.getAllSubscriptionResults().items() if r}
         else:
@@ -87,16 +99,19 @@ class NeighbourReads:
                 rows = {}
                 for part in ctx.values():
                     rows.update(part)
-        ids = sorted(rows.keys() - self.members.keys())
+        members = self.members
+        ids = [vid for vid in rows if vid not in members]
         if not ids:  # nobody near the formation (often, ahead of the traffic)
             return None
-        cols = list(zip(*map(self._neighbour_get, map(rows.__getitem__, ids))))
+        ids.sort()  # one context subscription's rows come sorted already: a linear pass
+        recs = list(map(rows.__getitem__, ids))
         bodies, body = self._bodies, self._body
-        body = list(zip(*[bodies.get(vid) or body(vid) for vid in ids]))
-        ang, v, a = np.array(cols[1:4], dtype=float)  # rows of one array: one conversion
-        length, width = np.array(body[:2], dtype=float)
-        return (ids, list(body[2]), np.array(cols[0], dtype=float), ang, v, a, length, width,
-                list(cols[5]), np.array(cols[4], dtype=int))
+        bods = [bodies.get(vid) or body(vid) for vid in ids]
+        pos, ang, speed, acc, index, lane = self._nb_keys
+        tb = np.array([(*r[pos], r[ang], r[speed], r[acc], b[0], b[1]) for r, b in zip(recs, bods)],
+                      dtype=float)
+        return (ids, [b[2] for b in bods], [r[lane] for r in recs], tb,
+                np.array([r[index] for r in recs], dtype=np.int64))
 
     def vehicle_bodies(self, ids=None):
         """Every vehicle in SUMO (or those of ``ids``): ids, body centre x, y [m], heading
