@@ -24,6 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LIGHT = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
 MEDIUM = ROOT / "scenarios" / "highway" / "straight_3lane_medium.toml"
 HEAVY = ROOT / "scenarios" / "highway" / "straight_wedge5_heavy.toml"
+THREE = ROOT / "scenarios" / "highway" / "three_formations.toml"
 
 
 def _cut_in(k, t, ad):
@@ -76,14 +77,18 @@ def _close_two_lanes(k, t, ad):
 
 
 # name: (scenario, overrides, step hook, events the run must have, recorder speed limit
-# [m/s], steps per part file); a member out of the run ends the fused steps (the members left
-# run the loop's own step), so those cases ask for the steps before it only
+# [m/s], steps per part file). The share of fused steps asked for: most, but only the steps
+# before a member leaves the run (the members left run the loop's own step) or after the last
+# formation departed (until then one waits, its members out of the run)
 MOST = 0.5
-UNTIL_REMOVED = {"member removed by SUMO": 35 / 120, "refused moves, placement mismatch": 15 / 120}
+SHARE = {"member removed by SUMO": 35 / 120, "refused moves, placement mismatch": 15 / 120,
+                 "three formations, one departing at 10 s": 0.4}
 CASES = {
     "a cut-in, tables cut every 10 steps": (
         LIGHT, {"run.duration": 8.0, "traffic.warmup": 20.0}, _cut_in,
         {"lane_change", "cut_in", "emergency_brake"}, None, 10),
+    "three formations, one departing at 10 s": (
+        THREE, {"run.duration": 20.0}, None, {"lane_change", "cut_in"}, None, None),
     "heavy traffic": (HEAVY, {"run.duration": 10.0, "traffic.warmup": 40.0}, None, {"lane_change"},
                       None, None),
     "emergency braking": (
@@ -129,7 +134,7 @@ def test_fused_steps_write_the_files_of_the_loops_own_steps(tmp_path, monkeypatc
     n_fused = len(taken)
     loop, b = _run(tmp_path, "loop", case, monkeypatch, False)
     assert len(taken) == n_fused  # the switch turned the fused path off
-    share = UNTIL_REMOVED.get(name, MOST)
+    share = SHARE.get(name, MOST)
     assert n_fused > share * fused.steps_done, f"only {n_fused} of {fused.steps_done} steps fused"
     ev = pd.read_parquet(a / "events.parquet")
     assert case[3] <= set(ev.kind), f"the case provoked {sorted(set(ev.kind))}"

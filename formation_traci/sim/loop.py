@@ -179,7 +179,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
     plans = [(f, f.sensing, f.true_error) for f in forms]  # the transforms are fixed now
     links = _radio_links(forms, fleet)
     group = group_of(forms, world)  # plain road formations: one compiled call for all
-    fused = None if parts.fused is None else parts.fused(parts, rec, sc)
+    fused = None if parts.fused is None else parts.fused(parts, rec, sc, group)
     try:
         world.start()  # inside: a signal or a failure during SUMO's start or warm-up closes SUMO
         for k in range(n_steps + 1):

@@ -30,6 +30,7 @@ from ..sim.incidents import STRANDED_SPEED, STRANDED_V_REF, _H, _V, _VREF, _X, _
 from ..sim.fleet_state import FleetState
 from ..sim.loop import check_finite
 from .events import PLACEMENT_TOLERANCE
+from .fused_refs import GroupOfFormations, OneFormation
 from .fused_step import EMERGENCY, NOT_FINITE, OUT_OF_RANGE, SLOW, fused_step
 from .types import KEEP_ROUTE, MATCH_THRESHOLD
 
@@ -56,45 +57,47 @@ class _NbView:
 _NO_VIEW = _NbView([], [], np.empty(0, dtype=np.int64))
 
 
-def fused_path(parts, rec, sc):
+def fused_path(parts, rec, sc, group=None):
     """The run's :class:`FusedPath`, or None when the run is not one it serves (module
-    docstring); called by the loop once the run's parts are complete."""
+    docstring); called by the loop once the run's parts are complete (``group``: its
+    sim/formation_group.py FormationGroup, None for one formation)."""
     from numba import config
 
     from .world import SumoWorld
     world, fleet, forms = parts.world, parts.fleet, parts.formations
-    if (config.DISABLE_JIT or os.environ.get(SWITCH, "").lower() in ("0", "off", "no") or type(world) is not SumoWorld or world.baseline or world.adapter.gui
+    one = (len(forms) == 1 and type(forms[0].generator) is RoadReference and not forms[0].transforms
+           and not forms[0].depart)
+    if (config.DISABLE_JIT or os.environ.get(SWITCH, "").lower() in ("0", "off", "no")
+            or type(world) is not SumoWorld or world.baseline or world.adapter.gui
             or world.adapter.backend != "libsumo" or parts.road_load is not None
-            or len(forms) != 1 or type(forms[0].generator) is not RoadReference
-            or forms[0].transforms or forms[0].depart or sc.maneuvers
+            or not (one or group is not None) or sc.maneuvers
             or fleet._step is not step_members or rec.incidents is None or not rec.incidents.pairs):
         return None
-    return FusedPath(parts, rec, sc)
+    refs = OneFormation(forms[0].generator, world) if one else GroupOfFormations(group, world)
+    return FusedPath(parts, rec, sc, refs)
 
 
 class FusedPath:
     """The compiled step of a run's usual steps (module docstring). Per step:
     :meth:`ready` (the reads and the checks), :meth:`step` (the compiled call and the
     step's events; before the loop hands the step on), :meth:`finish` (after it: the
-    control periods' rows, the moves and SUMO's step)."""
+    control periods' rows, the moves and SUMO's step). ``refs``: the formations' reference
+    state (sumo/fused_refs.py)."""
 
-    def __init__(self, parts, rec, sc):
-        self.world, self.fleet, self.rec = w, fl, _ = parts.world, parts.fleet, rec
-        self.gen = gen = parts.formations[0].generator
-        self.planner = pl = gen.longitudinal
+    def __init__(self, parts, rec, sc, refs):
+        self.world, self.fleet, self.rec, self.refs = parts.world, parts.fleet, rec, refs
+        w, fl = parts.world, parts.fleet
+        gen = parts.formations[0].generator  # every formation's: the same control period
         self.n = n = fl.cfg.n
         self.step_s = float(sc.run.step)
-        self.reach = gen.reach  # fixed for a run: the formation's front plus the end margin [m]
         self.n_steps = int(round(sc.run.duration / sc.run.step))
         self.ids = list(fl.cfg.ids)
-        # the planner's scalars as arrays of one formation (synchronised with it every step)
-        self.s, self.v, self.a_vc = np.empty(1), np.empty(1), np.empty(1)
-        self.em_vc, self.has_prev = np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.bool_)
+        k = len(parts.formations)
         self.vc = np.empty((gen.n_ctrl, n, 8))
         self.a_cap_from, self.gap, self.a_cap_req, self.a_cap = (np.empty(n) for _ in range(4))
-        self.lead_idx = np.empty(n, dtype=np.int64)
-        self.a_request, self.s_next, self.v_next = np.empty(1), np.empty(1), np.empty(1)
-        self.truth = np.empty((1, 8))
+        self.lead_idx, self.lead_obs = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+        self.a_request, self.s_next, self.v_next = np.empty(k), np.empty(k), np.empty(k)
+        self.truth = np.empty((k, 8))
         self.sig = np.full((n, len(SIGNAL_COLUMNS)), np.nan)
         vc_cols = np.array([rec._floats.index(c) for c in _VC_COLUMNS], dtype=np.int64)
         inc = rec.incidents
@@ -103,23 +106,21 @@ class FusedPath:
         self.kin = (np.empty((n, 2)), np.empty((n, 2)), np.empty(n))
         self.run_args = (
             fl.kind, fl.P, fl.law, fl.L, fl.gains, fl.pred, fl.n_sub(gen.dt_c), gen.dt_c,
-            self.step_s, w.line.G, PLACEMENT_TOLERANCE, w.d_front, gen.prof,
-            np.array([0, len(gen.prof)], dtype=np.int64), gen.along, gen.slot_d, gen.is_road,
-            gen.half_w, np.array([0, n], dtype=np.int64), gen.lim[None, :], pl.pp[None, :],
-            np.array([gen.ramp]), gen.frame, gen.slots, self.s, self.v, self.a_vc, self.em_vc,
-            self.has_prev, pl.a_cap, gen._v_prev, pl.emergency, self.vc, self.a_cap_from,
-            self.a_request, self.s_next, self.v_next, self.gap, self.lead_idx, self.a_cap_req,
-            self.a_cap, self.truth, self.sig, fl.cols, rec._sig_limits, rec._float_block,
-            rec._traj_ids, rec._cf_block, rec._cf_ids, rec._comfort_from, rec._extra_block,
-            w.slot_index, vc_cols, rec.vc_codes, rec._bg_floats, rec._bg_ints,
-            np.array([_X, _Y, _H, _V, _VREF], dtype=np.int64), inc.shift, inc.length, inc.width,
-            inc.clear, np.array([STRANDED_SPEED, STRANDED_V_REF]), self.periods, self.v_m,
-            self.m_gap, self.place, *self.kin)
-        self._same = (pl.a_cap, gen._v_prev, pl.emergency, w.slot_index)  # kept in place
+            self.step_s, w.line.G, PLACEMENT_TOLERANCE, w.d_front, *refs.run_args, self.vc,
+            self.a_cap_from, self.a_request, self.s_next, self.v_next, self.gap, self.lead_idx,
+            self.lead_obs, self.a_cap_req, self.a_cap, self.truth, self.sig, fl.cols,
+            rec._sig_limits, rec._float_block, rec._traj_ids, rec._cf_block, rec._cf_ids,
+            rec._comfort_from, rec._extra_block, w.slot_index, vc_cols, rec.vc_codes,
+            rec._bg_floats, rec._bg_ints, np.array([_X, _Y, _H, _V, _VREF], dtype=np.int64),
+            inc.shift, inc.length, inc.width, inc.clear,
+            np.array([STRANDED_SPEED, STRANDED_V_REF]), self.periods, self.v_m, self.m_gap,
+            self.place, *self.kin)
+        self._slot = w.slot_index
         self._lanes_key = None  # the settled lanes the packed rows below are of
         self._li = self._lane_index = None
         self._all = np.arange(n)
         self._all_in = np.ones(n, dtype=np.bool_).tobytes()
+        self._vc_rows = k  # a virtual-car row per formation (every one running)
         self._rows = self._nb_rows = None
         self._flags = 0
         if len(FILLED_BY_CALLER) != 8 or len(COMFORT_COLUMNS) != 6:
@@ -130,17 +131,17 @@ class FusedPath:
         """Is step k (at t [s]) a usual one? Reads SUMO's members and neighbours for
         :meth:`step` (nothing is changed: the loop's step reads again otherwise); ``clock``:
         the loop's sim/timing.py PhaseClock."""
-        w, rec, gen, n = self.world, self.rec, self.gen, self.n
+        w, rec, n = self.world, self.rec, self.n
         if (k >= self.n_steps or not w.inserted or len(w.pending) or w.released or w.adopting
-                or rec._any_out or gen.s + self.reach > gen.length
-                or (k + 1) % rec.steps_per_chunk == 0 or w.active.tobytes() != self._all_in
-                or w.in_sumo.tobytes() != self._all_in or self._moved(w)):
+                or rec._any_out or (k + 1) % rec.steps_per_chunk == 0
+                or w.active.tobytes() != self._all_in or w.in_sumo.tobytes() != self._all_in
+                or w.slot_index is not self._slot or not self.refs.usual()):
             return False
         ev = w.ev
         if ev is not None and (ev.collisions or ev.teleports):
             return False
         tr, cf = rec.traj, rec.comfort
-        if (tr.rows_buffered + n + 1 > tr.chunk_rows
+        if (tr.rows_buffered + n + self._vc_rows > tr.chunk_rows
                 or cf.rows_buffered + n * self.periods.shape[0] > cf.chunk_rows):
             return False
         rows = w.adapter.settled_members(w.sumo_ids)
@@ -153,17 +154,11 @@ class FusedPath:
         clock.lap("sumo_read")
         return True
 
-    def _moved(self, w) -> bool:
-        """True when an array the compiled step keeps was replaced (not changed in place)."""
-        a_cap, v_prev, emergency, slot = self._same
-        return not (self.planner.a_cap is a_cap and self.gen._v_prev is v_prev
-                    and self.planner.emergency is emergency and w.slot_index is slot)
-
     # ------------------------------------------------------------------ the step
     def step(self, k: int, t: float, state, clock):
         """The usual step k at t [s] (after :meth:`ready`): the compiled call, the step's
         events and rows; returns the members' state at t + step."""
-        w, rec, gen, pl, n = self.world, self.rec, self.gen, self.planner, self.n
+        w, rec, n = self.world, self.rec, self.n
         members, lanes, lane_idx = self._rows
         if lanes != self._lanes_key:  # the packed rows of the members' lanes (sumo/sense.py)
             self._lanes_key = lanes
@@ -175,21 +170,20 @@ class FusedPath:
         else:
             nb_ids, types, lane_ids, table, nb_li = nb
             nb_in = (table, w._nb_guess(nb_ids), rec.background_codes(nb_ids, types, lane_ids), nb_li)
-        self.s[0], self.v[0], self.a_vc[0] = gen.s, gen.v, pl.a_vc
-        self.em_vc[0], self.has_prev[0] = pl.emergency_vc, gen._has_prev
+        s, v = self.refs.before()
         tr, cf = rec.traj, rec.comfort
         x, ts, sp, ul, s_all, d_all, n_off, worst, flags = fused_step(
-            *self.run_args, t, state.x, state.theta_star, state.speed_in, self.fleet._u_last(state),
+            *self.run_args, t, s, v, state.x, state.theta_star, state.speed_in, self.fleet._u_last(state),
             w.packed_lanes.table, w.packed_lanes.points, w.m_s, members, self._li,
             self._lane_index, *nb_in, tr.rows_buffered, cf.rows_buffered,
             rec.background.rows_buffered)
-        gen._has_prev, pl.a_vc, pl.emergency_vc = True, float(self.a_vc[0]), bool(self.em_vc[0])
+        self.refs.after()
         self._flags = flags
         w.m_s = s_all[:n]
         if nb_ids is not None:
             w._nb_guess.keep(nb_ids, s_all[n:])
         self._events(t, n_off, flags, worst, nb)
-        tr.commit(n + 1)
+        tr.commit(n + self._vc_rows)
         cf.commit(n)
         clock.lap("fused_step")
         return FleetState(x, ts, sp, ul)
@@ -202,13 +196,11 @@ class FusedPath:
         if n_off or w.members._off:
             w.members.placement(t, self.m_gap, n_off)
         if flags & EMERGENCY or w.emergency._any_on:
-            w.emergency(t, {"emergency_members": self.planner.emergency.copy(),
-                            "emergency": self.planner.emergency_vc,
-                            "a_request": self.a_request[0], "a_cap_request": self.a_cap_req})
+            w.emergency(t, self.refs.emergency_info(self.a_request, self.a_cap_req))
         if nb is None:
-            w.traffic(t, _NO_VIEW, self.lead_idx, self.gap, self.v_m, w.active)
+            w.traffic(t, _NO_VIEW, self.lead_obs, self.gap, self.v_m, w.active)
         else:
-            w.traffic(t, _NbView(nb[0], nb[2], nb[4]), self.lead_idx, self.gap, self.v_m, w.active)
+            w.traffic(t, _NbView(nb[0], nb[2], nb[4]), self.lead_obs, self.gap, self.v_m, w.active)
             rec.background.commit(len(nb[0]))
         if flags & OUT_OF_RANGE:
             rec.flag_range(t, self.sig, w.active)
@@ -225,7 +217,7 @@ class FusedPath:
         clock.lap("record")  # the loop's caller: the step's end, part files, progress (runner.py)
         if self.periods.shape[0] > 1:
             self.rec.comfort.commit((self.periods.shape[0] - 1) * n)
-        self.gen.s, self.gen.v = float(self.s_next[0]), float(self.v_next[0])
+        self.refs.settle(self.s_next, self.v_next)
         if self._flags & NOT_FINITE:
             check_finite(state, self.ids, t_next)
         place = self.place

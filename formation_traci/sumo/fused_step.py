@@ -49,13 +49,14 @@ EMERGENCY = 8
 @kernel
 def fused_step(kind, P, law, L, gains, pred, n_sub, dt_c, step, G, tolerance, d_front,
                profs, prof_at, along, slot_d, is_road, half_w, starts, lims, pps, ramps, frame,
-               slots, s, v, a_vc, emergency_vc, has_prev, a_cap_prev, v_prev, emergency,
-               vc, a_cap_from, a_request, s_next, v_next, gap, lead_idx, a_cap_req, a_cap, truth,
+               slots, depart, bodies, peers, a_vc, emergency_vc, has_prev, a_cap_prev, v_prev,
+               emergency, vc, a_cap_from, a_request, s_next, v_next, gap, lead_idx, lead_obs,
+               a_cap_req, a_cap, truth,
                sig, cols, limits, traj, traj_ids, comfort, comfort_ids, comfort_cols, extras,
                slot_index, vc_cols, vc_codes, bg_floats, bg_ints,
                inc_cols, inc_shift, inc_length, inc_width, inc_clear, stranded,
                periods, v_m, m_gap, place, pos, vel, heading,
-               t, x, theta_star, speed_in, u_last, lane_table, lane_points, s_guess, members, li,
+               t, s, v, x, theta_star, speed_in, u_last, lane_table, lane_points, s_guess, members, li,
                lane_index, nb, nb_guess, bg_codes, nb_lane_index, at, c_at, bg_at):
     """One usual step of the road run at t [s] (module docstring). The run's arrays come
     first (the same objects every step), then the step's. In groups:
@@ -69,11 +70,15 @@ def fused_step(kind, P, law, L, gains, pred, n_sub, dt_c, step, G, tolerance, d_
               lane rows, ``lane_index`` their lane indices [-]; ``nb`` (m, 7) the neighbours'
               (front bumper x, y [m], angle [deg], speed [m/s], acceleration [m/s^2], length,
               width [m]: sumo/neighbours.py neighbour_table);
-    reference ``profs`` .. ``slots`` and ``s`` .. ``truth``:
-              control/reference_group.py group_reference_step's, every formation running
-              (``s``, ``v``, ``a_vc``, ``emergency_vc``, ``has_prev`` one per formation and
-              the planners' arrays, updated in place; ``frame``, ``slots`` the members'
-              slots);
+    reference ``profs`` .. ``truth`` and ``s``, ``v``: control/reference_group.py
+              group_reference_step's, every formation running (``s``, ``v``, ``a_vc``,
+              ``emergency_vc``, ``has_prev`` one per formation and the planners' arrays, the
+              last three updated in place; ``frame``, ``slots`` the members' slots; each
+              formation's own time t - ``depart`` [s]); ``bodies`` (4, n): the members' CoG to
+              front bumper as the reference takes it, length, width and CoG to front bumper
+              as SUMO has them [m]; with ``peers`` (several formations) each formation sees
+              the others' members as traffic (sumo/peers.py) and ``lead_obs`` gets the
+              members' leaders among SUMO's vehicles (-1: none, or a member);
     record    ``sig`` (n, signal columns) the members' signals; member_signals' table
               arguments (``traj`` the trajectory table's float block, ``at`` its first row
               of the step, ``comfort``, ``comfort_ids``, ``c_at``, ``comfort_cols`` the
@@ -113,11 +118,14 @@ def fused_step(kind, P, law, L, gains, pred, n_sub, dt_c, step, G, tolerance, d_
         v_m[i] = v_sense[i]
         m_gap[i] = g[i]
     active = np.ones(n, dtype=np.bool_)
-    flags = _reference(G, profs, prof_at, t, s, v, along, slot_d, is_road, d_front, half_w,
-                       s_all[:n], d_all[:n], v_sense, active, rear, d_all[n:], nb_half_w, nb_v,
-                       starts, lims, pps, a_vc, emergency_vc, a_cap_prev, v_prev, has_prev,
-                       emergency, dt_c, vc, ramps, a_cap_from, a_request, s_next, v_next, gap,
-                       lead_idx, a_cap_req, a_cap, truth)
+    flags = _reference(G, profs, prof_at, t - depart, s, v, along, slot_d, is_road, bodies,
+                       half_w, s_all[:n], d_all[:n], v_sense, active, rear, d_all[n:], nb_half_w,
+                       nb_v, peers, starts, lims, pps, a_vc, emergency_vc, a_cap_prev, v_prev,
+                       has_prev, emergency, dt_c, vc, ramps, a_cap_from, a_request, s_next,
+                       v_next, gap, lead_idx, a_cap_req, a_cap, truth)
+    m = nb.shape[0]
+    for i in range(n):
+        lead_obs[i] = lead_idx[i] if lead_idx[i] < m else -1
     _background_rows(bg_floats, bg_ints, bg_at, t, nb_x, nb_y, nb_psi, nb_v, nb[:, 4], nb_length,
                      nb_width, s_all[n:], d_all[n:], bg_codes, nb_lane_index)
     v_cap = np.full(n, np.inf)
@@ -138,21 +146,39 @@ def fused_step(kind, P, law, L, gains, pred, n_sub, dt_c, step, G, tolerance, d_
 
 
 @kernel
-def _reference(G, profs, prof_at, t, s, v, along, slot_d, is_road, d_front, half_w, m_s, m_d,
-               v_m, active, nb_rear, nb_d, nb_half_w, nb_v, starts, lims, pps, a_vc,
+def _reference(G, profs, prof_at, t_f, s, v, along, slot_d, is_road, bodies, half_w, m_s, m_d,
+               v_m, active, nb_rear, nb_d, nb_half_w, nb_v, peers, starts, lims, pps, a_vc,
                emergency_vc, a_cap_prev, v_prev, has_prev, emergency, dt_c, vc, ramps,
                a_cap_from, a_request, s_next, v_next, gap, lead_idx, a_cap_req, a_cap, truth):
-    """Every formation's reference at t [s] (group_reference_step, every formation running,
-    no released member among the neighbours); returns EMERGENCY when a virtual car or a
-    member is on emergency braking, else 0."""
+    """Every formation's reference (group_reference_step at each formation's own time
+    ``t_f`` [s], every formation running, no released member among the neighbours; with
+    ``peers`` SUMO's vehicles joined by every member: sumo/peers.py Peers.table); returns
+    EMERGENCY when a virtual car or a member is on emergency braking, else 0."""
     k = s.shape[0]
     m = nb_rear.shape[0]
-    group_reference_step(G, profs, prof_at, np.full(k, t), s, v, along, slot_d, is_road,
-                         d_front, half_w, m_s, m_d, v_m, active, nb_rear, nb_d, nb_half_w, nb_v,
-                         np.zeros(m, dtype=np.bool_), np.full(m, -1, dtype=np.int64), starts,
-                         lims, pps, a_vc, emergency_vc, a_cap_prev, v_prev, has_prev, emergency,
-                         dt_c, vc, ramps, a_cap_from, np.ones(k, dtype=np.bool_), a_request,
-                         s_next, v_next, gap, lead_idx, a_cap_req, a_cap, truth)
+    n = m_s.shape[0] if peers else 0
+    rear = np.empty(m + n)
+    d = np.empty(m + n)
+    half = np.empty(m + n)
+    speed = np.empty(m + n)
+    owner = np.full(m + n, -1, dtype=np.int64)
+    for j in range(m):
+        rear[j] = nb_rear[j]
+        d[j] = nb_d[j]
+        half[j] = nb_half_w[j]
+        speed[j] = nb_v[j]
+    for i in range(n):  # Peers.update's rear (front bumper less the length), Peers.table's rows
+        rear[m + i] = m_s[i] + bodies[3, i] - bodies[1, i]
+        d[m + i] = m_d[i]
+        half[m + i] = bodies[2, i] / 2
+        speed[m + i] = v_m[i]
+        owner[m + i] = i
+    group_reference_step(G, profs, prof_at, t_f, s, v, along, slot_d, is_road, bodies[0].copy(),
+                         half_w, m_s, m_d, v_m, active, rear, d, half, speed,
+                         np.zeros(m + n, dtype=np.bool_), owner, starts, lims, pps, a_vc,
+                         emergency_vc, a_cap_prev, v_prev, has_prev, emergency, dt_c, vc, ramps,
+                         a_cap_from, np.ones(k, dtype=np.bool_), a_request, s_next, v_next, gap,
+                         lead_idx, a_cap_req, a_cap, truth)
     for f in range(k):
         if emergency_vc[f]:
             return EMERGENCY

@@ -44,8 +44,9 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
                                depart=setup.depart, parked=gen.parked,
                                held=state.copy() if waits else None,
                                status="waiting" if waits else "running", flow=setup.flow))
+    from .fused_path import fused_path
     return RunParts(world, fleet, join_states([s for _, _, s in built]), forms,
-                    timing=meta["timing_s"], road_load=load)
+                    timing=meta["timing_s"], road_load=load, fused=fused_path)
 
 
 def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld, meta: dict):
