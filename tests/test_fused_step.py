@@ -77,12 +77,14 @@ def _close_two_lanes(k, t, ad):
 
 
 # name: (scenario, overrides, step hook, events the run must have, recorder speed limit
-# [m/s], steps per part file). The share of fused steps asked for: most, but only the steps
-# before a member leaves the run (the members left run the loop's own step) or after the last
-# formation departed (until then one waits, its members out of the run)
-MOST = 0.5
-SHARE = {"member removed by SUMO": 35 / 120, "refused moves, placement mismatch": 15 / 120,
-                 "three formations, one departing at 10 s": 0.4}
+# [m/s], steps per part file)
+MOST = 0.6
+"""The share of a case's steps the fused step must take at least ..."""
+FEWER = {"refused moves, placement mismatch": 15 / 120}
+"""... but there the centre member, snapped to the edge of the open lane, reaches into the
+next lane from step 21 on: those steps are the loop's (sumo/adapter.py place's moveTo hint)."""
+
+
 CASES = {
     "a cut-in, tables cut every 10 steps": (
         LIGHT, {"run.duration": 8.0, "traffic.warmup": 20.0}, _cut_in,
@@ -134,8 +136,7 @@ def test_fused_steps_write_the_files_of_the_loops_own_steps(tmp_path, monkeypatc
     n_fused = len(taken)
     loop, b = _run(tmp_path, "loop", case, monkeypatch, False)
     assert len(taken) == n_fused  # the switch turned the fused path off
-    share = SHARE.get(name, MOST)
-    assert n_fused > share * fused.steps_done, f"only {n_fused} of {fused.steps_done} steps fused"
+    assert n_fused > FEWER.get(name, MOST) * fused.steps_done, f"only {n_fused} of {fused.steps_done} steps fused"
     ev = pd.read_parquet(a / "events.parquet")
     assert case[3] <= set(ev.kind), f"the case provoked {sorted(set(ev.kind))}"
     assert (fused.status, fused.reason, fused.steps_done) == (loop.status, loop.reason, loop.steps_done)

@@ -136,16 +136,33 @@ def step_members(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, 
         for i in range(n):
             u_prev[i] = U0[i]
     if at >= 0 and comfort.shape[0] == vc.shape[0]:
-        for j in range(1, vc.shape[0]):
-            tj = t0 + j * dt_c
-            for i in range(n):
-                r = at + (j - 1) * n + i
-                table[0, r] = tj
-                table[1, r] = comfort[j, i, 0]
-                table[2, r] = comfort[j, i, 1]
-                table[3, r] = comfort[j, i, 2]
-                table_ids[r] = i
+        period_table_rows(comfort, t0, dt_c, table, table_ids, at, np.ones(n, dtype=np.bool_))
     return x, theta_star, speed_in, u_prev
+
+
+@kernel
+def period_table_rows(comfort, t0, dt_c, table, table_ids, at, active):
+    """Control periods 1 .. n_ctrl - 1 of ``comfort`` (n_ctrl, n, 3) as comfort table rows from
+    row ``at`` of ``table`` (t = t0 + j dt_c [s], speed, a_lon, a_lat) and ``table_ids`` (code
+    i), period by period, the members with ``active`` only (sim/recorder.py
+    add_comfort_periods' rows)."""
+    n = comfort.shape[1]
+    n_act = 0
+    for i in range(n):
+        if active[i]:
+            n_act += 1
+    for j in range(1, comfort.shape[0]):
+        tj = t0 + j * dt_c
+        r = at + (j - 1) * n_act
+        for i in range(n):
+            if not active[i]:
+                continue
+            table[0, r] = tj
+            table[1, r] = comfort[j, i, 0]
+            table[2, r] = comfort[j, i, 1]
+            table[3, r] = comfort[j, i, 2]
+            table_ids[r] = i
+            r += 1
 
 
 @kernel
@@ -237,16 +254,33 @@ def member_signals(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred
         for q in range(m):
             if abs(out[i, q]) > limits[q]:
                 return False  # out of range: the caller records the rows (and the event)
-    for i in range(n):
-        traj[0, at + i] = t
-        for q in range(m):
-            traj[1 + q, at + i] = out[i, q]
-        traj_ids[at + i] = i
-        comfort[0, c_at + i] = t
-        for q in range(comfort_cols.shape[0]):
-            comfort[1 + q, c_at + i] = out[i, comfort_cols[q]]
-        comfort_ids[c_at + i] = i
+    signal_table_rows(out, t, traj, traj_ids, at, comfort, comfort_ids, c_at, comfort_cols,
+                      np.ones(n, dtype=np.bool_))
     return True
+
+
+@kernel
+def signal_table_rows(out, t, traj, traj_ids, at, comfort, comfort_ids, c_at, comfort_cols,
+                      active):
+    """The members' rows of a recorded step at t [s] (:func:`member_signals`' table rows):
+    member i's signals ``out[i]`` into a column of ``traj`` (t, then out's columns) and of
+    ``traj_ids`` (its code, i) from column ``at``, and into ``comfort`` (t, then out's columns
+    ``comfort_cols``) and ``comfort_ids`` from ``c_at``; the members with ``active`` only, in
+    order (sim/recorder.py add_signal_rows' and add_comfort_rows' rows); returns how many."""
+    r = 0
+    for i in range(out.shape[0]):
+        if not active[i]:
+            continue
+        traj[0, at + r] = t
+        for q in range(out.shape[1]):
+            traj[1 + q, at + r] = out[i, q]
+        traj_ids[at + r] = i
+        comfort[0, c_at + r] = t
+        for q in range(comfort_cols.shape[0]):
+            comfort[1 + q, c_at + r] = out[i, comfort_cols[q]]
+        comfort_ids[c_at + r] = i
+        r += 1
+    return r
 
 
 @kernel

@@ -49,6 +49,14 @@ class MemberWatch:
                                f"SUMO has the member {gap_sumo[i]:.2f} m from where the model put it")
         self.mismatch, self._off = off, n_off > 0
 
+    def unchanged(self, idx, lanes: list[str], lane_idx) -> bool:
+        """True when :meth:`lane_changes` of the members ``idx`` (all present) on ``lanes`` with
+        lane indices ``lane_idx`` has nothing to do but forget :attr:`_settled` (each on the
+        lane it was on); sumo/fused_path.py then leaves it out."""
+        seen, ids, prev = self.lanes.lane, self.ids, self.lane_prev
+        return all(seen.get(ids[i]) == lane and prev[i] == li
+                   for i, lane, li in zip(idx, lanes, lane_idx))
+
     def lane_changes(self, t, idx_act, present, lanes, lane_idx):
         every = len(idx_act) == len(self.ids) and present.all()
         if every and lanes == self._settled:

@@ -120,9 +120,8 @@ class FusedPath:
         self._li = self._lane_index = None
         self._all = np.arange(n)
         self._all_in = np.ones(n, dtype=np.bool_).tobytes()
-        self._vc_rows = k  # a virtual-car row per formation (every one running)
         self._rows = self._nb_rows = None
-        self._flags = 0
+        self._idx, self._every, self._flags = self._all, True, 0
         if len(FILLED_BY_CALLER) != 8 or len(COMFORT_COLUMNS) != 6:
             raise ValueError("fused_step writes the road and SUMO columns of record/columns.py")
 
@@ -131,26 +130,30 @@ class FusedPath:
         """Is step k (at t [s]) a usual one? Reads SUMO's members and neighbours for
         :meth:`step` (nothing is changed: the loop's step reads again otherwise); ``clock``:
         the loop's sim/timing.py PhaseClock."""
-        w, rec, n = self.world, self.rec, self.n
+        w, rec = self.world, self.rec
+        act = w.active
+        every = act.tobytes() == self._all_in
         if (k >= self.n_steps or not w.inserted or len(w.pending) or w.released or w.adopting
                 or rec._any_out or (k + 1) % rec.steps_per_chunk == 0
-                or w.active.tobytes() != self._all_in or w.in_sumo.tobytes() != self._all_in
-                or w.slot_index is not self._slot or not self.refs.usual()):
+                or w.slot_index is not self._slot or not self.refs.usual(t)
+                or ((w.in_sumo.tobytes() != self._all_in) if every else (act & ~w.in_sumo).any())):
             return False
         ev = w.ev
         if ev is not None and (ev.collisions or ev.teleports):
             return False
-        tr, cf = rec.traj, rec.comfort
-        if (tr.rows_buffered + n + self._vc_rows > tr.chunk_rows
-                or cf.rows_buffered + n * self.periods.shape[0] > cf.chunk_rows):
+        idx = self._all if every else np.flatnonzero(act)
+        n_act, tr, cf = len(idx), rec.traj, rec.comfort
+        if (tr.rows_buffered + n_act + self.refs.vc_rows > tr.chunk_rows
+                or cf.rows_buffered + n_act * self.periods.shape[0] > cf.chunk_rows):
             return False
-        rows = w.adapter.settled_members(w.sumo_ids)
-        if rows is None or rows[1] != w.members._settled:
+        rows = w.adapter.settled_members(w.sumo_ids if every else [w.sumo_ids[i] for i in idx])
+        if rows is None or not (rows[1] == w.members._settled if every
+                                else w.members.unchanged(idx, rows[1], rows[2])):
             return False
         nb = w.adapter.neighbour_table(w.all_bg)
         if nb is not None and rec.background.rows_buffered + len(nb[0]) > rec.background.chunk_rows:
             return False
-        self._rows, self._nb_rows = rows, nb
+        self._rows, self._nb_rows, self._idx, self._every = rows, nb, idx, every
         clock.lap("sumo_read")
         return True
 
@@ -158,12 +161,8 @@ class FusedPath:
     def step(self, k: int, t: float, state, clock):
         """The usual step k at t [s] (after :meth:`ready`): the compiled call, the step's
         events and rows; returns the members' state at t + step."""
-        w, rec, n = self.world, self.rec, self.n
-        members, lanes, lane_idx = self._rows
-        if lanes != self._lanes_key:  # the packed rows of the members' lanes (sumo/sense.py)
-            self._lanes_key = lanes
-            self._li = w.packed_lanes.indices(lanes)
-            self._lane_index = np.array(lane_idx, dtype=np.int64).astype(float)
+        w, rec, n, idx = self.world, self.rec, self.n, self._idx
+        members, li, lane_index = self._members()
         nb = self._nb_rows
         if nb is None:
             nb_ids, nb_in = None, _NO_NB
@@ -171,22 +170,44 @@ class FusedPath:
             nb_ids, types, lane_ids, table, nb_li = nb
             nb_in = (table, w._nb_guess(nb_ids), rec.background_codes(nb_ids, types, lane_ids), nb_li)
         s, v = self.refs.before()
-        tr, cf = rec.traj, rec.comfort
+        tr, cf, refs = rec.traj, rec.comfort, self.refs
         x, ts, sp, ul, s_all, d_all, n_off, worst, flags = fused_step(
-            *self.run_args, t, s, v, state.x, state.theta_star, state.speed_in, self.fleet._u_last(state),
-            w.packed_lanes.table, w.packed_lanes.points, w.m_s, members, self._li,
-            self._lane_index, *nb_in, tr.rows_buffered, cf.rows_buffered,
-            rec.background.rows_buffered)
-        self.refs.after()
+            *self.run_args, t, s, v, state.x, state.theta_star, state.speed_in,
+            self.fleet._u_last(state), w.packed_lanes.table, w.packed_lanes.points, w.m_s,
+            members, li, lane_index, *nb_in, tr.rows_buffered, cf.rows_buffered,
+            rec.background.rows_buffered, w.active, refs.running, refs.parked,
+            *refs.held(state))
+        refs.after()
         self._flags = flags
         w.m_s = s_all[:n]
         if nb_ids is not None:
             w._nb_guess.keep(nb_ids, s_all[n:])
+        if not self._every:  # MemberWatch.lane_changes of a step with members out of the run
+            w.members._settled = None
         self._events(t, n_off, flags, worst, nb)
-        tr.commit(n + self._vc_rows)
-        cf.commit(n)
+        tr.commit(len(idx) + refs.vc_rows)
+        cf.commit(len(idx))
         clock.lap("fused_step")
         return FleetState(x, ts, sp, ul)
+
+    def _members(self):
+        """The members' SUMO rows for the compiled step (NaN rows, lane row -1 and lane index
+        NaN for those out of the run, as SumoWorld._member_rows gives them), their packed lane
+        rows and their lane indices: kept while the members and their lanes stay the same."""
+        table, lanes, lane_idx = self._rows
+        idx = self._idx
+        key = (lanes, idx.tobytes())
+        if key != self._lanes_key:  # a member changed lanes or left the run
+            self._lanes_key = key
+            self._li = np.full(self.n, -1, dtype=np.int64)
+            self._li[idx] = self.world.packed_lanes.indices(lanes)
+            self._lane_index = np.full(self.n, np.nan)
+            self._lane_index[idx] = np.array(lane_idx, dtype=np.int64)
+        if self._every:
+            return table, self._li, self._lane_index
+        full = np.full((self.n, 5), np.nan)
+        full[idx] = table
+        return full, self._li, self._lane_index
 
     def _events(self, t, n_off, flags, worst, nb) -> None:
         """The step's events in the loop's order: placement (sense), emergency braking and
@@ -202,7 +223,7 @@ class FusedPath:
         else:
             w.traffic(t, _NbView(nb[0], nb[2], nb[4]), self.lead_obs, self.gap, self.v_m, w.active)
             rec.background.commit(len(nb[0]))
-        if flags & OUT_OF_RANGE:
+        if flags & OUT_OF_RANGE or not self._every:  # Recorder.add_signal_rows' check
             rec.flag_range(t, self.sig, w.active)
         inc = rec.incidents
         if worst < 0.0 or flags & SLOW or inc.busy:
@@ -213,26 +234,32 @@ class FusedPath:
         """After the loop handed step k on: its control periods' comfort rows, the
         generator's virtual car at the step's end, the moves and SUMO's step (``clock``: the
         loop's sim/timing.py PhaseClock)."""
-        w, ad, n = self.world, self.world.adapter, self.n
+        w, ad, idx = self.world, self.world.adapter, self._idx
         clock.lap("record")  # the loop's caller: the step's end, part files, progress (runner.py)
         if self.periods.shape[0] > 1:
-            self.rec.comfort.commit((self.periods.shape[0] - 1) * n)
+            self.rec.comfort.commit((self.periods.shape[0] - 1) * len(idx))
         self.refs.settle(self.s_next, self.v_next)
         if self._flags & NOT_FINITE:
             check_finite(state, self.ids, t_next)
         place = self.place
         w.v_after, w.a_mean = place[3].copy(), place[4].copy()
         if w.true_v is not None:
-            w.true_v[int(round(t_next / self.step_s))] = w.v_after.copy()
+            w.true_v[int(round(t_next / self.step_s))] = np.where(w.active, w.v_after, np.nan)
         w._kin = (state, *self.kin)  # the next sense's, if the loop's step takes it
-        refused = _move(ad, w.sumo_ids, place, self.kin[0])
+        if self._every:
+            ids, at = w.sumo_ids, place
+        else:
+            ids, at = [w.sumo_ids[i] for i in idx], place[:, idx]
+        refused = _move(ad, ids, at, self.kin[0][idx])
         if refused or w.refusals.counting:
-            w.refusals(t_next, self._all, refused, w.active, ad)
+            w.refusals(t_next, idx, refused, w.active, ad)
         clock.lap("sumo_place")
         w.ev = ad.step()
         if w.step_hook is not None:
             w.step_hook(k, t_next, ad)
-        ad.tell_speeds(w.sumo_ids, place[5].tolist(), place[4].tolist())
+        ad.tell_speeds(ids, at[5].tolist(), at[4].tolist())
+        if refused and not w.all_bg and w.active.any():  # a member dropped: SumoWorld.step's
+            w._subscribe_contexts()
         if w.all_bg:
             ad.subscribe_departed()
         clock.lap("sumo_step")

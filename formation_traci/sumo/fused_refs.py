@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-_RUNNING = 1
-"""sim/formation_group.py's code of a running formation."""
+_WAITING, _RUNNING = 0, 1
+"""sim/formation_group.py's codes of a waiting and a running formation."""
 
 
 def _bodies(ref_d_front, world) -> np.ndarray:
@@ -24,8 +24,12 @@ class OneFormation:
 
     vc_key = None  # EmergencyWatch's 'emergency': the planner's flag itself
 
+    running = np.ones(1, dtype=np.bool_)
+    vc_rows = 1
+
     def __init__(self, gen, world):
         self.gen, self.pl = gen, gen.longitudinal
+        self.parked = np.zeros(len(gen.frame), dtype=np.bool_)
         self.reach = gen.reach  # fixed for a run: the formation's front plus the end margin [m]
         self.s, self.v, self.a_vc = np.empty(1), np.empty(1), np.empty(1)
         self.em_vc, self.has_prev = np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.bool_)
@@ -38,7 +42,11 @@ class OneFormation:
                          self.has_prev, pl.a_cap, gen._v_prev, pl.emergency)
         self._kept = (pl.a_cap, gen._v_prev, pl.emergency)
 
-    def usual(self) -> bool:
+    def held(self, state):
+        """The held state's arrays (no member of one formation is ever parked: any rows)."""
+        return state.x, state.theta_star, state.speed_in, state.theta_star
+
+    def usual(self, t: float) -> bool:
         """Not at the end of its route, and the arrays given to the compiled step are the
         reference's still."""
         gen, pl = self.gen, self.pl
@@ -75,6 +83,7 @@ class GroupOfFormations:
     def __init__(self, group, world):
         g = self.group = group
         self.reach = g.reach
+        self.running, self.parked, self.vc_rows = g.status == _RUNNING, None, 0
         self.run_args = (g.profs, g.prof_at, g.along, g.slot_d, g.is_road, g.half_w, g.starts,
                          g.lims, g.pps, g.ramps, g.frame, g.slots, g.depart,
                          _bodies(g.d_front, world), True, g.a_vc, g.emergency_vc, g.has_prev,
@@ -82,14 +91,29 @@ class GroupOfFormations:
         self._kept = (g.a_vc, g.emergency_vc, g.has_prev, g.a_cap_prev, g.v_prev, g.emergency,
                       g.depart)
 
-    def usual(self) -> bool:
-        """Every formation running, none near the end of its route (FormationGroup.stop), the
-        arrays given to the compiled step the group's still."""
+    def usual(self, t: float) -> bool:
+        """No formation departs at t [s] (FormationGroup.references) or nears the end of its
+        route (FormationGroup.stop), the parked rows' held state exists (the first
+        FormationGroup.settle keeps it), the arrays given to the compiled step are the
+        group's still; sets :attr:`running`, :attr:`parked` and :attr:`vc_rows`."""
         g = self.group
-        return (bool((g.status == _RUNNING).all()) and not (g.s + self.reach > g.length).any()
-                and all(a is b for a, b in zip(self._kept, (g.a_vc, g.emergency_vc, g.has_prev,
-                                                            g.a_cap_prev, g.v_prev, g.emergency,
-                                                            g.depart))))
+        run = g.status == _RUNNING
+        if (((g.status == _WAITING) & (t >= g.depart - 1e-9)).any()
+                or (run & (g.s + self.reach > g.length)).any()
+                or not all(a is b for a, b in zip(self._kept, (g.a_vc, g.emergency_vc, g.has_prev,
+                                                               g.a_cap_prev, g.v_prev, g.emergency,
+                                                               g.depart)))):
+            return False
+        self.running, self.vc_rows = run, int(run.sum())
+        self.parked = np.repeat(~run, g.counts)
+        return g._held is not None or not self.parked.any()
+
+    def held(self, state):
+        """The parked rows' held state (FormationGroup.settle's; the state itself when none)."""
+        h = self.group._held
+        if h is None:  # nothing parked: any rows
+            return state.x, state.theta_star, state.speed_in, state.theta_star
+        return h.x, h.theta_star, h.speed_in, h.u_last
 
     def before(self):
         return self.group.s, self.group.v
@@ -98,11 +122,13 @@ class GroupOfFormations:
         pass
 
     def emergency_info(self, a_request, a_cap_req) -> dict:
-        """FormationGroup.references' Reference.info, every formation running."""
+        """FormationGroup.references' Reference.info."""
         g = self.group
-        return {"emergency_members": g.emergency.copy(), "emergency": g.emergency_vc.copy(),
-                "a_request": a_request.copy(), "a_cap_request": a_cap_req}
+        return {"emergency_members": ~self.parked & g.emergency,
+                "emergency": self.running & g.emergency_vc, "a_request": a_request.copy(),
+                "a_cap_request": a_cap_req}
 
     def settle(self, s_next, v_next) -> None:
-        """FormationGroup.settle with every formation running."""
-        self.group.s, self.group.v = s_next.copy(), v_next.copy()
+        """FormationGroup.settle's virtual cars (the parked rows are held in the compiled step)."""
+        g = self.group
+        g.s, g.v = np.where(self.running, s_next, g.s), np.where(self.running, v_next, g.v)

@@ -31,7 +31,8 @@ from ..control.reference_group import group_reference_step
 from ..kernels import kernel, maximum
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
-from ..sim.fleet import kinematics_rows, member_signals, step_members
+from ..sim.fleet import (kinematics_rows, member_signals, period_table_rows, signal_table_rows,
+                         step_members)
 from ..sim.incidents import member_clearances
 from .sense import sense_step
 from .types import cog_to_sumo_rows
@@ -57,7 +58,8 @@ def fused_step(kind, P, law, L, gains, pred, n_sub, dt_c, step, G, tolerance, d_
                inc_cols, inc_shift, inc_length, inc_width, inc_clear, stranded,
                periods, v_m, m_gap, place, pos, vel, heading,
                t, s, v, x, theta_star, speed_in, u_last, lane_table, lane_points, s_guess, members, li,
-               lane_index, nb, nb_guess, bg_codes, nb_lane_index, at, c_at, bg_at):
+               lane_index, nb, nb_guess, bg_codes, nb_lane_index, at, c_at, bg_at, active,
+               running, parked, held_x, held_ts, held_sp, held_ul):
     """One usual step of the road run at t [s] (module docstring). The run's arrays come
     first (the same objects every step), then the step's. In groups:
 
@@ -95,6 +97,10 @@ def fused_step(kind, P, law, L, gains, pred, n_sub, dt_c, step, G, tolerance, d_
               [m/s], reference [m/s] of a stranded member);
     control   ``periods`` (n_ctrl, n, 3) step_members' comfort buffer (its rows written at
               c_at + n of the comfort table);
+    in & out  ``active`` the members in the run (rows are recorded for them only; the others'
+              SUMO rows are NaN, their ``li`` -1), ``running`` the formations running (the
+              others' virtual cars stand), ``parked`` their members' rows, held at
+              ``held_x`` .. ``held_ul`` (sim/formation_group.py FormationGroup.settle);
     out       ``v_m`` the members' speeds [m/s] as sensed, ``m_gap`` their distance to
               where SUMO has them [m] (the sumo_gap column), ``place`` (6, n): SUMO's front
               bumper x, y [m], angle [deg], the speed [m/s] and mean acceleration [m/s^2]
@@ -117,46 +123,58 @@ def fused_step(kind, P, law, L, gains, pred, n_sub, dt_c, step, G, tolerance, d_
     for i in range(n):
         v_m[i] = v_sense[i]
         m_gap[i] = g[i]
-    active = np.ones(n, dtype=np.bool_)
     flags = _reference(G, profs, prof_at, t - depart, s, v, along, slot_d, is_road, bodies,
-                       half_w, s_all[:n], d_all[:n], v_sense, active, rear, d_all[n:], nb_half_w,
-                       nb_v, peers, starts, lims, pps, a_vc, emergency_vc, a_cap_prev, v_prev,
-                       has_prev, emergency, dt_c, vc, ramps, a_cap_from, a_request, s_next,
-                       v_next, gap, lead_idx, a_cap_req, a_cap, truth)
+                       half_w, s_all[:n], d_all[:n], v_sense, active, running, rear, d_all[n:],
+                       nb_half_w, nb_v, peers, starts, lims, pps, a_vc, emergency_vc, a_cap_prev,
+                       v_prev, has_prev, emergency, dt_c, vc, ramps, a_cap_from, a_request,
+                       s_next, v_next, gap, lead_idx, a_cap_req, a_cap, truth)
     m = nb.shape[0]
     for i in range(n):
         lead_obs[i] = lead_idx[i] if lead_idx[i] < m else -1
     _background_rows(bg_floats, bg_ints, bg_at, t, nb_x, nb_y, nb_psi, nb_v, nb[:, 4], nb_length,
                      nb_width, s_all[n:], d_all[n:], bg_codes, nb_lane_index)
     v_cap = np.full(n, np.inf)
-    no_limits = np.full(limits.shape[0], np.inf)  # the rows are written whatever the values
     member_signals(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, G, frame, vc,
-                   slots, v_cap, a_cap, a_cap_from, dt_c, cols, sig, t, no_limits, traj,
-                   traj_ids, at, comfort, comfort_ids, c_at, comfort_cols)
+                   slots, v_cap, a_cap, a_cap_from, dt_c, cols, sig, t, limits, traj, traj_ids,
+                   -1, comfort, comfort_ids, c_at, comfort_cols)
+    n_act = signal_table_rows(sig, t, traj, traj_ids, at, comfort, comfort_ids, c_at,
+                              comfort_cols, active)
     flags |= _road_columns(sig, limits, extras, at, s_all, d_all, lane_index, g, slot_index, traj,
-                           traj_ids, vc_cols, vc_codes, t, truth, inc_cols, stranded)
+                           traj_ids, vc_cols, vc_codes, t, truth, inc_cols, stranded, active)
     worst = member_clearances(sig, inc_cols[0], inc_cols[1], inc_cols[2], inc_shift, inc_length,
                               inc_width, active, inc_clear)
     x1, ts1, sp1, ul1 = step_members(x, theta_star, speed_in, u_last, kind, P, law, L, gains,
                                      pred, G, frame, vc, slots, v_cap, a_cap, a_cap_from, dt_c,
-                                     n_sub, periods, t, comfort, comfort_ids,
-                                     c_at + n if periods.shape[0] > 1 else -1)
+                                     n_sub, periods, t, comfort, comfort_ids, -1)
+    if periods.shape[0] > 1:
+        period_table_rows(periods, t, dt_c, comfort, comfort_ids, c_at + n_act, active)
+    for i in range(n):  # the members of formations not running stay where they are
+        if parked[i]:
+            x1[i] = held_x[i]
+            ts1[i] = held_ts[i]
+            sp1[i] = held_sp[i]
+            ul1[i] = held_ul[i]
     flags |= _placed(kind, x, speed_in, x1, sp1, d_front, step, place, pos, vel, heading)
     return x1, ts1, sp1, ul1, s_all, d_all, n_off, worst, flags
 
 
 @kernel
 def _reference(G, profs, prof_at, t_f, s, v, along, slot_d, is_road, bodies, half_w, m_s, m_d,
-               v_m, active, nb_rear, nb_d, nb_half_w, nb_v, peers, starts, lims, pps, a_vc,
+               v_m, active, running, nb_rear, nb_d, nb_half_w, nb_v, peers, starts, lims, pps, a_vc,
                emergency_vc, a_cap_prev, v_prev, has_prev, emergency, dt_c, vc, ramps,
                a_cap_from, a_request, s_next, v_next, gap, lead_idx, a_cap_req, a_cap, truth):
     """Every formation's reference (group_reference_step at each formation's own time
-    ``t_f`` [s], every formation running, no released member among the neighbours; with
-    ``peers`` SUMO's vehicles joined by every member: sumo/peers.py Peers.table); returns
-    EMERGENCY when a virtual car or a member is on emergency braking, else 0."""
+    ``t_f`` [s], the ``running`` ones moving, no released member among the neighbours; with
+    ``peers`` SUMO's vehicles joined by every member in the run: sumo/peers.py Peers.table);
+    returns EMERGENCY when a running virtual car or a member in the run is on emergency
+    braking, else 0."""
     k = s.shape[0]
     m = nb_rear.shape[0]
-    n = m_s.shape[0] if peers else 0
+    n = 0
+    if peers:
+        for i in range(m_s.shape[0]):
+            if active[i]:
+                n += 1
     rear = np.empty(m + n)
     d = np.empty(m + n)
     half = np.empty(m + n)
@@ -167,20 +185,24 @@ def _reference(G, profs, prof_at, t_f, s, v, along, slot_d, is_road, bodies, hal
         d[j] = nb_d[j]
         half[j] = nb_half_w[j]
         speed[j] = nb_v[j]
-    for i in range(n):  # Peers.update's rear (front bumper less the length), Peers.table's rows
-        rear[m + i] = m_s[i] + bodies[3, i] - bodies[1, i]
-        d[m + i] = m_d[i]
-        half[m + i] = bodies[2, i] / 2
-        speed[m + i] = v_m[i]
-        owner[m + i] = i
+    q = m
+    for i in range(m_s.shape[0] if peers else 0):  # Peers.update's rear (front bumper less the
+        if not active[i]:  # length), Peers.table's rows of the members in the run
+            continue
+        rear[q] = m_s[i] + bodies[3, i] - bodies[1, i]
+        d[q] = m_d[i]
+        half[q] = bodies[2, i] / 2
+        speed[q] = v_m[i]
+        owner[q] = i
+        q += 1
     group_reference_step(G, profs, prof_at, t_f, s, v, along, slot_d, is_road, bodies[0].copy(),
                          half_w, m_s, m_d, v_m, active, rear, d, half, speed,
                          np.zeros(m + n, dtype=np.bool_), owner, starts, lims, pps, a_vc,
                          emergency_vc, a_cap_prev, v_prev, has_prev, emergency, dt_c, vc, ramps,
-                         a_cap_from, np.ones(k, dtype=np.bool_), a_request, s_next, v_next, gap,
-                         lead_idx, a_cap_req, a_cap, truth)
+                         a_cap_from, running, a_request, s_next, v_next, gap, lead_idx, a_cap_req,
+                         a_cap, truth)
     for f in range(k):
-        if emergency_vc[f]:
+        if running[f] and emergency_vc[f]:
             return EMERGENCY
     for i in range(emergency.shape[0]):
         if emergency[i]:
@@ -212,28 +234,31 @@ def _background_rows(fl, ints, at, t, x, y, psi, v, a, length, width, s, d, code
 
 @kernel
 def _road_columns(sig, limits, extras, at, s_all, d_all, lane_index, gap, slot_index, traj,
-                  traj_ids, vc_cols, vc_codes, t, truth, inc_cols, stranded):
-    """After member_signals: the members' road and SUMO columns at rows ``at`` .. of the
-    trajectory table (Recorder.add_step's ``extra``), each running formation's virtual-car
-    row after them; returns OUT_OF_RANGE (a signal beyond the recorder's ``limits``:
-    member_signals' test) | SLOW (a member stands while its speed reference does not:
-    sim/incidents.py)."""
+                  traj_ids, vc_cols, vc_codes, t, truth, inc_cols, stranded, active):
+    """After the members' rows (those in the run, ``active``): their road and SUMO columns at
+    rows ``at`` .. of the trajectory table (Recorder.add_step's ``extra``), each running
+    formation's virtual-car row after them; returns OUT_OF_RANGE (a signal beyond the
+    recorder's ``limits``: member_signals' test) | SLOW (a member stands while its speed
+    reference does not: sim/incidents.py)."""
     flags = 0
     n = sig.shape[0]
+    r = at
     for i in range(n):
         for q in range(sig.shape[1]):
             if abs(sig[i, q]) > limits[q]:
                 flags |= OUT_OF_RANGE
         if sig[i, inc_cols[3]] < stranded[0] and sig[i, inc_cols[4]] > stranded[1]:
             flags |= SLOW
-        r = at + i
+        if not active[i]:
+            continue
         extras[0, r] = s_all[i]
         extras[1, r] = d_all[i]
         extras[2, r] = lane_index[i]
         extras[3, r] = gap[i]
         extras[4, r] = slot_index[i]
         extras[5, r] = 0.0
-    e = at + n
+        r += 1
+    e = r
     for f in range(truth.shape[0]):
         if truth[f, 0] == truth[f, 0]:
             _vc_row(traj, e, vc_cols, t, truth[f])
