@@ -82,6 +82,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         self._all_results = (v.getAllSubscriptionResults if fast is None
                              else fast.vehicle_getAllSubscriptionResults)
         self._started = False
+        self.native = None  # sumo/native_reads.py's module once libsumo started (or None)
         self.departed: dict[str, int] = {}  # flow id -> vehicles SUMO inserted (see count_departures)
         self.departures: list[tuple[str, float]] = []  # (vehicle id, SUMO time [s]) of every insertion
         self._proc = None  # the SUMO process of the traci backend
@@ -97,6 +98,10 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         except Exception as exc:
             raise SumoError(f"SUMO did not start: {exc}") from exc
         self._started = True
+        from .native_reads import load  # the C++ reads of sumo/native (None: SWIG's)
+        self.native = load(self.api._libsumo.__file__)
+        if self.native is not None:
+            self.native.clear()  # the bodies it keeps are of the last simulation's vehicles
         return self.version
 
     def _start_socket(self, cmd: list[str]) -> str:
@@ -270,18 +275,47 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
             return _QUIET  # nothing reported (most steps)
         for vid in arrived:
             self._bodies.pop(vid, None)
+        if self.native is not None and arrived:
+            self.native.forget(list(arrived))
         return StepEvents([(c.collider, c.victim, c.lane) for c in collisions], list(teleports),
                           list(arrived))
 
     def set_true_speeds(self, ids: list[str], v, a) -> None:
         """Tell SUMO each member's true speed [m/s] and acceleration [m/s^2] (it would infer
         a half-step-late mean speed clamped to the lane limit from the distance moved)."""
-        self.tell_speeds(ids, np.maximum(v, 0.0).tolist(), a.tolist())
-
-    def tell_speeds(self, ids: list[str], v: list[float], a: list[float]) -> None:
-        """:meth:`set_true_speeds` with the speeds (not below 0) and accelerations as lists."""
         set_speed = self._set_previous_speed
-        for vid, vi, ai in zip(ids, v, a):
+        for vid, vi, ai in zip(ids, np.maximum(v, 0.0).tolist(), a.tolist()):
+            try:
+                set_speed(vid, vi, ai)
+            except self.api.TraCIException:
+                pass  # removed during the step: the next read_members reports it
+
+    def move_rows(self, ids: list[str], xf, yf, angle, pos) -> dict[str, str]:
+        """moveToXY of the members ``ids`` to SUMO's front bumper ``xf``, ``yf`` [m] and
+        ``angle`` [deg] (float64 rows; CoG ``pos`` (n, 2) [m] for the messages), through the C++
+        reads when they are there; returns the refused moves as :meth:`place` does, {SUMO id:
+        message} (sumo/fused_path.py: no member reaches into a neighbour lane)."""
+        if self.native is not None:
+            index = {vid: i for i, vid in enumerate(ids)}
+            refused = self.native.move_all(ids, xf, yf, angle, KEEP_ROUTE, MATCH_THRESHOLD)
+            return {vid: f"moveToXY refused for {vid} at ({pos[index[vid], 0]:.2f}, "
+                         f"{pos[index[vid], 1]:.2f}): {msg}" for vid, msg in refused}
+        move, refused = self._move_xy, {}
+        for i, (vid, a, b, c) in enumerate(zip(ids, xf.tolist(), yf.tolist(), angle.tolist())):
+            try:
+                move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
+            except self.api.TraCIException as exc:
+                refused[vid] = f"moveToXY refused for {vid} at ({pos[i, 0]:.2f}, {pos[i, 1]:.2f}): {exc}"
+        return refused
+
+    def tell_speeds(self, ids: list[str], v, a) -> None:
+        """:meth:`set_true_speeds` with the speeds (not below 0) and accelerations given
+        (float64 arrays), through the C++ reads when they are there."""
+        if self.native is not None:
+            self.native.set_previous_speeds(ids, v, a)
+            return
+        set_speed = self._set_previous_speed
+        for vid, vi, ai in zip(ids, v.tolist(), a.tolist()):
             try:
                 set_speed(vid, vi, ai)
             except self.api.TraCIException:
@@ -300,4 +334,6 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         self._window.pop(vid, None)
         self._overlap.pop(vid, None)
         self._bodies.pop(vid, None)
+        if self.native is not None:
+            self.native.forget([vid])
         self.api.vehicle.remove(vid, self.tc.REMOVE_VAPORIZED)

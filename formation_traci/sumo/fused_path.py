@@ -32,7 +32,6 @@ from ..sim.loop import check_finite
 from .events import PLACEMENT_TOLERANCE
 from .fused_refs import GroupOfFormations, OneFormation
 from .fused_step import EMERGENCY, NOT_FINITE, OUT_OF_RANGE, SLOW, fused_step
-from .types import KEEP_ROUTE, MATCH_THRESHOLD
 
 SWITCH = "FORMATION_TRACI_FUSED"
 """Environment variable: ``off`` runs every step through the loop's own path (a diagnostic:
@@ -150,7 +149,7 @@ class FusedPath:
         if rows is None or not (rows[1] == w.members._settled if every
                                 else w.members.unchanged(idx, rows[1], rows[2])):
             return False
-        nb = w.adapter.neighbour_table(w.all_bg)
+        nb = w.adapter.neighbour_table(w.all_bg, native=True)
         if nb is not None and rec.background.rows_buffered + len(nb[0]) > rec.background.chunk_rows:
             return False
         self._rows, self._nb_rows, self._idx, self._every = rows, nb, idx, every
@@ -250,29 +249,16 @@ class FusedPath:
             ids, at = w.sumo_ids, place
         else:
             ids, at = [w.sumo_ids[i] for i in idx], place[:, idx]
-        refused = _move(ad, ids, at, self.kin[0][idx])
+        refused = ad.move_rows(ids, at[0], at[1], at[2], self.kin[0] if self._every else self.kin[0][idx])
         if refused or w.refusals.counting:
             w.refusals(t_next, idx, refused, w.active, ad)
         clock.lap("sumo_place")
         w.ev = ad.step()
         if w.step_hook is not None:
             w.step_hook(k, t_next, ad)
-        ad.tell_speeds(ids, at[5].tolist(), at[4].tolist())
+        ad.tell_speeds(ids, at[5], at[4])
         if refused and not w.all_bg and w.active.any():  # a member dropped: SumoWorld.step's
             w._subscribe_contexts()
         if w.all_bg:
             ad.subscribe_departed()
         clock.lap("sumo_step")
-
-
-def _move(ad, ids, place, pos) -> dict:
-    """moveToXY every member to its pose in ``place`` (SUMO's frame); returns the refused
-    ones, {SUMO id: message} (sumo/adapter.py ``place``'s messages, CoG ``pos``)."""
-    move, refused = ad._move_xy, {}
-    for i, (vid, a, b, c) in enumerate(zip(ids, place[0].tolist(), place[1].tolist(),
-                                           place[2].tolist())):
-        try:
-            move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
-        except ad.api.TraCIException as exc:
-            refused[vid] = f"moveToXY refused for {vid} at ({pos[i, 0]:.2f}, {pos[i, 1]:.2f}): {exc}"
-    return refused

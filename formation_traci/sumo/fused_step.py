@@ -20,6 +20,53 @@ Everything a step writes goes into arrays the caller owns (the tables' buffers a
 it names, the planners' state in place); events, string columns and SUMO's calls stay in
 Python (sumo/fused_path.py), which also decides which steps are usual. The results are those
 of the loop's step, bit for bit (tests/test_fused_step.py).
+
+The arguments of :func:`fused_step`: the run's arrays first (the same objects every step),
+then the step's. In groups:
+
+fleet     ``kind`` .. ``step``: sim/fleet.py step_members' (``step`` the SUMO step [s]);
+          the state ``x``, ``theta_star``, ``speed_in``, ``u_last`` at t;
+sense     ``G``, ``tolerance``, ``d_front``, ``lane_table``, ``lane_points``,
+          ``s_guess``, ``nb_guess``: sumo/sense.py sense_step's; ``members`` (n, 5) the
+          members' SUMO rows (front bumper x, y [m], angle [deg], lateral position [m],
+          lane position [m]: sumo/member_reads.py settled_members), ``li`` their packed
+          lane rows, ``lane_index`` their lane indices [-]; ``nb`` (m, 7) the neighbours'
+          (front bumper x, y [m], angle [deg], speed [m/s], acceleration [m/s^2], length,
+          width [m]: sumo/neighbours.py neighbour_table);
+reference ``profs`` .. ``truth`` and ``s``, ``v``: control/reference_group.py
+          group_reference_step's, every formation running (``s``, ``v``, ``a_vc``,
+          ``emergency_vc``, ``has_prev`` one per formation and the planners' arrays, the
+          last three updated in place; ``frame``, ``slots`` the members' slots; each
+          formation's own time t - ``depart`` [s]); ``bodies`` (4, n): the members' CoG to
+          front bumper as the reference takes it, length, width and CoG to front bumper
+          as SUMO has them [m]; with ``peers`` (several formations) each formation sees
+          the others' members as traffic (sumo/peers.py) and ``lead_obs`` gets the
+          members' leaders among SUMO's vehicles (-1: none, or a member);
+record    ``sig`` (n, signal columns) the members' signals; member_signals' table
+          arguments (``traj`` the trajectory table's float block, ``at`` its first row
+          of the step, ``comfort``, ``comfort_ids``, ``c_at``, ``comfort_cols`` the
+          comfort table's; ``limits`` the recorder's: a signal beyond them is flagged and
+          its row written all the same, as the recorder writes it); ``extras`` the
+          trajectory's road and SUMO columns (s, d, lane_index, sumo_gap, slot,
+          leader_age_s: record/columns.py FILLED_BY_CALLER) at the same rows; ``vc_cols``
+          the float-block rows of t, x, y, heading, v, yaw_rate, a_lon, a_lat, s, d of a
+          virtual-car row, ``vc_codes`` each formation's vehicle_id code; ``bg_floats``,
+          ``bg_ints`` the background table's blocks from row ``bg_at`` with the
+          neighbours' string codes ``bg_codes`` (3, m) and lane indices;
+incidents ``inc_cols`` (x, y, heading, v, v_ref columns of ``sig``), the bodies and the
+          clearance matrix of sim/incidents.py member_clearances, ``stranded`` (speed
+          [m/s], reference [m/s] of a stranded member);
+control   ``periods`` (n_ctrl, n, 3) step_members' comfort buffer (its rows written at
+          c_at + n of the comfort table);
+in & out  ``active`` the members in the run (rows are recorded for them only; the others'
+          SUMO rows are NaN, their ``li`` -1), ``running`` the formations running (the
+          others' virtual cars stand), ``parked`` their members' rows, held at
+          ``held_x`` .. ``held_ul`` (sim/formation_group.py FormationGroup.settle);
+out       ``v_m`` the members' speeds [m/s] as sensed, ``m_gap`` their distance to
+          where SUMO has them [m] (the sumo_gap column), ``place`` (6, n): SUMO's front
+          bumper x, y [m], angle [deg], the speed [m/s] and mean acceleration [m/s^2]
+          over the step of the new state and the speed SUMO is told (not below 0), and
+          ``pos``, ``vel``, ``heading`` its CoG kinematics.
 """
 from __future__ import annotations
 
@@ -31,8 +78,8 @@ from ..control.reference_group import group_reference_step
 from ..kernels import kernel, maximum
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
-from ..sim.fleet import (kinematics_rows, member_signals, period_table_rows, signal_table_rows,
-                         step_members)
+from ..sim.fleet import kinematics_rows, member_signals, step_members
+from ..sim.fleet_rows import period_table_rows, signal_table_rows
 from ..sim.incidents import member_clearances
 from .sense import sense_step
 from .types import cog_to_sumo_rows
@@ -60,57 +107,11 @@ def fused_step(kind, P, law, L, gains, pred, n_sub, dt_c, step, G, tolerance, d_
                t, s, v, x, theta_star, speed_in, u_last, lane_table, lane_points, s_guess, members, li,
                lane_index, nb, nb_guess, bg_codes, nb_lane_index, at, c_at, bg_at, active,
                running, parked, held_x, held_ts, held_sp, held_ul):
-    """One usual step of the road run at t [s] (module docstring). The run's arrays come
-    first (the same objects every step), then the step's. In groups:
-
-    fleet     ``kind`` .. ``step``: sim/fleet.py step_members' (``step`` the SUMO step [s]);
-              the state ``x``, ``theta_star``, ``speed_in``, ``u_last`` at t;
-    sense     ``G``, ``tolerance``, ``d_front``, ``lane_table``, ``lane_points``,
-              ``s_guess``, ``nb_guess``: sumo/sense.py sense_step's; ``members`` (n, 5) the
-              members' SUMO rows (front bumper x, y [m], angle [deg], lateral position [m],
-              lane position [m]: sumo/member_reads.py settled_members), ``li`` their packed
-              lane rows, ``lane_index`` their lane indices [-]; ``nb`` (m, 7) the neighbours'
-              (front bumper x, y [m], angle [deg], speed [m/s], acceleration [m/s^2], length,
-              width [m]: sumo/neighbours.py neighbour_table);
-    reference ``profs`` .. ``truth`` and ``s``, ``v``: control/reference_group.py
-              group_reference_step's, every formation running (``s``, ``v``, ``a_vc``,
-              ``emergency_vc``, ``has_prev`` one per formation and the planners' arrays, the
-              last three updated in place; ``frame``, ``slots`` the members' slots; each
-              formation's own time t - ``depart`` [s]); ``bodies`` (4, n): the members' CoG to
-              front bumper as the reference takes it, length, width and CoG to front bumper
-              as SUMO has them [m]; with ``peers`` (several formations) each formation sees
-              the others' members as traffic (sumo/peers.py) and ``lead_obs`` gets the
-              members' leaders among SUMO's vehicles (-1: none, or a member);
-    record    ``sig`` (n, signal columns) the members' signals; member_signals' table
-              arguments (``traj`` the trajectory table's float block, ``at`` its first row
-              of the step, ``comfort``, ``comfort_ids``, ``c_at``, ``comfort_cols`` the
-              comfort table's; ``limits`` the recorder's: a signal beyond them is flagged and
-              its row written all the same, as the recorder writes it); ``extras`` the
-              trajectory's road and SUMO columns (s, d, lane_index, sumo_gap, slot,
-              leader_age_s: record/columns.py FILLED_BY_CALLER) at the same rows; ``vc_cols``
-              the float-block rows of t, x, y, heading, v, yaw_rate, a_lon, a_lat, s, d of a
-              virtual-car row, ``vc_codes`` each formation's vehicle_id code; ``bg_floats``,
-              ``bg_ints`` the background table's blocks from row ``bg_at`` with the
-              neighbours' string codes ``bg_codes`` (3, m) and lane indices;
-    incidents ``inc_cols`` (x, y, heading, v, v_ref columns of ``sig``), the bodies and the
-              clearance matrix of sim/incidents.py member_clearances, ``stranded`` (speed
-              [m/s], reference [m/s] of a stranded member);
-    control   ``periods`` (n_ctrl, n, 3) step_members' comfort buffer (its rows written at
-              c_at + n of the comfort table);
-    in & out  ``active`` the members in the run (rows are recorded for them only; the others'
-              SUMO rows are NaN, their ``li`` -1), ``running`` the formations running (the
-              others' virtual cars stand), ``parked`` their members' rows, held at
-              ``held_x`` .. ``held_ul`` (sim/formation_group.py FormationGroup.settle);
-    out       ``v_m`` the members' speeds [m/s] as sensed, ``m_gap`` their distance to
-              where SUMO has them [m] (the sumo_gap column), ``place`` (6, n): SUMO's front
-              bumper x, y [m], angle [deg], the speed [m/s] and mean acceleration [m/s^2]
-              over the step of the new state and the speed SUMO is told (not below 0), and
-              ``pos``, ``vel``, ``heading`` its CoG kinematics.
-
-    Returns (x, theta_star, speed_in, u_last) after the step, the members' and the
-    neighbours' arc lengths and offsets (n + m,) [m], the count of members farther than
-    ``tolerance`` from where SUMO has them, the smallest clearance between members [m] and
-    the flags OUT_OF_RANGE | NOT_FINITE | SLOW | EMERGENCY."""
+    """One usual step of the road run at t [s]: the module docstring says what it runs and
+    what each argument is ("The arguments"). Returns (x, theta_star, speed_in, u_last) after
+    the step, the members' and the neighbours' arc lengths and offsets (n + m,) [m], the count
+    of members farther than ``tolerance`` from where SUMO has them, the smallest clearance
+    between members [m] and the flags OUT_OF_RANGE | NOT_FINITE | SLOW | EMERGENCY."""
     n = x.shape[0]
     nb_length = nb[:, 5].copy()
     nb_width = nb[:, 6].copy()

@@ -19,6 +19,7 @@ class MemberReads:
     api = None
     members: dict
     _member_get = None
+    native = None
     _member_lane: dict
     _overlap: dict
     _window_lane: dict
@@ -58,17 +59,24 @@ class MemberReads:
         settled = self._settled
         if settled is None or self._overlap or ids != settled[0]:
             return None
-        get = self._all_results().get
-        rows = [get(vid) for vid in ids]
-        if not all(rows):
+        if self.native is not None:  # the C++ reads (sumo/native_reads.py): the same rows
+            got = self.native.member_table(ids)
+            if got is None:
+                return None
+            tb, lanes, index = got
+            lat = tb[:, 3].tolist()
+        else:
+            get = self._all_results().get
+            rows = [get(vid) for vid in ids]
+            if not all(rows):
+                return None
+            pos, ang, lane, index, lat, lane_pos = self._member_keys
+            lanes = [r[lane] for r in rows]
+            tb = np.array([(*r[pos], r[ang], r[lat], r[lane_pos]) for r in rows], dtype=float)
+            index, lat = [r[index] for r in rows], [r[lat] for r in rows]
+        if lanes != settled[1] or not all(map(le, map(add, map(abs, lat), settled[2]), settled[3])):
             return None
-        pos, ang, lane, index, lat, lane_pos = self._member_keys
-        lanes = [r[lane] for r in rows]
-        if lanes != settled[1] or not all(map(le, map(add, (abs(r[lat]) for r in rows), settled[2]),
-                                              settled[3])):
-            return None
-        tb = np.array([(*r[pos], r[ang], r[lat], r[lane_pos]) for r in rows], dtype=float)
-        return tb, lanes, [r[index] for r in rows]
+        return tb, lanes, index
 
     def _read_some_members(self, ids, rows):
         """:meth:`read_members` when SUMO no longer has some of the members (NaN, '' and -1)."""

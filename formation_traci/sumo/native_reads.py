@@ -24,6 +24,7 @@ import hashlib
 import importlib.metadata as md
 import importlib.util
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -75,24 +76,24 @@ def _command(libsumo_so: str) -> tuple[list[str], str]:
         raise _Unavailable(f"libsumo {versions[0]} but SUMO headers (eclipse-sumo) {versions[1]}")
     inc_sumo = Path(sumo.SUMO_HOME) / "include"
     inc_py = Path(sysconfig.get_paths()["include"])
-    cxx = os.environ.get("CXX") or shutil.which("g++") or shutil.which("c++")
-    if not cxx:
+    cxx = shlex.split(os.environ.get("CXX", "")) or [shutil.which("g++") or shutil.which("c++")]
+    if not cxx[0]:
         raise _Unavailable("no C++ compiler ($CXX, g++, c++)")
     if not (inc_py / "Python.h").is_file():
         raise _Unavailable(f"no Python.h in {inc_py}")
     if not (inc_sumo / "libsumo" / "Vehicle.h").is_file():
         raise _Unavailable(f"no SUMO headers in {inc_sumo}")
     try:
-        out = subprocess.run([cxx, "--version"], capture_output=True, text=True, timeout=TIMEOUT)
+        out = subprocess.run([*cxx, "--version"], capture_output=True, text=True, timeout=TIMEOUT)
         cxx_version = (out.stdout.splitlines() or [""])[0]
     except (OSError, subprocess.SubprocessError) as exc:
-        raise _Unavailable(f"compiler {cxx}: {exc}") from exc
-    cmd = [cxx, "-std=c++17", "-O2", "-fPIC", "-shared", "-D_GLIBCXX_USE_CXX11_ABI=1", f"-I{inc_py}",
+        raise _Unavailable(f"compiler {' '.join(cxx)}: {exc}") from exc
+    cmd = [*cxx, "-std=c++17", "-O2", "-fPIC", "-shared", "-D_GLIBCXX_USE_CXX11_ABI=1", f"-I{inc_py}",
            f"-I{numpy.get_include()}", f"-I{inc_sumo}", str(SOURCE), "-ldl"]
     st = os.stat(libsumo_so)
     key = hashlib.sha256(SOURCE.read_bytes())
     for part in (versions[0], libsumo_so, st.st_size, st.st_mtime_ns, _suffix(), numpy.__version__,
-                 cxx_version, *cmd[1:]):  # the compiler by its --version line, not its path
+                 cxx_version, *cmd[len(cxx):]):  # the compiler by its --version line, not its path
         key.update(f"|{part}".encode())
     return cmd, key.hexdigest()[:32]
 

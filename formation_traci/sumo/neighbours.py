@@ -28,7 +28,7 @@ class NeighbourReads:
     the rows they return as :class:`Neighbours` (one read per step, no per-vehicle call
     except the first sight of a vehicle, whose length, width and type are cached)."""
 
-    api = tc = None
+    api = tc = native = None
     members: dict
     _context: dict
     _subscribed: set
@@ -84,11 +84,14 @@ class NeighbourReads:
         ang, v, a, length, width = np.ascontiguousarray(tb[:, 2:].T)  # rows of one copy
         return ids, types, front, ang, v, a, length, width, lane_ids, lane_index
 
-    def neighbour_table(self, all_vehicles: bool):
+    def neighbour_table(self, all_vehicles: bool, native: bool = False):
         """:meth:`neighbour_rows` as (ids, vTypes, lane ids, table (m, 7) of front bumper x, y
         [m], angle [deg], speed [m/s], acceleration [m/s^2], length, width [m], lane index
-        (m,)); one conversion of the subscription rows (sumo/fused_path.py), None when no
-        vehicle is near."""
+        (m,)); one conversion of the subscription rows (sumo/fused_path.py, with ``native``
+        through the C++ reads of sumo/native_reads.py when they are there: the same rows),
+        None when no vehicle is near."""
+        if native and not all_vehicles and self.native is not None:
+            return self.native.neighbour_table(sorted(self._context), self.members)
         if all_vehicles:
             rows = {vid: r for vid, r in self.api.vehicle.getAllSubscriptionResults().items() if r}
         else:
