@@ -250,7 +250,7 @@ def _child(env, **extra):
 def _result(proc):
     out, err = proc.communicate(timeout=180)
     assert proc.returncode == 0, err
-    return json.loads(out.strip().splitlines()[-1])
+    return {**json.loads(out.strip().splitlines()[-1]), "stderr": err}
 
 
 @pytest.fixture
@@ -278,6 +278,10 @@ def test_concurrent_first_builds_then_a_cached_load_without_compiler(env, tmp_pa
     assert len(files) == 1 and files[0].startswith("_sumo_reads-"), files  # no temporary left
     again = _result(_child(base, FORMATION_TRACI_CACHE=str(cache), CXX=fake))
     assert again["ok"] and Path(again["file"]).name == files[0] and not log.exists(), again
+    # a build announces itself with its bound and says how long it took; a cached load is silent
+    assert any(native_reads.NOTICE in b["stderr"] and f"at most {native_reads.TIMEOUT:.0f} s" in b["stderr"]
+               and "the C++ reads built in" in b["stderr"] for b in built), [b["stderr"] for b in built]
+    assert native_reads.NOTICE not in again["stderr"], again["stderr"]
     print(f"\nfirst builds {[round(b['seconds'], 2) for b in built]} s, cached load {again['seconds']:.3f} s")
     fresh = _result(_child(base, FORMATION_TRACI_CACHE=str(tmp_path / "empty"), CXX=fake))
     assert not fresh["ok"] and "build failed" in fresh["reason"] and log.exists()  # the fake is asked

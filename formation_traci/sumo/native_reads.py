@@ -30,6 +30,7 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
+import time
 from pathlib import Path
 
 ENV = "FORMATION_TRACI_NATIVE"
@@ -37,7 +38,9 @@ ENV = "FORMATION_TRACI_NATIVE"
 SOURCE = Path(__file__).resolve().parent / "native" / "sumo_reads.cpp"
 NAME = "_sumo_reads"
 TIMEOUT = 60.0
-"""Seconds the compiler may take."""
+"""Seconds the compiler may take (then the SWIG path, as for any failed build)."""
+NOTICE = "formation-traci: building the C++ reads of libsumo"
+"""The build notice's first words (stderr; tests look for them)."""
 REASON = ""
 """Why the last :func:`load` returned None ('' when it returned the module)."""
 COMMAND: list[str] = []
@@ -103,15 +106,24 @@ def _suffix() -> str:
 
 
 def _compile(cmd: list[str], target: Path) -> None:
-    """Compile into a temporary file next to ``target``, then rename it into place."""
+    """Compile into a temporary file next to ``target``, then rename it into place; says so
+    on stderr before (with the bound, :data:`TIMEOUT`) and after (how long it took)."""
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=".tmp-" + NAME, suffix=_suffix())
     os.close(fd)
     COMMAND[:] = [*cmd, "-o", tmp]
+    print(f"{NOTICE} (first run only, cached afterwards): ~3 s, at most {TIMEOUT:.0f} s",
+          file=sys.stderr, flush=True)
+    t0 = time.monotonic()
     try:
         out = subprocess.run(COMMAND, capture_output=True, text=True, timeout=TIMEOUT)
     except (OSError, subprocess.SubprocessError) as exc:
         os.unlink(tmp)
+        print(f"formation-traci: the C++ reads not built ({exc}); libsumo's Python API is used",
+              file=sys.stderr, flush=True)
         raise _Unavailable(f"build failed: {exc}") from exc
+    print(f"formation-traci: the C++ reads built in {time.monotonic() - t0:.1f} s"
+          + ("" if out.returncode == 0 else " with errors; libsumo's Python API is used"),
+          file=sys.stderr, flush=True)
     try:
         if out.returncode != 0:
             raise _Unavailable(f"build failed ({out.returncode}): {(out.stderr or out.stdout)[-2000:]}")
