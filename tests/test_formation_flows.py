@@ -66,19 +66,36 @@ def test_a_traffic_flow_may_be_called_of_flow(tmp_path):
     assert keep == {"of_flow": pytest.approx(0.9)} and share_of == {"pen": "of_flow"}
 
 
-def test_a_penetration_flow_inserts_its_share_and_retires_at_the_route_end(tmp_path):
-    p = tmp_path / "s.toml"
+NO_DRAIN = {"traffic.sections.drain_max": 0.0}
+"""The runs below end at the formation's last step: SUMO's drain of the measurement stretch
+after it (sumo/sections.py, ~half of each run's time) changes none of the files or run.json
+entries these tests read (the trajectories, events, comfort and background tables, the flows'
+counts, the formations); only run.json 'sections' and SUMO's raw outputs go on with it."""
+
+
+@pytest.fixture(scope="module")
+def grouped(tmp_path_factory):
+    """SC (120 s) run once with the group step: the penetration test reads it, the group
+    test compares the per-formation path with it. (path, scenario, result, run directory)"""
+    d = tmp_path_factory.mktemp("flow")
+    p = d / "s.toml"
     p.write_text(SC)
-    res = run_scenario(load_scenario(p), tmp_path / "run", scenario_path=p, force=True, progress=False)
+    sc = load_scenario(p, **NO_DRAIN)
+    res = run_scenario(sc, d / "run", scenario_path=p, force=True, progress=False)
+    return p, sc, res, d / "run"
+
+
+def test_a_penetration_flow_inserts_its_share_and_retires_at_the_route_end(grouped):
+    _, _, res, run = grouped
     assert res.status == "completed", res.reason
     assert res.incidents["member_collisions"] == 0
-    meta = json.loads((tmp_path / "run" / "run.json").read_text())
+    meta = json.loads((run / "run.json").read_text())
     counts = meta["formation_flows"]["pen"]
     assert counts["requested"] == 5 and counts["inserted"] == 5 and counts["members_inserted"] == 10
     assert counts["share"] == pytest.approx(0.1, rel=0.1)  # within 10 % of the asked share
     assert meta["scenario"]["formation_flows"][0]["id"] == "pen"  # run.json keeps the scenario as given
-    tr = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
-    ev = pd.read_parquet(tmp_path / "run" / "events.parquet")
+    tr = pd.read_parquet(run / "trajectories.parquet")
+    ev = pd.read_parquet(run / "events.parquet")
     first = tr[tr.formation_id == "pen.0"]
     assert set(first.vehicle_id) == {"pen.0.m1", "pen.0.m2", "vc:pen.0"}
     # every formation's members are in SUMO after their first step, where we put them
@@ -103,22 +120,20 @@ def test_a_flow_needs_exactly_one_rule_and_a_known_flow(tmp_path):
         load_scenario(p)
 
 
-def test_the_group_step_equals_the_per_formation_path(tmp_path, monkeypatch):
+def test_the_group_step_equals_the_per_formation_path(grouped, tmp_path, monkeypatch):
     """Plain road formations are stepped as one group (sim/formation_group.py); the loop's
     per-formation path (the group switched off) gives the same files bit for bit, through
-    departures, formations waiting for room and retirements at the route end."""
-    p = tmp_path / "s.toml"
-    p.write_text(SC.replace("duration = 120.0", "duration = 100.0"))
-    sc = load_scenario(p)
-    res = run_scenario(sc, tmp_path / "group", scenario_path=p, progress=False)
+    departures, formations waiting for room and retirements at the route end (the group's
+    run is the module's 120 s run, the per-formation path runs the same scenario here)."""
+    p, sc, res, group = grouped
     import formation_traci.sim.loop as loop
     monkeypatch.setattr(loop, "group_of", lambda forms, world: None)
     alone = run_scenario(sc, tmp_path / "each", scenario_path=p, progress=False)
     assert res.status == alone.status == "completed", (res.reason, alone.reason)
     for name in ("trajectories", "events", "comfort", "background"):
-        a = pd.read_parquet(tmp_path / "group" / f"{name}.parquet")
+        a = pd.read_parquet(group / f"{name}.parquet")
         b = pd.read_parquet(tmp_path / "each" / f"{name}.parquet")
         pd.testing.assert_frame_equal(a, b, check_exact=True)
-    meta = [json.loads((tmp_path / d / "run.json").read_text()) for d in ("group", "each")]
+    meta = [json.loads((d / "run.json").read_text()) for d in (group, tmp_path / "each")]
     assert meta[0]["formations"] == meta[1]["formations"]
     assert any(f["left_s"] is not None for f in meta[0]["formations"].values())  # some retired
