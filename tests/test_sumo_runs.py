@@ -14,6 +14,13 @@ ROOT = Path(__file__).resolve().parents[1]
 HIGHWAY = sorted((ROOT / "scenarios" / "highway").glob("*.toml"))
 
 
+NO_DRAIN = {"traffic.sections.drain_max": 0.0}
+"""For the tests of what happens while the formation drives: no drain of the measurement
+stretch after its last step (sumo/sections.py; members out, SUMO alone runs on, up to half of a
+run's time). The trajectories, events, background and comfort tables and run.json, but for its
+'sections' entry, are the same with and without it (the bundled scenarios keep their drain)."""
+
+
 def run(tmp_path, path, **overrides):
     sc = load_scenario(path, **overrides)
     res = run_scenario(sc, tmp_path / "run", scenario_path=path, progress=False, force=True)
@@ -87,7 +94,7 @@ def test_members_hold_their_slots_on_straight_and_curved_roads(tmp_path):
     for name, duration in (("straight_3lane_light", 40.0), ("curved_3lane", 60.0)):
         _, meta, traj, events, _ = run(tmp_path / name, ROOT / "scenarios" / "highway" / f"{name}.toml",
                                        **{"run.duration": duration, "traffic.warmup": 60.0,
-                                          "road.start": 700.0})
+                                          "road.start": 700.0}, **NO_DRAIN)
         m = traj[(traj.vehicle_id != "vc") & (traj.t > 10.0)]
         assert m.e_lat.abs().max() < 0.3, name
         assert m.e_lon.abs().max() < 1.0, name
@@ -117,7 +124,7 @@ def test_sumo_cars_brake_behind_a_slow_member_and_change_lanes(tmp_path):
     tail = "[traffic]" + sc_text.split("[traffic]")[1]
     p = tmp_path / "slow.toml"
     p.write_text(head + '[[members]]\nid = "slow"\nslot = { along = 0.0, lanes = 0 }\n\n' + tail)
-    _, _, traj, events, out = run(tmp_path, p, **{"run.duration": 60.0, "traffic.warmup": 60.0})
+    _, _, traj, events, out = run(tmp_path, p, **{"run.duration": 60.0, "traffic.warmup": 60.0}, **NO_DRAIN)
     assert not (events.kind == "collision").any()
     bg = pd.read_parquet(out / "background.parquet")
     slow = traj[traj.vehicle_id == "slow"].set_index("t")
@@ -167,7 +174,7 @@ def test_same_seed_same_results_and_traci_backend_matches_libsumo(tmp_path):
     """Same scenario and seed: identical trajectories and background, through libsumo twice
     and through the traci socket backend."""
     path = ROOT / "scenarios" / "highway" / "straight_3lane_medium.toml"
-    kw = {"run.duration": 5.0, "traffic.warmup": 20.0}
+    kw = {"run.duration": 5.0, "traffic.warmup": 20.0, **NO_DRAIN}
     _, _, a, _, oa = run(tmp_path / "a", path, **kw)
     _, _, b, _, ob = run(tmp_path / "b", path, **kw)
     _, mc, c, _, oc = run(tmp_path / "c", path, **kw, **{"sumo.backend": "traci"})
@@ -302,7 +309,7 @@ def test_members_carry_a_window_of_a_long_route_of_many_edges(tmp_path):
 
     sc = load_scenario(ROOT / "scenarios" / "highway" / "straight_3lane_light.toml",
                        **{"road.net": str(tmp_path / "seg.net.xml"), "road.route": edges,
-                          "road.start": 100.0, "run.duration": 60.0, "traffic.warmup": 60.0})
+                          "road.start": 100.0, "run.duration": 60.0, "traffic.warmup": 60.0, **NO_DRAIN})
     res = run_scenario(sc, tmp_path / "run", progress=False, step_hook=hook)
     assert res.status == "completed", res.reason
     traj = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
