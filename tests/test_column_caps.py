@@ -56,13 +56,18 @@ veh_per_hour_per_lane = 600
 """
 
 
+NO_DRAIN = {"traffic.sections.drain_max": 0.0}
+"""No drain of the measurement stretch after the formation's last step (sumo/sections.py:
+members out, SUMO alone runs on): it records into none of the tables read here."""
+
+
 def test_cut_in_ahead_of_a_close_column_causes_no_collision(tmp_path):
     """Three cars 2.3 m apart at 25 m/s; at t = 48.1 s a car cuts in 24 m ahead of the first.
     The first member's caps reach the others, so the column falls back as one: no collision,
     bumper gaps within 5 cm of 2.3 m (on main: b hit a at t = 49.75 s)."""
     path = tmp_path / "cut_in.toml"
     path.write_text(SCENARIO)
-    res = run_scenario(load_scenario(path), tmp_path / "run", scenario_path=path, progress=False)
+    res = run_scenario(load_scenario(path, **NO_DRAIN), tmp_path / "run", scenario_path=path, progress=False)
     assert res.status == "completed", res.reason
     ev = pd.read_parquet(tmp_path / "run" / "events.parquet")
     assert (ev.kind == "cut_in").any()  # the situation really happens

@@ -86,12 +86,17 @@ def test_timeout_fallback_keeps_the_member_safe_in_a_braking_column(tmp_path):
     assert age.iloc[-1] == pytest.approx(16.0)
 
 
+NO_DRAIN = {"traffic.sections.drain_max": 0.0}
+"""No drain of the measurement stretch after the formation's last step (sumo/sections.py:
+members out, SUMO alone runs on): it records into none of the tables read here."""
+
+
 def test_bundled_study_error_grows_with_delay_and_with_loss(tmp_path):
     """scenarios/studies/comm.toml shortened (seed 1, 20 s warm-up, 30 s of formation, which
     holds the speed drop): the r.m.s. formation error over the members grows with the delay
     (0, 0.1, 0.3 s) and with the loss (none, bursty)."""
     base = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
-    short = {"run.duration": 30.0, "traffic.warmup": 20.0}
+    short = {"run.duration": 30.0, "traffic.warmup": 20.0, **NO_DRAIN}
     want = {(0.0, "none"), (0.1, "none"), (0.3, "none"), (0.0, "bursty")}
     e = {}
     for case in expand_sweep(ROOT / "scenarios" / "studies" / "comm.toml"):
