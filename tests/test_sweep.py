@@ -256,7 +256,9 @@ def test_interrupt_leaves_a_consistent_summary(tmp_path):
 
 
 def test_killed_and_timed_out_cases_are_recorded_and_the_rest_complete(tmp_path, monkeypatch):
-    path = sweep_file(tmp_path, "s.toml", THESIS, 'seeds = [1]\ntimeout_s = 15.0\n[overrides]\n'
+    # 8 s: the 1 s free-space case completes in ~3 s (test_sweep_fork.py's timeout case
+    # gives a 0.5 s case the same 8 s); the sleeping case is stopped at 8 s, not 15 s
+    path = sweep_file(tmp_path, "s.toml", THESIS, 'seeds = [1]\ntimeout_s = 8.0\n[overrides]\n'
                       '"run.duration" = 1.0\n[grid]\n"controller.k" = [1.0, 2.0, 3.0]\n')
     real = launch.case_command
 
@@ -278,7 +280,7 @@ def test_killed_and_timed_out_cases_are_recorded_and_the_rest_complete(tmp_path,
     assert "about to die" in st.loc["c0001-k2.0-s1", "reason"]
     assert st.loc["c0002-k3.0-s1", "status"] == "failed"
     assert "timeout" in st.loc["c0002-k3.0-s1", "reason"]
-    assert st.loc["c0002-k3.0-s1", "wall_s"] < 45  # stopped at 15 s, long before its 60 s sleep ends
+    assert st.loc["c0002-k3.0-s1", "wall_s"] < 45  # stopped at 8 s, long before its 60 s sleep ends
 
 
 # --- analysis -----------------------------------------------------------------------------
