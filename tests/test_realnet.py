@@ -54,6 +54,11 @@ veh_per_hour = 300
 route = {{ from = "-31316", to = "-30668#6" }}
 """
 
+NO_DRAIN = {"traffic.sections.drain_max": 0.0}
+"""No drain of the measurement stretch after the formation's last step (sumo/sections.py:
+members out, SUMO alone runs on): it records into none of the tables read here, and run.json
+keeps SUMO's messages up to the drain's start."""
+
 pytestmark = pytest.mark.skipif(not LUST.is_file(), reason="needs ../shared/realnet beside the checkout")
 
 
@@ -138,7 +143,7 @@ def test_members_feel_the_road_not_its_polyline_corners(tmp_path, net):
     (0.33: the line's own distance plus the tracking error)."""
     p = tmp_path / "lust.toml"
     p.write_text(SCENARIO)
-    sc = load_scenario(p, **{"road.start": 3500.0, "run.duration": 60.0})
+    sc = load_scenario(p, **{"road.start": 3500.0, "run.duration": 60.0}, **NO_DRAIN)
     res = run_scenario(sc, tmp_path / "out", scenario_path=p, progress=False)
     assert res.status == "completed", res.reason
     comfort = pd.read_parquet(tmp_path / "out" / "comfort.parquet")
@@ -221,7 +226,7 @@ def test_three_abreast_through_on_ramps_and_past_exits(tmp_path, scenario, capfd
     (24.8 m/s); the governor's speed cap of ~2 m/s used to brake it at the friction limit until it
     fell 60 m behind and off the road (docs/model.md, "Faster vehicles cutting in"). With all lanes
     allowed to the members SUMO reports 2 false member-member junction collisions here."""
-    sc = load_scenario(scenario)
+    sc = load_scenario(scenario, **NO_DRAIN)
     res = run_scenario(sc, tmp_path / "run", scenario_path=scenario, progress=False, force=True)
     assert res.status == "completed", res.reason
     out = tmp_path / "run"
