@@ -81,7 +81,7 @@ def test_lust_a_lon_continuous_across_outer_steps(tmp_path):
     from test_realnet import SCENARIO
     p = tmp_path / "lust.toml"
     p.write_text(SCENARIO)
-    out, step = _run(tmp_path, p, "lust", **{"run.duration": 60.0})
+    out, step = _run(tmp_path, p, "lust", **{"run.duration": 60.0}, **NO_DRAIN)
     ratios = boundary_ratios(out, step)
     assert max(ratios.values()) <= 3.0, ratios
 

@@ -194,7 +194,8 @@ def test_three_formations_on_the_lust_motorway(tmp_path):
     member lost, each formation's error bounded as one alone on LuST (tests/test_realnet.py)."""
     p = tmp_path / "lust.toml"
     p.write_text(LUST_THREE)
-    res = run_scenario(load_scenario(p), tmp_path / "run", scenario_path=p, force=True, progress=False)
+    res = run_scenario(load_scenario(p, **NO_DRAIN), tmp_path / "run", scenario_path=p, force=True,
+                       progress=False)
     assert res.status in ("completed", "completed_with_incidents"), res.reason
     assert res.t_end == pytest.approx(40.0)
     assert not any(res.incidents[k] for k in ("member_collisions", "member_removed", "stranded"))
@@ -222,7 +223,8 @@ def _left_alone(tmp_path) -> float:
             + '[[members]]\nid = "c2"\nslot = { along = -14.0, lanes = 1 }\n' + traffic)
     p = tmp_path / "alone.toml"
     p.write_text(text)
-    run_scenario(load_scenario(p), tmp_path / "alone", scenario_path=p, force=True, progress=False)
+    run_scenario(load_scenario(p, **NO_DRAIN), tmp_path / "alone", scenario_path=p, force=True,
+                 progress=False)
     tr = pd.read_parquet(tmp_path / "alone" / "trajectories.parquet")
     m = tr[~tr.vehicle_id.str.startswith("vc")]
     return float(np.hypot(m.ex, m.ey).max())
