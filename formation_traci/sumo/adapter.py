@@ -224,7 +224,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         try:
             self.api.vehicle.moveToXY(vid, "", -1, xf, yf, angle_deg, KEEP_ROUTE, MATCH_THRESHOLD)
         except self.api.TraCIException as exc:
-            raise SumoError(f"moveToXY refused for {vid} at ({x:.2f}, {y:.2f}): {exc}") from exc
+            raise SumoError(_refusal(vid, (x, y), exc)) from exc
 
     def place(self, ids: list[str], x, y, psi) -> list[tuple[str, str]]:
         """Pin members to CoG poses for the coming step. Returns (id, message) of moves SUMO refused.
@@ -242,7 +242,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
             try:
                 move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
             except self.api.TraCIException as exc:
-                refused.append((vid, f"moveToXY refused for {vid} at ({x[i]:.2f}, {y[i]:.2f}): {exc}"))
+                refused.append((vid, _refusal(vid, (x[i], y[i]), exc)))
         return refused
 
     def _hint_lane(self, vid: str, other: str) -> None:
@@ -298,14 +298,13 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         if self.native is not None:
             index = {vid: i for i, vid in enumerate(ids)}
             refused = self.native.move_all(ids, xf, yf, angle, KEEP_ROUTE, MATCH_THRESHOLD)
-            return {vid: f"moveToXY refused for {vid} at ({pos[index[vid], 0]:.2f}, "
-                         f"{pos[index[vid], 1]:.2f}): {msg}" for vid, msg in refused}
+            return {vid: _refusal(vid, pos[index[vid]], msg) for vid, msg in refused}
         move, refused = self._move_xy, {}
         for i, (vid, a, b, c) in enumerate(zip(ids, xf.tolist(), yf.tolist(), angle.tolist())):
             try:
                 move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
             except self.api.TraCIException as exc:
-                refused[vid] = f"moveToXY refused for {vid} at ({pos[i, 0]:.2f}, {pos[i, 1]:.2f}): {exc}"
+                refused[vid] = _refusal(vid, pos[i], exc)
         return refused
 
     def tell_speeds(self, ids: list[str], v, a) -> None:
@@ -313,13 +312,8 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         (float64 arrays), through the C++ reads when they are there."""
         if self.native is not None:
             self.native.set_previous_speeds(ids, v, a)
-            return
-        set_speed = self._set_previous_speed
-        for vid, vi, ai in zip(ids, v.tolist(), a.tolist()):
-            try:
-                set_speed(vid, vi, ai)
-            except self.api.TraCIException:
-                pass  # removed during the step: the next read_members reports it
+        else:
+            self.set_true_speeds(ids, v, a)
 
     def remove_vehicle(self, vid: str) -> None:
         """Take a vehicle out of SUMO. Its subscriptions are dropped first: libsumo 1.28 raises
@@ -337,3 +331,8 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         if self.native is not None:
             self.native.forget([vid])
         self.api.vehicle.remove(vid, self.tc.REMOVE_VAPORIZED)
+
+
+def _refusal(vid: str, at, why) -> str:
+    """The message of a refused moveToXY of ``vid`` whose CoG was to go to ``at`` (x, y) [m]."""
+    return f"moveToXY refused for {vid} at ({at[0]:.2f}, {at[1]:.2f}): {why}"
