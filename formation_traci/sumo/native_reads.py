@@ -1,7 +1,7 @@
 """The C++ extension ``_sumo_reads`` (sumo/native/sumo_reads.cpp), built on first use: the
 members' and neighbours' subscription rows as numpy tables and the members' moves through the
-libsumo C++ API inside the loaded ``libsumo/_libsumo.so`` (the same SUMO), 3-5x faster than
-SWIG's conversion and the Python extraction. :func:`load` returns the module or None (then the
+libsumo C++ API inside the loaded ``libsumo/_libsumo.so`` (the same SUMO), without SWIG's
+conversion to Python objects and their extraction (benchmarks/RESULTS.md, issue 33's fifth session). :func:`load` returns the module or None (then the
 caller keeps the SWIG path; :data:`REASON` says why). This module imports neither libsumo nor
 traci: the caller (sumo/adapter.py) gives the path of ``_libsumo.so`` (``_libsumo.__file__``).
 
@@ -111,7 +111,7 @@ def _compile(cmd: list[str], target: Path) -> None:
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=".tmp-" + NAME, suffix=_suffix())
     os.close(fd)
     COMMAND[:] = [*cmd, "-o", tmp]
-    print(f"{NOTICE} (first run only, cached afterwards): ~3 s, at most {TIMEOUT:.0f} s",
+    print(f"{NOTICE} (first run only, cached afterwards): 3-7 s, at most {TIMEOUT:.0f} s",
           file=sys.stderr, flush=True)
     t0 = time.monotonic()
     try:
