@@ -89,6 +89,20 @@ def test_cli_refuses_bad_scenario_before_running(tmp_path):
     assert not out.exists()  # nothing ran, nothing was created
 
 
+def test_a_bad_scenario_is_refused_without_importing_the_analysis_package(tmp_path):
+    """Telling a bad scenario from a failure once imported every bad-input error class, the
+    analysis package's among them (~1.7 s before the message); the run path never needs it."""
+    bad = write(tmp_path, GOOD.replace("[vehicle]", "[vehicle]\nmass = 3"))
+    code = ("import sys, runpy\n"
+            "sys.argv = ['formation-traci', 'run', sys.argv[1], '--out', sys.argv[2], '--no-progress']\n"
+            "try:\n    runpy.run_module('formation_traci.cli', run_name='__main__')\n"
+            "except SystemExit as e:\n"
+            "    print('exit', e.code, sorted(m for m in sys.modules if m.split('.')[0] == 'analysis'))\n")
+    r = subprocess.run([sys.executable, "-c", code, str(bad), str(tmp_path / "out")],
+                       capture_output=True, text=True)
+    assert "vehicle.mass" in r.stderr and r.stdout.strip() == "exit 2 []", (r.stdout, r.stderr)
+
+
 def test_run_writes_trajectories_and_run_json(tmp_path):
     sc = load_scenario(write(tmp_path, GOOD), **{"run.seed": 7})
     res = run_scenario(sc, tmp_path / "run", progress=False)
