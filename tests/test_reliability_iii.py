@@ -289,6 +289,34 @@ def test_a_full_disk_with_many_members_still_gives_a_final_run_json(tmp_path):
         _run_to_full_disk(disk, _many_members(tmp_path, 500))
 
 
+def _fill(disk: Path) -> None:
+    """Fill ``disk`` to the last byte (a file the test owns)."""
+    with open(disk / "filler", "wb", buffering=0) as f:  # unbuffered: nothing left to flush
+        for size in (1 << 16, 1 << 12, 1 << 8, 1):
+            with contextlib.suppress(OSError):
+                while True:
+                    f.write(b"\1" * size)
+
+
+def test_the_reserve_holds_the_final_run_json_of_many_members_when_nothing_else_is_free(tmp_path):
+    """The reserve alone must take the final run.json: the end-to-end test above frees the
+    failed part file too, so it cannot tell the old fixed 256 kB reserve (which this test fails
+    on: a 500-member run.json is ~350 kB) from one sized after the first run.json."""
+    from formation_traci.runner import RESERVE_BYTES, _json_size, _reserve, _write_final, run_meta
+    meta = run_meta(load_scenario(_many_members(tmp_path, 500)), "many.toml")
+    assert _json_size(meta) > RESERVE_BYTES  # the case the fixed reserve could not hold
+    with small_disk(tmp_path, "2m") as disk:
+        out = disk / "run"
+        out.mkdir()
+        _reserve(out, _json_size(meta))
+        _fill(disk)
+        meta.update(status="failed", reason="disk full (no space left on device)", tables={
+            f"table{i}": {"parts": 3, "rows": 1000, "complete_to_s": 12.5} for i in range(6)})
+        _write_final(out / "run.json", meta)
+        assert json.loads((out / "run.json").read_text()) == json.loads(json.dumps(meta, default=str))
+        assert not (out / ".reserve").exists()
+
+
 def test_t_end_is_the_minimum_over_the_tables_actually_on_disk(tmp_path):
     import pandas as pd
     with small_disk(tmp_path, "300k") as disk:
