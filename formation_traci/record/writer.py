@@ -47,6 +47,30 @@ def _arrow_strings(labels: Sequence[str]):
                                                           pa.py_buffer(b"".join(enc))])
 
 
+def atomic_write_parquet(path: Path, data, tmp: Path | None = None, **options) -> None:
+    """``data`` (a pyarrow Table, or a pandas DataFrame without its index, the bytes of
+    ``DataFrame.to_parquet``) to ``path`` through ``tmp`` (default ``.{name}.tmp`` beside it)
+    and a rename; ``options``: pyarrow's ``write_table`` (e.g. ``compression``). On a failure
+    (disk full) the temporary file is closed and removed here: pyarrow's own sink stays open
+    while the failed write's traceback lives (an error kept for run.json), holding the deleted
+    file's space."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp") if tmp is None else tmp
+    try:
+        with pa.OSFile(str(tmp), "wb") as sink:
+            if isinstance(data, pa.Table):
+                pq.write_table(data, sink, **options)
+            else:
+                data.to_parquet(sink, index=False, **options)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
 def atomic_write_json(path: Path, obj) -> None:
     atomic_write_text(path, json.dumps(obj, indent=2, default=_json_default) + "\n")
 
@@ -259,7 +283,6 @@ class ChunkedTable:
 
     def _write(self, blocks, labels, name, tag, n, derived=None) -> None:
         import pyarrow as pa
-        import pyarrow.parquet as pq
 
         if self._broken:  # never a part after a hole: the table stays a prefix of the run
             raise OSError(f"{self.directory.name}: {name} not written after an earlier part failed")
@@ -278,13 +301,10 @@ class ChunkedTable:
             else:
                 arrays.append(_arrow(data))
         table = pa.Table.from_arrays(arrays, schema=self._arrow_schema())
-        tmp = self.directory / f".{name}.tmp"
         try:
-            pq.write_table(table, tmp, compression="zstd")
-            os.replace(tmp, self.directory / name)
+            atomic_write_parquet(self.directory / name, table, compression="zstd")
         except BaseException:
-            self._broken = True
-            tmp.unlink(missing_ok=True)  # e.g. disk full: free the space, keep the parts before
+            self._broken = True  # e.g. disk full: the space freed, the parts before kept
             raise
         self.parts_on_disk += 1
         self.rows_on_disk += n

@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from ..record.columns import FCD_COLUMNS, FCD_SUMO_UNITS
+from ..record.writer import atomic_write_parquet
 from .adapter import sumo_to_cog
 from .traffic import BASE_TYPES
 
@@ -101,7 +102,6 @@ def _formation(df: pd.DataFrame, t0: float, member_d_front, step: float, member_
 
 def _write(df: pd.DataFrame, path: Path, frame: str) -> None:
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
     spec = {c.name: c for c in FCD_COLUMNS}
     fields = []
@@ -114,9 +114,7 @@ def _write(df: pd.DataFrame, path: Path, frame: str) -> None:
         fields.append(pa.field(name, typ, metadata={"unit": unit, "doc": c.doc if c else "SUMO's"}))
     table = pa.Table.from_pandas(df, schema=pa.schema(fields), preserve_index=False)
     table = table.replace_schema_metadata({**(table.schema.metadata or {}), b"frame": frame.encode()})
-    tmp = path.with_suffix(".tmp.parquet")
-    pq.write_table(table, tmp)
-    tmp.replace(path)
+    atomic_write_parquet(path, table, tmp=path.with_suffix(".tmp.parquet"))
 
 
 def cut_fcd(path: Path, t0: float, step: float, t_max: float) -> None:
@@ -129,6 +127,4 @@ def cut_fcd(path: Path, t0: float, step: float, t_max: float) -> None:
     keep = df["timestep_time"].to_numpy(float) + step - t0 <= t_max + 1e-9
     if keep.all():
         return
-    tmp = path.with_suffix(".tmp.parquet")
-    df[keep].to_parquet(tmp, index=False)
-    tmp.replace(path)
+    atomic_write_parquet(path, df[keep], tmp=path.with_suffix(".tmp.parquet"))

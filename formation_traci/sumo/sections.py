@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..record.writer import atomic_write_parquet
 from .demand import route_point
 
 if TYPE_CHECKING:  # pandas (~0.15 s to import, with pyarrow) is imported where the tables are
@@ -191,13 +192,13 @@ def write_tables(out_dir: Path, plan: dict | None, departures: list[tuple[str, f
     dep = pd.DataFrame(departures, columns=["vehicle_id", "depart"])
     dep["depart"] = dep["depart"].astype(float) - t0
     dep = dep[~dep["vehicle_id"].isin(members)].reset_index(drop=True)
-    dep.to_parquet(out_dir / "departures.parquet", index=False)
+    atomic_write_parquet(out_dir / "departures.parquet", dep)
     if plan is None:
         return {"enabled": False}
     p = read_passages(plan["out"], t0, members, plan)
     lc = read_lane_changes(plan["lanechanges"], t0, members)
     p["lane_changes_before"] = _changes_between(p, lc)
-    p.to_parquet(out_dir / "sections.parquet", index=False)
+    atomic_write_parquet(out_dir / "sections.parquet", p)
     return {"enabled": True, "sections": plan["sections"], "passages": int(len(p)),
             "lane_changes": int(len(lc))}
 

@@ -18,6 +18,7 @@ import pandas as pd
 
 from ..interrupt import raising_signals
 from ..record.rundir import RUN_FINISHED
+from ..record.writer import atomic_write_parquet
 from .case import CASE_JSON, CaseSpec
 from .executors import run_dask, run_local
 from .expand import Sweep, load_sweep
@@ -171,9 +172,7 @@ def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str],
     """summary.parquet (atomically); with ``effects``, the paired effects over the seeds
     there too (sweeps with twins, analysis/report/effects.py)."""
     df = summary_frame(list(rows.values()), swept)
-    tmp = path.with_name(f".{path.name}.tmp")
-    df.to_parquet(tmp, index=False)
-    os.replace(tmp, path)
+    atomic_write_parquet(path, df)
     from analysis.report.effects import write_effects, write_means
 
     if effects is not None:
