@@ -19,7 +19,7 @@ from pathlib import Path
 
 from .interrupt import Interrupted, stop_on_signals
 from .record.rundir import RUN_FINISHED, RunDirError, RunDirExists, RUN_SCHEMA, open_out_dir  # noqa: F401
-from .record.writer import atomic_write_json
+from .record.writer import atomic_write_json, atomic_write_text
 from .scenario.formations import formation_views
 from .scenario.load import ScenarioError
 from .scenario.schema import Scenario
@@ -153,8 +153,8 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
         meta["warm_state"] = {"cache": str(Path(warm_cache).resolve()), "shared": False,
                               "unshared": not_shareable(sc)}
     meta_path = out_dir / "run.json"
-    _reserve(out_dir, _json_size(meta))
     atomic_write_json(meta_path, meta)
+    _reserve(out_dir, _json_size(meta))  # after run.json: on a small disk, all that is left
     rec = _recorder(sc, out_dir)
     n_steps = int(round(sc.run.duration / sc.run.step))
 
@@ -237,7 +237,9 @@ def _finish(meta_path, meta, rec, steps, status, reason, t, k):
     meta["incidents"], meta["incident_summary"] = incidents, summary
     meta["tables"] = on_disk
     meta["event_counts"] = rec.event_counts
-    _write_final(meta_path, meta)
+    lost = _write_final(meta_path, meta)
+    if lost is not None:  # the terminal says it: run.json could not
+        status, reason = "failed", f"{reason or status}; run.json not written: {lost}"
     return status, reason
 
 
@@ -257,12 +259,16 @@ def _json_size(meta: dict) -> int:
 
 def _reserve(out_dir: Path, meta_bytes: int = 0) -> None:
     """Hold back :data:`RESERVE_BYTES`, or four times the first run.json (its members and
-    scenario; the final one adds the tables and events) if that is more [B]."""
+    scenario; the final one adds the tables and events) if that is more [B]; on a disk with
+    less free, as much as there is (the run's tables then fail sooner, its run.json does not)."""
+    left = max(RESERVE_BYTES, 4 * meta_bytes)
+    block = b"\0" * (1 << 16)
     try:
-        with open(out_dir / ".reserve", "wb") as f:
-            f.write(b"\0" * max(RESERVE_BYTES, 4 * meta_bytes))
+        with open(out_dir / ".reserve", "wb", buffering=0) as f:  # unbuffered: each write lands or fails
+            while left > 0:
+                left -= f.write(block[:left])
     except OSError:
-        (out_dir / ".reserve").unlink(missing_ok=True)
+        pass  # what was written stays held
 
 
 def _try_write(path: Path, text: str) -> None:
@@ -272,13 +278,29 @@ def _try_write(path: Path, text: str) -> None:
         path.unlink(missing_ok=True)
 
 
-def _write_final(meta_path: Path, meta: dict) -> None:
-    reserve = meta_path.parent / ".reserve"
+def _write_final(meta_path: Path, meta: dict) -> str | None:
+    """The final run.json into the space held back; never raises: on a disk too full even for
+    that, run.json without its indentation, then in place of the previous one (its space
+    freed first), so that it never stays 'running'. Returns why it could not be written."""
+    import json
+
+    (meta_path.parent / ".reserve").unlink(missing_ok=True)  # the space held back is for this write
     try:
-        reserve.unlink(missing_ok=True)  # the space held back is for this write
         atomic_write_json(meta_path, meta)
-    finally:
-        reserve.unlink(missing_ok=True)
+        return None
+    except OSError:
+        text = json.dumps(meta, separators=(",", ":"), default=str) + "\n"
+    try:
+        atomic_write_text(meta_path, text)
+        return None
+    except OSError:
+        pass
+    try:
+        with open(meta_path, "w") as f:
+            f.write(text)
+        return None
+    except OSError as exc:
+        return describe_failure(exc)
 
 
 def _recorder(sc: Scenario, out_dir: Path) -> Recorder:

@@ -302,6 +302,17 @@ def test_a_full_disk_with_many_members_still_gives_a_final_run_json(tmp_path):
         _run_to_full_disk(disk, _many_members(tmp_path, 500))
 
 
+def test_a_disk_smaller_than_the_reserve_still_ends_with_the_final_run_json(tmp_path, monkeypatch):
+    """500 members (a ~380 kB run.json, a ~1.5 MB reserve) on a 1 MB disk, parts every 10 s:
+    the reserve was all or nothing (none here) and was taken before run.json, and a failed
+    small part frees too little, so the final run.json could not be written: the run raised
+    out of the CLI and run.json stayed 'running'."""
+    import formation_traci.sim.recorder as recorder_module
+    monkeypatch.setattr(recorder_module, "STEPS_PER_CHUNK", 200)
+    with small_disk(tmp_path, "1m") as disk:
+        _run_to_full_disk(disk, _many_members(tmp_path, 500))
+
+
 def _fill(disk: Path) -> None:
     """Fill ``disk`` to the last byte (a file the test owns)."""
     with open(disk / "filler", "wb", buffering=0) as f:  # unbuffered: nothing left to flush
@@ -328,6 +339,21 @@ def test_the_reserve_holds_the_final_run_json_of_many_members_when_nothing_else_
         _write_final(out / "run.json", meta)
         assert json.loads((out / "run.json").read_text()) == json.loads(json.dumps(meta, default=str))
         assert not (out / ".reserve").exists()
+
+
+def test_without_any_space_the_final_run_json_replaces_the_first_in_place(tmp_path):
+    """No reserve and not a byte free: the final run.json (without indentation) takes the
+    first one's place instead of raising and leaving it 'running'."""
+    from formation_traci.runner import _write_final, atomic_write_json, run_meta
+    meta = run_meta(load_scenario(_many_members(tmp_path, 200)), "many.toml")
+    with small_disk(tmp_path, "1m") as disk:
+        out = disk / "run"
+        out.mkdir()
+        atomic_write_json(out / "run.json", meta)
+        _fill(disk)
+        meta.update(status="failed", reason="disk full (no space left on device)", t_end=3.0)
+        assert _write_final(out / "run.json", meta) is None
+        assert json.loads((out / "run.json").read_text()) == json.loads(json.dumps(meta, default=str))
 
 
 def test_t_end_is_the_minimum_over_the_tables_actually_on_disk(tmp_path):
