@@ -6,21 +6,27 @@ The road and traffic of benchmarks/overhead.py (a straight 120 km 3-lane motorwa
 edges, the wheel's netconvert), at ``--vph`` veh/h/lane after ``--warmup`` s of SUMO alone, so
 that >= 1,500 background vehicles are on the road when the formations enter: formation k is a
 column of three cars 12 m apart in lane k % 3 at 600 + 300 k m, at 30 m/s; SSM off, no
-measurement sections (the loop only). Each run in a fresh process (one libsumo per process).
+measurement sections (the loop only). Each run in a fresh process (one libsumo per process);
+the 20-formation run and its twin run at the same time, one per core, their loops started
+together after the warm-up (as overhead.py's pairs), so that both see the machine's drift.
 
     python benchmarks/formations.py                    # 1, 5, 20 formations and the twin of 20
     python benchmarks/formations.py --duration 60 --warmup 600 --vph 1500   # quicker
+    python benchmarks/formations.py --formations 20 --pairs 3   # the ratio only, median of 3 pairs
 
 Per run it prints the SUMO vehicles at the end of the warm-up, the loop's wall time, SUMO's
 share (run.json timing_s sumo_step) and our layer's (every other phase) per step and per
-formation vehicle and step; the last line is ``formations ratio: X.XX`` (the 20-formation
-run's loop over its twin's).
+formation vehicle and step, with the run's status and incidents; the last line is
+``formations ratio: X.XX`` (the 20-formation run's loop over its twin's, the median over
+``--pairs``).
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -57,18 +63,22 @@ def child_formations(k, duration, warmup, vph, seed) -> dict:
     from formation_traci.runner import run_scenario
     sc = parse_scenario(scenario(k, duration, warmup, vph, seed), "benchmark")
     out = Path(tempfile.mkdtemp(prefix="bench_f_"))
-    counted = []
+    counted, waited = [], []
 
-    def count(step, t, adapter):  # SUMO's vehicles when the formations enter
+    def count(step, t, adapter):  # SUMO's vehicles when the formations enter; --pairs: start together
         if step == 0:
             counted.append(len(adapter.api.vehicle.getIDList()))
+            waited.append(ob.meet("formation.ready", "twin.ready"))
 
     res = run_scenario(sc, out / "run", progress=False, step_hook=count)
     timing = json.loads((out / "run" / "run.json").read_text()).get("timing_s", {})
+    timing["sumo_step"] = timing.get("sumo_step", 0.0) - sum(waited)  # the wait is no work
+    ob.keep_busy("formation.done", "twin.done")
     shutil.rmtree(out, ignore_errors=True)
     return {"status": res.status, "steps": res.steps_done, "vehicles": counted[0] if counted else None,
             "loop_s": sum(timing.values()), "sumo_s": timing.get("sumo_step", 0.0),
-            "layer_s": sum(v for n, v in timing.items() if n != "sumo_step")}
+            "layer_s": sum(v for n, v in timing.items() if n != "sumo_step"),
+            "incidents": res.incident_summary}
 
 
 def child_twin(k, duration, warmup, vph, seed) -> dict:
@@ -94,17 +104,39 @@ def child_twin(k, duration, warmup, vph, seed) -> dict:
                      f'departLane="{j % 3}" departPos="{pos:.2f}" departSpeed="{SPEED}"/>\n')
     routes.write_text(text + "</routes>\n")
     adapter = SumoAdapter("libsumo")
-    adapter.start(sumo_args(sc, ob.long_net(), routes, out, warmup + duration + 1))
+    adapter.start(sumo_args(sc, ob.long_net(), routes, out, warmup + 2 * duration + 1))
     for _ in range(int(round(warmup / sc.run.step))):
         adapter.simulation_step()
     vehicles = len(adapter.api.vehicle.getIDList())
+    ob.meet("twin.ready", "formation.ready")
     t0 = time.perf_counter()
     for _ in range(int(round(duration / sc.run.step))):
         adapter.simulation_step()
     loop = time.perf_counter() - t0
+    t_stop = warmup + duration  # --pairs: SUMO steps on (to its end, then Python) until the partner is done
+    ob.keep_busy("twin.done", "formation.done",
+                 lambda: adapter.simulation_step() if adapter.time < t_stop else ob._spin())
     adapter.close()
     shutil.rmtree(out, ignore_errors=True)
     return {"status": "completed", "vehicles": vehicles, "loop_s": loop}
+
+
+def spawn_pair(k: int, *args) -> tuple[dict, dict]:
+    """The k-formation run and its twin at the same time, one per core, their loops started
+    together after the warm-up (ob.meet): both see the same drift of the machine's speed, which
+    between two runs minutes apart reached 30 % here."""
+    with tempfile.TemporaryDirectory(prefix="bench_barrier_") as d:
+        env = dict(os.environ, BENCH_BARRIER=d)
+        procs = [subprocess.Popen([sys.executable, __file__, "--child", kind, str(k), *map(str, args)],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                 for kind in ("formations", "twin")]
+        out = []
+        for kind, p in zip(("formations", "twin"), procs):
+            so, se = p.communicate()
+            if p.returncode != 0:
+                raise RuntimeError(f"{kind} child failed:\n{se[-3000:]}")
+            out.append(json.loads(so.strip().splitlines()[-1]))
+    return out[0], out[1]
 
 
 def spawn(kind: str, *args) -> dict:
@@ -122,6 +154,8 @@ def main() -> None:
     ap.add_argument("--vph", type=float, default=1800.0)
     ap.add_argument("--formations", type=int, nargs="*", default=[1, 5, 20])
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--pairs", type=int, default=1,
+                    help="runs of the largest case with its twin at the same time (median ratio)")
     ap.add_argument("--child", nargs=6, help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
@@ -131,19 +165,27 @@ def main() -> None:
         return
     ob.long_net()
     print(f"{a.vph:.0f} veh/h/lane, {a.warmup:.0f} s warm-up, {a.duration:.0f} s, step 0.05 s, SSM off")
-    runs = {}
-    for k in a.formations:
-        r = runs[k] = spawn("formations", k, a.duration, a.warmup, a.vph, a.seed)
-        n, steps = 3 * k, max(r["steps"], 1)
-        print(f"  {k:3d} formations ({n:3d} members, {r['vehicles']} SUMO vehicles): loop {r['loop_s']:7.2f} s, "
-              f"SUMO {r['sumo_s']:7.2f} s, our layer {1e6 * r['layer_s'] / steps:7.0f} us/step = "
-              f"{1e6 * r['layer_s'] / steps / n:5.1f} us per member and step  [{r['status']}]")
-    k = max(a.formations)
-    twin = spawn("twin", k, a.duration, a.warmup, a.vph, a.seed)
-    print(f"  twin of {k} (SUMO drives the {3 * k} vehicles, {twin['vehicles']} SUMO vehicles): "
-          f"loop {twin['loop_s']:7.2f} s")
-    print(f"formations ratio: {runs[k]['loop_s'] / twin['loop_s']:.2f}")
+    k_max = max(a.formations)
+    for k in sorted(set(a.formations) - {k_max}):  # our layer's cost per member: each run alone
+        _show(k, spawn("formations", k, a.duration, a.warmup, a.vph, a.seed))
+    ratios = []
+    for i in range(a.pairs):  # the largest with its twin, at the same time
+        r, twin = spawn_pair(k_max, a.duration, a.warmup, a.vph, a.seed + i)
+        _show(k_max, r, f"pair {i + 1} (seed {a.seed + i}), ")
+        ratios.append(r["loop_s"] / twin["loop_s"])
+        print(f"  twin of {k_max} (SUMO drives the {3 * k_max} vehicles, {twin['vehicles']} SUMO vehicles): "
+              f"loop {twin['loop_s']:7.2f} s; SUMO's step alone: formation run / twin "
+              f"{r['sumo_s'] / twin['loop_s']:.3f}; formation run / twin {ratios[-1]:.3f}")
+    print(f"formations ratio: {statistics.median(ratios):.2f}"
+          + (f" (median of {len(ratios)} pairs, {min(ratios):.2f}-{max(ratios):.2f})" if len(ratios) > 1 else ""))
 
+
+def _show(k: int, r: dict, head: str = "") -> None:
+    n, steps = 3 * k, max(r["steps"], 1)
+    print(f"  {head}{k:3d} formations ({n:3d} members, {r['vehicles']} SUMO vehicles): loop {r['loop_s']:7.2f} s, "
+          f"SUMO {r['sumo_s']:7.2f} s, our layer {1e6 * r['layer_s'] / steps:7.0f} us/step = "
+          f"{1e6 * r['layer_s'] / steps / n:5.1f} us per member and step  [{r['status']}"
+          + (f": {r['incidents']}" if r.get("incidents") else "") + "]")
 
 if __name__ == "__main__":
     main()

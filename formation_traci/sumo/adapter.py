@@ -296,9 +296,8 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         reads when they are there; returns the refused moves as :meth:`place` does, {SUMO id:
         message} (sumo/fused_path.py: no member reaches into a neighbour lane)."""
         if self.native is not None:
-            index = {vid: i for i, vid in enumerate(ids)}
             refused = self.native.move_all(ids, xf, yf, angle, KEEP_ROUTE, MATCH_THRESHOLD)
-            return {vid: _refusal(vid, pos[index[vid]], msg) for vid, msg in refused}
+            return {vid: _refusal(vid, pos[ids.index(vid)], msg) for vid, msg in refused} if refused else {}
         move, refused = self._move_xy, {}
         for i, (vid, a, b, c) in enumerate(zip(ids, xf.tolist(), yf.tolist(), angle.tolist())):
             try:
