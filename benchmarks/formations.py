@@ -176,8 +176,9 @@ def main() -> None:
         print(f"  twin of {k_max} (SUMO drives the {3 * k_max} vehicles, {twin['vehicles']} SUMO vehicles): "
               f"loop {twin['loop_s']:7.2f} s; SUMO's step alone: formation run / twin "
               f"{r['sumo_s'] / twin['loop_s']:.3f}; formation run / twin {ratios[-1]:.3f}")
-    print(f"formations ratio: {statistics.median(ratios):.2f}"
-          + (f" (median of {len(ratios)} pairs, {min(ratios):.2f}-{max(ratios):.2f})" if len(ratios) > 1 else ""))
+    if len(ratios) > 1:
+        print(f"  formation run / twin: median of {len(ratios)} pairs, {min(ratios):.2f}-{max(ratios):.2f}")
+    print(f"formations ratio: {statistics.median(ratios):.2f}")
 
 
 def _show(k: int, r: dict, head: str = "") -> None:
