@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shutil
 import statistics
 import subprocess
@@ -125,18 +124,9 @@ def spawn_pair(k: int, *args) -> tuple[dict, dict]:
     """The k-formation run and its twin at the same time, one per core, their loops started
     together after the warm-up (ob.meet): both see the same drift of the machine's speed, which
     between two runs minutes apart reached 30 % here."""
-    with tempfile.TemporaryDirectory(prefix="bench_barrier_") as d:
-        env = dict(os.environ, BENCH_BARRIER=d)
-        procs = [subprocess.Popen([sys.executable, __file__, "--child", kind, str(k), *map(str, args)],
-                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-                 for kind in ("formations", "twin")]
-        out = []
-        for kind, p in zip(("formations", "twin"), procs):
-            so, se = p.communicate()
-            if p.returncode != 0:
-                raise RuntimeError(f"{kind} child failed:\n{se[-3000:]}")
-            out.append(json.loads(so.strip().splitlines()[-1]))
-    return out[0], out[1]
+    rest = [str(k), *map(str, args)]
+    form, twin = ob.run_together(__file__, {"formations": ["formations", *rest], "twin": ["twin", *rest]})
+    return form, twin
 
 
 def spawn(kind: str, *args) -> dict:

@@ -242,18 +242,26 @@ def spawn_together(n: int, duration: float, seed: int) -> tuple[dict, dict]:
     """The formation and its twin at the same time, one per core, their loops started
     together (the machine's speed drifts by tens of percent within minutes; run together,
     both see the same drift)."""
+    rest = [str(n), str(duration), "None", str(seed)]
+    form, twin = run_together(__file__, {"formation": ["formation", *rest], "twin": ["sumo", *rest]})
+    return form, twin
+
+
+def run_together(script, children: dict[str, list[str]]) -> list[dict]:
+    """``script --child ARGS`` for each named child at the same time, sharing one BENCH_BARRIER
+    directory (:func:`meet`, :func:`keep_busy`); their last stdout lines as JSON, in order."""
     with tempfile.TemporaryDirectory(prefix="bench_barrier_") as d:
         env = dict(os.environ, BENCH_BARRIER=d)
-        procs = [subprocess.Popen([sys.executable, __file__, "--child", kind, str(n), str(duration),
-                                   "None", str(seed)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                  text=True, env=env) for kind in ("formation", "sumo")]
+        procs = {name: subprocess.Popen([sys.executable, str(script), "--child", *argv], stdout=subprocess.PIPE,
+                                        stderr=subprocess.PIPE, text=True, env=env)
+                 for name, argv in children.items()}
         out = []
-        for kind, p in zip(("formation", "twin"), procs):
+        for name, p in procs.items():
             so, se = p.communicate()
             if p.returncode != 0:
-                raise RuntimeError(f"{kind} child failed:\n{se[-3000:]}")
+                raise RuntimeError(f"{name} child failed:\n{se[-3000:]}")
             out.append(json.loads(so.strip().splitlines()[-1]))
-    return out[0], out[1]
+    return out
 
 
 def spawn(kind: str, n: int, duration: float, flow_end: float | None, seed: int) -> dict:
