@@ -122,7 +122,7 @@ def test_a_failing_compilation_names_the_innermost_kernel_and_the_error():
             raised = None
     lines = out.getvalue().splitlines()
     assert raised == "TypingError"
-    assert lines[0].startswith(NOTICE + ": at most ~60 s on a quiet 2-core machine")
+    assert lines[0].startswith(NOTICE + ": at most ~75 s on a quiet 2-core machine")
     assert len(lines) == 2 and lines[1].startswith(
         "formation-traci: compiling kernel formation_traci._probe._bad_py failed after ")
     assert ": TypingError: " in lines[1]
