@@ -195,12 +195,20 @@ def test_tables_and_moves_equal_swig_at_every_step(sim):
           + ", ".join(f"{k} {t:.1f}" for k, t in med.items()))
 
 
-def test_a_member_that_left(sim):
-    mod = sim
+def _m4_leaves() -> None:
+    """Member m4 (a context owner) leaves the run, once, as sumo/adapter.py removes one: each
+    test that needs it gone says so (a test selected alone with -k passes too)."""
+    if "m4" not in libsumo.vehicle.getIDList():
+        return
     libsumo.vehicle.unsubscribeContext("m4", C.CMD_GET_VEHICLE_VARIABLE, 100.0)  # as sumo/adapter.py
     libsumo.vehicle.unsubscribe("m4")  # does: else libsumo 1.28's next step fails
     libsumo.vehicle.remove("m4")  # an owner: neighbour_table skips an owner without results
     libsumo.simulationStep()
+
+
+def test_a_member_that_left(sim):
+    mod = sim
+    _m4_leaves()
     assert mod.member_table(MEMBERS) is None and swig_members(MEMBERS) is None
     assert_same_members(mod.member_table(MEMBERS[:4]), swig_members(MEMBERS[:4]))
     assert_same_neighbours(mod.neighbour_table(OWNERS, set(MEMBERS)), swig_neighbours(set(MEMBERS)))
@@ -210,6 +218,7 @@ def test_a_member_that_left(sim):
 
 def test_refused_moves_carry_swigs_message(sim):
     mod = sim
+    _m4_leaves()
     tb = mod.member_table(["m1", "m2"])[0]
     far = (1e5, 500.0, 90.0)
     expected = [("m1", swig_refusal("m1", *far)), ("nope", swig_refusal("nope", 300.0, -5.25, 90.0)),
