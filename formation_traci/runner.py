@@ -19,7 +19,7 @@ from pathlib import Path
 
 from .interrupt import Interrupted, stop_on_signals
 from .record.rundir import RUN_FINISHED, RunDirError, RunDirExists, RUN_SCHEMA, open_out_dir  # noqa: F401
-from .record.writer import atomic_write_json, atomic_write_text
+from .record.writer import atomic_write_json, atomic_write_text, json_text
 from .scenario.formations import formation_views
 from .scenario.load import ScenarioError
 from .scenario.schema import Scenario
@@ -154,7 +154,7 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
                               "unshared": not_shareable(sc)}
     meta_path = out_dir / "run.json"
     atomic_write_json(meta_path, meta)
-    _reserve(out_dir, _json_size(meta))  # after run.json: on a small disk, all that is left
+    _reserve(out_dir, len(json_text(meta)))  # after run.json: on a small disk, all that is left
     rec = _recorder(sc, out_dir)
     n_steps = int(round(sc.run.duration / sc.run.step))
 
@@ -251,12 +251,6 @@ def describe_failure(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
-def _json_size(meta: dict) -> int:
-    import json
-
-    return len(json.dumps(meta, indent=2, default=str))
-
-
 def _reserve(out_dir: Path, meta_bytes: int = 0) -> None:
     """Hold back :data:`RESERVE_BYTES`, or four times the first run.json (its members and
     scenario; the final one adds the tables and events) if that is more [B]; on a disk with
@@ -282,14 +276,12 @@ def _write_final(meta_path: Path, meta: dict) -> str | None:
     """The final run.json into the space held back; never raises: on a disk too full even for
     that, run.json without its indentation, then in place of the previous one (its space
     freed first), so that it never stays 'running'. Returns why it could not be written."""
-    import json
-
     (meta_path.parent / ".reserve").unlink(missing_ok=True)  # the space held back is for this write
     try:
         atomic_write_json(meta_path, meta)
         return None
     except OSError:
-        text = json.dumps(meta, separators=(",", ":"), default=str) + "\n"
+        text = json_text(meta, indent=None)
     try:
         atomic_write_text(meta_path, text)
         return None

@@ -326,13 +326,14 @@ def test_the_reserve_holds_the_final_run_json_of_many_members_when_nothing_else_
     """The reserve alone must take the final run.json: the end-to-end test above frees the
     failed part file too, so it cannot tell the old fixed 256 kB reserve (which this test fails
     on: a 500-member run.json is ~350 kB) from one sized after the first run.json."""
-    from formation_traci.runner import RESERVE_BYTES, _json_size, _reserve, _write_final, run_meta
+    from formation_traci.record.writer import json_text
+    from formation_traci.runner import RESERVE_BYTES, _reserve, _write_final, run_meta
     meta = run_meta(load_scenario(_many_members(tmp_path, 500)), "many.toml")
-    assert _json_size(meta) > RESERVE_BYTES  # the case the fixed reserve could not hold
+    assert len(json_text(meta)) > RESERVE_BYTES  # the case the fixed reserve could not hold
     with small_disk(tmp_path, "2m") as disk:
         out = disk / "run"
         out.mkdir()
-        _reserve(out, _json_size(meta))
+        _reserve(out, len(json_text(meta)))
         _fill(disk)
         meta.update(status="failed", reason="disk full (no space left on device)", tables={
             f"table{i}": {"parts": 3, "rows": 1000, "complete_to_s": 12.5} for i in range(6)})

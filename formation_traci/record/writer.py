@@ -71,8 +71,15 @@ def atomic_write_parquet(path: Path, data, tmp: Path | None = None, **options) -
         raise
 
 
+def json_text(obj, indent: int | None = 2) -> str:
+    """``obj`` as the tool's JSON files hold it (numpy numbers and arrays, paths); ``indent``
+    None: without indentation or spaces (a full disk's last resort, runner.py)."""
+    seps = None if indent is not None else (",", ":")
+    return json.dumps(obj, indent=indent, separators=seps, default=_json_default) + "\n"
+
+
 def atomic_write_json(path: Path, obj) -> None:
-    atomic_write_text(path, json.dumps(obj, indent=2, default=_json_default) + "\n")
+    atomic_write_text(path, json_text(obj))
 
 
 def _json_default(o):
