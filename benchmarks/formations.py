@@ -178,5 +178,6 @@ def _show(k: int, r: dict, head: str = "") -> None:
           f"{1e6 * r['layer_s'] / steps / n:5.1f} us per member and step  [{r['status']}"
           + (f": {r['incidents']}" if r.get("incidents") else "") + "]")
 
+
 if __name__ == "__main__":
     main()

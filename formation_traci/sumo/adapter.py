@@ -297,7 +297,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         message} (sumo/fused_path.py: no member reaches into a neighbour lane)."""
         if self.native is not None:
             refused = self.native.move_all(ids, xf, yf, angle, KEEP_ROUTE, MATCH_THRESHOLD)
-            return {vid: _refusal(vid, pos[ids.index(vid)], msg) for vid, msg in refused} if refused else {}
+            return {vid: _refusal(vid, pos[ids.index(vid)], msg) for vid, msg in refused}
         move, refused = self._move_xy, {}
         for i, (vid, a, b, c) in enumerate(zip(ids, xf.tolist(), yf.tolist(), angle.tolist())):
             try:
