@@ -103,6 +103,17 @@ def test_a_bad_scenario_is_refused_without_importing_the_analysis_package(tmp_pa
     assert "vehicle.mass" in r.stderr and r.stdout.strip() == "exit 2 []", (r.stdout, r.stderr)
 
 
+def test_every_bad_input_class_the_cli_names_exists_where_it_says():
+    """cli._BAD_INPUT names its classes by module (none imported before it is needed): a class
+    moved elsewhere would turn its exit 2 silently into an exit 1."""
+    import importlib
+
+    from formation_traci.cli import _BAD_INPUT
+    for module, name in _BAD_INPUT:
+        cls = getattr(importlib.import_module(module), name)
+        assert issubclass(cls, Exception), (module, name)
+
+
 def test_run_writes_trajectories_and_run_json(tmp_path):
     sc = load_scenario(write(tmp_path, GOOD), **{"run.seed": 7})
     res = run_scenario(sc, tmp_path / "run", progress=False)
