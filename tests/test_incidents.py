@@ -14,7 +14,8 @@ import pytest
 from analysis.metrics.pair_geometry import clearance as analysis_clearance
 from formation_traci.models.params import PASSENGER_CAR
 from formation_traci.record.columns import INCIDENT_KEYS, SIGNAL_COLUMNS
-from formation_traci.sim.incidents import STRANDED_TIME, Incidents, signed_clearance, verdict
+from formation_traci.sim.incidents import (REACH_MARGIN, STRANDED_TIME, Incidents, member_clearances,
+                                          signed_clearance, verdict)
 from run_helpers import cli
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -67,6 +68,51 @@ def test_signed_clearance_from_first_principles():
         else:
             assert c <= 1e-12
         assert c == pytest.approx(signed_clearance(xb, yb, hb, lb, wb, xa, ya, ha, la, wa), abs=1e-9)
+
+
+def test_member_clearances_leave_only_pairs_that_cannot_touch_uncomputed():
+    """Members in a crowd of mixed bodies (cars to trucks, any heading), some overlapping, some
+    touching, most far apart: every pair whose bodies can touch has the very clearance of
+    :func:`signed_clearance` at the body centres; a pair left at +inf is, by that clearance,
+    apart by more than REACH_MARGIN (no contact missed); the smallest clearance returned is the
+    smallest over all pairs once one overlaps; members out of the run are never compared; and
+    most pairs of a long column are not computed at all (the test of reach, not the full
+    clearance, for pairs farther apart than two half diagonals)."""
+    rng = np.random.default_rng(11)
+    n = 80
+    cols = (SIGNAL_COLUMNS.index("x"), SIGNAL_COLUMNS.index("y"), SIGNAL_COLUMNS.index("heading"))
+    for trial in range(20):
+        sig = np.full((n, len(SIGNAL_COLUMNS)), np.nan)
+        sig[:, cols[0]] = rng.uniform(0, 400, n) if trial % 2 else rng.uniform(0, 25, n)
+        sig[:, cols[1]] = rng.choice([0.0, 3.2, 6.4], n) + rng.uniform(-1, 1, n)
+        sig[:, cols[2]] = rng.uniform(-0.3, 0.3, n) + rng.choice([0.0, np.pi], n)
+        length, width = rng.uniform(3.5, 16.5, n), rng.uniform(1.6, 2.6, n)
+        shift = rng.uniform(-1.5, 1.5, n)
+        active = rng.random(n) > 0.1
+        out = np.zeros((n, n))
+        worst = member_clearances(sig, *cols, shift, length, width, active, out)
+        full, culled = math.inf, 0
+        for i in range(n):
+            for j in range(i + 1, n):
+                hi, hj = sig[i, cols[2]], sig[j, cols[2]]
+                c = signed_clearance(sig[i, cols[0]] + shift[i] * math.cos(hi),
+                                     sig[i, cols[1]] + shift[i] * math.sin(hi), hi, length[i], width[i],
+                                     sig[j, cols[0]] + shift[j] * math.cos(hj),
+                                     sig[j, cols[1]] + shift[j] * math.sin(hj), hj, length[j], width[j])
+                if not (active[i] and active[j]):
+                    assert out[i, j] == math.inf
+                    continue
+                full = min(full, c)
+                if out[i, j] == math.inf:
+                    assert c > REACH_MARGIN, (trial, i, j, c)
+                    culled += 1
+                else:
+                    assert out[i, j] == c
+        assert (worst == full) if full < 0 else (worst >= 0)
+        if trial % 2:  # a 400 m column: most pairs far apart
+            assert culled > 0.8 * active.sum() * (active.sum() - 1) / 2
+        else:  # 80 bodies in 25 m: contacts, and the smallest clearance is theirs
+            assert full < 0
 
 
 class _Rec:

