@@ -100,7 +100,8 @@ def _warn_ssm_memory(sc: Scenario, plan) -> None:
     a GB by the run's end (sumo/ssm.py memory_note; docs/sumo.md)."""
     from .sumo.ssm import SsmMemoryWarning, memory_note
     groups = [p.pos0 for _, p, _ in plan.formations] or [plan.pos0]
-    note = memory_note(sc.sumo.ssm, groups, sc.run.duration, sc.run.step)
+    mode = "off" if sc.sumo.attach_port is not None and sc.sumo.ssm == "members" else sc.sumo.ssm  # no device
+    note = memory_note(mode, groups, sc.run.duration, sc.run.step)
     if note is not None:
         import warnings
         warnings.warn(note, SsmMemoryWarning, stacklevel=2)
