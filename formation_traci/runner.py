@@ -95,18 +95,6 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
     }
 
 
-def _warn_ssm_memory(sc: Scenario, plan) -> None:
-    """A warning (stderr, before the run) when the members' SSM encounters would keep more than
-    a GB by the run's end (sumo/ssm.py memory_note; docs/sumo.md)."""
-    from .sumo.ssm import SsmMemoryWarning, memory_note
-    groups = [p.pos0 for _, p, _ in plan.formations] or [plan.pos0]
-    mode = "off" if sc.sumo.attach_port is not None and sc.sumo.ssm == "members" else sc.sumo.ssm  # no device
-    note = memory_note(mode, groups, sc.run.duration, sc.run.step)
-    if note is not None:
-        import warnings
-        warnings.warn(note, SsmMemoryWarning, stacklevel=2)
-
-
 def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | None = None,
                  force: bool = False, progress: bool = True, baseline: bool = False,
                  step_hook=None, transforms=(), warm_cache: str | Path | None = None) -> RunResult:
@@ -137,8 +125,9 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
         protect = [src] if src is not None else []
         if sc.road is not None:  # road, route, lanes and slots are checked before anything runs
             from .sumo.plan import prepare
+            from .sumo.ssm import warn_memory
             plan = prepare(sc, src)
-            _warn_ssm_memory(sc, plan)
+            warn_memory(sc, plan)
             protect.append(plan.road.net_file)
             if "," in os.path.abspath(out_dir):
                 raise RunDirError(f"{out_dir}: SUMO splits file names at commas; choose an output "

@@ -10,6 +10,7 @@ it). Thresholds and range are those of docs/outputs.md.
 """
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -73,3 +74,16 @@ def memory_note(mode: str, groups, duration_s: float, step_s: float) -> str | No
             f"with one another ({pairs} ordered member pairs within {SSM_RANGE_M:.0f} m): "
             f"~{kept / 1e9:.1f} GB or more by the end of this {duration_s:.0f} s run; "
             "sumo.ssm = \"off\" keeps the memory flat (docs/sumo.md)")
+
+
+def warn_memory(sc, plan) -> None:
+    """A warning (stderr, before the run) of a run whose members' SSM encounters would keep more
+    than :data:`SSM_MEMORY_WARN_BYTES` (:func:`memory_note`; ``plan``: the run's sumo/plan.py
+    RoadPlan). None for a run attached to a SUMO already running: its options, the SSM device's
+    among them, are not this tool's."""
+    if sc.sumo.attach_port is not None:
+        return
+    groups = [p.pos0 for _, p, _ in plan.formations] or [plan.pos0]
+    note = memory_note(sc.sumo.ssm, groups, sc.run.duration, sc.run.step)
+    if note is not None:
+        warnings.warn(note, SsmMemoryWarning, stacklevel=3)
