@@ -1,4 +1,4 @@
-"""Reading cached kernels at less cost per kernel (issue 33, start-up): two of numba's steps in
+"""Reading cached kernels at less cost per kernel (start-up): two of numba's steps in
 loading a kernel from its on-disk cache are skipped when nothing needs them.
 
 * **The module for linking.** Each cached kernel holds its machine code and the LLVM bitcode of

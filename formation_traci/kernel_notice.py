@@ -1,5 +1,5 @@
 """What the user is told while the package's kernels compile (the first run after install, or
-after the package changed: a cold numba cache; issue 30 item 4, issue 33 item 3).
+after the package changed: a cold numba cache).
 
 * the notice, once, when numba starts compiling one of our kernels, with how long it takes
   at most (:data:`QUIET_S`, :data:`BUSY_S`: measured, benchmarks/RESULTS.md);
@@ -22,13 +22,12 @@ from numba.core import event
 
 QUIET_S = 75
 """The longest compilation of a cold start measured on a quiet 2-core machine [s]: a road run's
-kernels (with the fused step's, issue 33) and the maneuver, [comm] and free-space ones
-(sim/warm.py): ~60 s on the AMD VM in issue 33's fifth session and 62 s from a fresh clone in
-its sixth (the README's first command, quiet), so ~75 s with a margin; 25-32 s before the
-fused step (benchmarks/RESULTS.md)."""
+kernels (with the fused step's) and the maneuver, [comm] and free-space ones
+(sim/warm.py): 60-62 s measured from a fresh clone (the README's first command, quiet), so
+~75 s with a margin (benchmarks/RESULTS.md)."""
 BUSY_S = 160
-"""The longest measured, on the 2-core machine running two test suites beside it (issue 33's
-fifth session, the README's first command from a fresh clone) [s]."""
+"""The longest measured, on the 2-core machine running two test suites beside it (the README's
+first command from a fresh clone) [s]."""
 SLOW_S = 200.0
 """Compiling longer than this [s] is said to be slow (and again every as many seconds)."""
 NOTICE = "formation-traci: compiling the numba kernels (first run only, cached afterwards)"

@@ -16,10 +16,10 @@ Three chores live here:
 * a kernel read from the on-disk cache is machine code that needs numba's runtime (NRT)
   only: :class:`_QuickLoadCache` loads it without first initialising numba's compiler
   registries (its ``target_context.refresh()``, which imports all of numba's lowering
-  modules and scipy.linalg: 0.3-0.6 s of every warm start, issue 18). A compilation
+  modules and scipy.linalg: 0.3-0.6 s of every warm start). A compilation
   initialises them itself (numba's compiler refreshes its contexts). It also reads
   numba's runtime from the cache and leaves the kernel's bitcode unparsed until a
-  compilation links it (formation_traci/kernel_load.py, issue 33).
+  compilation links it (formation_traci/kernel_load.py).
 """
 from __future__ import annotations
 

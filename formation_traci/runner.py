@@ -330,5 +330,5 @@ def _progress_meta(path, meta, t, k):
 # The objects of every module imported so far (numba, pydantic, the package) live as
 # long as the process: moved out of the garbage collector's generations, no collection of the
 # run and none of the interpreter's exit walks them again (0.2-0.4 s of a short run's start
-# and exit, issue 18). Objects that become garbage are freed as before (reference counts).
+# and exit). Objects that become garbage are freed as before (reference counts).
 gc.freeze()

@@ -1,6 +1,6 @@
 """Versions of installed distributions and the platform's name, for run.json, sweep summaries
-and cache keys, read without the start-up cost of ``importlib.metadata`` (issue 18: a run's
-start <= 1 s): parsing nine METADATA files took ~20 ms, ``platform.platform()`` ~15 ms (it
+and cache keys, read without the start-up cost of ``importlib.metadata`` (a run's
+start within about 1 s): parsing nine METADATA files took ~20 ms, ``platform.platform()`` ~15 ms (it
 runs ``uname -p`` in a subprocess for the processor field)."""
 from __future__ import annotations
 

@@ -9,6 +9,7 @@ functions count too), like /work/shared/tools/structure_check.py.
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -175,3 +176,21 @@ def test_ci_runs_the_readme_test_command_verbatim():
     assert cmd.startswith("bash tests/system_deps.sh && "), cmd
     assert "python -m pytest -q" in cmd
     assert cmd in (ROOT / ".ci" / "run").read_text().splitlines()
+
+
+def test_readme_is_short_and_docs_carry_no_development_history():
+    """The README speaks to users in at most 150 lines, and neither it, the docs, the code's
+    comments nor the schema's descriptions name issues (development history lives in git and
+    benchmarks/RESULTS.md)."""
+    readme = (ROOT / "README.md").read_text()
+    assert len(readme.splitlines()) <= 150, len(readme.splitlines())
+    pattern = re.compile(r"issues? [0-9]+", re.IGNORECASE)
+    found = []
+    for base in ("README.md", "docs", "formation_traci", "analysis"):
+        path = ROOT / base
+        files = [path] if path.is_file() else [p for p in path.rglob("*") if p.suffix in (".py", ".md", ".cpp")]
+        for f in files:
+            for i, line in enumerate(f.read_text(errors="replace").splitlines(), 1):
+                if pattern.search(line):
+                    found.append(f"{f.relative_to(ROOT)}:{i}")
+    assert not found, found

@@ -1,4 +1,4 @@
-"""String amplification of a formation's columns (issue 28, docs/platoon_laws.md): the
+"""String amplification of a formation's columns (docs/platoon_laws.md): the
 metrics.json formation-level ``string_amplification``.
 
 Along a column (analysis/metrics/formation.py ``formation_columns``: one lateral offset, front to

@@ -185,7 +185,7 @@ def mate_caps(gap, v_lead, v, spacing, time_gap, min_gap, decel_emergency):
     """Caps of a member at speed ``v`` [m/s] behind a released member still inside the
     formation, ``gap`` [m] ahead at ``v_lead`` [m/s]: a formation-mate, kept at the
     formation's ``spacing`` [m] (the bumper gap of their slots), not at the traffic's
-    min_gap + time_gap v (issue 32: a released member 15 m ahead in a 20 m column is no
+    min_gap + time_gap v (a released member 15 m ahead in a 20 m column is no
     emergency). Speed cap v_lead + (gap - spacing) / time_gap (the gap error removed over
     ``time_gap``; never below ``v`` behind a faster mate), acceleration cap
     K_GAP (gap - spacing) + K_REL (v_lead - v) with the bounds of :func:`time_gap_accel`, not

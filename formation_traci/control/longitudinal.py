@@ -59,7 +59,7 @@ class PlannerParams:
     (above the speed loop's lag behind a cap rising at jerk_max, ~0.1 m/s^2)."""
     jerk_release: float = 20.0
     """Rate at which braking harder than ``decel_comfort`` is released once the emergency is
-    over [m/s^3] (up to -decel_comfort, then the lag and jerk_max again; issue 32: released at
+    over [m/s^3] (up to -decel_comfort, then the lag and jerk_max again; released at
     jerk_max, a member braked at 8 m/s^2 for a car 15 m ahead went on braking to a standstill).
     0: released at jerk_max like any change (``leader.emergency_release = false``)."""
 

@@ -23,7 +23,7 @@ def road_vc_rows(G, s, v, a0, a, dt_c, vc):
     period; returns (s, v) at the end of the step. Its acceleration goes from ``a0`` at the
     start of the step to ``a`` at its end at constant jerk (:func:`ramp_advance`: the
     acceleration is continuous from step to step); ``a0 == a``: constant acceleration a
-    over the step, as before issue 32 (``leader.accel_within_step = "hold"`` passes a0 = a)."""
+    over the step (``leader.accel_within_step = "hold"`` passes a0 = a)."""
     n_ctrl = vc.shape[0]
     jerk = (a - a0) / (dt_c * n_ctrl)
     for j in range(n_ctrl):
@@ -66,7 +66,7 @@ def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, 
     :func:`mate_rears`). ``lim``: :meth:`GovernorLimits.packed`;
     ``pp``: :meth:`PlannerParams.packed`. The members' acceleration is their mean over the
     previous step (``v_prev`` [m/s], updated in place; zero at the first step, ``has_prev``
-    False). One call instead of six: issue 18.
+    False). One call instead of six.
 
     Returns (a_request, a_vc, emergency_vc, s_next, v_next, gap, lead_idx, a_cap_request,
     a_cap); ``a_cap_prev`` and ``emergency`` are the planner's state, updated in place."""

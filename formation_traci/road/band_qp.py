@@ -1,7 +1,7 @@
 """The smallest change of a penalised fit that brings some of its values into bounds: a convex
 quadratic programme with box constraints on linear functionals of the fit, solved exactly by a
 primal active-set method, in plain Python floats (the same bits on every processor: no BLAS,
-no numpy reduction; issue 30).
+no numpy reduction).
 
 The fit ``c`` minimises ``1/2 c^T H c - b^T c``; its functionals are ``w = A c``. Free, it is
 ``c0`` with ``w0 = A c0``. Under ``lo <= A c <= hi`` the optimum is ``c = c0 + H^-1 A^T lam``

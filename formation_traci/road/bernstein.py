@@ -3,7 +3,7 @@ Hermite map u(s) in Bernstein form for every knot interval at once, and the comp
 tree and clearance of the line's samples. Each gives, value for value, what the per-interval
 Python code it replaces gave (scipy's ``BPoly.from_derivatives``; the recursive tree build;
 the clearance from a k-nearest query), in a fraction of the time: a 120 km line took 7 s
-of set-up before (issue 18).
+of set-up before.
 """
 from __future__ import annotations
 

@@ -137,7 +137,7 @@ class ReferenceLine:
         g = np.hypot(c1[:, 0], c1[:, 1])
         derivs = np.stack([u_nodes, 1.0 / g, -_dot(c1, c2) / g ** 4], axis=1)  # u, u', u''
         u_of_s = hermite_bpoly(s_nodes, derivs, extrapolate=True)  # BPoly.from_derivatives
-        # the C library's atan2 per node: numpy's arctan2 loop is SVML on AVX-512 CPUs (issue 30)
+        # the C library's atan2 per node: numpy's arctan2 loop is SVML on AVX-512 CPUs
         heading_nodes = np.unwrap([math.atan2(y, x) for x, y in c1.tolist()])
         length = float(s_nodes[-1])
         n_tree = max(math.ceil(length / 1.0), 2) + 1

@@ -50,7 +50,7 @@ def geometric_successor(lane, next_edge):
     best, best_lat = None, math.inf
     for cand in next_edge.getLanes():
         start = np.asarray(cand.getShape()[0][:2], dtype=float)
-        dx, dy = float(start[0] - end[0]), float(start[1] - end[1])  # no BLAS dot (issue 30)
+        dx, dy = float(start[0] - end[0]), float(start[1] - end[1])  # no BLAS dot
         along, lat = dx * t[0] + dy * t[1], abs(dx * n[0] + dy * n[1])
         if -2.0 <= along <= JOINT_REACH and lat < best_lat:
             best, best_lat = cand, lat
@@ -201,7 +201,7 @@ class LaneCentres:
     edge's outermost lane continue ``lane_width`` [m] apart.
 
     A slot ``k`` lanes left of the reference lane lies at ``centre(r + k) - centre(r)`` on the
-    edge where it is (:meth:`across`; issue 15: on the first edge for the initial slots, 0 for
+    edge where it is (:meth:`across`: on the first edge for the initial slots, 0 for
     the reference lane itself), so lane-based offsets share the reference line's frame.
     """
 

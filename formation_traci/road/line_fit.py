@@ -140,7 +140,7 @@ def solve_banded_spd(bands, rhs) -> np.ndarray:
     ``bands[k][i]`` is A[i + k, i] (the k-th sub-diagonal, k = 0..p); ``rhs`` is (n, r). Every
     sum runs in one fixed order in Python floats (IEEE double, correctly rounded), so the
     result is the same bit for bit on every processor: no BLAS or LAPACK kernel (whose
-    reductions differ with the CPU's vector width, issue 30) and no numpy reduction is called.
+    reductions differ with the CPU's vector width) and no numpy reduction is called.
     """
     p = len(bands) - 1
     a = [[float(v) for v in band] for band in bands]

@@ -103,15 +103,15 @@ class LeaderSpec(Strict):
     decel_emergency: PosFloat = Field(7.0, description="deceleration allowed to avoid a collision [m/s^2] (road)")
     bound_by_members: bool = Field(
         True, description="road: the virtual car's acceleration and its braking outside emergencies "
-        "at most 90 % of the weakest member's speed law (a truck's Table 3.6 gains: 0.46 m/s^2; issue 32); "
-        "false: only accel_max and decel_max (before issue 32)")
+        "at most 90 % of the weakest member's speed law (a truck's Table 3.6 gains: 0.46 m/s^2); "
+        "false: only accel_max and decel_max (the older behaviour)")
     emergency_release: bool = Field(
         True, description="road: braking harder than decel_max is released at 20 m/s^3 once the emergency "
-        "is over (issue 32); false: at the planner's 0.8 m/s^3 like any change (before issue 32)")
+        "is over; false: at the planner's 0.8 m/s^3 like any change (the older behaviour)")
     accel_within_step: Literal["ramp", "hold"] = Field(
         "ramp", description="road: how the virtual car's acceleration and the members' acceleration caps, "
         "planned once per step, pass within the step: 'ramp' from the last step's value to this step's "
-        "(continuous accelerations, issue 32), 'hold' constant over the step (before issue 32)")
+        "(continuous accelerations), 'hold' constant over the step (the older behaviour)")
 
     @field_validator("speed")
     @classmethod

@@ -100,7 +100,7 @@ class ManeuverLimits(_Strict):
     lat_accel: PosFloat = Field(1.5, le=MEDIUM_COMFORT_LAT, description="lateral acceleration of a slot [m/s^2]")
     lat_jerk: PosFloat = Field(2.5, description="lateral jerk of a slot [m/s^3] (ISO 15622: 2.5)")
     lon_accel: PosFloat = Field(1.0, le=LON_COMFORT, description="slot acceleration along the road, relative to the virtual car [m/s^2]")
-    lon_jerk: PosFloat = Field(1.0, description="slot jerk along the road [m/s^3] (with the virtual car's planned jerk within issue 19's 1 m/s^3 p95)")
+    lon_jerk: PosFloat = Field(1.0, description="slot jerk along the road [m/s^3] (with the virtual car's planned jerk within a 1 m/s^3 p95)")
     min_duration: PosFloat = Field(3.0, description="shortest transition [s]")
     gap_time: NonNegFloat = Field(1.0, description="time-gap margin of the gap check [s]")
     gap_min: NonNegFloat = Field(5.0, description="standstill margin of the gap check [m]")

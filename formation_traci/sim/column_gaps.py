@@ -1,4 +1,4 @@
-"""Gaps in a formation's columns against the members' bodies and braking (issue 32, item 2).
+"""Gaps in a formation's columns against the members' bodies and braking.
 
 A member right behind another in its column (road-frame slots whose bodies overlap sideways)
 must stop behind it when the formation brakes as hard as it can: with the virtual car's

@@ -127,5 +127,5 @@ def grade_at(profile: tuple[np.ndarray, np.ndarray], s) -> np.ndarray:
     ps, pz = profile
     s = np.asarray(s, dtype=float)
     dz = np.interp(s + GRADE_BASE, ps, pz) - np.interp(s - GRADE_BASE, ps, pz)
-    q = dz / (2.0 * GRADE_BASE)  # the C library's atan: numpy's arctan loop is SVML on AVX-512 CPUs (issue 30)
+    q = dz / (2.0 * GRADE_BASE)  # the C library's atan: numpy's arctan loop is SVML on AVX-512 CPUs
     return np.array([math.atan(v) for v in q.ravel().tolist()]).reshape(q.shape)

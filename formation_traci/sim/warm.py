@@ -1,4 +1,4 @@
-"""One kernel compilation covers every scenario kind (issue 30).
+"""One kernel compilation covers every scenario kind.
 
 numba compiles a kernel when it is first called, and some kernels are called only by some
 scenario kinds: the maneuver planner's slots (control/maneuvers/transition.py), the [comm]

@@ -39,7 +39,7 @@ class Sensed:
     nb_v: np.ndarray = field(default_factory=lambda: _EMPTY)  # neighbours' speed [m/s]
     # neighbours that are released members still inside the formation (behind the front of a
     # member in their lane): the virtual car's slot law does not brake for them, the members
-    # behind them do (issue 32; empty: none)
+    # behind them do (empty: none)
     nb_in_formation: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
 
 

@@ -1,4 +1,4 @@
-"""The usual steps of a road run in one compiled call each (issue 33, item 1).
+"""The usual steps of a road run in one compiled call each.
 
 The loop (sim/loop.py ``step_loop``) asks :class:`FusedPath` at the start of every step
 whether the step is a usual one (:meth:`FusedPath.ready`); if so the whole step, sensing to the

@@ -1,4 +1,4 @@
-"""The usual step of a road run as one compiled call (issue 33, item 1).
+"""The usual step of a road run as one compiled call.
 
 :func:`fused_step` runs, for every member of every formation, what the loop (sim/loop.py
 ``step_loop``) runs in a step where nothing out of the ordinary happens, in the loop's order

@@ -43,7 +43,7 @@ def inside_formation(released: set, sensed, m_front, vehicles, active) -> np.nda
     the front bumper (``m_front``, arc length [m]) of an active member whose lateral band they
     overlap (members' chassis ``vehicles``). The virtual car's slot law ignores them
     (control/governor.py governor_step): braking for a released member that follows a member
-    ahead of it would brake that member, which it follows, down to a standstill (issue 32)."""
+    ahead of it would brake that member, which it follows, down to a standstill."""
     nb = sensed.nb
     out = np.zeros(len(nb.ids), dtype=np.bool_)
     for j, vid in enumerate(nb.ids):

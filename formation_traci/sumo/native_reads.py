@@ -1,7 +1,7 @@
 """The C++ extension ``_sumo_reads`` (sumo/native/sumo_reads.cpp), built on first use: the
 members' and neighbours' subscription rows as numpy tables and the members' moves through the
 libsumo C++ API inside the loaded ``libsumo/_libsumo.so`` (the same SUMO), without SWIG's
-conversion to Python objects and their extraction (benchmarks/RESULTS.md, issue 33's fifth session). :func:`load` returns the module or None (then the
+conversion to Python objects and their extraction (benchmarks/RESULTS.md). :func:`load` returns the module or None (then the
 caller keeps the SWIG path; :data:`REASON` says why). This module imports neither libsumo nor
 traci: the caller (sumo/adapter.py) gives the path of ``_libsumo.so`` (``_libsumo.__file__``).
 

@@ -92,7 +92,7 @@ def _formation_plan(setup, road: Road, source) -> RoadPlan:
     v0, v0_dot = profile(sc.leader.speed)(0.0)
     tg = initial_targets(road, slots, rigid, is_road, sc.road.start, v0, 0.0)
     pos0 = tg.p.copy()
-    heading0 = np.array([math.atan2(y, x) for x, y in tg.v.tolist()])  # libm, not numpy's SIMD loop (issue 30)
+    heading0 = np.array([math.atan2(y, x) for x, y in tg.v.tolist()])  # libm, not numpy's SIMD loop
     speed0 = np.hypot(tg.v[:, 0], tg.v[:, 1])
     for i, m in enumerate(sc.members):
         if m.position is not None:

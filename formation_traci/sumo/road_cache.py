@@ -1,5 +1,5 @@
 """The fitted reference line of a route kept on disk, so a warm start neither fits it again
-nor imports scipy (issue 18: set-up <= 1 s).
+nor imports scipy (a warm set-up within about 1 s).
 
 An entry holds what :func:`.road_setup.build_road` gets from fitting: the geometric lanes of
 the reference lane along the route, the line's arrays (``ReferenceLine.ARRAYS``) with its

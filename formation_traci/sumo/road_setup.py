@@ -292,7 +292,7 @@ def rectangles_overlap(p1, h1, p2, h2, length, width, length2=None, width2=None)
     a, b = corners(np.asarray(p1), h1, length, width), corners(np.asarray(p2), h2, l2, w2)
     for h in (h1, h1 + np.pi / 2, h2, h2 + np.pi / 2):
         axis = np.array([np.cos(h), np.sin(h)])
-        pa = a[:, 0] * axis[0] + a[:, 1] * axis[1]  # no BLAS matmul (issue 30)
+        pa = a[:, 0] * axis[0] + a[:, 1] * axis[1]  # no BLAS matmul
         pb = b[:, 0] * axis[0] + b[:, 1] * axis[1]
         if pa.max() <= pb.min() or pb.max() <= pa.min():
             return False

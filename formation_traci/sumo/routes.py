@@ -2,7 +2,7 @@
 
 A route is either a list of edge ids in driving order, or its two ends (``{ from = ..., to =
 ... }``, each an edge id or an ``[x, y]`` network position [m], optionally through ``via``
-points) joined along the mainline (issue 30): the shortest path (length, passenger cars) over
+points) joined along the mainline: the shortest path (length, passenger cars) over
 edges of the start edge's road class (its SUMO type and priority; the last edge may be of
 another class), so a motorway route never leaves at an off-ramp and re-enters at the next
 on-ramp because that is shorter. Only where no such path exists, or the reference lane cannot

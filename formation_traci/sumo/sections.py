@@ -25,7 +25,7 @@ from ..record.writer import atomic_write_parquet
 from .demand import route_point
 
 if TYPE_CHECKING:  # pandas (~0.15 s to import, with pyarrow) is imported where the tables are
-    import pandas as pd  # written, after the run: never before its first step (issue 33)
+    import pandas as pd  # written, after the run: never before its first step
 
 PREFIX = "section_"
 """Detector ids: ``section_<k>_<lane>``."""

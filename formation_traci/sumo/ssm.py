@@ -37,8 +37,7 @@ SSM_ENCOUNTER_BYTES = 400.0
 """What SUMO 1.28's SSM device keeps per step of an open encounter of an equipped vehicle with
 one foe [B]: it appends the step's times, positions, speeds, TTC and DRAC to the encounter until
 the encounter closes (MSDevice_SSM::Encounter::add). Measured: five equipped vehicles within 50 m
-of one another, 20 such encounters, ~8 kB per step (benchmarks/RESULTS.md, seventh session of
-issue 33)."""
+of one another, 20 such encounters, ~8 kB per step (benchmarks/RESULTS.md)."""
 SSM_MEMORY_WARN_BYTES = float(1 << 30)
 """A run whose members' mutual encounters would keep more than this [B] is warned about."""
 

@@ -1,4 +1,4 @@
-"""Case processes forked from a server that has imported what a case imports (issue 33).
+"""Case processes forked from a server that has imported what a case imports.
 
 A case process spends ~1.7-2 s importing numpy, numba, scipy, pandas, pyarrow, pydantic,
 libsumo and this package before its run starts: a third of a short case. Python's

@@ -6,6 +6,6 @@ evaluates into each step's Reference (control/maneuvers/generator.py, the seam o
 docs/architecture.md).
 """
 
-from .lane_shift import LaneShift  # noqa: E402  (issue 14's example transform)
+from .lane_shift import LaneShift  # noqa: E402  (the example transform)
 
 __all__ = ["LaneShift"]
