@@ -6,10 +6,12 @@ and the built networks (``<name>.net.xml``) live next to this file.  They are
 each network and :mod:`sumo_nets.build` for the design values.
 """
 
+from __future__ import annotations
+
 from pathlib import Path
 
 NETS_DIR = Path(__file__).resolve().parent
-NETWORK_NAMES = ("straight3", "curved3", "onramp", "lanedrop", "offramp", "shortcut", "straight3_long")
+NETWORK_NAMES = ("straight3", "curved3", "onramp", "lanedrop", "offramp", "shortcut", "straight3_long", "motorway100")
 
 
 def net_path(name: str) -> Path:
@@ -19,4 +21,13 @@ def net_path(name: str) -> Path:
     return NETS_DIR / f"{name}.net.xml"
 
 
-__all__ = ["NETS_DIR", "NETWORK_NAMES", "net_path"]
+def main_route(name: str) -> list[str] | None:
+    """Edge ids of a generated network's main route, or None when its route is listed by hand."""
+    if name == "motorway100":
+        from .motorway100 import main_route as route
+
+        return route()
+    return None
+
+
+__all__ = ["NETS_DIR", "NETWORK_NAMES", "main_route", "net_path"]

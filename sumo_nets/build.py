@@ -518,6 +518,12 @@ def shortcut() -> Network:
     )
 
 
+def motorway100() -> Network:
+    from .motorway100 import motorway100 as make  # its own module: 100 km of generated edges
+
+    return make()
+
+
 NETWORKS: dict[str, Callable[[], Network]] = {
     "straight3": straight3,
     "straight3_long": straight3_long,
@@ -526,6 +532,7 @@ NETWORKS: dict[str, Callable[[], Network]] = {
     "lanedrop": lanedrop,
     "offramp": offramp,
     "shortcut": shortcut,
+    "motorway100": motorway100,
 }
 
 # ----------------------------------------------------------------------------------------

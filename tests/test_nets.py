@@ -556,3 +556,95 @@ def test_sumo_drives_all_routes(name, tmp_path):
     if name == "offramp":
         # every exiting vehicle changed into the deceleration lane (it has no predecessor)
         assert changes.count("mw_decel_1") >= 12
+
+
+# ----------------------------------------------------------------------------------------
+# motorway100: the 100 km road of scale and penetration studies
+# ----------------------------------------------------------------------------------------
+
+M100_INTERCHANGES_KM = range(10, 100, 10)  # an off-ramp at x0 and an on-ramp at x0 + 1 km
+
+
+def _m100_main():
+    net = load("motorway100")
+    edges, e = [], net.getEdge("mw_0")
+    while True:
+        edges.append(e.getID())
+        nxt = [o for o in e.getOutgoing() if o.getID().startswith("mw_")]
+        if not nxt:
+            return net, edges
+        e = nxt[0]
+
+
+def test_motorway100_layout():
+    """100 km of 4 lanes at 130 km/h along +x, edges of at most 1 km, and at every 10 km a 250 m
+    deceleration lane with an off-ramp, then 1 km on an on-ramp with a 300 m acceleration lane."""
+    net, main = _m100_main()
+    start = [net.getEdge(e).getFromNode().getCoord()[0] for e in main]
+    end = net.getEdge(main[-1]).getToNode().getCoord()
+    assert start[0] == 0.0 and end == pytest.approx((100_000.0, 0.0), abs=1e-6)
+    assert np.diff(start + [end[0]]).max() == pytest.approx(1000.0, abs=1e-6)
+    for e in main:
+        edge = net.getEdge(e)
+        for lane in edge.getLanes():  # the left border stays on y = 0: through lanes never move
+            assert {round(y, 4) for _, y in lane.getShape()} == {-lane_offset(edge.getLaneNumber(), lane.getIndex())}
+        assert all(lane.getSpeed() == pytest.approx(V_MOTORWAY, abs=1e-3) for lane in edge.getLanes())
+    five = [e for e in main if net.getEdge(e).getLaneNumber() == 5]
+    assert len(five) == 2 * len(M100_INTERCHANGES_KM)
+    assert {net.getEdge(e).getLaneNumber() for e in main} == {4, 5}
+    for km in M100_INTERCHANGES_KM:
+        x0 = 1000 * km
+        decel, accel = net.getEdge(f"mw_{x0 - 250}"), net.getEdge(f"mw_{x0 + 1000}")
+        assert decel.getLaneNumber() == 5 and accel.getLaneNumber() == 5
+        for edge, length in ((decel, 250.0), (accel, 300.0)):  # node to node (junctions shorten the lanes)
+            assert edge.getToNode().getCoord()[0] - edge.getFromNode().getCoord()[0] == pytest.approx(length, abs=1e-6)
+        off, on = net.getEdge(f"off_{km // 10}"), net.getEdge(f"on_{km // 10}")
+        assert [c.getTo().getID() for c in decel.getLane(0).getOutgoing()] == [off.getID()]
+        assert [c.getTo().getID() for c in on.getLane(0).getOutgoing()] == [accel.getID()]
+        assert accel.getLane(0).getOutgoing() == []  # the acceleration lane ends
+        assert off.getLane(0).getSpeed() == pytest.approx(V_RAMP, abs=1e-3)
+        # the ramps meet the lane's line tangentially (heading within 0.01 rad of +x)
+        for shape in (off.getLane(0).getShape()[:2], on.getLane(0).getShape()[-2:]):
+            (xa, ya), (xb, yb) = shape
+            assert abs(math.atan2(yb - ya, xb - xa)) < 0.01
+
+
+def test_sumo_drives_motorway100_end_to_end_and_ramp_to_ramp(tmp_path):
+    """SUMO's own cars drive the 100 km end to end in every lane, and from each on-ramp to the
+    next off-ramp, without a warning or a teleport, every ramp car leaving the acceleration lane."""
+    net, main = _m100_main()
+    lines = ['<routes>', '  <vType id="car" vClass="passenger" length="5" maxSpeed="40"/>',
+             f'  <route id="main" edges="{" ".join(main)}"/>']
+    ramps = range(1, len(M100_INTERCHANGES_KM))
+    for j in ramps:
+        a = main.index(f"mw_{10_000 * j + 1000}")
+        b = main.index(f"mw_{10_000 * (j + 1) - 250}")
+        lines.append(f'  <route id="r{j}" edges="on_{j} {" ".join(main[a:b + 1])} off_{j + 1}"/>')
+    for lane in range(4):
+        lines.append(f'  <vehicle id="main_l{lane}" type="car" route="main" depart="0" departLane="{lane}" '
+                     'departPos="0" departSpeed="max"/>')
+    for t in (0, 10):
+        for j in ramps:
+            lines.append(f'  <vehicle id="r{j}_t{t}" type="car" route="r{j}" depart="{t}" departLane="0" '
+                         'departPos="0" departSpeed="max"/>')
+    n_ramp = 2 * len(ramps)
+    lines.append("</routes>")
+    (tmp_path / "r.rou.xml").write_text("\n".join(lines) + "\n")
+    import sumo
+
+    env = dict(os.environ, SUMO_HOME=str(sumo.SUMO_HOME))
+    cmd = [str(sumo_binary("sumo")), "-n", str(NETS / "motorway100.net.xml"), "-r", "r.rou.xml",
+           "--step-length", "1", "--end", "3600", "--no-step-log", "--xml-validation", "never",
+           "--tripinfo-output", "trip.xml", "--statistic-output", "stats.xml", "--lanechange-output", "lc.xml"]
+    res = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=120, env=env)
+    assert res.returncode == 0, res.stderr
+    assert "Warning" not in res.stderr and "Error" not in res.stderr, res.stderr
+    assert int(ET.parse(tmp_path / "stats.xml").getroot().find("teleports").get("total")) == 0
+    trips = {t.get("id"): float(t.get("routeLength")) for t in ET.parse(tmp_path / "trip.xml").getroot().iter("tripinfo")}
+    assert len(trips) == n_ramp + 4, "not every car reached the end of its route"
+    for lane in range(4):
+        assert trips[f"main_l{lane}"] == pytest.approx(100_000.0, abs=50.0)
+    accel_lanes = {f"mw_{1000 * km + 1000}_0" for km in M100_INTERCHANGES_KM}
+    left_accel = {c.get("id") for c in ET.parse(tmp_path / "lc.xml").getroot().iter("change")
+                  if c.get("from") in accel_lanes}
+    assert left_accel == {f"r{j}_t{t}" for j in ramps for t in (0, 10)}

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from sumo_nets import main_route as bundled_main_route
 
 from ..models.params import VehicleParams
 from ..road.geometry import ReferenceLine, load_net
@@ -112,7 +113,7 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
     except Exception as exc:  # sumolib's SAX parser: a truncated or corrupt network
         raise ScenarioError(src, [("road.net", f"{net_file.name!r} is not a readable SUMO network: "
                                                f"{type(exc).__name__}: {exc}")]) from None
-    spec = sc.road.route or MAIN_ROUTES.get(sc.road.net)
+    spec = sc.road.route or MAIN_ROUTES.get(sc.road.net) or bundled_main_route(sc.road.net)
     if not spec:
         raise ScenarioError(src, [("road.route", "required for a network that is not bundled "
                                                  "(list of edge ids in driving order, or {from, to})")])
