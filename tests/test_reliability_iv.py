@@ -56,3 +56,65 @@ def test_a_road_sweep_stopped_by_sigterm_resumes_to_the_same_summary(tmp_path):
     assert code == 0 and "done before" in text, text
     assert (cut / "summary.parquet").read_bytes() == (whole / "summary.parquet").read_bytes()
     assert list(pd.read_parquet(cut / "timings.parquet").columns) == ["case_id", "wall_s", "host", "pid"]
+
+
+# -- 2. ids unique over the whole run ----------------------------------------------------------------
+FLOWS = """
+name = "ids"
+[run]
+duration = 2.0
+seed = 1
+[road]
+net = "straight3"
+lane = 1
+start = 300.0
+[leader]
+speed = 30.0
+[[members]]
+id = "{top}"
+slot = {{ along = 0.0, lanes = 0 }}
+[[formations]]
+id = "{fid}"
+start = 600.0
+leader = {{ speed = 30.0 }}
+members = [{{ id = "{fmember}", slot = {{ along = 0.0, lanes = 0 }} }}]
+[[formation_flows]]
+id = "ff"
+lane = 0
+start = 900.0
+period_s = 10.0
+[formation_flows.formation]
+leader = {{ speed = 28.0 }}
+members = [{{ id = "m", slot = {{ along = 0.0, lanes = 0 }} }}]
+[traffic]
+warmup = 0.0
+[[traffic.flows]]
+id = "main"
+veh_per_hour_per_lane = 600
+"""
+
+
+@pytest.mark.parametrize("ids, words", [
+    (dict(fid="ff.0"), ["formations.0.id 'ff.0'", "formation flow 'ff'"]),
+    (dict(fmember="vc"), ["formations.0.members.0.id", "reserved for the virtual car"]),
+    (dict(fmember="ff.3.m"), ["formations.0.members.0.id 'ff.3.m'", "formation_flows.0.formation.members.0.id"]),
+    (dict(top="main.2"), ["members.0.id 'main.2'", "traffic flow 'main'"]),
+    (dict(fmember="main.17"), ["formations.0.members.0.id 'main.17'", "traffic.flows.0.id"]),
+], ids=["formation-vs-flow", "vc-in-formations", "member-vs-flow-member", "member-vs-background",
+        "formation-member-vs-background"])
+def test_ids_that_clash_anywhere_in_the_run_are_bad_input_naming_both(tmp_path, ids, words):
+    sc = tmp_path / "ids.toml"
+    sc.write_text(FLOWS.format(**{"top": "a", "fid": "g", "fmember": "b", **ids}))
+    before = tree(tmp_path)
+    code, text = cli("run", sc, "--out", tmp_path / "out", "--no-progress")
+    assert code == 2 and "Traceback" not in text, text
+    assert all(w in text for w in words), text
+    assert tree(tmp_path) == before
+
+
+def test_distinct_ids_of_formations_flows_and_traffic_still_load(tmp_path):
+    from formation_traci.scenario import load_scenario
+
+    sc = tmp_path / "ids.toml"
+    sc.write_text(FLOWS.format(top="main", fid="ff1", fmember="main.x"))  # no vehicle is named so
+    assert [f.id for f in load_scenario(sc).formations] == ["ff1"]
