@@ -140,7 +140,7 @@ def run(
     baseline: bool = typer.Option(False, "--baseline", help="road scenarios: the twin run with the same traffic and seed but no formation"),
     gui: bool = typer.Option(False, "--gui", help="road scenarios: watch in sumo-gui (traci backend; the view follows the formation)"),
     sets: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP),
-    warm_cache: Optional[Path] = typer.Option(None, "--warm-cache", metavar="DIR", help="road scenarios: start from the shared warm-up of this scenario's traffic in DIR, simulated once and saved there by the first run (docs/sweeps.md, 'The shared warm-up')"),
+    warm_cache: Optional[str] = typer.Option(None, "--warm-cache", metavar="DIR", callback=_nonempty, help="road scenarios: start from the shared warm-up of this scenario's traffic in DIR, simulated once and saved there by the first run (docs/sweeps.md, 'The shared warm-up')"),
     strict: bool = typer.Option(False, "--strict", help="exit 1 when the run completed with incidents (a member collision, removed, stranded member or emergency brake)"),
 ) -> None:
     """Run SCENARIO headless and record it under OUT (run.json, trajectories.parquet, ...).

@@ -132,6 +132,9 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
             if "," in os.path.abspath(out_dir):
                 raise RunDirError(f"{out_dir}: SUMO splits file names at commas; choose an output "
                                   "directory without ',' for a road scenario")
+            if warm_cache is not None:  # never a link, a file, or inside a run (sumo/warm_entry.py)
+                from .sumo.warm_entry import check_cache
+                warm_cache = check_cache(warm_cache, Path(out_dir))
         lock = open_out_dir(Path(out_dir), force, protect)
         run_sc = sc if plan is None or plan.scenario is None else plan.scenario  # flows' formations in
         try:

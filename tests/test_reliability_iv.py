@@ -4,6 +4,7 @@ of an adversarial probe (it failed on the code before the fix) with real SUMO an
 docs/reliability.md maps them."""
 import json
 import signal
+import threading
 from pathlib import Path
 
 import pandas as pd
@@ -118,3 +119,99 @@ def test_distinct_ids_of_formations_flows_and_traffic_still_load(tmp_path):
     sc = tmp_path / "ids.toml"
     sc.write_text(FLOWS.format(top="main", fid="ff1", fmember="main.x"))  # no vehicle is named so
     assert [f.id for f in load_scenario(sc).formations] == ["ff1"]
+
+
+# -- 3. the warm-up cache: deletes nothing, follows no link, checks its entries, says when it waits --
+
+def _warm(tmp_path, out, cache, *extra):
+    sc = tmp_path / "road.toml"
+    if not sc.is_file():
+        road(tmp_path, duration=1.0, warmup=2.0)
+    return cli("run", sc, "--out", out, "--warm-cache", cache, "--no-progress", *extra)
+
+
+def test_the_warm_up_cache_never_deletes_a_users_folder_named_like_an_entry(tmp_path):
+    cache = tmp_path / "cache"
+    code, text = _warm(tmp_path, tmp_path / "r1", cache)
+    assert code == 0, text
+    entry = Path(json.loads((tmp_path / "r1" / "run.json").read_text())["warm_state"]["entry"])
+    for p in entry.iterdir():
+        p.unlink()
+    (entry / "notes.txt").write_text("mine")
+    code, text = _warm(tmp_path, tmp_path / "r2", cache)
+    assert code == 1 and "notes.txt" in text and "Traceback" not in text, text
+    assert (entry / "notes.txt").read_text() == "mine" and sorted(p.name for p in entry.iterdir()) == ["notes.txt"]
+
+
+@pytest.mark.parametrize("where, words", [
+    ("", "empty"), ("link", "symbolic link"), ("out", "run directory"), ("out/cache", "run directory"),
+    ("prev/cache", "run directory"), ("a,b", "comma"), ("afile", "is a file")])
+def test_warm_up_cache_paths_that_cannot_be_used_exit_2_and_create_nothing(tmp_path, where, words):
+    from test_reliability_ii import previous_run
+    previous_run(tmp_path)
+    (tmp_path / "target").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "target")
+    (tmp_path / "afile").write_text("x")
+    road(tmp_path, duration=1.0, warmup=2.0)
+    work = tmp_path / "work"
+    work.mkdir()
+    before = tree(tmp_path)
+    cache = "" if where == "" else tmp_path / where
+    sc = tmp_path / "road.toml"
+    code, text = cli("run", sc, "--out", tmp_path / "out", "--warm-cache", cache, "--no-progress", cwd=work)
+    assert code == 2 and words in text and "Traceback" not in text, text
+    assert tree(tmp_path) == before
+
+
+def test_a_damaged_or_edited_warm_up_entry_is_made_again_with_a_warning(tmp_path):
+    cache = tmp_path / "cache"
+    code, text = _warm(tmp_path, tmp_path / "r0", cache)
+    assert code == 0, text
+    meta = json.loads((tmp_path / "r0" / "run.json").read_text())
+    entry = Path(meta["warm_state"]["entry"])
+    inserted = meta["traffic"]["flows"]["main"]["inserted"]
+
+    def edit_departed():
+        doc = json.loads((entry / "warm.json").read_text())
+        doc["departed"] = {k: 99999 for k in doc["departed"]}
+        (entry / "warm.json").write_text(json.dumps(doc))
+
+    def truncate_state():
+        data = (entry / "state.xml.gz").read_bytes()
+        (entry / "state.xml.gz").write_bytes(data[: len(data) // 2])
+
+    def break_json():
+        (entry / "warm.json").write_text("{not json")
+
+    for i, damage in enumerate((edit_departed, truncate_state, break_json), start=1):
+        damage()
+        code, text = _warm(tmp_path, tmp_path / f"r{i}", cache)
+        assert code == 0 and "is damaged" in text and "made again" in text and "Traceback" not in text, text
+        again = json.loads((tmp_path / f"r{i}" / "run.json").read_text())
+        assert again["warm_state"]["produced"] is True
+        assert again["traffic"]["flows"]["main"]["inserted"] == inserted  # not 99,999
+        assert "99999" not in (entry / "warm.json").read_text()
+
+
+def test_a_run_waiting_for_the_warm_up_lock_says_so(tmp_path):
+    import fcntl
+    import os
+    cache = tmp_path / "cache"
+    code, text = _warm(tmp_path, tmp_path / "r0", cache)
+    assert code == 0, text
+    key = json.loads((tmp_path / "r0" / "run.json").read_text())["warm_state"]["key"]
+    fd = os.open(cache / f"{key}.lock", os.O_RDWR)
+    fcntl.flock(fd, fcntl.LOCK_EX)
+    proc = spawn("run", tmp_path / "road.toml", "--out", tmp_path / "r1", "--warm-cache", cache, "--no-progress")
+    lines = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stderr), daemon=True)
+    reader.start()
+    try:
+        said = wait_for(lambda: any("waiting for" in ln for ln in lines), timeout=120)
+    finally:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+        proc.wait(timeout=120)
+        reader.join(timeout=10)
+    assert said and any(key in ln for ln in lines if "waiting for" in ln), lines
+    assert proc.returncode == 0, lines
