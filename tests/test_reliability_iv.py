@@ -215,3 +215,57 @@ def test_a_run_waiting_for_the_warm_up_lock_says_so(tmp_path):
         reader.join(timeout=10)
     assert said and any(key in ln for ln in lines if "waiting for" in ln), lines
     assert proc.returncode == 0, lines
+
+
+# -- 4. analyze-sweep writes only into its own output ------------------------------------------------
+
+@pytest.fixture(scope="module")
+def free_sweep(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fsw")
+    path = d / "sweep.toml"
+    path.write_text(f'base = "{free(d, 0.5)}"\nseeds = [1]\n')
+    code, text = cli("sweep", path, "--out", d / "sw", "--no-progress", "--workers", "1")
+    assert code == 0, text
+    return d / "sw"
+
+
+@pytest.mark.parametrize("case", ["out-is-a-run", "out-is-a-link", "out-is-another-sweep", "figures-link",
+                                  "report-link", "stats-link"])
+def test_analyze_sweep_never_writes_through_a_link_or_into_another_run(tmp_path, free_sweep, case):
+    import shutil
+    from test_reliability_ii import previous_run
+    sw = tmp_path / "sw"
+    shutil.copytree(free_sweep, sw)
+    prev = previous_run(tmp_path)
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "keep.txt").write_text("mine")
+    out = []
+    if case == "out-is-a-run":
+        out = ["--out", prev]
+    elif case == "out-is-a-link":
+        (tmp_path / "link").symlink_to(victim)
+        out = ["--out", tmp_path / "link"]
+    elif case == "out-is-another-sweep":
+        shutil.copytree(free_sweep, tmp_path / "other")
+        out = ["--out", tmp_path / "other"]
+    elif case == "figures-link":
+        (sw / "sweep_figures").symlink_to(victim)
+    else:
+        name = "sweep_report.html" if case == "report-link" else "sweep_stats.csv"
+        (sw / name).symlink_to(victim / "keep.txt")
+    before = tree(tmp_path)
+    code, text = cli("analyze-sweep", sw, *out)
+    assert code == 2 and "Traceback" not in text, text
+    assert tree(tmp_path) == before and (victim / "keep.txt").read_text() == "mine"
+    assert sorted(p.name for p in victim.iterdir()) == ["keep.txt"]
+
+
+def test_analyze_sweep_writes_into_its_sweep_an_empty_directory_or_its_earlier_output(tmp_path, free_sweep):
+    import shutil
+    sw = tmp_path / "sw"
+    shutil.copytree(free_sweep, sw)
+    for args in ([], ["--out", tmp_path / "rep"], ["--out", tmp_path / "rep"]):
+        code, text = cli("analyze-sweep", sw, *args)
+        assert code == 0, text
+    assert (sw / "sweep_report.html").is_file() and (tmp_path / "rep" / "sweep_report.html").is_file()
