@@ -269,3 +269,21 @@ def test_analyze_sweep_writes_into_its_sweep_an_empty_directory_or_its_earlier_o
         code, text = cli("analyze-sweep", sw, *args)
         assert code == 0, text
     assert (sw / "sweep_report.html").is_file() and (tmp_path / "rep" / "sweep_report.html").is_file()
+
+
+# -- grid and override paths are scenario fields ------------------------------------------------------
+
+@pytest.mark.parametrize("table, path, value, near", [
+    ("grid", "formation_flows.0.perentration", "[0.1, 0.2]", "formation_flows.0.penetration"),
+    ("overrides", "run.durration", "3.0", "run.duration"),
+    ("grid", "traffic.flows.0.veh_per_hour_per_lan", "[100, 200]", "traffic.flows.0.veh_per_hour_per_lane"),
+])
+def test_a_sweep_path_that_is_not_a_scenario_field_is_refused_before_any_case(tmp_path, table, path, value, near):
+    base = tmp_path / "ids.toml"
+    base.write_text(FLOWS.format(top="a", fid="g", fmember="b"))
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(f'base = "{base}"\nseeds = [1]\n[{table}]\n"{path}" = {value}\n')
+    before = tree(tmp_path)
+    code, text = cli("sweep", sweep, "--out", tmp_path / "out", "--no-progress", "--workers", "1")
+    assert code == 2 and path in text and f"nearest field: {near}" in text and "Traceback" not in text, text
+    assert tree(tmp_path) == before

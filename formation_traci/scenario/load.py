@@ -102,6 +102,10 @@ def parse_scenario(doc: dict, source: str | Path = "<scenario>", **overrides: An
         problems, seen = [], set()
         for err in exc.errors():
             item = (_field_path(err["loc"]), _describe(err))
+            if err["type"] == "extra_forbidden":
+                from .fields import nearest_field
+                near = nearest_field(Scenario, item[0])
+                item = (item[0], item[1] + (f"; nearest field: {near}" if near else ""))
             if item not in seen:
                 seen.add(item)
                 problems.append(item)
