@@ -119,13 +119,33 @@ def _set_overrides(pairs: Optional[list[str]], source: str) -> dict:
                                               "(e.g. run.duration=20)"))
             continue
         try:
-            value = tomllib.loads(f"v = {text.strip()}")["v"]
+            doc = tomllib.loads(f"v = {text.strip()}")
         except tomllib.TOMLDecodeError:
-            value = text.strip()
-        out[key] = value
+            doc = {"v": text.strip()}
+        if set(doc) != {"v"}:  # e.g. '1\n[x]': the value, then more TOML
+            problems.append((f"--set {key}", "VALUE must be one TOML value; found more after it "
+                                             f"({', '.join(k for k in doc if k != 'v')})"))
+            continue
+        if key in out:
+            problems.append((f"--set {key}", "is given twice"))
+        out[key] = doc["v"]
     if problems:
         raise ScenarioError(source, problems)
     return out
+
+
+_OPTION_OF = {"run.duration": "--duration", "run.seed": "--seed", "vehicle.model": "--model",
+              "sumo.backend": "--gui", "sumo.gui": "--gui"}
+
+
+def _refuse_both(sets: dict, opts: dict, source: str) -> None:
+    """ScenarioError (exit 2) for a field given both by a command-line option and by --set."""
+    from .scenario import ScenarioError
+
+    both = [k for k in opts if k in sets]
+    if both:
+        raise ScenarioError(source, [(f"--set {k}", f"is also given by {_OPTION_OF[k]}: give it once")
+                                     for k in both])
 
 
 @app.command()
@@ -153,8 +173,9 @@ def run(
 
         opts = {"run.duration": duration, "run.seed": seed, "vehicle.model": model,
                 **({"sumo.backend": "traci", "sumo.gui": True} if gui else {})}
-        sc = load_scenario(scenario, **{**_set_overrides(sets, str(scenario)),
-                                        **{k: v for k, v in opts.items() if v is not None}})
+        given = _set_overrides(sets, str(scenario))
+        _refuse_both(given, {k: v for k, v in opts.items() if v is not None}, str(scenario))
+        sc = load_scenario(scenario, **{**given, **{k: v for k, v in opts.items() if v is not None}})
         if progress and sc.road is not None and sc.traffic.warmup > 0:
             typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)
         res = run_scenario(sc, Path(out), scenario_path=scenario, force=force, progress=progress, baseline=baseline,

@@ -287,3 +287,66 @@ def test_a_sweep_path_that_is_not_a_scenario_field_is_refused_before_any_case(tm
     code, text = cli("sweep", sweep, "--out", tmp_path / "out", "--no-progress", "--workers", "1")
     assert code == 2 and path in text and f"nearest field: {near}" in text and "Traceback" not in text, text
     assert tree(tmp_path) == before
+
+
+# -- 5./6. checked before the run, nothing silently dropped -----------------------------------------
+
+def _off_road(tmp_path, dy) -> Path:
+    """ROAD with member m1 given a position dy [m] left of its slot."""
+    from formation_traci.scenario import load_scenario
+    from formation_traci.sumo.plan import prepare
+    p = road(tmp_path, duration=1.0, name="slot.toml")
+    x, y = prepare(load_scenario(p), p).pos0[0]
+    text = p.read_text().replace("slot = { along = 0.0, lanes = 0 }",
+                                 f"slot = {{ along = 0.0, lanes = 0 }}\nposition = [{x}, {y + dy}]", 1)
+    out = tmp_path / f"off{dy:g}.toml"
+    out.write_text(text)
+    return out
+
+
+FLOW_WINDOW = {"begin-after-end": "begin = 1.0\nend = 1.0\n", "begin-after-the-run": "begin = 5.0\n"}
+
+
+@pytest.mark.parametrize("what", ["position-off-road", "set-road-on-free", "set-sumo-on-free", "sumo-table-on-free",
+                                  "flow-begin-after-end", "flow-begin-after-the-run", "set-value-then-more",
+                                  "duration-and-set", "seed-and-set"])
+def test_bad_input_is_refused_before_anything_is_created(tmp_path, what):
+    sc, extra = free(tmp_path, 1.0), []
+    if what == "position-off-road":
+        sc = _off_road(tmp_path, 40.0)
+    elif what == "set-road-on-free":
+        extra = ["--set", "road.net=straight3"]
+    elif what == "set-sumo-on-free":
+        extra = ["--set", "sumo.fcd=true"]
+    elif what == "sumo-table-on-free":
+        sc.write_text(sc.read_text() + "[sumo]\nfcd = true\n")
+    elif what.startswith("flow-"):
+        sc = tmp_path / "flow.toml"
+        window = FLOW_WINDOW[what[len("flow-"):]]
+        sc.write_text(FLOWS.format(top="a", fid="g", fmember="b").replace("period_s = 10.0\n", f"period_s = 10.0\n{window}"))
+    elif what == "set-value-then-more":
+        extra = ["--set", "run.duration=1.0\n[traffic]\nwarmup = 5.0"]
+    elif what == "duration-and-set":
+        extra = ["--duration", "3", "--set", "run.duration=4"]
+    else:
+        extra = ["--seed", "3", "--set", "run.seed=4"]
+    before = tree(tmp_path)
+    code, text = cli("run", sc, "--out", tmp_path / "out", "--no-progress", *extra)
+    assert code == 2 and "Traceback" not in text, text
+    assert tree(tmp_path) == before
+
+
+def test_a_position_near_the_road_is_still_accepted(tmp_path):
+    from formation_traci.scenario import load_scenario
+    from formation_traci.sumo.plan import prepare
+    p = _off_road(tmp_path, 0.5)
+    assert prepare(load_scenario(p), p).pos0.shape == (2, 2)
+
+
+def test_sweep_baseline_on_free_space_is_refused_before_any_case(tmp_path):
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(f'base = "{free(tmp_path, 0.5)}"\nseeds = [1, 2]\n')
+    before = tree(tmp_path)
+    code, text = cli("sweep", sweep, "--out", tmp_path / "out", "--no-progress", "--baseline")
+    assert code == 2 and "--baseline" in text and "road" in text and "Traceback" not in text, text
+    assert tree(tmp_path) == before

@@ -231,6 +231,8 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         On Ctrl-C or SIGTERM, after the running cases stopped and the summary was written.
     """
     sweep = load_sweep(sweep_path, sets)
+    if baseline:
+        _refuse_free_space_baseline(sweep)
     out = _make_sweep_dir(Path(out_dir))
     with raising_signals(), _lock(out):  # SIGTERM stops the cases like Ctrl-C
         specs = [case_spec(sweep, i, out, baseline, shared_warmup) for i in range(len(sweep.cases))]
@@ -266,6 +268,17 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     return SweepResult(out_dir=out, summary=df, n_cases=len(specs), n_completed=n_ok, n_failed=len(df) - n_ok,
                        n_skipped=n_skipped, n_run=on_row.ok + on_row.failed,
                        files={k: v for k, v in files.items() if k != "effects" or baseline})
+
+
+def _refuse_free_space_baseline(sweep: Sweep) -> None:
+    """SweepError before anything is created: ``--baseline`` (a twin without the formation in
+    the same traffic) on a base scenario without a [road] that no case gives one."""
+    from ..scenario.load import read_toml
+
+    paths = set(sweep.spec.overrides) | set(sweep.sets) | set(sweep.spec.swept())
+    if read_toml(sweep.base).get("road") is None and not any(p.split(".")[0] == "road" for p in paths):
+        raise SweepError(sweep.path, [("--baseline", f"needs a road scenario (a twin drives the same SUMO "
+                                                     f"traffic without the formation): {sweep.base} has no [road]")])
 
 
 def _make_sweep_dir(out: Path) -> Path:
