@@ -203,8 +203,11 @@ def analyze(
         from analysis.api import analyze_run
         from .record.rundir import require_run_dir
 
-        if baseline is not None:
-            require_run_dir(baseline)  # a baseline that is not there is bad input (exit 2)
+        if baseline is not None:  # a baseline that is not a run (missing, a file, empty) is bad input (exit 2)
+            from .record.rundir import RunDirError, looks_like_run
+
+            if not looks_like_run(require_run_dir(baseline)):
+                raise RunDirError(f"{baseline}: is not a run directory (no run.json and no trajectories.parquet)")
 
         res = analyze_run(run_dir, None if out is None else Path(out), figures=figures, baseline=baseline)
     for name, path in res.files.items():

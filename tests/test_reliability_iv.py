@@ -350,3 +350,34 @@ def test_sweep_baseline_on_free_space_is_refused_before_any_case(tmp_path):
     code, text = cli("sweep", sweep, "--out", tmp_path / "out", "--no-progress", "--baseline")
     assert code == 2 and "--baseline" in text and "road" in text and "Traceback" not in text, text
     assert tree(tmp_path) == before
+
+
+# -- 7. one-line reasons; the --baseline checks agree ---------------------------------------------------
+
+def test_analyze_a_failed_road_run_against_its_twin_computes_what_is_there(tmp_path):
+    from formation_traci.scenario import load_scenario
+    from formation_traci.runner import run_scenario
+    p = road(tmp_path, duration=2.0, warmup=2.0)
+    sc = load_scenario(p)
+
+    def fail_at_5(k, t, ad):
+        if k == 5:
+            raise RuntimeError("injected")
+
+    assert run_scenario(sc, tmp_path / "fail", scenario_path=p, progress=False, step_hook=fail_at_5).status == "failed"
+    assert run_scenario(sc, tmp_path / "twin", scenario_path=p, progress=False, baseline=True).status == "completed"
+    code, text = cli("analyze", tmp_path / "fail", "--baseline", tmp_path / "twin", "--no-figures")
+    assert code == 0 and "Error" not in text, text
+    assert (tmp_path / "fail" / "metrics.json").is_file()
+
+
+@pytest.mark.parametrize("baseline", ["missing", "empty", "a-file"])
+def test_a_baseline_that_is_not_a_run_is_refused_alike(tmp_path, baseline):
+    from test_reliability_ii import previous_run
+    prev = previous_run(tmp_path)
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "a-file").write_text("x")
+    before = tree(tmp_path)
+    code, text = cli("analyze", prev, "--baseline", tmp_path / baseline, "--no-figures")
+    assert code == 2 and "Traceback" not in text and str(tmp_path / baseline) in text, text
+    assert tree(tmp_path) == before
