@@ -148,6 +148,18 @@ def _refuse_both(sets: dict, opts: dict, source: str) -> None:
                                      for k in both])
 
 
+def _refuse_new_road(sets: dict, scenario: Path) -> None:
+    """ScenarioError (exit 2) for ``--set road.*`` on a scenario without [road]: --set changes
+    a scenario's fields, it does not turn free space into a road run."""
+    from .scenario import ScenarioError
+    from .scenario.load import read_toml
+
+    road = [k for k in sets if k.split(".")[0] == "road"]
+    if road and Path(scenario).is_file() and read_toml(Path(scenario)).get("road") is None:
+        raise ScenarioError(scenario, [(f"--set {k}", "the scenario has no [road] (free space): --set changes "
+                                                      "its fields, it does not make it a road scenario") for k in road])
+
+
 @app.command()
 def run(
     scenario: Path = typer.Argument(..., help="scenario TOML file"),
@@ -175,6 +187,7 @@ def run(
                 **({"sumo.backend": "traci", "sumo.gui": True} if gui else {})}
         given = _set_overrides(sets, str(scenario))
         _refuse_both(given, {k: v for k, v in opts.items() if v is not None}, str(scenario))
+        _refuse_new_road(given, scenario)
         sc = load_scenario(scenario, **{**given, **{k: v for k, v in opts.items() if v is not None}})
         if progress and sc.road is not None and sc.traffic.warmup > 0:
             typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)

@@ -381,3 +381,12 @@ def test_a_baseline_that_is_not_a_run_is_refused_alike(tmp_path, baseline):
     code, text = cli("analyze", prev, "--baseline", tmp_path / baseline, "--no-figures")
     assert code == 2 and "Traceback" not in text and str(tmp_path / baseline) in text, text
     assert tree(tmp_path) == before
+
+
+def test_sweep_set_of_a_road_field_on_free_space_is_refused_before_any_case(tmp_path):
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(f'base = "{free(tmp_path, 0.5)}"\nseeds = [1]\n')
+    before = tree(tmp_path)
+    code, text = cli("sweep", sweep, "--out", tmp_path / "out", "--no-progress", "--set", "road.net=straight3")
+    assert code == 2 and "--set road.net" in text and "Traceback" not in text, text
+    assert tree(tmp_path) == before

@@ -185,6 +185,8 @@ def load_sweep(path: str | Path, sets: dict[str, Any] | None = None) -> Sweep:
     sets = dict(sets or {})
     for k in sets:
         why = _check_path(doc, k)
+        if k.split(".")[0] == "road" and doc.get("road") is None:
+            why = why or "the base scenario has no [road] (free space): --set does not make it a road scenario"
         if k == SEED_PATH or k in spec.swept() or any(k.startswith(a + ".") or a.startswith(k + ".")
                                                        for a in spec.swept()):
             why = why or "is swept (or is run.seed): it cannot be set for every case"
