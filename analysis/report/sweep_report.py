@@ -199,7 +199,21 @@ def check_report_dir(out_dir: Path, sweep_dir: Path, explicit: bool) -> None:
     """SweepError (nothing written) unless ``analyze_sweep`` may write into ``out_dir``: the
     sweep directory itself, or (``--out``) a missing or empty directory or an earlier output of
     ``analyze-sweep`` holding only its names; never a symbolic link, never through one among
-    the names it writes, never another run's or sweep's directory."""
+    the names it writes, never another run's or sweep's directory.
+
+    Parameters
+    ----------
+    out_dir : Path
+        Where the report would be written.
+    sweep_dir : Path
+        The sweep analysed.
+    explicit : bool
+        ``out_dir`` was given (``--out``), not the sweep directory by default.
+
+    Returns
+    -------
+    None
+    """
     from formation_traci.record.rundir import LOCK_NAME, TOOL_TEMP, RunDirError, check_path, looks_like_run, refuse_links
 
     def refuse(why: str) -> None:
