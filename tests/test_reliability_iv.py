@@ -96,11 +96,11 @@ veh_per_hour_per_lane = 600
 
 
 @pytest.mark.parametrize("ids, words", [
-    (dict(fid="ff.0"), ["formations.0.id 'ff.0'", "formation flow 'ff'"]),
+    (dict(fid="ff.0"), ["formations.0.id: 'ff.0'", "formation flow 'ff'"]),
     (dict(fmember="vc"), ["formations.0.members.0.id", "reserved for the virtual car"]),
-    (dict(fmember="ff.3.m"), ["formations.0.members.0.id 'ff.3.m'", "formation_flows.0.formation.members.0.id"]),
-    (dict(top="main.2"), ["members.0.id 'main.2'", "traffic flow 'main'"]),
-    (dict(fmember="main.17"), ["formations.0.members.0.id 'main.17'", "traffic.flows.0.id"]),
+    (dict(fmember="ff.3.m"), ["formations.0.members.0.id: 'ff.3.m'", "formation_flows.0.formation.members.0.id"]),
+    (dict(top="main.2"), ["members.0.id: 'main.2'", "traffic flow 'main'"]),
+    (dict(fmember="main.17"), ["formations.0.members.0.id: 'main.17'", "traffic.flows.0.id"]),
 ], ids=["formation-vs-flow", "vc-in-formations", "member-vs-flow-member", "member-vs-background",
         "formation-member-vs-background"])
 def test_ids_that_clash_anywhere_in_the_run_are_bad_input_naming_both(tmp_path, ids, words):

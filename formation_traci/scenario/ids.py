@@ -38,7 +38,7 @@ def _background(sc, member_id: str) -> str | None:
     return None
 
 
-def _generated_background(sc, flow, j: int) -> list[str]:
+def _generated_background(sc, flow, j: int) -> list[tuple[str, str]]:
     """Clashes of formation flow ``flow``'s generated member ids with background vehicles."""
     out = []
     for i, m in enumerate(flow.formation.members):
@@ -48,14 +48,15 @@ def _generated_background(sc, flow, j: int) -> list[str]:
         pattern = rf"{re.escape(flow.id)}\.\d+" + (rf"\.{re.escape(head)}" if head else "")
         for t, fl in enumerate(sc.traffic.flows):
             if re.fullmatch(pattern, fl.id):
-                out.append(f"formation_flows.{j}.formation.members.{i}.id {m.id!r} gives members "
-                           f"'{flow.id}.<k>.{m.id}', the names SUMO gives the vehicles of traffic flow "
-                           f"{fl.id!r} (traffic.flows.{t}.id): rename one")
+                out.append((f"formation_flows.{j}.formation.members.{i}.id",
+                            f"{m.id!r} gives members '{flow.id}.<k>.{m.id}', the names SUMO gives the "
+                            f"vehicles of traffic flow {fl.id!r} (traffic.flows.{t}.id): rename one"))
     return out
 
 
-def id_clashes(sc) -> list[str]:
-    """Every clash of ids in scenario ``sc`` (a Scenario), each naming both sides; [] if none.
+def id_clashes(sc) -> list[tuple[str, str]]:
+    """Every clash of ids in scenario ``sc`` (a Scenario): (dotted field, message naming the
+    other side); [] if none.
 
     Parameters
     ----------
@@ -64,30 +65,30 @@ def id_clashes(sc) -> list[str]:
 
     Returns
     -------
-    list of str
-        One message per clash.
+    list of (str, str)
+        One entry per clash.
     """
     out = []
     for j, fl in enumerate(sc.formation_flows):
         for k, f in enumerate(sc.formations):
             if re.fullmatch(rf"{re.escape(fl.id)}\.\d+", f.id):
-                out.append(f"formations.{k}.id {f.id!r} is also the id of a formation that formation flow "
-                           f"{fl.id!r} (formation_flows.{j}) inserts ('{fl.id}.<k>'): rename one")
+                out.append((f"formations.{k}.id", f"{f.id!r} is also the id of a formation that formation flow "
+                                                  f"{fl.id!r} (formation_flows.{j}) inserts ('{fl.id}.<k>'): rename one"))
         ids = [m.id for m in fl.formation.members]
         dup = sorted({i for i in ids if ids.count(i) > 1})
         if dup:
-            out.append(f"formation_flows.{j}.formation.members: ids must be unique, repeated: {dup}")
+            out.append((f"formation_flows.{j}.formation.members", f"ids must be unique, repeated: {dup}"))
         out += _generated_background(sc, fl, j)
     for field, mid in _members(sc):
         if mid == VIRTUAL_CAR_ID and field.startswith("formations."):  # top level: schema.py
-            out.append(f"{field}: member id {VIRTUAL_CAR_ID!r} is reserved for the virtual car")
+            out.append((field, f"member id {VIRTUAL_CAR_ID!r} is reserved for the virtual car"))
         for j, fl in enumerate(sc.formation_flows):
             hit = _flow_member(fl, j, mid)
             if hit:
-                out.append(f"{field} {mid!r} is also the id of a member that formation flow {fl.id!r} "
-                           f"inserts ({hit[0]} {hit[1]!r} gives '{fl.id}.<k>.{hit[1]}'): rename one")
+                out.append((field, f"{mid!r} is also the id of a member that formation flow {fl.id!r} "
+                                   f"inserts ({hit[0]} {hit[1]!r} gives '{fl.id}.<k>.{hit[1]}'): rename one"))
         flow_field = _background(sc, mid)
         if flow_field:
-            out.append(f"{field} {mid!r} is also the name SUMO gives a vehicle of traffic flow "
-                       f"{mid.rpartition('.')[0]!r} ({flow_field}: '<id>.<n>'): rename one")
+            out.append((field, f"{mid!r} is also the name SUMO gives a vehicle of traffic flow "
+                               f"{mid.rpartition('.')[0]!r} ({flow_field}: '<id>.<n>'): rename one"))
     return out

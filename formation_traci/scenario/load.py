@@ -9,6 +9,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from .bounds import cost_problems
+from .ids import id_clashes
 from .kind import kind_problems
 from .schema import Scenario
 
@@ -111,7 +112,7 @@ def parse_scenario(doc: dict, source: str | Path = "<scenario>", **overrides: An
                 seen.add(item)
                 problems.append(item)
         raise ScenarioError(source, problems) from None
-    problems = cost_problems(sc) + kind_problems(sc)
+    problems = cost_problems(sc) + kind_problems(sc) + id_clashes(sc)  # ids with the formation flows expanded
     if problems:
         raise ScenarioError(source, problems)
     return sc

@@ -17,7 +17,6 @@ from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Stri
 from .comm_spec import CommLinkSpec, CommSpec  # noqa: F401
 from .formation_parts import (GAIN_TABLES, SURFACE_NAMES, ControllerSpec, GainSpec,  # noqa: F401 (re-exported)
                               LeaderSpec, MemberSpec, VehicleOverrides, VehicleSpec)
-from .ids import id_clashes
 from .formation_spec import FormationFlowSpec, FormationSpec, FormationTemplate, formation_fits  # noqa: F401
 from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec, SumoCaccSpec, sumo_cacc_rules  # noqa: F401
 from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec  # noqa: F401 (re-exported)
@@ -272,11 +271,4 @@ class Scenario(Strict):
             raise ValueError(f"member ids must be unique, repeated: {dup}")
         if "vc" in ids:
             raise ValueError("member id 'vc' is reserved for the virtual car")
-        return self
-
-    @model_validator(mode="after")
-    def _ids_over_the_run(self):
-        clashes = id_clashes(self)  # formation flows expanded, SUMO's vehicle names included
-        if clashes:
-            raise ValueError("; ".join(clashes))
         return self
