@@ -18,7 +18,7 @@ import pandas as pd
 
 from ..interrupt import raising_signals
 from ..record.rundir import RUN_FINISHED
-from ..record.writer import atomic_write_parquet
+from ..record.writer import atomic_write_json, atomic_write_parquet
 from .case import CASE_JSON, CaseSpec
 from .executors import run_dask, run_local
 from .expand import Sweep, load_sweep
@@ -240,8 +240,6 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         rows, todo = _resume(specs)
         n_skipped = len(specs) - len(todo)
         meta = _sweep_meta(sweep, swept, scheduler, workers, len(specs), n_skipped, len(todo), baseline, shared_warmup)
-        from ..record.writer import atomic_write_json
-
         atomic_write_json(out / SWEEP_JSON, meta)
         summary_path = out / SUMMARY
         _write_summary(summary_path, rows, swept)
