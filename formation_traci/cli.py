@@ -180,7 +180,7 @@ def run(
     Exit 0 for ``completed`` and ``completed_with_incidents`` (1 with --strict), 1 for
     ``failed``, 130 for ``interrupted`` (docs/reliability.md)."""
     with _outcome():
-        from .scenario import load_scenario
+        from .scenario import ScenarioError, load_scenario
         from .runner import run_scenario
 
         opts = {"run.duration": duration, "run.seed": seed, "vehicle.model": model,
@@ -189,6 +189,9 @@ def run(
         _refuse_both(given, {k: v for k, v in opts.items() if v is not None}, str(scenario))
         _refuse_new_road(given, scenario)
         sc = load_scenario(scenario, **{**given, **{k: v for k, v in opts.items() if v is not None}})
+        if warm_cache is not None and sc.road is None:
+            raise ScenarioError(scenario, [("--warm-cache", "needs a road scenario (SUMO's warm-up): this "
+                                                            "scenario has no [road]")])
         if progress and sc.road is not None and sc.traffic.warmup > 0:
             typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)
         res = run_scenario(sc, Path(out), scenario_path=scenario, force=force, progress=progress, baseline=baseline,

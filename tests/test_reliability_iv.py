@@ -343,13 +343,22 @@ def test_a_position_near_the_road_is_still_accepted(tmp_path):
     assert prepare(load_scenario(p), p).pos0.shape == (2, 2)
 
 
-def test_sweep_baseline_on_free_space_is_refused_before_any_case(tmp_path):
+@pytest.mark.parametrize("option", ["--baseline", "--shared-warmup"])
+def test_sweep_road_options_on_free_space_are_refused_before_any_case(tmp_path, option):
     sweep = tmp_path / "sweep.toml"
     sweep.write_text(f'base = "{free(tmp_path, 0.5)}"\nseeds = [1, 2]\n')
     before = tree(tmp_path)
-    code, text = cli("sweep", sweep, "--out", tmp_path / "out", "--no-progress", "--baseline")
-    assert code == 2 and "--baseline" in text and "road" in text and "Traceback" not in text, text
+    code, text = cli("sweep", sweep, "--out", tmp_path / "out", "--no-progress", option)
+    assert code == 2 and option in text and "road" in text and "Traceback" not in text, text
     assert tree(tmp_path) == before
+
+
+def test_run_warm_cache_on_free_space_is_refused(tmp_path):
+    before = tree(tmp_path)
+    code, text = cli("run", free(tmp_path, 0.5), "--out", tmp_path / "out", "--no-progress",
+                     "--warm-cache", tmp_path / "cache")
+    assert code == 2 and "--warm-cache" in text and "Traceback" not in text, text
+    assert sorted(tree(tmp_path)) == sorted([*before, "free.toml"])
 
 
 # -- 7. one-line reasons; the --baseline checks agree ---------------------------------------------------

@@ -231,8 +231,7 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         On Ctrl-C or SIGTERM, after the running cases stopped and the summary was written.
     """
     sweep = load_sweep(sweep_path, sets)
-    if baseline:
-        _refuse_free_space_baseline(sweep)
+    _refuse_on_free_space(sweep, {"--baseline": baseline, "--shared-warmup": shared_warmup})
     out = _make_sweep_dir(Path(out_dir))
     with raising_signals(), _lock(out):  # SIGTERM stops the cases like Ctrl-C
         specs = [case_spec(sweep, i, out, baseline, shared_warmup) for i in range(len(sweep.cases))]
@@ -268,15 +267,17 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
                        files={k: v for k, v in files.items() if k != "effects" or baseline})
 
 
-def _refuse_free_space_baseline(sweep: Sweep) -> None:
+def _refuse_on_free_space(sweep: Sweep, options: dict[str, bool]) -> None:
     """SweepError before anything is created: ``--baseline`` (a twin without the formation in
-    the same traffic) on a base scenario without a [road] that no case gives one."""
+    the same traffic) or ``--shared-warmup`` given for a base scenario without a [road] that no
+    case gives one (free space has neither: the option would be ignored)."""
     from ..scenario.load import read_toml
 
+    given = [name for name, on in options.items() if on]
     paths = set(sweep.spec.overrides) | set(sweep.sets) | set(sweep.spec.swept())
-    if read_toml(sweep.base).get("road") is None and not any(p.split(".")[0] == "road" for p in paths):
-        raise SweepError(sweep.path, [("--baseline", f"needs a road scenario (a twin drives the same SUMO "
-                                                     f"traffic without the formation): {sweep.base} has no [road]")])
+    if given and read_toml(sweep.base).get("road") is None and not any(p.split(".")[0] == "road" for p in paths):
+        raise SweepError(sweep.path, [(name, f"needs a road scenario (SUMO's traffic): {sweep.base} has no "
+                                             "[road]") for name in given])
 
 
 def _make_sweep_dir(out: Path) -> Path:
