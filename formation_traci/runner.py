@@ -253,7 +253,8 @@ def describe_failure(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
         where = f" writing {exc.filename}" if exc.filename else ""
         return f"disk full (no space left on device){where}"
-    return f"{type(exc).__name__}: {exc}"
+    text = "; ".join(ln.strip() for ln in str(exc).splitlines() if ln.strip())  # one line (error.txt: all)
+    return f"{type(exc).__name__}: {text}"
 
 
 def _reserve(out_dir: Path, meta_bytes: int = 0) -> None:

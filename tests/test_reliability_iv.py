@@ -399,3 +399,19 @@ def test_sweep_set_of_a_road_field_on_free_space_is_refused_before_any_case(tmp_
     code, text = cli("sweep", sweep, "--out", tmp_path / "out", "--no-progress", "--set", "road.net=straight3")
     assert code == 2 and "--set road.net" in text and "Traceback" not in text, text
     assert tree(tmp_path) == before
+
+
+def test_a_failed_run_gives_its_reason_in_one_line(tmp_path):
+    from formation_traci.scenario import load_scenario
+    from formation_traci.runner import run_scenario
+    p = road(tmp_path, duration=1.0)
+
+    def fail(k, t, ad):
+        if k == 3:
+            raise RuntimeError("first line\nTraceback (most recent call last):\n  second line")
+
+    res = run_scenario(load_scenario(p), tmp_path / "out", scenario_path=p, progress=False, step_hook=fail)
+    meta = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert res.status == "failed" and meta["reason"] == res.reason
+    assert "\n" not in res.reason and "first line" in res.reason and "second line" in res.reason
+    assert "second line" in (tmp_path / "out" / "error.txt").read_text()  # the whole story stays on disk

@@ -192,8 +192,9 @@ def produce(entry: Path, args: list[str], sumo_dir: Path, setup: WarmSetup, warm
         res = subprocess.run([sys.executable, "-m", "formation_traci.sumo.warm_state", str(tmp / "job.json")],
                              capture_output=True, text=True)
         if res.returncode != 0 or not (tmp / WARM_JSON).is_file():
+            last = [ln.strip() for ln in (res.stderr or res.stdout).splitlines() if ln.strip()][-1:]
             raise SumoError(f"the shared warm-up did not complete (exit {res.returncode}): "
-                            f"{(res.stderr or res.stdout).strip()[-2000:]}")
+                            f"{last[0] if last else 'no output'}")  # its last line: the reason, no traceback
         os.rename(tmp, entry)  # entry is missing (checked under the key's lock)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
