@@ -14,6 +14,7 @@ import fcntl
 import hashlib
 import json
 import os
+import stat
 import sys
 import warnings
 from pathlib import Path
@@ -135,6 +136,9 @@ def key_lock(cache: Path, key: str):
     except OSError as exc:
         raise WarmEntryError(f"{path}: cannot open the warm-up lock: {exc.strerror} (a symbolic link "
                              "is never followed)") from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise WarmEntryError(f"{path}: is not a regular file; the warm-up cache locks only its own lock files")
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -142,8 +146,9 @@ def key_lock(cache: Path, key: str):
             holder = os.pread(fd, 200, 0).decode("utf-8", "replace").strip() or "another process"
             print(f"waiting for {holder} making the shared warm-up {cache / key} ...", file=sys.stderr, flush=True)
             fcntl.flock(fd, fcntl.LOCK_EX)
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"pid {os.getpid()}".encode(), 0)
+        if os.pread(fd, 4, 0) in (b"", b"pid "):  # ours (empty when new): say who holds it
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"pid {os.getpid()}".encode(), 0)
         yield
     finally:
         fcntl.flock(fd, fcntl.LOCK_UN)
