@@ -119,13 +119,45 @@ def _set_overrides(pairs: Optional[list[str]], source: str) -> dict:
                                               "(e.g. run.duration=20)"))
             continue
         try:
-            value = tomllib.loads(f"v = {text.strip()}")["v"]
+            doc = tomllib.loads(f"v = {text.strip()}")
         except tomllib.TOMLDecodeError:
-            value = text.strip()
-        out[key] = value
+            doc = {"v": text.strip()}
+        if set(doc) != {"v"}:  # e.g. '1\n[x]': the value, then more TOML
+            problems.append((f"--set {key}", "VALUE must be one TOML value; found more after it "
+                                             f"({', '.join(k for k in doc if k != 'v')})"))
+            continue
+        if key in out:
+            problems.append((f"--set {key}", "is given twice"))
+        out[key] = doc["v"]
     if problems:
         raise ScenarioError(source, problems)
     return out
+
+
+_OPTION_OF = {"run.duration": "--duration", "run.seed": "--seed", "vehicle.model": "--model",
+              "sumo.backend": "--gui", "sumo.gui": "--gui"}
+
+
+def _refuse_both(sets: dict, opts: dict, source: str) -> None:
+    """ScenarioError (exit 2) for a field given both by a command-line option and by --set."""
+    from .scenario import ScenarioError
+
+    both = [k for k in opts if k in sets]
+    if both:
+        raise ScenarioError(source, [(f"--set {k}", f"is also given by {_OPTION_OF[k]}: give it once")
+                                     for k in both])
+
+
+def _refuse_new_road(sets: dict, scenario: Path) -> None:
+    """ScenarioError (exit 2) for ``--set road.*`` on a scenario without [road]: --set changes
+    a scenario's fields, it does not turn free space into a road run."""
+    from .scenario import ScenarioError
+    from .scenario.load import read_toml
+
+    road = [k for k in sets if k.split(".")[0] == "road"]
+    if road and Path(scenario).is_file() and read_toml(Path(scenario)).get("road") is None:
+        raise ScenarioError(scenario, [(f"--set {k}", "the scenario has no [road] (free space): --set changes "
+                                                      "its fields, it does not make it a road scenario") for k in road])
 
 
 @app.command()
@@ -140,7 +172,7 @@ def run(
     baseline: bool = typer.Option(False, "--baseline", help="road scenarios: the twin run with the same traffic and seed but no formation"),
     gui: bool = typer.Option(False, "--gui", help="road scenarios: watch in sumo-gui (traci backend; the view follows the formation)"),
     sets: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP),
-    warm_cache: Optional[Path] = typer.Option(None, "--warm-cache", metavar="DIR", help="road scenarios: start from the shared warm-up of this scenario's traffic in DIR, simulated once and saved there by the first run (docs/sweeps.md, 'The shared warm-up')"),
+    warm_cache: Optional[str] = typer.Option(None, "--warm-cache", metavar="DIR", callback=_nonempty, help="road scenarios: start from the shared warm-up of this scenario's traffic in DIR, simulated once and saved there by the first run (docs/sweeps.md, 'The shared warm-up')"),
     strict: bool = typer.Option(False, "--strict", help="exit 1 when the run completed with incidents (a member collision, removed, stranded member or emergency brake)"),
 ) -> None:
     """Run SCENARIO headless and record it under OUT (run.json, trajectories.parquet, ...).
@@ -148,13 +180,18 @@ def run(
     Exit 0 for ``completed`` and ``completed_with_incidents`` (1 with --strict), 1 for
     ``failed``, 130 for ``interrupted`` (docs/reliability.md)."""
     with _outcome():
-        from .scenario import load_scenario
+        from .scenario import ScenarioError, load_scenario
         from .runner import run_scenario
 
         opts = {"run.duration": duration, "run.seed": seed, "vehicle.model": model,
                 **({"sumo.backend": "traci", "sumo.gui": True} if gui else {})}
-        sc = load_scenario(scenario, **{**_set_overrides(sets, str(scenario)),
-                                        **{k: v for k, v in opts.items() if v is not None}})
+        given = _set_overrides(sets, str(scenario))
+        _refuse_both(given, {k: v for k, v in opts.items() if v is not None}, str(scenario))
+        _refuse_new_road(given, scenario)
+        sc = load_scenario(scenario, **{**given, **{k: v for k, v in opts.items() if v is not None}})
+        if warm_cache is not None and sc.road is None:
+            raise ScenarioError(scenario, [("--warm-cache", "needs a road scenario (SUMO's warm-up): this "
+                                                            "scenario has no [road]")])
         if progress and sc.road is not None and sc.traffic.warmup > 0:
             typer.echo(f"SUMO simulates {sc.traffic.warmup:g} s of traffic before the formation enters ...", err=True)
         res = run_scenario(sc, Path(out), scenario_path=scenario, force=force, progress=progress, baseline=baseline,
@@ -182,8 +219,11 @@ def analyze(
         from analysis.api import analyze_run
         from .record.rundir import require_run_dir
 
-        if baseline is not None:
-            require_run_dir(baseline)  # a baseline that is not there is bad input (exit 2)
+        if baseline is not None:  # a baseline that is not a run (missing, a file, empty) is bad input (exit 2)
+            from .record.rundir import RunDirError, looks_like_run
+
+            if not looks_like_run(require_run_dir(baseline)):
+                raise RunDirError(f"{baseline}: is not a run directory (no run.json and no trajectories.parquet)")
 
         res = analyze_run(run_dir, None if out is None else Path(out), figures=figures, baseline=baseline)
     for name, path in res.files.items():

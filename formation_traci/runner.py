@@ -132,6 +132,9 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
             if "," in os.path.abspath(out_dir):
                 raise RunDirError(f"{out_dir}: SUMO splits file names at commas; choose an output "
                                   "directory without ',' for a road scenario")
+            if warm_cache is not None:  # never a link, a file, or inside a run (sumo/warm_entry.py)
+                from .sumo.warm_entry import check_cache
+                warm_cache = check_cache(warm_cache, Path(out_dir))
         lock = open_out_dir(Path(out_dir), force, protect)
         run_sc = sc if plan is None or plan.scenario is None else plan.scenario  # flows' formations in
         try:
@@ -250,7 +253,8 @@ def describe_failure(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
         where = f" writing {exc.filename}" if exc.filename else ""
         return f"disk full (no space left on device){where}"
-    return f"{type(exc).__name__}: {exc}"
+    text = "; ".join(ln.strip() for ln in str(exc).splitlines() if ln.strip())  # one line (error.txt: all)
+    return f"{type(exc).__name__}: {text}"
 
 
 def _reserve(out_dir: Path, meta_bytes: int = 0) -> None:

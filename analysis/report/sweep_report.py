@@ -191,6 +191,54 @@ def _effects(meta: dict, df: pd.DataFrame, swept: list[str], out_dir: Path, figs
     return effects
 
 
+REPORT_NAMES = (REPORT_HTML, STATS_CSV, FIGURES_DIR, EFFECTS_CSV)
+"""What ``analyze_sweep`` writes into its output directory."""
+
+
+def check_report_dir(out_dir: Path, sweep_dir: Path, explicit: bool) -> None:
+    """SweepError (nothing written) unless ``analyze_sweep`` may write into ``out_dir``: the
+    sweep directory itself, or (``--out``) a missing or empty directory or an earlier output of
+    ``analyze-sweep`` holding only its names; never a symbolic link, never through one among
+    the names it writes, never another run's or sweep's directory.
+
+    Parameters
+    ----------
+    out_dir : Path
+        Where the report would be written.
+    sweep_dir : Path
+        The sweep analysed.
+    explicit : bool
+        ``out_dir`` was given (``--out``), not the sweep directory by default.
+
+    Returns
+    -------
+    None
+    """
+    from formation_traci.record.rundir import LOCK_NAME, TOOL_TEMP, RunDirError, check_path, looks_like_run, refuse_links
+
+    def refuse(why: str) -> None:
+        raise SweepError(out_dir, [("--out", why + ": nothing written; choose another directory")])
+
+    try:
+        absolute = check_path(out_dir)
+        if absolute.is_dir():
+            refuse_links(absolute, REPORT_NAMES)
+    except RunDirError as exc:
+        raise SweepError(out_dir, [("--out", str(exc))]) from None
+    if not explicit or absolute.resolve() == Path(sweep_dir).resolve():
+        return
+    if Path(out_dir).is_symlink():
+        refuse("is a symbolic link; analyze-sweep never writes through one")
+    if not absolute.is_dir():
+        return
+    if looks_like_run(absolute) or (absolute / "sweep.json").exists():
+        refuse("is the directory of another run or sweep; its files would be overwritten")
+    entries = [p.name for p in absolute.iterdir() if p.name != LOCK_NAME and not TOOL_TEMP.match(p.name)]
+    foreign = [e for e in entries if e not in REPORT_NAMES]
+    if foreign or (entries and REPORT_HTML not in entries):
+        refuse(f"is not empty and not an earlier output of analyze-sweep ({', '.join((foreign or entries)[:5])})")
+
+
 def analyze_sweep(sweep_dir: str | Path, metrics: list[str] | None = None,
                   out: str | Path | None = None, spread: str = "minmax") -> SweepReport:
     """Plot metrics of a sweep against its swept values and write an HTML summary.
@@ -246,6 +294,7 @@ def analyze_sweep(sweep_dir: str | Path, metrics: list[str] | None = None,
             notes.append(f"not plotted (no values in completed runs): {', '.join(skipped)}")
     done = done.astype({m: "float64" for m in chosen})
     stats = seed_stats(done, swept, chosen)
+    check_report_dir(out_dir, d, explicit=out is not None)
     out_dir.mkdir(parents=True, exist_ok=True)
     files: dict[str, Path] = {}
     figs, fig_errors = {}, {}

@@ -100,7 +100,7 @@ def _vehicle_table(p: pd.DataFrame, last: int) -> pd.DataFrame:
     out = pd.DataFrame({"entry": first["section"].astype(int), "s_entry": first["s_m"], "t_entry": first["t"]})
     ex = bg[bg["section"] == last].groupby("vehicle_id")["t"].first()
     out["t_exit"] = ex.reindex(out.index)
-    inner = bg[bg["t"] > bg["vehicle_id"].map(first["t"])]
+    inner = bg[bg["t"] > g["t"].transform("first")]  # (a map of no rows would compare t with text)
     out["lane_changes"] = inner.groupby("vehicle_id")["lane_changes_before"].sum().reindex(out.index).fillna(0)
     return out
 

@@ -57,8 +57,9 @@ def cost_problems(sc: Scenario) -> list[tuple[str, str]]:
 
 
 def _flow_problems(sc: Scenario) -> list[tuple[str, str]]:
-    """Demand beyond :data:`MAX_VEH_PER_HOUR_PER_LANE` / :data:`MAX_VEH_PER_HOUR`, and a flow
-    that ends before it begins (SUMO refuses both only after it started)."""
+    """Demand beyond :data:`MAX_VEH_PER_HOUR_PER_LANE` / :data:`MAX_VEH_PER_HOUR`, a flow
+    that ends before it begins (SUMO refuses both only after it started), and a formation flow
+    whose window is empty (it would insert nothing)."""
     out = []
     for i, f in enumerate(sc.traffic.flows):
         for name, cap in (("veh_per_hour_per_lane", MAX_VEH_PER_HOUR_PER_LANE), ("veh_per_hour", MAX_VEH_PER_HOUR)):
@@ -67,4 +68,10 @@ def _flow_problems(sc: Scenario) -> list[tuple[str, str]]:
                 out.append((f"traffic.flows.{i}.{name}", f"at most {cap:g} veh/h (got {v!r})"))
         if f.end is not None and f.end <= f.begin:
             out.append((f"traffic.flows.{i}.end", f"must be after begin = {f.begin:g} s (got {f.end!r})"))
+    for j, f in enumerate(sc.formation_flows):  # an empty window would insert no formation, silently
+        if f.end is not None and f.end <= f.begin:
+            out.append((f"formation_flows.{j}.end", f"must be after begin = {f.begin:g} s (got {f.end!r})"))
+        elif f.begin >= sc.run.duration:
+            out.append((f"formation_flows.{j}.begin", f"must be before the end of the run (run.duration = "
+                                                      f"{sc.run.duration:g} s) (got {f.begin!r})"))
     return out

@@ -9,6 +9,8 @@ from typing import Any
 from pydantic import ValidationError
 
 from .bounds import cost_problems
+from .ids import id_clashes
+from .kind import kind_problems
 from .schema import Scenario
 
 
@@ -102,11 +104,15 @@ def parse_scenario(doc: dict, source: str | Path = "<scenario>", **overrides: An
         problems, seen = [], set()
         for err in exc.errors():
             item = (_field_path(err["loc"]), _describe(err))
+            if err["type"] == "extra_forbidden":
+                from .fields import nearest_field
+                near = nearest_field(Scenario, item[0])
+                item = (item[0], item[1] + (f"; nearest field: {near}" if near else ""))
             if item not in seen:
                 seen.add(item)
                 problems.append(item)
         raise ScenarioError(source, problems) from None
-    problems = cost_problems(sc)
+    problems = cost_problems(sc) + kind_problems(sc) + id_clashes(sc)  # ids with the formation flows expanded
     if problems:
         raise ScenarioError(source, problems)
     return sc

@@ -18,7 +18,7 @@ from ..scenario.load import ScenarioError
 from ..scenario.schema import Scenario
 from ..sim.column_gaps import check_column_bodies
 from .messages import SUMO_ARGS as SUMO_QUIET
-from .road_setup import (Road, build_road, check_no_overlap, check_route_ends, check_slots,
+from .road_setup import (Road, build_road, check_no_overlap, check_positions, check_route_ends, check_slots,
                          initial_check_limit, rectangles_overlap, slot_offsets)
 from ..sim.setup import member_vehicles, profile, vehicle_params
 from .formation_flows import expand_flows
@@ -102,6 +102,7 @@ def _formation_plan(setup, road: Road, source) -> RoadPlan:
             heading0[i] = math.radians(m.heading_deg)
         if m.speed is not None:
             speed0[i] = m.speed
+    check_positions(sc, road, pos0, source)
     check_no_overlap(sc, pos0, heading0, vehicles, source)
     check_column_bodies(sc, slots, is_road, vehicles, source)  # members placed off their slots too
     return RoadPlan(road, veh, slots, rigid, is_road, pos0, heading0, speed0, tuple(vehicles),

@@ -243,6 +243,28 @@ def check_slots(sc: Scenario, road: Road, slots: np.ndarray, vehicles: list[Vehi
         raise ScenarioError(source or "<scenario>", problems)
 
 
+def check_positions(sc: Scenario, road: Road, pos0: np.ndarray, source) -> None:
+    """A member given an initial ``position`` must start on the road: its centre within
+    :data:`MATCH_THRESHOLD` of the road's edges along the route (farther, SUMO refuses to place it
+    and the run would drop it after it started)."""
+    from .types import MATCH_THRESHOLD
+
+    problems = []
+    for i, m in enumerate(sc.members):
+        if m.position is None:
+            continue
+        s, d = (float(v[0]) for v in road.line.to_frenet(np.asarray([pos0[i]], float)))
+        seg = next((g for g in road.segments if g.s0 <= s <= g.s1), None)
+        if seg is None or not seg.d_min - MATCH_THRESHOLD <= d <= seg.d_max + MATCH_THRESHOLD:
+            where = (f"off the route (arc length {s:.1f} m of {road.line.length:.1f} m)" if seg is None else
+                     f"{d:.1f} m from the reference line, the road spans {seg.d_min:.2f}..{seg.d_max:.2f} m")
+            problems.append((f"members.{i}.position", f"member {m.id!r} would start off the road: its position "
+                                                      f"{list(m.position)} lies {where} (at most {MATCH_THRESHOLD:g} m "
+                                                      "beyond the road's edge)"))
+    if problems:
+        raise ScenarioError(source or "<scenario>", problems)
+
+
 def check_route_ends(sc: Scenario, road: Road, along: np.ndarray, vehicles: list[VehicleParams],
                      source) -> None:
     """Every member (body ``vehicles[i]``) starts on the route with room to drive: its body

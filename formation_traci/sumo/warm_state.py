@@ -15,9 +15,10 @@ maneuvers ...) and their twins share a key.
 of its own (``python -m formation_traci.sumo.warm_state JOB``), which saves SUMO's state with its
 random number generators (``--save-state.rng``, ``--save-state.precision 17``), the vehicles
 inserted so far and SUMO's outputs of the warm-up into ``DIR/<key>/`` (a temporary directory
-renamed when complete: a run never sees half an entry). Runs of the same key at the same time
-wait for it on ``DIR/<key>.lock`` (``flock``; a producer that dies releases it and the next run
-produces). Every run of the key, the first one included, then starts SUMO from the state
+renamed when complete: a run never sees half an entry; ``warm.json`` holds the checksums of the
+entry's files and its own, and a damaged entry is made again with a warning: sumo/warm_entry.py).
+Runs of the same key at the same time wait for it on ``DIR/<key>.lock`` (``flock``, saying so on
+stderr; a producer that dies releases it and the next run produces). Every run of the key, the first one included, then starts SUMO from the state
 (``--load-state``, without the route file: the flows are in the state, and SUMO would otherwise
 draw the loaded flows' next vehicles from an advanced random stream) and sets up again what the
 state does not keep (the friction, the closed lanes, the members' vType attributes).
@@ -35,9 +36,7 @@ runs in a process of its own: sweep/case.py).
 """
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import fcntl
 import hashlib
 import json
 import os
@@ -45,12 +44,14 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from .types import MemberType, SumoError
+from .warm_entry import check_entry_path, key_lock, read_entry, remove_entry, seal
 
-FORMAT = "formation-traci/warm-state/1"
+FORMAT = "formation-traci/warm-state/2"
 """Changes when what an entry holds or how it is made changes (part of the key)."""
 STATE_FILE = "state.xml.gz"
 WARM_JSON = "warm.json"
@@ -155,37 +156,33 @@ def load_args(args: list[str], state: Path) -> list[str]:
     return out + ["--load-state", str(state)]
 
 
-@contextlib.contextmanager
-def _key_lock(cache: Path, key: str):
-    cache.mkdir(parents=True, exist_ok=True)
-    fd = os.open(cache / f"{key}.lock", os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX)  # waits while another run produces the entry
-        yield
-    finally:
-        fcntl.flock(fd, fcntl.LOCK_UN)
-        os.close(fd)
-
-
 def ensure_entry(cache: Path, key: str, args: list[str], sumo_dir: Path, setup: WarmSetup,
-                 warm_steps: int) -> tuple[Path, bool]:
-    """``cache/<key>/`` (made now if missing, see :func:`produce`) and whether this call made it."""
+                 warm_steps: int) -> tuple[Path, dict, bool]:
+    """``cache/<key>/`` (made now if missing or damaged, see :func:`produce`), its checked
+    ``warm.json`` and whether this call made it (sumo/warm_entry.py: never a link, never an
+    entry holding what the cache did not write)."""
     entry = cache / key
-    with _key_lock(cache, key):
-        if (entry / WARM_JSON).is_file():
-            return entry, False
+    with key_lock(cache, key):
+        check_entry_path(entry)
+        if entry.is_dir():
+            doc, why = read_entry(entry, FORMAT)
+            if doc is not None:
+                return entry, doc, False
+            remove_entry(entry, why)
         produce(entry, args, sumo_dir, setup, warm_steps)
-        return entry, True
+        doc, why = read_entry(entry, FORMAT)
+        if doc is None:
+            raise SumoError(f"the shared warm-up just made in {entry} is not whole: {why}")
+        return entry, doc, True
 
 
 def produce(entry: Path, args: list[str], sumo_dir: Path, setup: WarmSetup, warm_steps: int) -> None:
-    """Simulate the warm-up in a process of its own into a temporary directory beside
-    ``entry``, renamed to ``entry`` when complete. The input files SUMO reads from the run's
-    directory are copied there (SUMO then reads the same content)."""
-    tmp = entry.with_name(f".{entry.name}.{os.getpid()}.tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
+    """Simulate the warm-up in a process of its own into a new temporary directory beside
+    ``entry`` (which does not exist), renamed to ``entry`` when complete. The input files SUMO
+    reads from the run's directory are copied there (SUMO then reads the same content)."""
+    tmp = Path(tempfile.mkdtemp(dir=entry.parent, prefix=f".{entry.name}.", suffix=".tmp"))
     try:
+        os.chmod(tmp, 0o755)
         for f in sumo_dir.iterdir():
             if f.is_file() and (f.name.endswith(".xml") and ".add." in f.name or f.name.endswith(".rou.xml")):
                 shutil.copy2(f, tmp / f.name)
@@ -195,10 +192,10 @@ def produce(entry: Path, args: list[str], sumo_dir: Path, setup: WarmSetup, warm
         res = subprocess.run([sys.executable, "-m", "formation_traci.sumo.warm_state", str(tmp / "job.json")],
                              capture_output=True, text=True)
         if res.returncode != 0 or not (tmp / WARM_JSON).is_file():
+            last = [ln.strip() for ln in (res.stderr or res.stdout).splitlines() if ln.strip()][-1:]
             raise SumoError(f"the shared warm-up did not complete (exit {res.returncode}): "
-                            f"{(res.stderr or res.stdout).strip()[-2000:]}")
-        shutil.rmtree(entry, ignore_errors=True)  # an incomplete one (no warm.json)
-        os.replace(tmp, entry)
+                            f"{last[0] if last else 'no output'}")  # its last line: the reason, no traceback
+        os.rename(tmp, entry)  # entry is missing (checked under the key's lock)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
@@ -222,6 +219,7 @@ def simulate(job: dict) -> None:
     finally:
         ad.close()
     _drop_save_messages(out / "messages.log")
+    doc = seal(out, doc)  # the checksums of the entry's files and of warm.json itself
     tmp = out / f".{WARM_JSON}.tmp"
     tmp.write_text(json.dumps(doc), encoding="utf-8")
     os.replace(tmp, out / WARM_JSON)
@@ -251,8 +249,7 @@ def start_warm(ad, args: list[str], setup: WarmSetup, warm_steps: int, sumo_dir:
             ad.simulation_step()
         return version
     key = warm_key(args, sumo_dir, setup, warm_steps)
-    entry, made = ensure_entry(Path(info["cache"]), key, args, sumo_dir, setup, warm_steps)
-    doc = json.loads((entry / WARM_JSON).read_text(encoding="utf-8"))
+    entry, doc, made = ensure_entry(Path(info["cache"]), key, args, sumo_dir, setup, warm_steps)
     version = ad.start(load_args(args, entry / STATE_FILE))
     setup.apply(ad, loaded=True)
     ad.departed.update(doc["departed"])

@@ -106,6 +106,33 @@ def _set(doc: dict, dotted: str, value: Any) -> None:
         node[last] = value
 
 
+def _unknown_fields(base: Path, doc: dict, spec: SweepFile) -> list[tuple[str, str]]:
+    """The [overrides], [grid] and [random] paths that are not scenario fields (with the
+    nearest field), found before any case runs; ``doc``: the base with [overrides] set. Values
+    are not judged here: a bad grid value fails its case alone."""
+    from ..scenario.fields import nearest_field
+    from ..scenario.load import parse_scenario
+    from ..scenario.schema import Scenario
+
+    sample = {**spec.overrides, **{k: v[0] for k, v in spec.grid.items()}}
+    if spec.random is not None:
+        sample.update({k: d.draw(np.random.default_rng(0)) for k, d in spec.random.fields.items()})
+    where = {**{k: "random" for k in sample if k not in spec.overrides and k not in spec.grid},
+             **{k: "grid" for k in spec.grid}, **{k: "overrides" for k in spec.overrides}}
+    out = []
+    for k, v in sample.items():
+        try:
+            parse_scenario(doc, base, **{k: v})
+        except ScenarioError as exc:
+            hit = next((f for f, msg in exc.problems if msg.startswith("unknown field")
+                        and (k == f or k.startswith(f + "."))), None)
+            if hit is not None:
+                near = nearest_field(Scenario, k)
+                out.append((f'{where[k]}."{k}"', f"{hit} is not a scenario field"
+                            + (f"; nearest field: {near}" if near else "")))
+    return out
+
+
 def _base_doc(path: Path, spec: SweepFile) -> tuple[Path, dict]:
     base = (path.parent / spec.base).resolve()
     if not base.is_file():
@@ -154,9 +181,12 @@ def load_sweep(path: str | Path, sets: dict[str, Any] | None = None) -> Sweep:
                 problems.append((f'{where}."{k}"', why))
             elif where == "overrides":
                 _set(doc, k, spec.overrides[k])
+    problems += _unknown_fields(base, doc, spec)
     sets = dict(sets or {})
     for k in sets:
         why = _check_path(doc, k)
+        if k.split(".")[0] == "road" and doc.get("road") is None:
+            why = why or "the base scenario has no [road] (free space): --set does not make it a road scenario"
         if k == SEED_PATH or k in spec.swept() or any(k.startswith(a + ".") or a.startswith(k + ".")
                                                        for a in spec.swept()):
             why = why or "is swept (or is run.seed): it cannot be set for every case"

@@ -18,11 +18,11 @@ import pandas as pd
 
 from ..interrupt import raising_signals
 from ..record.rundir import RUN_FINISHED
-from ..record.writer import atomic_write_parquet
+from ..record.writer import atomic_write_json, atomic_write_parquet
 from .case import CASE_JSON, CaseSpec
 from .executors import run_dask, run_local
 from .expand import Sweep, load_sweep
-from .row import METRICS, summary_frame, swept_dtypes
+from .row import METRICS, WALL_COLUMNS, summary_frame, swept_dtypes
 from .spec import SweepError
 
 SCHEMA = "formation-traci/sweep/1"
@@ -36,6 +36,9 @@ WARMUPS_DIR = "warmups"
 EFFECTS_CSV = "effects.csv"
 MEANS_CSV = "means.csv"
 """Per grid point the section measures' mean over the seeds and 95 % interval (road sweeps)."""
+TIMINGS = "timings.parquet"
+"""Per case the wall-clock columns (``row.WALL_COLUMNS``): kept out of summary.parquet, so the
+same sweep gives the same summary.parquet byte for byte however often it was stopped and resumed."""
 LOCK_FILE = ".sweep.lock"
 WRITE_EVERY_S = 2.0
 """The summary is rewritten at most this often while cases finish, and always at the end [s]."""
@@ -46,7 +49,7 @@ class SweepResult:
     """What :func:`run_sweep` did."""
 
     out_dir: Path
-    summary: pd.DataFrame  # one row per case with a result, by case index
+    summary: pd.DataFrame  # one row per case with a result, by case index (summary.parquet + timings.parquet)
     n_cases: int  # cases of the sweep
     n_completed: int  # rows with status completed (this and earlier invocations)
     n_failed: int  # rows with status failed or interrupted (not completed)
@@ -59,8 +62,8 @@ def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
-SWEEP_FILES = frozenset({SWEEP_JSON, SUMMARY, CASES_DIR, LOGS_DIR, LOCK_FILE, WARMUPS_DIR, "sweep_report.html",
-                         "sweep_stats.csv", "sweep_figures"})
+SWEEP_FILES = frozenset({SWEEP_JSON, SUMMARY, TIMINGS, CASES_DIR, LOGS_DIR, LOCK_FILE, WARMUPS_DIR, TWINS_DIR,
+                         EFFECTS_CSV, MEANS_CSV, "sweep_report.html", "sweep_stats.csv", "sweep_figures"})
 """Names a sweep (and ``analyze-sweep``) writes at the top of its directory."""
 
 
@@ -169,10 +172,12 @@ def _versions() -> dict[str, str]:
 
 def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str],
                    effects: Path | None = None) -> pd.DataFrame:
-    """summary.parquet (atomically); with ``effects``, the paired effects over the seeds
-    there too (sweeps with twins, analysis/report/effects.py)."""
+    """summary.parquet and timings.parquet (atomically); with ``effects``, the paired effects
+    over the seeds there too (sweeps with twins, analysis/report/effects.py). Returns the
+    summary with the wall-clock columns."""
     df = summary_frame(list(rows.values()), swept)
-    atomic_write_parquet(path, df)
+    atomic_write_parquet(path, df.drop(columns=list(WALL_COLUMNS)))
+    atomic_write_parquet(path.with_name(TIMINGS), df[["case_id", *WALL_COLUMNS]])
     from analysis.report.effects import write_effects, write_means
 
     if effects is not None:
@@ -226,6 +231,7 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         On Ctrl-C or SIGTERM, after the running cases stopped and the summary was written.
     """
     sweep = load_sweep(sweep_path, sets)
+    _refuse_on_free_space(sweep, {"--baseline": baseline, "--shared-warmup": shared_warmup})
     out = _make_sweep_dir(Path(out_dir))
     with raising_signals(), _lock(out):  # SIGTERM stops the cases like Ctrl-C
         specs = [case_spec(sweep, i, out, baseline, shared_warmup) for i in range(len(sweep.cases))]
@@ -233,8 +239,6 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         rows, todo = _resume(specs)
         n_skipped = len(specs) - len(todo)
         meta = _sweep_meta(sweep, swept, scheduler, workers, len(specs), n_skipped, len(todo), baseline, shared_warmup)
-        from ..record.writer import atomic_write_json
-
         atomic_write_json(out / SWEEP_JSON, meta)
         summary_path = out / SUMMARY
         _write_summary(summary_path, rows, swept)
@@ -261,6 +265,19 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     return SweepResult(out_dir=out, summary=df, n_cases=len(specs), n_completed=n_ok, n_failed=len(df) - n_ok,
                        n_skipped=n_skipped, n_run=on_row.ok + on_row.failed,
                        files={k: v for k, v in files.items() if k != "effects" or baseline})
+
+
+def _refuse_on_free_space(sweep: Sweep, options: dict[str, bool]) -> None:
+    """SweepError before anything is created: ``--baseline`` (a twin without the formation in
+    the same traffic) or ``--shared-warmup`` given for a base scenario without a [road] that no
+    case gives one (free space has neither: the option would be ignored)."""
+    from ..scenario.load import read_toml
+
+    given = [name for name, on in options.items() if on]
+    paths = set(sweep.spec.overrides) | set(sweep.sets) | set(sweep.spec.swept())
+    if given and read_toml(sweep.base).get("road") is None and not any(p.split(".")[0] == "road" for p in paths):
+        raise SweepError(sweep.path, [(name, f"needs a road scenario (SUMO's traffic): {sweep.base} has no "
+                                             "[road]") for name in given])
 
 
 def _make_sweep_dir(out: Path) -> Path:
