@@ -17,10 +17,12 @@ from pathlib import Path
 _TIME = re.compile(r"time=(-?[0-9]+(?:\.[0-9]+)?)")
 _VEHICLE = re.compile(r"[Vv]ehicle '([^']+)'")
 KINDS = (("no connection to the next edge", "lane_end_stop"),
-         ("emergency braking", "emergency_braking"), ("collision", "collision"),
+         ("emergency braking", "emergency_braking"), ("collision with", "collision"),
          ("teleport", "teleport"), ("waited too long", "insertion_delay"),
          ("could not be inserted", "insertion_failed"))
-"""(text in SUMO's message, kind) pairs; anything else is ``other``."""
+"""(text in SUMO's message, kind) pairs; anything else is ``other``. A collision is SUMO's
+report "...; collision with vehicle '...'" (or "junction collision with ..."): other messages
+that name the word, e.g. a vType's deceleration "to prevent collisions", are not."""
 SUMO_ARGS = ["--no-warnings", "true"]
 """SUMO options that keep warnings off the terminal (they still reach ``--error-log``)."""
 
@@ -98,7 +100,13 @@ def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_f
     """After the run: SUMO's messages up to formation time ``t_max`` as events (run.json
     ``sumo.messages``), the FCD up to then in the frame asked for (one naming of the columns
     in both frames, units in the metadata), and which clock and frame each output uses."""
-    meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, rec.add_event, sc.run.step, t_max)
+    inc = rec.incidents
+
+    def add_event(t, kind, vid, other, detail):
+        rec.add_event(t, kind, vid, other, detail)
+        if inc is not None:
+            inc.sumo_message(vid, other)
+    meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, add_event, sc.run.step, t_max)
     if sc.sumo.fcd:
         from .fcd import cut_fcd, rewrite_fcd
         cut_fcd(sumo_dir / "fcd.parquet", t0, sc.run.step, t_max)  # the formation's part only
