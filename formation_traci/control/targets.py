@@ -6,9 +6,12 @@ control/formation.py ``rigid_target_at``) or road coordinates (road/targets.py
 """
 from __future__ import annotations
 
+import numpy as np
+
 from ..kernels import kernel
+from ..road.fast_line import to_frenet_one
 from ..road.targets import road_target_at
-from .formation import rigid_target_at
+from .formation import V_EPS, rigid_target_at
 from .reference import FRAME_ROAD
 
 
@@ -22,3 +25,21 @@ def desired_point_at(frame_i, G, vc, slots, j, i):
     return rigid_target_at(vc[j, i, 0], vc[j, i, 1], vc[j, i, 2], vc[j, i, 3], vc[j, i, 4],
                            vc[j, i, 5], vc[j, i, 6], slots[j, i, 0], slots[j, i, 1],
                            slots[j, i, 2], slots[j, i, 3], slots[j, i, 4], slots[j, i, 5])
+
+
+@kernel
+def lane_point_at(G, vc, slots, j, i, xi, yi, px, py, tvx, tvy):
+    """The desired point (px, py, vx, vy, ax, ay) of member i's road-frame slot moved along
+    the road to the member's own along-position: the point of its slot's lane (the slot's
+    lateral offset and its rates) abeam the member's centre of gravity (xi, yi) [m], at the
+    slot's speed along the road. ``px`` .. ``tvy``: the slot's own point and velocity (their
+    along-distance to the member seeds the projection). A member that follows the member
+    ahead keeps its lane about this point whatever its along-error; moved along the slot's
+    tangent instead, the point leaves the lane on a curve by about kappa e^2 / 2."""
+    sp = np.hypot(tvx, tvy)
+    e_lon = 0.0
+    if sp > V_EPS:
+        e_lon = ((px - xi) * tvx + (py - yi) * tvy) / sp
+    s_i, _ = to_frenet_one(G, xi, yi, vc[j, i, 7] + slots[j, i, 0] - e_lon)
+    return road_target_at(G, s_i, vc[j, i, 3], vc[j, i, 5], 0.0, slots[j, i, 1], slots[j, i, 2],
+                          slots[j, i, 3], slots[j, i, 4], slots[j, i, 5])
