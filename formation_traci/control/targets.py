@@ -28,18 +28,31 @@ def desired_point_at(frame_i, G, vc, slots, j, i):
 
 
 @kernel
-def lane_point_at(G, vc, slots, j, i, xi, yi, px, py, tvx, tvy):
+def lane_point_at(G, vc, slots, j, i, xi, yi, vi, px, py, tvx, tvy):
     """The desired point (px, py, vx, vy, ax, ay) of member i's road-frame slot moved along
     the road to the member's own along-position: the point of its slot's lane (the slot's
-    lateral offset and its rates) abeam the member's centre of gravity (xi, yi) [m], at the
-    slot's speed along the road. ``px`` .. ``tvy``: the slot's own point and velocity (their
-    along-distance to the member seeds the projection). A member that follows the member
-    ahead keeps its lane about this point whatever its along-error; moved along the slot's
-    tangent instead, the point leaves the lane on a curve by about kappa e^2 / 2."""
+    lateral offset and its rates) abeam the member's centre of gravity (xi, yi) [m], with the
+    slot's speed and tangential acceleration along the road (a CACC's leader terms) and the
+    normal acceleration of a point that moves along the lane at the member's own speed vi
+    [m/s] (the curvature's yaw-rate feed-forward kappa vi, not kappa times the virtual car's
+    speed, which over-steers a member slower than its slot). ``px`` .. ``tvy``: the slot's
+    own point and velocity (their along-distance to the member seeds the projection). A member
+    that follows the member ahead keeps its lane about this point whatever its along-error;
+    moved along the slot's tangent instead, the point leaves the lane on a curve by about
+    kappa e^2 / 2."""
     sp = np.hypot(tvx, tvy)
     e_lon = 0.0
     if sp > V_EPS:
         e_lon = ((px - xi) * tvx + (py - yi) * tvy) / sp
     s_i, _ = to_frenet_one(G, xi, yi, vc[j, i, 7] + slots[j, i, 0] - e_lon)
-    return road_target_at(G, s_i, vc[j, i, 3], vc[j, i, 5], 0.0, slots[j, i, 1], slots[j, i, 2],
-                          slots[j, i, 3], slots[j, i, 4], slots[j, i, 5])
+    qx, qy, qvx, qvy, qax, qay = road_target_at(G, s_i, vc[j, i, 3], vc[j, i, 5], 0.0,
+                                                slots[j, i, 1], slots[j, i, 2], slots[j, i, 3],
+                                                slots[j, i, 4], slots[j, i, 5])
+    q = np.hypot(qvx, qvy)
+    if q <= V_EPS:
+        return qx, qy, qvx, qvy, qax, qay
+    ux = qvx / q
+    uy = qvy / q
+    a_t = qax * ux + qay * uy
+    a_n = (-qax * uy + qay * ux) * max(vi, 0.0) / q  # q^2 kappa -> q kappa vi
+    return qx, qy, qvx, qvy, a_t * ux - a_n * uy, a_t * uy + a_n * ux

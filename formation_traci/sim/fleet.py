@@ -115,7 +115,7 @@ def step_members(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, 
     for j in range(vc.shape[0]):
         for i in range(n):
             px, py, tvx, tvy, tax, tay = law_point_at(law[i], pred[i], frame[i], G, vc, slots,
-                                                      j, i, x)
+                                                      j, i, x, kind, speed_in[i])
             res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py,
                                tvx, tvy, tax, tay, v_cap[i],
                                cap_at(a_cap_from[i], a_cap[i], j, vc.shape[0]), pred[i], u_prev,
@@ -164,15 +164,16 @@ def follows_lane(law_i, pred_i, frame_i):
 
 
 @kernel
-def law_point_at(law_i, pred_i, frame_i, G, vc, slots, j, i, x):
+def law_point_at(law_i, pred_i, frame_i, G, vc, slots, j, i, x, kind, speed_in_i):
     """The desired point member i's law steers about in control period j: its slot's
     (control/targets.py desired_point_at), moved along the road to the member's own
     along-position for a member that follows the member ahead on a road slot
-    (:func:`follows_lane`)."""
+    (:func:`follows_lane`; ``kind``, ``speed_in_i``: its model and speed input)."""
     px, py, tvx, tvy, tax, tay = desired_point_at(frame_i, G, vc, slots, j, i)
     if not follows_lane(law_i, pred_i, frame_i):
         return px, py, tvx, tvy, tax, tay
-    return lane_point_at(G, vc, slots, j, i, x[i, S.X], x[i, S.Y], px, py, tvx, tvy)
+    v, _, _ = motion_at(kind, x, i, speed_in_i)
+    return lane_point_at(G, vc, slots, j, i, x[i, S.X], x[i, S.Y], v, px, py, tvx, tvy)
 
 
 @kernel
@@ -250,7 +251,7 @@ def member_signals(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred
     n = x.shape[0]
     for i in range(n):
         px, py, tvx, tvy, tax, tay = law_point_at(law[i], pred[i], frame[i], G, vc, slots, 0,
-                                                  i, x)
+                                                  i, x, kind, speed_in[i])
         res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py, tvx,
                            tvy, tax, tay, v_cap[i], cap_at(a_cap_from[i], a_cap[i], 0, vc.shape[0]),
                            pred[i], u_last, dt_c)
