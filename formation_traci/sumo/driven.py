@@ -14,8 +14,11 @@ head's vType is CACC too, so the first follower runs CACC on it).
 
 Recording. At every sense the followers' SUMO state (front bumper, angle, speed,
 acceleration) is read back and written into their rows of the fleet state (CoG frame), so the
-loop records them in the same tables as our members: x, y, heading, v from SUMO, yaw_rate the
-heading's rate over the step, a_lon SUMO's acceleration, a_lat v times yaw_rate, the formation
+loop records them in the same tables as our members: x, y, v from SUMO, heading the direction
+of the road's smooth reference line where the follower is (SUMO's angle is its lane polyline's
+segment direction and jumps at the polyline's corners: SumoDrivenWorld._lane_heading), the
+CoG from SUMO's front bumper along that heading, yaw_rate the heading's rate over the step,
+a_lon SUMO's acceleration, a_lat v times yaw_rate, the formation
 error (ex .. y_des) against their slots on the virtual car as for any member, ``sumo_gap`` ~ 0
 (their state is SUMO's); the model's own columns (v_ref, omega_ref, steer .. drag_ratio) are
 NaN. Their comfort rows at the control rate hold the step's values (SUMO changes a speed once
@@ -31,6 +34,7 @@ import numpy as np
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
 from ..record.columns import SIGNAL_COLUMNS
+from ..road.fast_line import frame_many, to_frenet_many
 from ..sim.fleet import Fleet
 from .types import sumo_to_cog
 from .world import SumoWorld
@@ -153,7 +157,8 @@ class SumoDrivenWorld(SumoWorld):
         front, ang, v, a = self.adapter.driven_states([self.sumo_ids[i] for i in rows])
         here = np.isfinite(v)
         rows, front, ang, v, a = rows[here], front[here], ang[here], v[here], a[here]
-        x, y, psi = sumo_to_cog(front[:, 0], front[:, 1], ang, self.d_front[rows])
+        psi = self._lane_heading(front, ang, rows)
+        x, y, psi = sumo_to_cog(front[:, 0], front[:, 1], 90.0 - np.degrees(psi), self.d_front[rows])
         last = self._psi[rows]
         dpsi = np.angle(np.exp(1j * (psi - last)))
         r = np.where(np.isfinite(last), dpsi / self.sc.run.step, 0.0)
@@ -169,6 +174,20 @@ class SumoDrivenWorld(SumoWorld):
         sumo = self.fleet.sumo
         sumo[rows, 0], sumo[rows, 1], sumo[rows, 2] = v, a, r
         self._kin = None  # the state changed in place
+
+
+    def _lane_heading(self, front, ang, rows) -> np.ndarray:
+        """The followers' heading [rad CCW from +x]: the direction of the road's smooth
+        reference line at the arc length of their centre of gravity (SUMO drives a follower
+        along its lane, whose direction that is). SUMO's own angle is the direction of its
+        lane shape's polyline segment (or of the junction's): it jumps where two segments meet
+        (by a degree or more on a real net: a yaw rate of 0.3-0.6 rad/s over one step, 10-15
+        m/s^2 of lateral acceleration at 28 m/s that no car feels); it only seeds the
+        projection and picks the branch of the angle."""
+        x0, y0, psi0 = sumo_to_cog(front[:, 0], front[:, 1], ang, self.d_front[rows])
+        s, _ = to_frenet_many(self.line.G, np.column_stack([x0, y0]), self.m_s[rows])
+        line = frame_many(self.line.G, s)[:, 4]
+        return psi0 + np.angle(np.exp(1j * (line - psi0)))
 
 
 def write_cacc_type(path: Path, attributes: dict[str, str]) -> None:
