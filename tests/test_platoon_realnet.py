@@ -42,6 +42,7 @@ cacc_ploeg = {{ h_s = 0.5 }}
 sumo_cacc = {{ tau_s = 0.5, min_gap_m = 2.0 }}
 [leader]
 speed = {{ t = [0.0, 4.0, 5.5, 14.0, 15.5], values = [28.0, 28.0, 16.0, 16.0, 28.0], interp = "linear" }}
+traffic_aware = false
 [[members]]
 id = "p0"
 slot = {{ along = 0.0, lanes = 0 }}
@@ -155,3 +156,18 @@ def test_sumo_cacc_followers_have_no_heading_jumps(runs):
     assert f.a_lat.abs().max() <= A_LAT_MAX, float(f.a_lat.abs().max())
     np.testing.assert_allclose(f.a_lat, f.v * f.yaw_rate, rtol=1e-12, atol=1e-12)
     assert meta["incidents"]["lane_departures"] == 0
+
+
+def test_every_law_sees_the_same_head(runs):
+    """leader.traffic_aware = false: the virtual car drives its profile whatever the traffic
+    (which each law's followers change) does: its rows (x, y, heading, v, s) equal bit for bit
+    across the five laws' runs, and its speed follows the profile's 28 -> 16 -> 28 m/s."""
+    vcs = {law: r[2][r[2].vehicle_id == "vc"].reset_index(drop=True) for law, r in runs.items()}
+    ref = vcs["virtual_structure"]
+    cols = ["t", "x", "y", "heading", "v", "s"]
+    for law, vc in vcs.items():
+        pd.testing.assert_frame_equal(vc[cols], ref[cols], check_exact=True, obj=law)
+    assert ref.v.iloc[0] == pytest.approx(28.0, abs=1e-9)
+    # the governor's speed law approaches the profile (2.8 m/s^2 at most, jerk-limited)
+    assert ref[(ref.t > 10.0) & (ref.t < 15.0)].v.min() == pytest.approx(16.0, abs=0.5)
+    assert ref.v.iloc[-1] == pytest.approx(28.0, abs=0.5)

@@ -67,7 +67,8 @@ def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld,
     limits = GovernorLimits(ld.time_gap, ld.min_gap,
                             min(ld.accel_max, ADHESION_SHARE_COMFORT * mu_g, follow),
                             min(ld.decel_max, ADHESION_SHARE_COMFORT * mu_g),
-                            min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g), follow)
+                            min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g), follow,
+                            ld.traffic_aware)
     column_gap_warnings(sc, plan.slots, plan.is_road, plan.vehicles, gains, top_speed(sc, speed_profile),
                         limits.decel_emergency, meta)
     s0, v0 = float(sc.road.start), speed_profile(0.0)[0]
