@@ -184,8 +184,10 @@ def test_decel_above_emergency_decel_exits_2_naming_both_fields(tmp_path):
 
 def test_force_replaces_a_sumo_cacc_run(tmp_path):
     """The CACC vType file the run writes (sumo/sumo_cacc.add.xml) is the tool's: --force
-    replaces the run."""
-    text = SCENARIO.read_text().replace("duration = 30.0", "duration = 0.5")
+    replaces the run (with traffic, whose measurement files share SUMO's additional-files
+    option with it)."""
+    text = SCENARIO.read_text().replace("duration = 30.0", "duration = 0.5") + (
+        '[traffic]\nwarmup = 1.0\n[[traffic.flows]]\nid = "main"\nveh_per_hour_per_lane = 300\n')
     sc = tmp_path / "short.toml"
     sc.write_text(text)
     for _ in range(2):
