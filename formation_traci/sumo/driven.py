@@ -44,6 +44,20 @@ SUMO_CACC = "sumo_cacc"
 CACC_BASE_TYPE = "sumo_cacc"
 """The CACC vType of the additional file; every member type is a copy of it."""
 
+LANE_CHANGE_PARAMS = {"lcOvertakeRight": "1", "lcCooperativeSpeed": "0", "lcStrategic": "-1"}
+"""The followers' lane-change model parameters. SUMO's default lane-change model (LC2013)
+changes their speed for reasons of lanes, not of the column, even with lane changes off
+(lane-change mode 0), while our head, placed by moveToXY, does neither: it forbids overtaking
+on the right (a vehicle slows to the speed of slower traffic in the lane to its left: 25 m/s
+behind a 28 m/s head on LuST), it slows a vehicle to let one that wants to change into its lane
+in ahead of it, and where its strategy wants a lane change it cannot make it slows the vehicle
+as if the change were urgent (1.9 m/s^2 on LuST's off-ramp edge after the
+junction at s = 1,437 m, whose lane continues on the route); the followers fell back from the
+head they follow, to gaps of 60-76 m. ``lcOvertakeRight = 1``, ``lcCooperativeSpeed = 0`` and
+``lcStrategic = -1`` (no strategic changes) keep them with their column's head: their speed is
+their CACC's (and SUMO's safe speed); they never change lanes (lane-change mode 0), as under
+our laws."""
+
 _COL = {c: SIGNAL_COLUMNS.index(c) for c in ("v", "yaw_rate", "a_lon", "a_lat")}
 _MODEL_ONLY = [SIGNAL_COLUMNS.index(c) for c in (
     "v_ref", "omega_ref", "steer", "steer_rate", "beta", "slip_front", "slip_rear",
@@ -193,6 +207,6 @@ class SumoDrivenWorld(SumoWorld):
 def write_cacc_type(path: Path, attributes: dict[str, str]) -> None:
     """The SUMO additional file with the CACC vType :data:`CACC_BASE_TYPE` (``attributes``:
     SUMO attribute -> value)."""
-    attrs = " ".join(f'{k}="{v}"' for k, v in attributes.items())
+    attrs = " ".join(f'{k}="{v}"' for k, v in {**attributes, **LANE_CHANGE_PARAMS}.items())
     path.write_text(f'<additional>\n    <vType id="{CACC_BASE_TYPE}" carFollowModel="CACC" '
                     f"{attrs}/>\n</additional>\n")
