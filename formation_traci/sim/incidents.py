@@ -13,8 +13,8 @@
 * ``sumo_emergency_brakes``: SUMO reports that it brakes a member harder than its vType's
   ``decel`` (its "emergency braking" warning), whoever drives the member (SUMO's own
   car-following model: ``controller.law = "sumo_cacc"``; sumo/messages.py);
-* ``lane_departures``: a member that follows the member ahead in its column (a platoon law's
-  follower, or one SUMO's CACC drives) with its centre of gravity more than half a lane width
+* ``lane_departures``: a member of a column under a platoon law (ours or SUMO's CACC; its
+  head, which runs the virtual structure, included) with its centre of gravity more than half a lane width
   (:meth:`Incidents.watch_lanes`) across from its slot's lateral offset: it left its lane
   (counted when it leaves; a ``lane_departure`` event). Only in runs without maneuvers (a
   maneuver moves the slot);

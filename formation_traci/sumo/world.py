@@ -93,7 +93,7 @@ class SumoWorld(MemberHandover):
         self.along = np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])
         self.slot_d_0 = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
         if rec.incidents is not None and not baseline and not _has_maneuvers(sc):
-            rec.incidents.watch_lanes(_column_followers(sc, fleet) & plan.is_road, self.slot_d_0,
+            rec.incidents.watch_lanes(_platoon_members(sc, fleet) & plan.is_road, self.slot_d_0,
                                       0.5 * plan.road.lane_width)
         lanes = LaneTracker()
         self.members = MemberWatch(rec, self.ids, lanes)
@@ -410,9 +410,8 @@ def _has_maneuvers(sc) -> bool:
     return bool(sc.maneuvers) or any(f.maneuvers for f in getattr(sc, "formations", []) or [])
 
 
-def _column_followers(sc, fleet) -> np.ndarray:
-    """(n,) the members that follow the member ahead in their column under a platoon law
-    (ours, or SUMO's CACC): the members whose lanes sim/incidents.py watches."""
-    pred, law = np.asarray(fleet.pred), np.asarray(fleet.base_law)
-    platoon = (law > 0) | (sc.controller.law == "sumo_cacc")
-    return (pred >= 0) & platoon
+def _platoon_members(sc, fleet) -> np.ndarray:
+    """(n,) the members of columns under a platoon law (ours, or SUMO's CACC), the head of
+    each column included: the members whose lanes sim/incidents.py watches."""
+    law = np.asarray(fleet.base_law)
+    return (law > 0) | (sc.controller.law == "sumo_cacc")
