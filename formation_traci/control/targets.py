@@ -9,9 +9,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels import kernel
+from ..models.bicycle import S
+from ..models.state import motion_at
 from ..road.fast_line import to_frenet_one
 from ..road.targets import road_target_at
 from .formation import V_EPS, rigid_target_at
+from .laws.dispatch import ACC, CACC_PLOEG
 from .reference import FRAME_ROAD
 
 
@@ -56,3 +59,23 @@ def lane_point_at(G, vc, slots, j, i, xi, yi, vi, px, py, tvx, tvy):
     a_t = qax * ux + qay * uy
     a_n = (-qax * uy + qay * ux) * max(vi, 0.0) / q  # q^2 kappa -> q kappa vi
     return qx, qy, qvx, qvy, a_t * ux - a_n * uy, a_t * uy + a_n * ux
+
+
+@kernel
+def follows_lane(law_i, pred_i, frame_i):
+    """Does the member follow the member ahead on a road slot under a platoon law of ours?
+    Its lateral loop then holds its slot's lane abeam itself (:func:`lane_point_at`)."""
+    return ACC <= law_i <= CACC_PLOEG and pred_i >= 0 and frame_i == FRAME_ROAD
+
+
+@kernel
+def law_point_at(law_i, pred_i, frame_i, G, vc, slots, j, i, x, kind, speed_in_i):
+    """The desired point member i's law steers about in control period j: its slot's
+    (:func:`desired_point_at`), moved along the road to the member's own
+    along-position for a member that follows the member ahead on a road slot
+    (:func:`follows_lane`; ``kind``, ``speed_in_i``: its model and speed input)."""
+    px, py, tvx, tvy, tax, tay = desired_point_at(frame_i, G, vc, slots, j, i)
+    if not follows_lane(law_i, pred_i, frame_i):
+        return px, py, tvx, tvy, tax, tay
+    v, _, _ = motion_at(kind, x, i, speed_in_i)
+    return lane_point_at(G, vc, slots, j, i, x[i, S.X], x[i, S.Y], v, px, py, tvx, tvy)

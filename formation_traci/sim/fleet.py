@@ -18,11 +18,10 @@ import numpy as np
 
 from ..control.formation import initial_theta_star
 from ..control.laws import DEFAULT_LAW
-from ..control.laws.dispatch import ACC, CACC_PLOEG, law_input_at
+from ..control.laws.dispatch import law_input_at
 from ..control.reference import Reference, cap_at
 from ..control.schedule import GainSchedule
-from ..control.reference import FRAME_ROAD
-from ..control.targets import desired_point_at, lane_point_at
+from ..control.targets import desired_point_at, follows_lane, law_point_at
 from ..kernels import kernel, maximum, substeps
 from ..models import bicycle, kinematic
 from ..models.integrator import HELD, rhs_into, rk4_row_from
@@ -153,27 +152,6 @@ def _comfort_values(kind, x, i, P, res, out, j):
     out[j, i, 0] = vk
     out[j, i, 1] = res[5]
     out[j, i, 2] = vk * res[1]
-
-
-@kernel
-def follows_lane(law_i, pred_i, frame_i):
-    """Does the member follow the member ahead on a road slot under a platoon law of ours?
-    Its lateral loop then holds its slot's lane abeam itself (control/targets.py
-    lane_point_at)."""
-    return ACC <= law_i <= CACC_PLOEG and pred_i >= 0 and frame_i == FRAME_ROAD
-
-
-@kernel
-def law_point_at(law_i, pred_i, frame_i, G, vc, slots, j, i, x, kind, speed_in_i):
-    """The desired point member i's law steers about in control period j: its slot's
-    (control/targets.py desired_point_at), moved along the road to the member's own
-    along-position for a member that follows the member ahead on a road slot
-    (:func:`follows_lane`; ``kind``, ``speed_in_i``: its model and speed input)."""
-    px, py, tvx, tvy, tax, tay = desired_point_at(frame_i, G, vc, slots, j, i)
-    if not follows_lane(law_i, pred_i, frame_i):
-        return px, py, tvx, tvy, tax, tay
-    v, _, _ = motion_at(kind, x, i, speed_in_i)
-    return lane_point_at(G, vc, slots, j, i, x[i, S.X], x[i, S.Y], v, px, py, tvx, tvy)
 
 
 @kernel

@@ -92,9 +92,6 @@ class SumoWorld(MemberHandover):
         self._kin = None  # (state, pos, vel, heading) of the state last placed
         self.along = np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])
         self.slot_d_0 = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
-        if rec.incidents is not None and not baseline and not _has_maneuvers(sc):
-            rec.incidents.watch_lanes(_platoon_members(sc, fleet) & plan.is_road, self.slot_d_0,
-                                      0.5 * plan.road.lane_width)
         lanes = LaneTracker()
         self.members = MemberWatch(rec, self.ids, lanes)
         self.traffic = TrafficWatch(rec, self.ids, lanes, sc.leader.time_gap, sc.leader.min_gap)
@@ -219,8 +216,6 @@ class SumoWorld(MemberHandover):
             lanes.points, PLACEMENT_TOLERANCE, *nb_in)
         m_s, m_d = s[:n], d[:n]
         self.m_s = m_s
-        if self.rec.incidents is not None and self.inserted:
-            self.rec.incidents.lanes(t, m_d, self.active & self.in_sumo)
         sensed = Sensed(self.active, {"s": m_s, "d": m_d, "slot": self.slot_index}, v_m, m_s, m_d)
         if not self.inserted:
             return sensed
@@ -403,15 +398,3 @@ class SumoWorld(MemberHandover):
         if ad.gui and self.active.any() and (self.followed is None or not self.active[self.followed]):
             self.followed = middle_member(self.active, self.along, self.slot_d_0)
             ad.follow(self.sumo_ids[self.followed])
-
-
-def _has_maneuvers(sc) -> bool:
-    """Does any formation of the scenario run maneuvers (they move slots)?"""
-    return bool(sc.maneuvers) or any(f.maneuvers for f in getattr(sc, "formations", []) or [])
-
-
-def _platoon_members(sc, fleet) -> np.ndarray:
-    """(n,) the members of columns under a platoon law (ours, or SUMO's CACC), the head of
-    each column included: the members whose lanes sim/incidents.py watches."""
-    law = np.asarray(fleet.base_law)
-    return (law > 0) | (sc.controller.law == "sumo_cacc")
