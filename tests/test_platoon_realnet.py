@@ -193,3 +193,30 @@ def test_sumo_cacc_followers_stay_with_the_head(runs):
     after = w["a_lon"][list(FOLLOWERS)][w["a_lon"].index >= 19.0]
     assert after.min().min() >= -0.5, after.min()
     assert w["s"][list(FOLLOWERS)].max().min() > 1437.0 + 30.0  # every follower passed the junction
+
+
+def test_sumo_cacc_followers_pass_an_on_ramp_merge(tmp_path):
+    """Where two lanes of -31622#4's on-ramp edge merge into one (s ~ 2,061-2,156 m), SUMO's
+    CACC followers, which may not change lanes, drive on along their lane as their head does
+    (no right of way at junctions for them: sumo/types.py SPEED_MODE_DRIVEN) instead of
+    waiting at the merge: every follower passes s = 2,200 m at a speed above 20 m/s and every
+    gap stays within 20 % of 16 m (the head holds 28 m/s)."""
+    text = SCENARIO.format(law="sumo_cacc", net=LUST).replace("start = 900.0", "start = 1900.0")
+    text = text.replace("duration = 30.0", "duration = 16.0").replace(
+        'speed = { t = [0.0, 4.0, 5.5, 14.0, 15.5], values = [28.0, 28.0, 16.0, 16.0, 28.0], '
+        'interp = "linear" }', "speed = 28.0")
+    assert "start = 1900.0" in text and "speed = 28.0" in text
+    p = tmp_path / "merge.toml"
+    p.write_text(text)
+    res = run_scenario(load_scenario(p), tmp_path / "run", force=True, progress=False)
+    assert res.status == "completed", (res.status, res.reason)
+    traj = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
+    m = traj[traj.vehicle_id.isin(("p0", *FOLLOWERS))]
+    w = {c: m.pivot(index="t", columns="vehicle_id", values=c) for c in ("x", "y", "heading", "v", "s")}
+    for ahead, me in zip(("p0", *FOLLOWERS), FOLLOWERS):
+        h = w["heading"][me]
+        gap = ((w["x"][ahead] - w["x"][me]) * np.cos(h) + (w["y"][ahead] - w["y"][me]) * np.sin(h)
+               - 4.6)
+        assert (gap[gap.index > 0.5] - 16.0).abs().max() <= 0.2 * 16.0, (me, gap.describe())
+        past = w["s"][me] > 2200.0
+        assert past.any() and (w["v"][me][past] > 20.0).all(), me

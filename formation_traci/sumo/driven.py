@@ -8,7 +8,8 @@ acceleration told to SUMO after every step. Every follower is inserted at the po
 column would start from (same lane, same spacing), of a vType with SUMO's ``CACC``
 car-following model (``controller.sumo_cacc``; written to ``sumo/sumo_cacc.add.xml``, copied per
 member preset with the member's chassis length and width), and from then on SUMO drives it: the
-default speed mode, no lane changes, no moveToXY. SUMO's CACC follows the vehicle ahead in its
+safe-speed checks without the right of way at junctions (sumo/types.py SPEED_MODE_DRIVEN), no lane
+changes, no moveToXY. SUMO's CACC follows the vehicle ahead in its
 lane (MSCFModel_CACC.cpp: CACC when that vehicle's vType is CACC, else its ACC fallback; the
 head's vType is CACC too, so the first follower runs CACC on it).
 
