@@ -180,8 +180,9 @@ def test_lane_departure_is_one_incident_per_episode():
 
 
 def test_sumo_message_kinds():
-    """SUMO's emergency braking of a member counts (of any other vehicle not); a vType's
-    warning that names collisions is not a collision (the terminal's collision count)."""
+    """SUMO's emergency braking of a member SUMO drives counts (of a member we place, SUMO's
+    reading of the placement, or of any other vehicle not); a vType's warning that names
+    collisions is not a collision (the terminal's collision count)."""
     from formation_traci.sumo.messages import message_kind
     assert message_kind("Vehicle 'p1' performs emergency braking on lane 'e_1' with "
                         "decel=9.00, wished=4.50, severity=1.00, time=31.00.") == "emergency_braking"
@@ -190,6 +191,8 @@ def test_sumo_message_kinds():
     assert message_kind("Value of 'emergencyDecel' (9) is lower than 'apparentDecel' (12) for "
                         "vType 'member_passenger_car_cacc' may cause collisions.") == "other"
     inc = Incidents(_Rec(), ["p0", "p1"], [PASSENGER_CAR] * 2)
+    inc.driven_by_sumo = {"p1"}
+    inc.sumo_message("p0", "emergency_braking")
     inc.sumo_message("p1", "emergency_braking")
     inc.sumo_message("main.3", "emergency_braking")
     inc.sumo_message("p0", "collision")
