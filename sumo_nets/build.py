@@ -488,7 +488,7 @@ SHORTCUT_BUMP = 150.0  # how far the mainline swings left between x = 1000 and 2
 def shortcut() -> Network:
     """A motorway whose mainline swings 150 m to the left between x = 1000 and 2000 m (1018 m
     long) while a 1-lane off-ramp, link and on-ramp run straight along its right (969 m):
-    the shortest path between the ends leaves the motorway (routes by ends, issue 30)."""
+    the shortest path between the ends leaves the motorway (routes by ends)."""
     bump = [(1000.0 + x, SHORTCUT_BUMP * 0.5 * (1.0 - math.cos(2.0 * math.pi * x / 1000.0)))
             for x in (4.0 * i for i in range(251))]
     y_ramp = -3 * LANE_WIDTH - 20.0  # left border of the ramp lane

@@ -1,4 +1,4 @@
-"""Writes the string-stability scenario set of issue 28 (docs/platoon_laws.md): Plexe's
+"""Writes the string-stability scenario set (docs/platoon_laws.md): Plexe's
 reference experiment, 8 cars at 100 km/h in one lane of free space, the leader's speed a 0.2 Hz
 +-10 km/h sinusoid from t = 5 s (sinusoid_<law>.toml) or a brake at 8 m/s^2 (braking_<law>.toml),
 each column started at its law's equilibrium gap; sinusoid_sumo_cacc.toml and braking_sumo_cacc.toml: the
@@ -51,7 +51,7 @@ def scenario(name: str, gap_m: float, controller: str, speed: str, vehicle_extra
         f'[[members]]\nid = "p{i}"\noffset = [{-i * (gap_m + LENGTH_M):.4f}, 0.0]\n'
         f"position = [{-i * (gap_m + LENGTH_M):.4f}, 0.0]\nspeed = {V0:.6f}\n\n"
         for i in range(N))
-    return (f'name = "{name}"\ndescription = "issue 28 string stability: 8 cars at 100 km/h, '
+    return (f'name = "{name}"\ndescription = "string stability (Plexe experiment): 8 cars at 100 km/h, '
             f'gap {gap_m:.2f} m (written by make_platoon.py)"\n\n'
             f"[run]\nduration = {duration}\nstep = 0.05\ncontrol_step = 0.01\n\n"
             f'[vehicle]\nmodel = "dynamic"\npreset = "passenger_car"\n{vehicle_extra}\n'
@@ -71,7 +71,7 @@ def road_scenario(name: str, gap_m: float, controller: str, speed: str,
     head at 300 m, the others behind it at ``gap_m`` bumper to bumper."""
     members = "".join(f'[[members]]\nid = "p{i}"\nslot = {{ along = {-i * (gap_m + LENGTH_M):.4f}, '
                       f"lanes = 0 }}\n\n" for i in range(N))
-    return (f'name = "{name}"\ndescription = "issue 28 string stability on a SUMO road: 8 cars at '
+    return (f'name = "{name}"\ndescription = "string stability (Plexe experiment) on a SUMO road: 8 cars at '
             f'100 km/h in lane 0, gap {gap_m:.2f} m (written by make_platoon.py)"\n\n'
             f"[run]\nduration = {duration}\nstep = 0.05\ncontrol_step = 0.01\n\n"
             f'[vehicle]\nmodel = "dynamic"\npreset = "passenger_car"\n\n'
