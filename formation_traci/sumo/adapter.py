@@ -207,6 +207,19 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         self._window[vid] = (route_id, -1)
         self._move(vid, x, y, psi)
 
+    def add_twin_vehicle(self, vid: str, route_id: str, mt: MemberType, x, y, psi, v) -> None:
+        """A member as the same-demand twin has it: a vehicle of the member's type ``mt`` on
+        the formation's route ``route_id``, entering at the member's CoG pose (x, y [m], psi
+        [rad]) with speed v [m/s] during the next step, then driven by SUMO's own models (default
+        speed and lane-change modes, the ordinary vehicle class of its kind) and read as any
+        other vehicle."""
+        self.api.vehicle.add(vid, route_id, typeID=mt.id, depart="now", departLane="best",
+                             departPos="base", departSpeed=f"{max(float(v), 0.0):.6f}")
+        if mt.vclass in ORDINARY_CLASS:  # lanes closed to the members are open to it
+            self.api.vehicle.setVehicleClass(vid, ORDINARY_CLASS[mt.vclass])
+        xf, yf, ang = cog_to_sumo(x, y, psi, mt.d_front)
+        self._move_front(vid, float(xf), float(yf), float(ang), x, y)
+
     def _member_vars(self):
         tc = self.tc
         self._member_keys = (tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_LANE_ID, tc.VAR_LANE_INDEX,

@@ -4,8 +4,9 @@ sense: read back where SUMO put the members (removed, placement mismatch, lane c
 and the vehicles near them; observe: traffic events and background rows; actuate: insert
 the members spawned since the last step (every member of the run before its first step),
 place the others with moveToXY; retire: members out of SUMO at once; step: SUMO's step, then tell
-SUMO the members' true speed and acceleration. A baseline twin (``baseline=True``) runs the
-same traffic without the formation: no member enters SUMO, every vehicle is recorded.
+SUMO the members' true speed and acceleration. A baseline twin (``baseline`` "same" or
+"absent") runs the same traffic without the formation: no member enters SUMO, every vehicle is
+recorded; the "same" twin has, in each member's place, a vehicle of its type that SUMO drives.
 """
 from __future__ import annotations
 
@@ -53,6 +54,7 @@ class SumoWorld(MemberHandover):
                  baseline: bool = False, step_hook=None):
         self.sc, self.plan, self.fleet, self.rec, self.meta = sc, plan, fleet, rec, meta
         self.baseline, self.step_hook = baseline, step_hook
+        self.twin_same = baseline == "same"  # the same-demand twin (docs/metrics.md, "The twins")
         self.records_members = not baseline
         self.ids = list(plan.ids) if plan.ids else [m.id for m in sc.members]
         self._id_set = set(self.ids)
@@ -361,13 +363,17 @@ class SumoWorld(MemberHandover):
     def _insert(self, t_next, rows, pos, heading, v_after) -> None:
         """SUMO gets the spawned members ``rows`` at their poses, vehicles standing there (or
         in their time gap ahead) cleared first; a twin clears the same vehicles and inserts
-        no member."""
+        no member (the same-demand twin: a SUMO-driven vehicle of each member's type there)."""
         ld, ad = self.sc.leader, self.adapter
         clear_insertion_zone(ad, self.rec, t_next, pos[rows], heading[rows], v_after[rows],
                              [self.plan.vehicles[i] for i in rows],
                              ld.min_gap + ld.time_gap * v_after[rows])
         self.pending = self.pending[:0]
         if self.baseline:
+            if self.twin_same:  # the members' vehicles, driven by SUMO from here on
+                for i in rows:
+                    ad.add_twin_vehicle(self.ids[i], MEMBER_ROUTE, self.mtypes[i], pos[i, 0], pos[i, 1],
+                                        heading[i], v_after[i])
             return
         for i in rows:
             ad.insert_member(self.ids[i], MEMBER_ROUTE, self.mtypes[i], pos[i, 0], pos[i, 1],

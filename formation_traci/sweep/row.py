@@ -15,7 +15,8 @@ import pandas as pd
 from analysis.report.sweep_metrics import EFFECT_KEYS, METRICS  # noqa: F401 (re-exported)
 
 ID_COLUMNS: tuple[str, ...] = ("case_id", "case_index", "seed")
-STATUS_COLUMNS: tuple[str, ...] = ("status", "reason", "t_end_s")
+STATUS_COLUMNS: tuple[str, ...] = ("status", "reason", "t_end_s", "twin_status", "twin_reason")
+"""A case's outcome; ``twin_status`` / ``twin_reason``: its twin's (sweeps with twins; None without)."""
 WALL_COLUMNS: tuple[str, ...] = ("wall_s", "host", "pid")
 """Columns that depend on the machine and the clock, not on the case (ignored in comparisons)."""
 
@@ -44,7 +45,8 @@ def empty_row(case: dict, status: str, reason: str | None) -> dict[str, Any]:
         Every summary column, metrics None.
     """
     row: dict[str, Any] = {"case_id": case["id"], "case_index": case["index"], "seed": case["seed"],
-                           **case["values"], "status": status, "reason": reason, "t_end_s": None}
+                           **case["values"], "status": status, "reason": reason, "t_end_s": None,
+                           "twin_status": None, "twin_reason": None}
     row.update({k: None for k in METRICS})
     row.update({k: None for k in WALL_COLUMNS})
     return row
@@ -121,6 +123,38 @@ def twin_values(traffic_run: dict) -> dict[str, Any]:
     out = {k: traffic_run.get(k) for k in ("stretch_coverage", "matched_share")}
     out.update({col: traffic_run.get(key) for col, key in EFFECT_KEYS.items()})
     return {k: (None if v is None else float(v)) for k, v in out.items()}
+
+
+def section_twin_values(run_dir: Path, meta: dict, twin_dir: Path) -> dict[str, Any]:
+    """The comparison with the twin at the sections of a run no formation entered (no
+    analysis of members to carry it): ``traffic.run``'s twin keys, as the analysis computes
+    them (analysis/runs/twin_sections.py); {} when either run has no sections.
+
+    Parameters
+    ----------
+    run_dir : Path
+        The run's directory.
+    meta : dict
+        Its ``run.json``.
+    twin_dir : Path
+        Its twin's directory.
+
+    Returns
+    -------
+    dict
+        Key -> value (:data:`~analysis.runs.twin_sections.TWIN_METRICS`).
+    """
+    import json
+
+    from analysis.metrics.traffic import SSM_TTC_WARNING_S
+    from analysis.runs.twin_sections import read_sections, twin_comparison
+
+    twin_meta = json.loads((twin_dir / "run.json").read_text(encoding="utf-8"))
+    a, b = read_sections(run_dir, meta), read_sections(twin_dir, twin_meta)
+    secs = (meta.get("sections") or {}).get("sections")
+    if a is None or b is None or not secs:
+        return {}
+    return twin_comparison(a, b, secs, SSM_TTC_WARNING_S)[0]
 
 
 def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict,
@@ -230,7 +264,8 @@ def summary_frame(rows: list[dict], swept: dict[str, str]) -> pd.DataFrame:
     cols = [*ID_COLUMNS, *swept, *STATUS_COLUMNS, *METRICS, *WALL_COLUMNS]
     df = pd.DataFrame(sorted(rows, key=lambda r: r["case_index"]), columns=cols)
     dtypes = {"case_id": "string", "case_index": "int64", "seed": "int64", "status": "string",
-              "reason": "string", "t_end_s": "float64", "wall_s": "float64", "host": "string",
+              "reason": "string", "t_end_s": "float64",
+              "twin_status": "string", "twin_reason": "string", "wall_s": "float64", "host": "string",
               "pid": "Int64"}
     dtypes.update({k: ("Int64" if k in COUNT_METRICS else "float64") for k in METRICS})
     for k, t in swept.items():

@@ -24,6 +24,7 @@ from .executors import run_dask, run_local
 from .expand import Sweep, load_sweep
 from .row import METRICS, summary_frame, swept_dtypes
 from .spec import SweepError
+from ..twins import twin_mode
 
 SCHEMA = "formation-traci/sweep/1"
 SWEEP_JSON = "sweep.json"
@@ -110,7 +111,7 @@ def _lock(out: Path):
             fcntl.flock(f, fcntl.LOCK_UN)
 
 
-def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool = False,
+def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool | str = False,
               shared_warmup: bool = False) -> CaseSpec:
     """The :class:`CaseSpec` of one case.
 
@@ -122,8 +123,9 @@ def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool = False,
         Case index.
     out : Path
         Sweep directory (absolute).
-    baseline : bool
-        The case's twin runs too, into ``out/twins/<id>``.
+    baseline : bool or str
+        The case's twin runs too, into ``out/twins/<id>``: ``"same"`` (or True) or ``"absent"``
+        (formation_traci/twins.py).
     shared_warmup : bool
         Road cases start from their warm-up's saved state in ``out/warmups`` (simulated once
         per warm-up key; docs/sweeps.md, "The shared warm-up").
@@ -137,6 +139,7 @@ def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool = False,
     return CaseSpec(case=case, base=str(sweep.base), case_dir=str(out / CASES_DIR / case.id),
                     log_path=str(out / LOGS_DIR / f"{case.id}.log"),
                     twin_dir=str(out / TWINS_DIR / case.id) if baseline else None,
+                    twin_mode=twin_mode(baseline) or "same",
                     warm_dir=str(out / WARMUPS_DIR) if shared_warmup else None)
 
 
@@ -151,6 +154,7 @@ def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
     except Exception:
         return None, False
     if old.case != spec.case or old.base != spec.base or old.twin_dir != spec.twin_dir \
+            or (spec.twin_dir is not None and old.twin_mode != spec.twin_mode) \
             or (old.warm_dir is None) != (spec.warm_dir is None) \
             or row.get("case_id") != spec.case.id:
         return None, False
@@ -182,7 +186,7 @@ def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str],
 
 
 def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None = None,
-              workers: int | None = None, progress: bool = True, baseline: bool = False,
+              workers: int | None = None, progress: bool = True, baseline: bool | str = False,
               sets: dict | None = None, shared_warmup: bool = False) -> SweepResult:
     """Run every case of a sweep file that is not done yet and summarise them.
 
@@ -202,8 +206,9 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         Local pool only: cases run at once (default ``os.cpu_count()``).
     progress : bool
         Show a progress bar (cases done, failed, remaining).
-    baseline : bool
-        Also run each case's twin (no formation) into ``twins/<id>/``, analyse the case
+    baseline : bool or str
+        Also run each case's twin (``"same"`` or True: the same demand, the members driven by
+        SUMO; ``"absent"``: no formation vehicle; docs/metrics.md, "The twins") into ``twins/<id>/``, analyse the case
         against it (the paired ``fx_*`` summary columns) and write ``effects.csv``.
     sets : dict, optional
         Dotted path -> value set in every case (the command line's ``--set``), checked
@@ -294,7 +299,7 @@ def _sweep_meta(sweep: Sweep, swept: dict[str, str], scheduler: str | None, work
             "sweep_text": sweep.path.read_text(encoding="utf-8"), "sweep": sweep.raw,
             "base": str(sweep.base), "swept": sweep.spec.swept(), "grid_keys": list(sweep.spec.grid),
             "random_keys": list(sweep.random_keys), "sets": sweep.sets,
-            "baseline": baseline, "shared_warmup": shared_warmup, "dtypes": swept,
+            "baseline": bool(baseline), "baseline_mode": twin_mode(baseline), "shared_warmup": shared_warmup, "dtypes": swept,
             "metrics": {k: {"unit": u, "meaning": m} for k, (u, m) in METRICS.items()},
             "executor": {"kind": "dask" if scheduler else "local", "scheduler": scheduler,
                          "workers": None if scheduler else (workers or os.cpu_count())},
