@@ -36,7 +36,7 @@ def test_one_summary_row_per_case_with_rate_seed_throughput_delay_conflicts(stud
     assert df["throughput_veh_h"].notna().all() and df["delay_mean_s"].notna().all()
     assert df["conflicts_ttc"].notna().all()
     zero, twenty = (df[df[rate] == p].iloc[0] for p in (0.0, 0.2))
-    # 0 %: traffic alone (the top-level formation departs after the run, no flow formation)
+    # 0 %: traffic alone (the flow inserts no formation; the scenario has no other)
     assert zero["throughput_formation_veh_h"] == 0.0 and pd.isna(zero["delay_formation_mean_s"])
     assert twenty["member_collisions"] == 0
 

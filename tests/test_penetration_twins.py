@@ -139,3 +139,165 @@ def test_same_demand_twin_inserts_the_runs_vehicles(tmp_path):
     # SUMO drives them afterwards: they keep moving at about the set speed
     last = bg_same[bg_same.vehicle_id.isin(ids)].sort_values("t").groupby("vehicle_id").tail(1)
     assert (last.t > first_twin.t.max() + 2.0).all() and (last.v > 20.0).all()
+
+
+# --- scenarios of formations only ------------------------------------------------------------
+FOUR = """name = "four"
+[run]
+duration = 3.0
+step = 0.05
+[road]
+net = "straight3"
+lane = 1
+start = 300.0
+[traffic]
+warmup = 20.0
+[[traffic.flows]]
+id = "main"
+veh_per_hour_per_lane = 600
+[[formations]]
+id = "a"
+leader = { speed = 30.0 }
+lane = 0
+members = [{ id = "a1", slot = { along = 0.0, lanes = 0 } }]
+[[formations]]
+id = "b"
+leader = { speed = 30.0 }
+lane = 2
+members = [{ id = "b1", slot = { along = 0.0, lanes = 0 } }]
+[[formations]]
+id = "c"
+leader = { speed = 30.0 }
+start = 400.0
+members = [{ id = "c1", slot = { along = 0.0, lanes = 0 } }, { id = "c2", slot = { along = -12.0, lanes = 0 } }]
+[[formations]]
+id = "d"
+leader = { speed = 30.0 }
+start = 200.0
+depart = 1.0
+members = [{ id = "d1", slot = { along = 0.0, lanes = 0 } }]
+"""
+"""Four [[formations]], no top-level members and no top-level [leader]."""
+
+
+def test_four_formations_without_a_top_level_one(tmp_path):
+    """Exactly the four formations run (no top-level formation, no member of it): each its
+    own members in trajectories.parquet, d entering at 1 s; run.json's formations on_road at
+    the end (not 'running')."""
+    p = tmp_path / "four.toml"
+    p.write_text(FOUR)
+    code, text = cli("run", p, "--out", tmp_path / "r", "--no-progress")
+    assert code == 0, text
+    meta = json.loads((tmp_path / "r" / "run.json").read_text())
+    assert [m["id"] for m in meta["members"]] == ["a1", "b1", "c1", "c2", "d1"]
+    assert set(meta["formations"]) == {"a", "b", "c", "d"}
+    assert {f["status"] for f in meta["formations"].values()} == {"on_road"}
+    assert meta["formations"]["d"]["entered_s"] == pytest.approx(1.0)
+    traj = pd.read_parquet(tmp_path / "r" / "trajectories.parquet")
+    members = traj[~traj.vehicle_id.str.startswith("vc")]
+    assert dict(members.groupby("vehicle_id").formation_id.first()) == {
+        "a1": "a", "b1": "b", "c1": "c", "c2": "c", "d1": "d"}
+    assert members[members.vehicle_id == "d1"].t.min() == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("text, field", [
+    ('name = "x"\n[run]\nduration = 1.0\n[leader]\nspeed = 10.0\n', "members"),
+    (FOUR + '[[maneuvers]]\nkind = "lane_change"\nlanes = 1\nat = { t = 1.0 }\n', "maneuvers"),
+])
+def test_without_any_formation_or_with_top_level_parts_is_refused(tmp_path, text, field):
+    """No members and no [[formations]] / [[formation_flows]]: exit 2 naming ``members``;
+    top-level maneuvers without top-level members: exit 2 naming ``maneuvers``."""
+    p = tmp_path / "bad.toml"
+    p.write_text(text)
+    code, out = cli("run", p, "--out", tmp_path / "r", "--no-progress")
+    assert code == 2 and field in out and str(p) in out and "Traceback" not in out, out
+    assert not (tmp_path / "r").exists()
+
+
+FLOW = """name = "flow-alone"
+[run]
+duration = {duration}
+step = 0.05
+seed = 1
+[road]
+net = "straight3"
+lane = 1
+start = 300.0
+[[formation_flows]]
+id = "pen"
+lane = [0, 1, 2]
+penetration = {p}
+of_flow = "main"
+[formation_flows.formation]
+leader = {{ speed = 30.0, time_gap = 1.2 }}
+members = [{{ id = "m1", slot = {{ along = 0.0, lanes = 0 }} }},
+           {{ id = "m2", slot = {{ along = -12.0, lanes = 0 }} }}]
+[traffic]
+warmup = 30.0
+[traffic.sections]
+upstream = 100.0
+downstream = 100.0
+[[traffic.flows]]
+id = "main"
+veh_per_hour_per_lane = 900
+"""
+"""A formation flow alone (no top-level formation, no [leader]): two-car columns as the share
+``p`` of traffic flow ``main``."""
+
+
+def test_a_formation_flow_alone_runs_and_inserts(tmp_path):
+    """A scenario of one [[formation_flows]] only: its formations enter (the run's only
+    members, the flow's) and run.json says so."""
+    p = tmp_path / "flow.toml"
+    p.write_text(FLOW.format(duration=12.0, p=0.3))
+    code, text = cli("run", p, "--out", tmp_path / "r", "--no-progress")
+    assert code == 0, text
+    meta = json.loads((tmp_path / "r" / "run.json").read_text())
+    assert meta["formation_flows"]["pen"]["inserted"] >= 1
+    assert all(m["id"].startswith("pen.") for m in meta["members"])
+    traj = pd.read_parquet(tmp_path / "r" / "trajectories.parquet")
+    assert traj.vehicle_id.str.startswith("pen.").any()
+
+
+def test_zero_penetration_run_and_its_twin_give_exactly_zero_effects(tmp_path):
+    """At 0 % the flow inserts no formation: the case analyses (traffic alone) and against
+    its same-demand twin every paired effect is exactly 0 (same vehicles, same seed)."""
+    from formation_traci.sweep.case import run_case
+    from formation_traci.sweep.expand import Case
+    from formation_traci.sweep.row import EFFECT_KEYS
+
+    p = tmp_path / "flow.toml"
+    p.write_text(FLOW.format(duration=20.0, p=0.0))
+    case = Case(index=0, id="c0-s1", seed=1, values={}, overrides={})
+    row = run_case({"case": case.model_dump(mode="json"), "base": str(p), "case_dir": str(tmp_path / "case"),
+                    "log_path": str(tmp_path / "log"), "twin_dir": str(tmp_path / "twin")})
+    assert row["status"] == "completed" and row["twin_status"] == "completed", row
+    assert row["throughput_veh_h"] is not None and row["throughput_veh_h"] > 0
+    assert row["stretch_coverage"] is not None and row["stretch_coverage"] > 0
+    for key in EFFECT_KEYS:
+        assert row[key] == 0.0, key
+
+
+def test_formation_flow_shortfall_is_an_event_a_warning_and_a_summary_column(tmp_path, capsys):
+    """A flow asking for a formation every second on a busy road inserts far fewer: a
+    ``formation_shortfall`` event naming the flow, a warning on stderr and in run.json
+    ``warnings``, and the case's ``formation_shortfall`` = 1 - inserted / requested."""
+    from formation_traci.sweep.case import run_case
+    from formation_traci.sweep.expand import Case
+
+    p = tmp_path / "flow.toml"
+    p.write_text(FLOW.format(duration=10.0, p=0.0).replace("penetration = 0.0\nof_flow = \"main\"",
+                                                           "period_s = 1.0"))
+    case = Case(index=0, id="c0-s1", seed=1, values={}, overrides={})
+    row = run_case({"case": case.model_dump(mode="json"), "base": str(p), "case_dir": str(tmp_path / "case"),
+                    "log_path": str(tmp_path / "log")})
+    err = capsys.readouterr().err
+    meta = json.loads((tmp_path / "case" / "run.json").read_text())
+    c = meta["formation_flows"]["pen"]
+    assert c["requested"] == 10 and c["inserted"] < 0.95 * c["requested"], c
+    msg = f"formation flow 'pen' inserted {c['inserted']} of {c['requested']} formations due"
+    assert any(w.startswith(msg) for w in meta["warnings"]) and f"warning: {msg}" in err
+    ev = pd.read_parquet(tmp_path / "case" / "events.parquet")
+    short = ev[ev.kind == "formation_shortfall"]
+    assert len(short) == 1 and short.iloc[0].vehicle_id == "pen"
+    assert row["formation_shortfall"] == pytest.approx(1.0 - c["inserted"] / c["requested"])

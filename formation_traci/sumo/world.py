@@ -25,7 +25,7 @@ from .sections import plan_sections
 from .sections import sumo_options as section_options
 from .sections import write_tables as write_sections
 from ..sim.incidents import clearance_lookup
-from .demand import measure_plan, traffic_meta
+from .demand import measure_plan, report_formation_shortfall, traffic_meta
 from .join import inside_formation
 from .messages import sumo_outputs_meta
 from .adapter import SumoAdapter
@@ -187,6 +187,8 @@ class SumoWorld(MemberHandover):
             if self.plan.flow_share_of is not None:
                 self.meta["formation_flows"] = flow_counts(self.plan, self.flows_inserted, t_sumo - t0,
                                                            self.adapter.departures, t0)
+                self.meta.setdefault("warnings", []).extend(report_formation_shortfall(
+                    self.meta["formation_flows"], self.rec.add_event, max(t_sumo - t0, 0.0)))
             if hasattr(self, "flows"):
                 from .fcd import true_speeds  # pandas: imported only to end a run
                 traffic_meta(self.meta, self.rec, self.flows, departed, t_sumo, t0, self.measure)

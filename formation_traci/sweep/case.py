@@ -222,8 +222,13 @@ def _no_formation_entered(meta: dict) -> bool:
     """A road run that ended where no formation ever entered the road (its formations depart
     after the run, its formation flows inserted none): no member row, by design."""
     sc = meta.get("scenario") or {}
+    if sc.get("road") is None:
+        return False
+    forms = meta.get("formations")
+    if forms:  # several formations (or one that departs later): each one's entry time
+        return all(f.get("entered_s") is None for f in forms.values())
     flows = meta.get("formation_flows") or {}
-    return (sc.get("road") is not None and float(sc.get("depart") or 0.0) >= float(meta.get("t_end") or 0.0)
+    return (float(sc.get("depart") or 0.0) >= float(meta.get("t_end") or 0.0)
             and not sc.get("formations") and not any(f.get("inserted") for f in flows.values()))
 
 

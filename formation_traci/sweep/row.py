@@ -237,10 +237,16 @@ def traffic_only_values(run_dir: Path, meta: dict) -> dict[str, Any]:
 
 
 def _incidents(meta: dict) -> dict[str, Any]:
-    """run.json ``incidents`` (sim/incidents.py; None for a run recorded without them)."""
+    """run.json ``incidents`` (sim/incidents.py; None for a run recorded without them) and
+    the formation flows' shortfall (``formation_shortfall``: None without formation flows)."""
     inc = meta.get("incidents") or {}
-    return {k: (int(inc[k]) if k in inc else None)
-            for k in ("member_collisions", "member_removed", "stranded", "sumo_collision_artefacts")}
+    out: dict[str, Any] = {k: (int(inc[k]) if k in inc else None)
+                           for k in ("member_collisions", "member_removed", "stranded", "sumo_collision_artefacts")}
+    flows = meta.get("formation_flows") or {}
+    due = sum(int(c.get("requested") or 0) for c in flows.values())
+    out["formation_shortfall"] = (1.0 - sum(int(c.get("inserted") or 0) for c in flows.values()) / due
+                                  if due else (0.0 if flows else None))
+    return out
 
 
 def summary_frame(rows: list[dict], swept: dict[str, str]) -> pd.DataFrame:
