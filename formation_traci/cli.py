@@ -183,7 +183,7 @@ def run(
     typer.echo(f"{res.status}: t_end={res.t_end:.2f} s, steps={res.steps_done}, out={res.out_dir}"
                + (f"\nreason: {res.reason}" if res.reason else "")
                + (f"\nINCIDENTS: {res.incident_summary} (run.json 'incidents', events.parquet)"
-                  if res.incident_summary else ""))
+                  + _first_incidents(res.incidents) if res.incident_summary else ""))
     if res.status == "completed_with_incidents" and strict:
         raise typer.Exit(1)
     if res.status not in ("completed", "completed_with_incidents"):
@@ -268,6 +268,16 @@ def sweep(
                + _twins_failed(res.summary))
     if res.n_failed:
         raise typer.Exit(1)
+
+
+def _first_incidents(incidents: dict) -> str:
+    """The terminal's lines naming the run's first three incidents (who, when, where)."""
+    from .sim.incident_log import describe
+
+    events = (incidents or {}).get("events") or []
+    lines = [f"\n  {describe(ev)}" for ev in events[:3]]
+    more = int((incidents or {}).get("events_total") or len(events)) - len(lines)
+    return "".join(lines) + (f"\n  and {more} more (run.json 'incidents.events')" if more > 0 else "")
 
 
 def _twins_failed(summary) -> str:

@@ -240,6 +240,8 @@ def _finish(meta_path, meta, rec, steps, status, reason, t, k):
     status, summary = verdict(status, incidents)  # completed -> completed_with_incidents
     if meta.get("baseline"):  # no member in the twin: the ghost virtual car's brakes are no incident
         status, summary = ("completed" if status == "completed_with_incidents" else status), None
+    else:  # who, when and where (sim/incident_log.py)
+        incidents.update(rec.incident_log.meta())
     meta.update(status=status, reason=reason, finished=_now(), t_end=float(t),
                 steps_done=int(k), rows_written=rec.traj.rows_on_disk)
     meta["incidents"], meta["incident_summary"] = incidents, summary

@@ -301,3 +301,72 @@ def test_formation_flow_shortfall_is_an_event_a_warning_and_a_summary_column(tmp
     short = ev[ev.kind == "formation_shortfall"]
     assert len(short) == 1 and short.iloc[0].vehicle_id == "pen"
     assert row["formation_shortfall"] == pytest.approx(1.0 - c["inserted"] / c["requested"])
+
+
+# --- incidents that name --------------------------------------------------------------------
+@pytest.mark.skipif(not LUST.is_file(), reason="needs ../shared/realnet beside the checkout")
+def test_incidents_name_who_when_where_in_run_json_terminal_and_report(tmp_path):
+    """The truck overrunning its slot into the cars (TRUCK, unbounded): run.json incidents
+    keeps its counts and lists each collision (kind, t, formation, the member and the other
+    party, edge, lane, s, the clearance), counted per formation; the terminal's last lines
+    name them; the report's first screen has their table; the traffic table's member
+    collisions are the verdict's."""
+    p = tmp_path / "truck.toml"
+    p.write_text(TRUCK.replace("[leader]\n", "[leader]\nbound_by_members = false\n"))
+    out = tmp_path / "r"
+    code, text = cli("run", p, "--out", out, "--no-progress")
+    assert code == 0, text
+    meta = json.loads((out / "run.json").read_text())
+    inc = meta["incidents"]
+    n = inc["member_collisions"]
+    assert n >= 1 and inc["events_total"] == n == len(inc["events"])
+    assert inc["by_formation"] == {"f0": {"member_collisions": n}}
+    ev = pd.read_parquet(out / "events.parquet")
+    hits = ev[ev.kind == "member_collision"].sort_values("t")
+    traj = pd.read_parquet(out / "trajectories.parquet")
+    edges = set(meta["sumo"]["route"])
+    for e, h in zip(inc["events"], hits.itertuples()):
+        assert set(e) == {"kind", "t", "formation_id", "vehicle_id", "other_id", "edge", "lane", "s", "value"}
+        assert (e["kind"], e["vehicle_id"], e["other_id"]) == ("member_collision", h.vehicle_id, h.other_id)
+        assert e["t"] == pytest.approx(h.t, abs=1e-6)
+        assert e["formation_id"] == "f0" and e["edge"] in edges and e["lane"] in (0, 1, 2)
+        assert f"{-e['value']:.2f} m" in h.detail and e["value"] < 0  # the overlap the event states
+        row = traj[(traj.vehicle_id == e["vehicle_id"]) & (traj.t <= e["t"] + 1e-9)].iloc[-1]
+        assert e["s"] == pytest.approx(row.s, abs=1.0)  # where the member was (sensed at the step)
+        assert int(row.lane_index) == e["lane"]
+    tail = text.strip().splitlines()
+    at = next(i for i, line in enumerate(tail) if line.startswith("INCIDENTS:"))
+    named = tail[at + 1:at + 1 + min(n, 3)]
+    assert all(line.startswith("  t = ") for line in named) and all(e["vehicle_id"] in line and e["edge"] in line
+                                           for e, line in zip(inc["events"], named))
+    code, text = cli("analyze", out, "--no-figures")
+    assert code == 0, text
+    html = (out / "report.html").read_text()
+    first = html[:html.index("<h2>Tables</h2>")]
+    assert '<h2 class="bad">Incidents</h2>' in first
+    assert all(e["other_id"] in first and e["edge"] in first for e in inc["events"])
+    tr = json.loads((out / "metrics.json").read_text())["traffic"]["run"]
+    assert tr["n_collisions_member"] == n
+
+
+def test_incident_log_keeps_the_first_hundred_and_counts_per_formation():
+    """The log keeps 100 incidents whole, counts all of them per formation and kind; the
+    report's table shows 10 and says how many more."""
+    from analysis.report.incidents_html import INCIDENT_ROWS, incidents_html
+    from formation_traci.sim.incident_log import MAX_EVENTS, IncidentLog, describe
+
+    log = IncidentLog({"a1": "a", "b1": "b", "vc:a": "a"})
+    log.locate = lambda vid: ("E1", 2, 123.4) if vid != "vc:a" else (None, None, None)
+    for k in range(130):
+        log.add(0.1 * k, "emergency_brake", "vc:a" if k % 2 else "b1", "", 7.0)
+    log.add(20.0, "member_collision", "a1", "car.7", -0.25)
+    m = log.meta()
+    assert m["events_total"] == 131 and len(m["events"]) == MAX_EVENTS == 100
+    assert m["by_formation"] == {"a": {"emergency_brakes": 65, "member_collisions": 1},
+                                 "b": {"emergency_brakes": 65}}
+    assert m["events"][0] == {"kind": "emergency_brake", "t": 0.0, "formation_id": "b", "vehicle_id": "b1",
+                              "other_id": None, "edge": "E1", "lane": 2, "s": 123.4, "value": 7.0}
+    assert describe(m["events"][0]) == ("t = 0.00 s emergency_brake: b1 (formation b, edge E1, lane 2, "
+                                        "s = 123.4 m), braking request 7.00 m/s^2")
+    html = incidents_html({"incidents": {**m}}, lambda h, rows, left=0: f"<table>{len(rows)}</table>")
+    assert f"<table>{INCIDENT_ROWS}</table>" in html and "and 121 more" in html

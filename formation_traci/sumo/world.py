@@ -33,6 +33,7 @@ from ..sim.formation import virtual_car_id
 from .neighbours import NOBODY
 from .flow_inserts import counted_entry, flow_counts, room_for
 from .handover import MemberHandover
+from .member_rows import MemberRows
 from .peers import Peers
 from .sense import NeighbourGuess, PackedLanes, sense_step
 from .types import Neighbours
@@ -47,7 +48,7 @@ _NO_NB = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0))
 """sense_step's neighbour rows when there is no neighbour."""
 
 
-class SumoWorld(MemberHandover):
+class SumoWorld(MemberHandover, MemberRows):
     """The members among SUMO's traffic on the plan's road (see the module docstring)."""
 
     def __init__(self, sc: Scenario, plan: RoadPlan, fleet, rec, out_dir: Path, meta: dict,
@@ -101,6 +102,9 @@ class SumoWorld(MemberHandover):
                                                         for setup, _, _ in plan.formations] or None)
         self.followed = None  # the member sumo-gui's view follows
         self.refusals = RefusalWatch(rec, self.ids, self.sumo_ids)
+        self.lanes_read = (self._every[:0], [])  # (member rows, their SUMO lane ids) of the last read
+        if not baseline:  # where an incident happened (sim/incident_log.py)
+            rec.incident_log.locate = self.locate
         self.mtypes = member_types(sc, plan)
         self.d_front = np.array([mt.d_front for mt in self.mtypes])  # CoG to front bumper [m]
         self.peers = Peers(self.ids, self.sumo_ids, self.mtypes, self.groups) if len(self.groups) > 1 else None
@@ -247,35 +251,6 @@ class SumoWorld(MemberHandover):
                             clearance_lookup(self.rec.incidents, self.ids, self.active,
                                              pos, heading, sensed.nb))
         return sensed
-
-    def _member_rows(self, t):
-        """SUMO's rows of the members for :func:`~.sumo_sense.sense_step` (front bumper,
-        angle, lane position, lateral position, packed lane row; NaN and -1 for members out
-        of the run or no longer in SUMO, who are reported removed), then the recorded lane
-        index and :meth:`MemberWatch.lane_changes`' arguments."""
-        n = len(self.ids)
-        here_now = self.active & self.in_sumo
-        every = here_now.all()
-        idx_act = self._every if every else np.flatnonzero(here_now)
-        front, ang, lanes, lane_idx, lat, lane_pos, present = self.adapter.read_members(
-            self.sumo_ids if every else [self.sumo_ids[i] for i in idx_act])
-        here = present.all()
-        if not here:
-            for j, i in enumerate(idx_act):
-                if not present[j]:
-                    self.members.removed(t, i)
-                    self.active[i] = False
-        li = self.packed_lanes.indices(lanes)
-        if every and here:  # every member in the run and in SUMO (no copies, no masks)
-            return (front, ang, lane_pos, lat, li, lane_idx.astype(float), idx_act, present, lanes,
-                    lane_idx)
-        rows = (np.full((n, 2), np.nan), np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan),
-                np.full(n, -1, dtype=np.int64))
-        for full, part in zip(rows, (front, ang, lane_pos, lat, li)):
-            full[idx_act] = part
-        lane_index = np.full(n, np.nan)
-        lane_index[idx_act] = np.where(present, lane_idx, np.nan)
-        return (*rows, lane_index, idx_act, present, lanes, lane_idx)
 
     def observe(self, t: float, sensed: Sensed, ref) -> None:
         info = ref.info

@@ -207,8 +207,7 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     progress : bool
         Show a progress bar (cases done, failed, remaining).
     baseline : bool or str
-        Also run each case's twin (``"same"`` or True: the same demand, the members driven by
-        SUMO; ``"absent"``: no formation vehicle; docs/metrics.md, "The twins") into ``twins/<id>/``, analyse the case
+        Also run each case's twin (formation_traci/twins.py: ``"same"`` or True, ``"absent"``) into ``twins/<id>/``, analyse the case
         against it (the paired ``fx_*`` summary columns) and write ``effects.csv``.
     sets : dict, optional
         Dotted path -> value set in every case (the command line's ``--set``), checked
