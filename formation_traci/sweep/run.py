@@ -207,11 +207,10 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
     progress : bool
         Show a progress bar (cases done, failed, remaining).
     baseline : bool or str
-        Also run each case's twin (formation_traci/twins.py: ``"same"`` or True, ``"absent"``) into ``twins/<id>/``, analyse the case
+        Also run each case's twin (``"same"``/True, ``"absent"``; default the sweep file's) into ``twins/<id>/``, analyse the case
         against it (the paired ``fx_*`` summary columns) and write ``effects.csv``.
     sets : dict, optional
-        Dotted path -> value set in every case (the command line's ``--set``), checked
-        against the base scenario before anything is created.
+        Dotted path -> value set in every case (``--set``), checked before anything is created.
     shared_warmup : bool
         Cases and twins of a warm-up key start from its SUMO state in ``warmups/`` (docs/sweeps.md).
 
@@ -230,6 +229,7 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         On Ctrl-C or SIGTERM, after the running cases stopped and the summary was written.
     """
     sweep = load_sweep(sweep_path, sets)
+    baseline = baseline or sweep.spec.baseline or False  # the sweep file's twin unless given
     out = _make_sweep_dir(Path(out_dir))
     with raising_signals(), _lock(out):  # SIGTERM stops the cases like Ctrl-C
         specs = [case_spec(sweep, i, out, baseline, shared_warmup) for i in range(len(sweep.cases))]
