@@ -370,3 +370,22 @@ def test_incident_log_keeps_the_first_hundred_and_counts_per_formation():
                                         "s = 123.4 m), braking request 7.00 m/s^2")
     html = incidents_html({"incidents": {**m}}, lambda h, rows, left=0: f"<table>{len(rows)}</table>")
     assert f"<table>{INCIDENT_ROWS}</table>" in html and "and 121 more" in html
+
+
+def test_a_run_no_formation_entered_analyses_traffic_alone(tmp_path):
+    """`analyze` on a run whose formation flow inserted nothing (0 %): exit 0, metrics.json
+    with the traffic's section measures and the formation metrics marked absent, a report
+    that says so; with its twin (`--baseline`) the paired comparison, exactly 0."""
+    p = tmp_path / "flow.toml"
+    p.write_text(FLOW.format(duration=12.0, p=0.0))
+    for name, extra in (("r", []), ("t", ["--baseline"])):
+        code, text = cli("run", p, "--out", tmp_path / name, "--no-progress", *extra)
+        assert code == 0, text
+    code, text = cli("analyze", tmp_path / "r", "--baseline", tmp_path / "t")
+    assert code == 0, text
+    doc = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert doc["run"]["formations_entered"] == 0 and "absent" in doc["run"]["formation_metrics"]
+    assert doc["members"] == [] and doc["traffic"]["run"]["throughput_veh_h"] > 0
+    assert doc["traffic"]["run"]["twin_delay_total_s"] == 0.0 and doc["traffic"]["run"]["matched_share"] == 1.0
+    page = (tmp_path / "r" / "report.html").read_text()
+    assert "no formation entered the road" in page and "throughput_veh_h" in page

@@ -19,7 +19,7 @@ from pydantic import BaseModel, ConfigDict
 
 from ..record.rundir import RUN_FINISHED, DirLock, clear_run
 from .expand import Case
-from .row import empty_row, metric_values, section_twin_values, traffic_only_values, twin_values
+from .row import empty_row, metric_values, traffic_only_values, twin_values
 
 CASE_JSON = "case.json"
 """Per-case record in the case directory: ``{"spec": ..., "row": ...}``."""
@@ -198,38 +198,22 @@ def twin_main(spec_json: str) -> int:
 def _analyse(run_dir: Path, row: dict, twin: Path | None = None) -> dict[str, Any]:
     from analysis.api import analyze_run
     from analysis.load.run_data import NoTrajectoryData
+    from analysis.runs.traffic_only import no_formation_entered
 
     try:
         a = analyze_run(run_dir, figures=False, baseline=twin)
     except NoTrajectoryData as exc:
         if row["status"] not in RUN_FINISHED:
             return {}
-        meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-        if _no_formation_entered(meta):  # e.g. a penetration study's 0 %: traffic alone
-            out = traffic_only_values(run_dir, meta)
-            if twin is not None:
-                out.update(twin_values(section_twin_values(run_dir, meta, twin)))
-            return out
         return {"status": "failed", "reason": f"analysis: {exc}"}
     meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-    out = metric_values(run_dir, a.members, meta, _formations(run_dir))
+    if no_formation_entered(meta) and a.members.empty:  # e.g. a penetration study's 0 %: traffic alone
+        out = traffic_only_values(run_dir, meta)
+    else:
+        out = metric_values(run_dir, a.members, meta, _formations(run_dir))
     if twin is not None:
         out.update(twin_values(_traffic_run(run_dir)))
     return out
-
-
-def _no_formation_entered(meta: dict) -> bool:
-    """A road run that ended where no formation ever entered the road (its formations depart
-    after the run, its formation flows inserted none): no member row, by design."""
-    sc = meta.get("scenario") or {}
-    if sc.get("road") is None:
-        return False
-    forms = meta.get("formations")
-    if forms:  # several formations (or one that departs later): each one's entry time
-        return all(f.get("entered_s") is None for f in forms.values())
-    flows = meta.get("formation_flows") or {}
-    return (float(sc.get("depart") or 0.0) >= float(meta.get("t_end") or 0.0)
-            and not sc.get("formations") and not any(f.get("inserted") for f in flows.values()))
 
 
 def _formations(run_dir: Path) -> list:

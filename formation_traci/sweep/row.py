@@ -125,38 +125,6 @@ def twin_values(traffic_run: dict) -> dict[str, Any]:
     return {k: (None if v is None else float(v)) for k, v in out.items()}
 
 
-def section_twin_values(run_dir: Path, meta: dict, twin_dir: Path) -> dict[str, Any]:
-    """The comparison with the twin at the sections of a run no formation entered (no
-    analysis of members to carry it): ``traffic.run``'s twin keys, as the analysis computes
-    them (analysis/runs/twin_sections.py); {} when either run has no sections.
-
-    Parameters
-    ----------
-    run_dir : Path
-        The run's directory.
-    meta : dict
-        Its ``run.json``.
-    twin_dir : Path
-        Its twin's directory.
-
-    Returns
-    -------
-    dict
-        Key -> value (:data:`~analysis.runs.twin_sections.TWIN_METRICS`).
-    """
-    import json
-
-    from analysis.metrics.traffic import SSM_TTC_WARNING_S
-    from analysis.runs.twin_sections import read_sections, twin_comparison
-
-    twin_meta = json.loads((twin_dir / "run.json").read_text(encoding="utf-8"))
-    a, b = read_sections(run_dir, meta), read_sections(twin_dir, twin_meta)
-    secs = (meta.get("sections") or {}).get("sections")
-    if a is None or b is None or not secs:
-        return {}
-    return twin_comparison(a, b, secs, SSM_TTC_WARNING_S)[0]
-
-
 def metric_values(run_dir: Path, members: pd.DataFrame, meta: dict,
                   formations=()) -> dict[str, Any]:
     """The :data:`METRICS` of one analysed run.
