@@ -136,6 +136,8 @@ def test_same_demand_twin_inserts_the_runs_vehicles(tmp_path):
         assert a.t == b.t and int(a.lane_index) == int(b.lane_index), vid
         assert b.s == pytest.approx(a.s, abs=0.05)  # the same place (front-bumper vs CoG read-back)
         assert b.type.split("@")[0] == "member_passenger_car"  # the members' vType (its own copy: vehicle class)
+        body = next(m["body"] for m in meta["run"]["members"] if m["id"] == vid)
+        assert (b.length, b.width) == pytest.approx((body["length"], body["width"]))  # the member's body
     # SUMO drives them afterwards: they keep moving at about the set speed
     last = bg_same[bg_same.vehicle_id.isin(ids)].sort_values("t").groupby("vehicle_id").tail(1)
     assert (last.t > first_twin.t.max() + 2.0).all() and (last.v > 20.0).all()
