@@ -89,6 +89,7 @@ def test_sweep_names_the_twins_that_failed(tmp_path):
     assert (df.twin_status == "failed").all()
     assert df.twin_reason.str.contains("needs a road scenario").all()
     assert df.fx_delay_total_s.isna().all()
+    assert json.loads((out / "sweep.json").read_text())["counts"]["twins_failed"] == 2
     last = text.strip().splitlines()[-1]
     assert last.startswith("TWINS FAILED: 2:") and all(c in last for c in df.case_id), text
     eff = pd.read_csv(out / "effects.csv")

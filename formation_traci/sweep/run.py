@@ -325,7 +325,9 @@ def _finish_meta(meta: dict, df: pd.DataFrame, interrupted: bool | str | None, n
     meta["counts"].update(run=n_run, pending=n_cases - len(df),
                           **{s: int((df["status"] == s).sum())
                              for s in ("completed", "completed_with_incidents", "failed",
-                                       "interrupted")})
+                                       "interrupted")},
+                          twins_failed=int((df["twin_status"].notna()
+                                            & ~df["twin_status"].isin(RUN_FINISHED)).sum()))
 
 
 class _RowSink:
