@@ -131,10 +131,10 @@ def _run_twin(sc, spec: CaseSpec, row: dict, status: str) -> Path | None:
         row.update(twin_status="not run", twin_reason="the case was interrupted")
         return None
     twin = Path(spec.twin_dir)
-    if twin.exists():
-        with DirLock(twin):
-            clear_run(twin)
     try:
+        if twin.exists():
+            with DirLock(twin):
+                clear_run(twin)
         if _shared_warmup(Path(spec.case_dir)):  # SUMO's state loads as in a fresh process only
             t_status, reason = _twin_process(spec)
         else:
@@ -146,6 +146,8 @@ def _run_twin(sc, spec: CaseSpec, row: dict, status: str) -> Path | None:
     except Exception as exc:  # the twin's failure is the twin's, recorded with the case
         t_status, reason = "failed", f"{type(exc).__name__}: {exc}"
     row.update(twin_status=t_status, twin_reason=reason)
+    if t_status == "interrupted":  # the sweep is stopping: the case runs again on a rerun
+        row.update(status="interrupted", reason=f"its twin was interrupted: {reason}")
     return twin if t_status in RUN_FINISHED else None
 
 
