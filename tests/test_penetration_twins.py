@@ -100,6 +100,10 @@ def test_sweep_names_the_twins_that_failed(tmp_path):
 
     page = analyze_sweep(out).files["report_html"].read_text()
     assert "Twins that did not reach their end (2)" in page and all(c in page for c in df.case_id)
+    # the same command again: the sweep's directory (its twins/, effects.csv, means.csv) is its
+    # own, and the cases whose twin failed run again
+    code, text = cli("sweep", sweep, "--out", out, "--no-progress", "--workers", "2", "--baseline")
+    assert code == 0 and "2 run now, 0 done before" in text and "TWINS FAILED: 2" in text, text
 
 
 def _first_rows(df: pd.DataFrame, ids) -> pd.DataFrame:

@@ -60,7 +60,8 @@ def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
-SWEEP_FILES = frozenset({SWEEP_JSON, SUMMARY, CASES_DIR, LOGS_DIR, LOCK_FILE, WARMUPS_DIR, "sweep_report.html",
+SWEEP_FILES = frozenset({SWEEP_JSON, SUMMARY, CASES_DIR, LOGS_DIR, LOCK_FILE, WARMUPS_DIR, TWINS_DIR,
+                         EFFECTS_CSV, MEANS_CSV, "sweep_report.html",
                          "sweep_stats.csv", "sweep_figures"})
 """Names a sweep (and ``analyze-sweep``) writes at the top of its directory."""
 
@@ -162,7 +163,8 @@ def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
         run_ok = json.loads((d / "run.json").read_text(encoding="utf-8")).get("status") in RUN_FINISHED
     except (OSError, ValueError):
         run_ok = False
-    return row, bool(run_ok and row.get("status") in RUN_FINISHED)
+    twin_ok = spec.twin_dir is None or row.get("twin_status") in RUN_FINISHED  # a failed twin: again
+    return row, bool(run_ok and row.get("status") in RUN_FINISHED and twin_ok)
 
 
 def _versions() -> dict[str, str]:
