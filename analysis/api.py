@@ -19,6 +19,7 @@ from analysis.load.run_data import Issue, NoTrajectoryData, load_formations, loa
 from analysis.metrics.platoon import COMPARE_ROWS, compare_value
 from analysis.report.metrics_doc import SCHEMA, issues_frame, jsonable, metrics_doc
 from analysis.runs.fleet import compute_formations
+from analysis.runs.traffic_only import no_formation_entered, traffic_only_doc
 from analysis.runs.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN_METRICS,
                                    AnalysisSettings, RunAnalysis, compute_run, settings_dict)
 from analysis.runs.traffic_run import TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS, load_baseline
@@ -124,7 +125,13 @@ def analyze_run(run_dir: str | Path, out_dir: str | Path | None = None, *,
 def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures: bool,
                   baseline: str | Path | None) -> AnalysisResult:
     base = load_baseline(baseline) if baseline is not None else None
-    a = compute_formations(load_formations(run_dir), settings, baseline=base)
+    try:
+        a = compute_formations(load_formations(run_dir), settings, baseline=base)
+    except NoTrajectoryData:
+        meta = _run_json(run_dir)
+        if not no_formation_entered(meta):
+            raise
+        return _traffic_only_into(run_dir, out, meta, baseline)
     files: dict[str, Path] = {}
     fig_paths: dict[str, Path] = {}
     fig_errors: dict[str, str] = {}
@@ -173,6 +180,34 @@ def _analyze_into(run_dir: Path, out: Path, settings: AnalysisSettings, figures:
                           files=files,
                           traffic=jsonable(a.traffic.run) if a.traffic is not None else None,
                           baseline=base_tab)
+
+
+def _run_json(run_dir: Path) -> dict:
+    try:
+        return json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+
+
+def _traffic_only_into(run_dir: Path, out: Path, meta: dict,
+                       baseline: str | Path | None) -> AnalysisResult:
+    """A road run no formation entered: the traffic's metrics, the formation's marked absent
+    (analysis/runs/traffic_only.py)."""
+    from analysis.report.traffic_only_report import traffic_only_report
+
+    doc = jsonable(traffic_only_doc(run_dir, meta, None if baseline is None else Path(baseline)))
+    files = {"metrics_json": out / METRICS_JSON, "metrics_csv": out / METRICS_CSV,
+             "report_html": out / REPORT_HTML}
+    atomic_write_text(files["metrics_json"], json.dumps(doc, indent=2, allow_nan=False))
+    atomic_write_text(files["metrics_csv"], "id\n")
+    for stale in (COMM_AGE_CSV, TWIN_CSV, BASELINE_CSV):
+        (out / stale).unlink(missing_ok=True)
+    atomic_write_text(files["report_html"], traffic_only_report(run_dir.name, doc))
+    issues = [Issue(i["severity"], i["kind"], i["what"], i["detail"]) for i in doc["issues"]]
+    return AnalysisResult(run_dir=run_dir, out_dir=out, run=doc["run"],
+                          members=pd.DataFrame(index=pd.Index([], name="id")),
+                          string_stability=pd.DataFrame(), issues=issues_frame(issues), files=files,
+                          traffic=doc["traffic"]["run"])
 
 
 def _labels(run_dirs: Sequence[Path]) -> list[str]:

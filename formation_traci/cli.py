@@ -21,10 +21,31 @@ from pathlib import Path  # noqa: E402
 from typing import Optional  # noqa: E402
 
 import typer  # noqa: E402
+import typer.core  # noqa: E402
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Formation control experiments: run scenarios, analyse recordings.")
 _DEBUG = {"on": False}
+
+
+from .twins import TWIN_MODES  # noqa: E402
+
+
+def _twin_mode_args(args: list[str]) -> list[str]:
+    """A bare ``--baseline`` (not followed by a mode) means ``--baseline same``."""
+    out = []
+    for i, a in enumerate(args):
+        out.append(a)
+        if a == "--baseline" and (i + 1 == len(args) or args[i + 1] not in TWIN_MODES):
+            out.append(TWIN_MODES[0])
+    return out
+
+
+class _TwinModeCommand(typer.core.TyperCommand):
+    """A command whose ``--baseline`` takes an optional mode."""
+
+    def parse_args(self, ctx, args):
+        return super().parse_args(ctx, _twin_mode_args(list(args)))
 
 
 def _print_version(value: bool) -> None:
@@ -160,7 +181,7 @@ def _refuse_new_road(sets: dict, scenario: Path) -> None:
                                                       "its fields, it does not make it a road scenario") for k in road])
 
 
-@app.command()
+@app.command(cls=_TwinModeCommand)
 def run(
     scenario: Path = typer.Argument(..., help="scenario TOML file"),
     out: str = typer.Option(..., "--out", "-o", help="run directory to create", callback=_nonempty),
@@ -169,7 +190,7 @@ def run(
     model: Optional[str] = typer.Option(None, help="override vehicle.model: dynamic | kinematic"),
     force: bool = typer.Option(False, "--force", help="replace an existing run directory"),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="show a progress bar"),
-    baseline: bool = typer.Option(False, "--baseline", help="road scenarios: the twin run with the same traffic and seed but no formation"),
+    baseline: Optional[str] = typer.Option(None, "--baseline", metavar="[same|absent]", help="road scenarios: run the twin instead (same traffic and seed): 'same' (the default) the same demand, each member a SUMO-driven vehicle of its type entering where it would; 'absent' without the formation's vehicles (docs/metrics.md, 'The twins')"),
     gui: bool = typer.Option(False, "--gui", help="road scenarios: watch in sumo-gui (traci backend; the view follows the formation)"),
     sets: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP),
     warm_cache: Optional[str] = typer.Option(None, "--warm-cache", metavar="DIR", callback=_nonempty, help="road scenarios: start from the shared warm-up of this scenario's traffic in DIR, simulated once and saved there by the first run (docs/sweeps.md, 'The shared warm-up')"),
@@ -199,7 +220,7 @@ def run(
     typer.echo(f"{res.status}: t_end={res.t_end:.2f} s, steps={res.steps_done}, out={res.out_dir}"
                + (f"\nreason: {res.reason}" if res.reason else "")
                + (f"\nINCIDENTS: {res.incident_summary} (run.json 'incidents', events.parquet)"
-                  if res.incident_summary else ""))
+                  + _first_incidents(res.incidents) if res.incident_summary else ""))
     if res.status == "completed_with_incidents" and strict:
         raise typer.Exit(1)
     if res.status not in ("completed", "completed_with_incidents"):
@@ -253,7 +274,7 @@ def compare(
         typer.echo(f"{name}: {path}")
 
 
-@app.command()
+@app.command(cls=_TwinModeCommand)
 def sweep(
     sweep_file: Path = typer.Argument(..., help="sweep TOML file (docs/sweeps.md)"),
     out: str = typer.Option(..., "--out", "-o", help="study directory (summary.parquet, cases/)",
@@ -261,7 +282,7 @@ def sweep(
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler tcp://HOST:PORT or scheduler file"),
     workers: Optional[int] = typer.Option(None, "--workers", min=1, help="local cases at once (default: cores)"),
     progress: bool = typer.Option(True, "--progress/--no-progress"),
-    baseline: bool = typer.Option(False, "--baseline", help="run each case's twin too (same traffic and seed, no formation) and summarise formation minus twin"),
+    baseline: Optional[str] = typer.Option(None, "--baseline", metavar="[same|absent]", help="run each case's twin too (same traffic and seed; 'same', the default: the same demand with each member a SUMO-driven vehicle of its type; 'absent': without the formation's vehicles) and summarise formation minus twin"),
     sets: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP + "; set in every case"),
     shared_warmup: bool = typer.Option(False, "--shared-warmup/--no-shared-warmup", help="opt-in: road cases (and twins) with the same traffic, seed and SUMO set-up start from one saved SUMO state of their warm-up (DIR/warmups; docs/sweeps.md, 'The shared warm-up'); --no-shared-warmup: each case simulates its own"),
 ) -> None:
@@ -283,9 +304,38 @@ def sweep(
     typer.echo(f"{res.n_cases} cases: {res.n_completed} completed, {res.n_failed} not completed "
                f"({res.n_run} run now, {res.n_skipped} done before); summary: {res.files['summary']}"
                + (f"\nINCIDENTS: {n_inc} of the completed cases completed with incidents (summary "
-                  "columns member_collisions, member_removed, emergency_brakes, stranded)" if n_inc else ""))
+                  "columns member_collisions, member_removed, emergency_brakes, stranded)" if n_inc else "")
+               + _twins_failed(res.summary))
     if res.n_failed:
         raise typer.Exit(1)
+
+
+def _first_incidents(incidents: dict) -> str:
+    """The terminal's lines naming the run's first three incidents (who, when, where)."""
+    from .sim.incident_log import describe
+
+    events = (incidents or {}).get("events") or []
+    lines = [f"\n  {describe(ev)}" for ev in events[:3]]
+    more = int((incidents or {}).get("events_total") or len(events)) - len(lines)
+    return "".join(lines) + (f"\n  and {more} more (run.json 'incidents.events')" if more > 0 else "")
+
+
+def _twins_failed(summary) -> str:
+    """The terminal's line naming the twins that did not reach their end ('' if none)."""
+    if "twin_status" not in summary or not len(summary):
+        return ""
+    bad = summary[summary["twin_status"].notna()
+                  & ~summary["twin_status"].isin(["completed", "completed_with_incidents"])]
+    if not len(bad):
+        return ""
+    def why(reason) -> str:
+        lines = str(reason or "").strip().splitlines()
+        return lines[-1].strip()[:160] if lines else ""
+
+    named = ", ".join(f"{r.case_id} ({r.twin_status}: {why(r.twin_reason)})" for r in bad.head(3).itertuples())
+    more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
+    return (f"\nTWINS FAILED: {len(bad)}: {named}{more}; their cases have no paired effects "
+            "(summary columns twin_status, twin_reason)")
 
 
 @app.command("analyze-sweep")

@@ -27,6 +27,7 @@ from .sim.formation import virtual_car_id
 from .sim.incidents import Incidents, verdict
 from .sim.loop import ModelRangeError, check_finite, free_space_run, step_loop  # noqa: F401
 from .sim.recorder import Recorder
+from .twins import twin_mode
 from .sim.setup import member_vehicles, road_mu, with_comm
 from .versions import installed_versions, platform_name
 
@@ -96,7 +97,7 @@ def run_meta(sc: Scenario, scenario_path: str | None) -> dict:
 
 
 def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | None = None,
-                 force: bool = False, progress: bool = True, baseline: bool = False,
+                 force: bool = False, progress: bool = True, baseline: bool | str = False,
                  step_hook=None, transforms=(), warm_cache: str | Path | None = None) -> RunResult:
     """Run ``sc`` (free space, or on a SUMO road when it has a [road]) and record it.
 
@@ -106,7 +107,9 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
     all rows on disk are kept and described (``run.json["tables"]``). SIGINT/SIGTERM at any
     moment give ``interrupted``. ``scenario_path`` resolves relative paths in the scenario
     (the network file). ``baseline`` (road scenarios): the twin run with the same traffic and
-    seed but without the formation. ``step_hook(k, t, adapter)`` is called after every SUMO
+    seed (docs/metrics.md, "The twins"): ``"same"`` (or True) the same demand, every member a
+    SUMO vehicle of its type entering when and where it would; ``"absent"`` without the
+    formation's vehicles. ``step_hook(k, t, adapter)`` is called after every SUMO
     step (fault injection, extensions). ``transforms``: callables Reference -> Reference
     applied to every step's reference in order (maneuvers, communication channels;
     docs/architecture.md). ``warm_cache`` (road scenarios): a directory of shared warm-ups
@@ -117,6 +120,7 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
     Interrupted if a signal arrives before the run directory exists. ``out_dir`` is locked
     for the whole run (record/rundir.py); ``force`` replaces only a previous run.
     """
+    baseline = twin_mode(baseline, scenario_path)
     if baseline and sc.road is None:
         raise ScenarioError(scenario_path or "<scenario>", [("road", "--baseline needs a road scenario")])
     src = None if scenario_path is None else Path(scenario_path)
@@ -152,7 +156,9 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
     meta = run_meta(sc, None if src is None else str(src))
     if shown is not None and shown is not sc:
         meta["scenario"] = shown.model_dump(mode="json")
-    meta["baseline"] = baseline
+    meta["baseline"] = bool(baseline)
+    if baseline:
+        meta["baseline_mode"] = baseline
     if warm_cache is not None and sc.road is not None:
         from .sumo.warm_state import not_shareable
         meta["warm_state"] = {"cache": str(Path(warm_cache).resolve()), "shared": False,
@@ -237,6 +243,8 @@ def _finish(meta_path, meta, rec, steps, status, reason, t, k):
     status, summary = verdict(status, incidents)  # completed -> completed_with_incidents
     if meta.get("baseline"):  # no member in the twin: the ghost virtual car's brakes are no incident
         status, summary = ("completed" if status == "completed_with_incidents" else status), None
+    else:  # who, when and where (sim/incident_log.py)
+        incidents.update(rec.incident_log.meta())
     meta.update(status=status, reason=reason, finished=_now(), t_end=float(t),
                 steps_done=int(k), rows_written=rec.traj.rows_on_disk)
     meta["incidents"], meta["incident_summary"] = incidents, summary

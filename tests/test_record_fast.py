@@ -193,7 +193,7 @@ class Events:
     def __init__(self):
         self.rows = []
 
-    def add_event(self, *row):
+    def add_event(self, *row, value=None):  # value: an incident's (sim/incident_log.py)
         self.rows.append(row)
 
 

@@ -58,10 +58,10 @@ def test_bad_scenarios_name_file_field_and_expectation(tmp_path, edit, field, ex
 
 def test_missing_members_and_missing_leader(tmp_path):
     text = GOOD.split("[[members]]")[0]
-    probs, _ = problems(tmp_path, text)
-    assert ("members", "required field is missing") in probs
-    probs, _ = problems(tmp_path, "members = []\n" + text)
-    assert any(f == "members" and "at least 1" in m for f, m in probs)
+    for doc in (text, "members = []\n" + text):  # no formation at all (none in [[formations]] either)
+        probs, _ = problems(tmp_path, doc)
+        assert any("members: at least one member, unless [[formations]] or [[formation_flows]]" in m
+                   for _, m in probs), probs
     probs, _ = problems(tmp_path, GOOD.replace("[leader]\nspeed = 20.0", ""))
     assert ("leader", "required field is missing") in probs
 

@@ -232,14 +232,16 @@ def test_fcd_on_the_formation_clock_and_centre_of_gravity(tmp_path):
 
 
 def test_baseline_twin_has_the_same_traffic_without_the_formation(tmp_path):
-    """`--baseline`: same scenario and seed, no member enters SUMO, every vehicle recorded; the
-    vehicles that departed are the same ones as in the formation run (seeded departures)."""
+    """`--baseline absent`: same scenario and seed, no member enters SUMO, every vehicle
+    recorded; the vehicles that departed are the same ones as in the formation run (seeded
+    departures)."""
     path = ROOT / "scenarios" / "highway" / "straight_3lane_medium.toml"
     kw = {"run.duration": 8.0, "traffic.warmup": 20.0}
     sc = load_scenario(path, **kw)
-    run_scenario(sc, tmp_path / "twin", scenario_path=path, progress=False, baseline=True)
+    run_scenario(sc, tmp_path / "twin", scenario_path=path, progress=False, baseline="absent")
     meta = json.loads((tmp_path / "twin" / "run.json").read_text())
     assert meta["baseline"] is True and meta["status"] == "completed"
+    assert not {"right", "centre", "left"} & set(pd.read_parquet(tmp_path / "twin" / "background.parquet").vehicle_id)
     traj = pd.read_parquet(tmp_path / "twin" / "trajectories.parquet")
     assert set(traj.vehicle_id) == {"vc"}
     twin_bg = pd.read_parquet(tmp_path / "twin" / "background.parquet")

@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from formation_traci.record.rundir import RUN_FINISHED
+
 from .sweep_metrics import EFFECT_KEYS
 
 EFFECT_COLUMNS = ("metric", "mean", "se", "ci95_lo", "ci95_hi", "n_seeds", "distinguishable", "note")
@@ -27,11 +29,13 @@ def t_quantile_975(dof: int) -> float:
 
 
 def paired_effects(summary: pd.DataFrame, axes: list[str], metrics=EFFECT_KEYS,
-                   statuses=("completed",)) -> pd.DataFrame:
-    """Per combination of ``axes`` values and per paired metric: mean over the completed
-    seeds, standard error ``s / sqrt(n)`` (``s`` with ddof 1), the 95 % interval
-    ``mean -+ t(0.975, n - 1) * se``, ``n_seeds``, ``distinguishable`` (the interval excludes
-    0) and a ``note`` (``no confidence interval`` with one seed, ``no value`` with none).
+                   statuses=RUN_FINISHED) -> pd.DataFrame:
+    """Per combination of ``axes`` values and per paired metric: mean over the seeds whose
+    run reached its end (also with incidents) and has a value, standard error ``s / sqrt(n)``
+    (``s`` with ddof 1), the 95 % interval ``mean -+ t(0.975, n - 1) * se``, ``n_seeds``,
+    ``distinguishable`` (the interval excludes 0) and a ``note``: ``no confidence interval``
+    with one seed, ``no value`` with none, and ``over n of m seeds`` naming each case left
+    out and why (its status, its twin's status) whenever a seed of the grid point is missing.
 
     Parameters
     ----------
@@ -50,14 +54,15 @@ def paired_effects(summary: pd.DataFrame, axes: list[str], metrics=EFFECT_KEYS,
     DataFrame
         Columns: the axes, then :data:`EFFECT_COLUMNS`.
     """
-    df = summary[summary["status"].isin(statuses)]
-    groups = df.groupby(axes, sort=True, dropna=False) if axes else [((), df)]
+    groups = summary.groupby(axes, sort=True, dropna=False) if axes else [((), summary)]
     rows = []
-    for key, g in groups:
+    for key, g_all in groups:
         key = key if isinstance(key, tuple) else (key,)
+        g = g_all[g_all["status"].isin(statuses)]
         for metric in metrics:
             x = pd.to_numeric(g[metric], errors="coerce").to_numpy(float) if metric in g else np.array([])
-            x = x[np.isfinite(x)]
+            ok = np.isfinite(x)
+            x = x[ok]
             n = int(x.size)
             row = dict(zip(axes, key), metric=metric, mean=float(x.mean()) if n else math.nan,
                        se=math.nan, ci95_lo=math.nan, ci95_hi=math.nan, n_seeds=n,
@@ -69,10 +74,24 @@ def paired_effects(summary: pd.DataFrame, axes: list[str], metrics=EFFECT_KEYS,
                            distinguishable=bool(row["mean"] - half > 0 or row["mean"] + half < 0))
             else:
                 row["note"] = "no confidence interval" if n == 1 else "no value"
+            if n < len(g_all):
+                used = set(g["case_id"][ok]) if metric in g else set()
+                row["note"] = "; ".join(p for p in (row["note"], _left_out(g_all, used)) if p)
             rows.append(row)
     out = pd.DataFrame(rows, columns=[*axes, *EFFECT_COLUMNS])
     out["distinguishable"] = out["distinguishable"].astype("boolean")
     return out
+
+
+def _left_out(cases: pd.DataFrame, used: set) -> str:
+    """``over n of m seeds`` and, for each case of ``cases`` not in ``used``, why."""
+    out = []
+    for _, r in cases[~cases["case_id"].isin(used)].iterrows():
+        twin = r.get("twin_status")
+        why = (f"twin {twin}" if isinstance(twin, str) and twin not in RUN_FINISHED
+               else f"{r['status']}" if r["status"] not in RUN_FINISHED else "no value")
+        out.append(f"{r['case_id']} ({why})")
+    return f"over {len(used)} of {len(cases)} seeds, without " + ", ".join(out)
 
 
 def write_effects(summary: pd.DataFrame, axes: list[str], path: Path) -> pd.DataFrame:

@@ -44,8 +44,10 @@ def _share(members: pd.DataFrame, col: str, inside: bool) -> tuple[str, float] |
     return str(mid), float(share[mid])
 
 
-def verdicts(members: pd.DataFrame, run: dict, issues) -> list[tuple[str, bool | None]]:
-    """The summary lines of one run (see the module docstring)."""
+def verdicts(members: pd.DataFrame, run: dict, issues, fleet: dict | None = None) -> list[tuple[str, bool | None]]:
+    """The summary lines of one run (see the module docstring); ``fleet`` (several
+    formations: analysis/runs/fleet.py fleet_aggregate): the formation-level lines give the
+    worst over the formations and name it."""
     out: list[tuple[str, bool | None]] = [incident_headline(run)]
     s = _share(members, "t_lat_comfortable_s", inside=True)
     if s:
@@ -77,9 +79,12 @@ def verdicts(members: pd.DataFrame, run: dict, issues) -> list[tuple[str, bool |
         if w:
             out.append((f"{what} exceeded for {w[1]:.2f} s (worst member: {w[0]})", w[1] == 0.0))
     out.append(_error_headline(members))
-    shape = to_float(run.get("shape_error_max_m"))
-    if math.isfinite(shape):
-        out.append((f"shape error (members relative to each other) at most {shape:.3g} m", None))
+    if fleet is not None:
+        out.append(fleet_headline(fleet))
+    else:
+        shape = to_float(run.get("shape_error_max_m"))
+        if math.isfinite(shape):
+            out.append((f"shape error (members relative to each other) at most {shape:.3g} m", None))
     n_err = sum((i["severity"] if isinstance(i, dict) else i.severity) == "error" for i in issues)
     out.append((describe_issues(issues), n_err == 0))
     return out
@@ -106,6 +111,30 @@ def incident_headline(run: dict) -> tuple[str, bool | None]:
         return ("INCIDENTS: " + ", ".join(bad) + " (events.parquet)" + tail, False)
     return ("no safety incident: no member collision, removal, emergency brake or stranded "
             "member" + tail, True)
+
+
+FLEET_HEADLINE = ("shape_error_max_m", "shape_error_rms_m", "shape_error_final_m", "string_stable",
+                  "string_amplification", "energy_kwh_per_100km", "energy_saving_vs_alone")
+"""Formation-level metrics the summary gives as their worst over the formations."""
+
+
+def fleet_headline(fleet: dict) -> tuple[str, bool | None]:
+    """Several formations: each formation-level metric's worst over the formations, named."""
+    from analysis.runs.fleet import FORMATION_METRICS
+
+    worst, which = fleet.get("worst") or {}, fleet.get("worst_formation") or {}
+    parts = []
+    for k in FLEET_HEADLINE:
+        v = worst.get(k)
+        if v is None or (isinstance(v, float) and not math.isfinite(v)):
+            continue
+        unit = FORMATION_METRICS.get(k, "-")
+        shown = (f"{v:.3g}" if isinstance(v, float) else str(v)) + ("" if unit == "-" else f" {unit}")
+        parts.append(f"{k} {shown} ({which.get(k)})")
+    n = fleet.get("n_formations")
+    if not parts:
+        return (f"formation-level metrics of the {n} formations: not computed", None)
+    return (f"worst over the {n} formations (formation in brackets): " + ", ".join(parts), None)
 
 
 def _error_headline(members: pd.DataFrame) -> tuple[str, bool | None]:

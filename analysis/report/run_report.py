@@ -16,6 +16,7 @@ from typing import Any
 import pandas as pd
 
 from analysis.load.run_data import Issue
+from analysis.report.incidents_html import incidents_html
 from analysis.runs.summary import FORMATION_MEMBER_METRICS, RUN_METRICS, RunAnalysis
 from analysis.runs.traffic_run import TRAFFIC_MEMBER_METRICS, TRAFFIC_RUN_METRICS
 
@@ -219,6 +220,7 @@ def run_report(analysis: RunAnalysis, figures: Mapping[str, Path],
                  + f" &middot; {n_err} data error(s)</p>")
 
     parts.append(_summary_html(a, issues))
+    parts.append(incidents_html(meta, _table))
     parts.append(_formations_html(a))
     if figures or figure_errors:
         parts.append("<h2>Figures</h2>")
@@ -309,7 +311,7 @@ def _summary_html(a: RunAnalysis, issues) -> str:
     from analysis.report.headline import verdicts
 
     items = []
-    for text, ok in verdicts(a.members, a.run, issues):
+    for text, ok in verdicts(a.members, a.run, issues, None if a.fleet is None else a.fleet.fleet):
         mark = {True: '<span class="ok">&#10003;</span> ', False: '<span class="bad">&#10007;</span> ',
                 None: ""}[ok]
         items.append(f"<li>{mark}{_e(text)}</li>")

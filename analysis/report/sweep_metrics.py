@@ -35,6 +35,7 @@ METRICS: dict[str, tuple[str, str]] = {
     "energy_saving_vs_alone": ("-", "1 - members' energy / their energy alone; NaN with resistances off"),
     "leader_age_mean_s": ("s", "max of each member's mean age of the virtual-car state it held ([comm])"),
     "leader_age_p95_s": ("s", "max of each member's 95th percentile of that age"),
+    "formation_shortfall": ("-", "SUMO runs with formation flows: share of the formations due within the run that did not enter (1 - inserted / requested over every flow; a formation_shortfall event below 95 % inserted)"),
     "comm_timeouts": ("-", "SUMO runs: comm_timeout events (a member fell back: no state for longer than comm.timeout_s)"),
     **SECTION_METRICS,
     "min_gap_m": ("m", "smallest bumper-to-bumper gap between consecutive members of a column over the run (metrics.json formations min_gap_m; negative: bodies overlap)"),

@@ -109,7 +109,7 @@ def _effects_html(eff: pd.DataFrame, fig: Path | None) -> str:
     n = int(eff["n_seeds"].max()) if len(eff) else 0
     text = (f"<h2>Paired effects: formation run minus its twin</h2><p>Each case's formation run "
             f"against its twin (same traffic and seed, no formation), paired by seed: the mean over "
-            f"the seeds (up to {n}), its standard error and the 95 % confidence interval (Student t, "
+            f"the seeds (up to {n}; the note names every case left out), its standard error and the 95 % confidence interval (Student t, "
             f"n - 1 degrees of freedom); <b>distinguishable</b>: the interval excludes 0. One seed "
             f"gives no confidence interval. Populations: delay, speed, spot speeds, lane changes and "
             f"conflicts are over the <i>timed</i> vehicles ({_e(POPULATIONS['timed'])}; the "
@@ -143,6 +143,15 @@ def _html(meta: dict, df: pd.DataFrame, stats: pd.DataFrame, metrics: list[str],
         rows = bad[["case_id", "status", "reason"]].copy()
         rows["reason"] = rows["reason"].fillna("").map(lambda r: r.strip().splitlines()[-1][:300] if r.strip() else "")
         parts.append("<h2>Cases without a completed run</h2>" + _table(rows))
+    if "twin_status" in df:
+        tw = df[df["twin_status"].notna() & ~df["twin_status"].isin(FINISHED)]
+        if len(tw):  # their cases' paired effects are NaN: named, never averaged silently
+            rows = tw[["case_id", "status", "twin_status", "twin_reason"]].copy()
+            rows["twin_reason"] = rows["twin_reason"].fillna("").map(
+                lambda r: r.strip().splitlines()[-1][:300] if r.strip() else "")
+            parts.append(f'<h2 class="bad">Twins that did not reach their end ({len(tw)})</h2><p>These '
+                         "cases have no paired effects (NaN); effects.csv's note names them where a "
+                         "grid point is averaged over fewer seeds.</p>" + _table(rows))
     inc = df[df["status"] == "completed_with_incidents"]
     if len(inc):  # completed, in the statistics, and named: a sweep never hides an incident
         cols = [c for c in ("case_id", "member_collisions", "member_removed", "emergency_brakes",

@@ -168,6 +168,9 @@ def _join(analyses: dict[str, RunAnalysis]) -> RunAnalysis:
         issues += [replace(i, what=f"formation {f}: {i.what}") for i in analyses[f].issues
                    if i not in seen]
     records = {f: formation_record(a) for f, a in analyses.items()}
+    by_formation = ((first.data.meta.get("incidents") or {}).get("by_formation")) or {}
+    for f, r in records.items():  # run.json incidents per formation (sim/incident_log.py)
+        r["incidents"] = dict(by_formation.get(f) or {})
     comm = [a.comm_age for a in analyses.values()]
     return replace(
         first, members=members, unavailable=unavailable, issues=tuple(issues),

@@ -164,6 +164,9 @@ def compute_traffic(data: RunData, settings: AnalysisSettings,
                                  else "events.parquet lacks kind / vehicle_id")
     else:
         _event_metrics(ev, ids, near, road_bg, dt, run, mem)
+        verdict = (meta.get("incidents") or {}).get("member_collisions")
+        if verdict is not None:  # the run's verdict (sim/incidents.py): the same count everywhere
+            run["n_collisions_member"] = int(verdict)
 
     sr, conf_tab = _conflicts(data, M, B, bg_ok, road, st, run, mem, unavailable)
     base_tab = twin_tab = None
@@ -180,6 +183,23 @@ def compute_traffic(data: RunData, settings: AnalysisSettings,
                            issues=tuple(issues))
 
 
+def collision_contacts(e: pd.DataFrame, dt: float) -> pd.DataFrame:
+    """``events`` with its ``collision`` rows reduced to one per contact: SUMO reports a pair
+    at every step it touches; a pair (either order) reported again within 1.5 record steps
+    ``dt`` [s] of its last report is the same contact (as the run's verdict counts them,
+    sim/incidents.py)."""
+    col = e["kind"] == "collision"
+    if not col.any() or "t" not in e.columns:
+        return e
+    c = e.loc[col].assign(_pair=[tuple(sorted(p)) for p in zip(e.loc[col, "vehicle_id"],
+                                                                 e.loc[col, "other_id"])])
+    c = c.sort_values("t", kind="stable")
+    t = pd.to_numeric(c["t"], errors="coerce")
+    prev = t.groupby(c["_pair"]).shift()
+    first = prev.isna() | (t - prev > 1.5 * dt)
+    return pd.concat([e.loc[~col], c.loc[first].drop(columns="_pair")]).sort_index(kind="stable")
+
+
 def _event_metrics(ev: pd.DataFrame, ids: list[str], near: pd.DataFrame, road_bg: bool,
                    dt: float, run: dict[str, Any], mem: pd.DataFrame) -> None:
     """Collisions, teleports, cut-ins and lane changes from ``events.parquet`` (filled into
@@ -188,6 +208,7 @@ def _event_metrics(ev: pd.DataFrame, ids: list[str], near: pd.DataFrame, road_bg
     e = ev.copy()
     for c in ("kind", "vehicle_id", "other_id"):
         e[c] = e[c].astype(str) if c in e.columns else ""
+    e = collision_contacts(e, dt)
     kind = e["kind"]
     involved = e["vehicle_id"].isin(id_set) | e["other_id"].isin(id_set)
     run["n_collisions"] = int((kind == "collision").sum())

@@ -4,7 +4,7 @@ The run's builders (sim/setup.py, comm/link.py, ...) read one formation from a S
 ``leader``, ``members``, ``controller`` and ``comm``; :func:`formation_views` gives, for every
 formation of the run, its formation_id and the scenario with those fields its own. The first
 is the top-level formation: the scenario itself, so a one-formation run is built exactly as
-before.
+before (a scenario without top-level members has none: its [[formations]] are the run's).
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from .schema import Scenario
 def formation_views(sc: Scenario) -> list[tuple[str, Scenario]]:
     """(formation_id, the scenario as that formation sees it) for every formation: its own
     leader, members, controller, comm, maneuvers and (on a road) ``road.start``."""
-    views = [(DEFAULT_FORMATION_ID, sc)]
+    views = [(DEFAULT_FORMATION_ID, sc)] if sc.members else []
     for f in sc.formations:
         update = {"leader": f.leader, "members": f.members, "controller": f.controller,
                   "comm": f.comm, "maneuvers": f.maneuvers, "formations": []}
@@ -46,13 +46,14 @@ def formation_setups(sc: Scenario, flow_of: dict | None = None) -> list[Formatio
     formation id -> the flow that inserts it (sumo/formation_flows.py)."""
     flow_of = flow_of or {}
     out = []
+    top = 1 if sc.members else 0  # the top-level formation comes first when it has members
     for j, (fid, view) in enumerate(formation_views(sc)):
-        f = sc.formations[j - 1] if j else None
+        f = sc.formations[j - top] if j >= top else None
         lane = None if f is None or f.lane is None or sc.road is None else f.lane - sc.road.lane
         flow = flow_of.get(fid, "")
         out.append(FormationSetup(fid, view, float(sc.depart if f is None else f.depart), lane or 0,
                                   "" if f is None else (f"formation_flows.{flow}.formation." if flow
-                                                        else f"formations.{j - 1}."), flow))
+                                                        else f"formations.{j - top}."), flow))
     return out
 
 

@@ -126,7 +126,9 @@ class Scenario(Strict):
     vehicle: VehicleSpec = VehicleSpec()
     controller: ControllerSpec = ControllerSpec()
     leader: LeaderSpec
-    members: list[MemberSpec] = Field(min_length=1, description="at least one member")
+    members: list[MemberSpec] = Field(
+        default_factory=list, description="the top-level formation's members (at least one), or none when "
+        "[[formations]] or [[formation_flows]] are the run's formations")
     road: RoadSpec | None = Field(None, description="SUMO road; without it the run is in free space")
     traffic: TrafficSpec = TrafficSpec()
     sumo: SumoSpec = SumoSpec()
@@ -142,6 +144,35 @@ class Scenario(Strict):
                                 "road [s] (run time; a formation flow's study may keep it out of the run)")
     formation_flows: list[FormationFlowSpec] = Field(
         default_factory=list, description="formations inserted while the run goes (road)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _leader_of_formations(cls, data):
+        """No top-level formation: [leader] may be left out; the first formation's (or
+        formation flow's) leader is then the run's (its set speed sizes the measured stretch)."""
+        if not isinstance(data, dict) or data.get("members") or "leader" in data:
+            return data
+        for f in data.get("formations") or []:
+            if isinstance(f, dict) and "leader" in f:
+                return {**data, "leader": f["leader"]}
+        for f in data.get("formation_flows") or []:
+            if isinstance(f, dict) and isinstance(f.get("formation"), dict) and "leader" in f["formation"]:
+                return {**data, "leader": f["formation"]["leader"]}
+        return data
+
+    @model_validator(mode="after")
+    def _top_level_formation(self):
+        if self.members:
+            return self
+        if not self.formations and not self.formation_flows:
+            raise ValueError("members: at least one member, unless [[formations]] or [[formation_flows]] "
+                             "give the run's formations")
+        for name, given in (("maneuvers", self.maneuvers), ("depart", self.depart),
+                            ("open_loop", self.open_loop), ("comm", self.comm)):
+            if given:
+                raise ValueError(f"{name}: belongs to the top-level formation, which has no members "
+                                 "(give it in the formation's own table)")
+        return self
 
     @model_validator(mode="after")
     def _depart_on_road(self):

@@ -182,9 +182,22 @@ def retire_formation(f: Formation, world, t: float, state: FleetState, rec, stop
         active[f.members] = False
 
 
-def formations_meta(forms: list) -> dict:
+FORMATION_STATUS = {"waiting": "it never entered the road", "on_road": "on the road at the run's end",
+                    "done": "retired at the end of its route", "retired": "every member out of the run "
+                    "before the end of its route (removed, dropped, handed over)"}
+"""run.json ``formations.<id>.status`` values and their meaning."""
+
+
+def formations_meta(forms: list, active: np.ndarray | None = None) -> dict:
     """run.json ``formations`` of a run of several formations (or one that departs later): per
     formation when it entered the road and left it [s] (None: never / not before the end) and
-    its status at the end (waiting: it never entered)."""
+    its status at the end (:data:`FORMATION_STATUS`; ``active``: the fleet rows still in the
+    run, telling ``on_road`` from ``retired``)."""
+    def status(f) -> str:
+        if f.status != "running":
+            return f.status
+        gone = active is not None and not np.asarray(active)[f.members].any()
+        return "retired" if gone else "on_road"
+
     return {f.id: {"entered_s": None if f.status == "waiting" else float(f.depart),
-                   "left_s": f.left, "status": f.status, "flow": f.flow or None} for f in forms}
+                   "left_s": f.left, "status": status(f), "flow": f.flow or None} for f in forms}

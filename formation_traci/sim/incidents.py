@@ -183,7 +183,7 @@ class Incidents:
                 if c < 0.0 and not self.contact[i, j]:
                     self.n["member_collisions"] += 1
                     self.rec.add_event(t, "member_collision", self.ids[i], self.ids[j],
-                                       f"the bodies overlap by {-c:.2f} m (our geometry)")
+                                       f"the bodies overlap by {-c:.2f} m (our geometry)", value=c)
                 self.contact[i, j] = c < 0.0
 
     def _stranded(self, t, slow, v, v_ref):
@@ -194,7 +194,7 @@ class Incidents:
             self.n["stranded"] += 1
             self.rec.add_event(t, "stranded", self.ids[i], "",
                                f"v = {v[i]:.2f} m/s for {t - since[i]:.2f} s with v_ref = "
-                               f"{v_ref[i]:.2f} m/s")
+                               f"{v_ref[i]:.2f} m/s", value=v[i])
         self.is_stranded = now
 
     def sumo_collisions(self, t, collisions, clearance_of) -> None:
@@ -220,6 +220,10 @@ class Incidents:
             self.rec.add_event(t, "collision", a, b, f"lane {lane}{known}")
             if new and (a in members) != (b in members):  # not refuted: counted
                 self.n["member_collisions"] += 1
+                m, other = (a, b) if a in members else (b, a)
+                log = getattr(self.rec, "incident_log", None)
+                if log is not None:
+                    log.add(t, "member_collision", m, other, c)
         self._sumo_prev = now
 
     def watch_lanes(self, mask, slot_d, half_width: float) -> None:

@@ -233,7 +233,7 @@ def step_loop(sc: Scenario, build, rec, meta: dict) -> Iterator[tuple[int, float
         world.drain()  # a run that ended normally: the measurement sections' drain
     finally:
         if len(forms) > 1 or forms[0].depart:
-            meta["formations"] = formations_meta(forms)
+            meta["formations"] = formations_meta(forms, getattr(world, "active", None))
         world.close()
 
 

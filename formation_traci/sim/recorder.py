@@ -12,6 +12,7 @@ from ..record.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, DEFAULT_FORMA
                               VIRTUAL_CAR_ID)
 from ..record.writer import ChunkedTable
 from .table_cuts import TableCuts
+from .incident_log import INCIDENT_EVENT_KINDS, IncidentLog
 
 
 STEPS_PER_CHUNK = 1200
@@ -74,6 +75,7 @@ class Recorder(TableCuts):
             self.background = ChunkedTable(out_dir / "background.parquet", BACKGROUND_COLUMNS,
                                            chunk_rows=BACKGROUND_CHUNK_ROWS)
         self.event_counts: dict[str, int] = {}
+        self.incident_log = IncidentLog(self.formation_of)  # who, when, where (sim/incident_log.py)
         self.incidents = None  # sim/incidents.py Incidents: set by the runner (runner.py)
         self.ssm = None  # record.ssm.SsmConverter: set by sumo/world.py when SUMO's SSM device is on
         self._latest: dict[str, float] = {}
@@ -313,11 +315,15 @@ class Recorder(TableCuts):
         vec[self._vc_at] = (t, x, y, theta, v, omega, v_dot, v * omega, s, 0.0 if s == s else np.nan)
         return vec
 
-    def add_event(self, t, kind, vehicle_id, other_id="", detail=""):
+    def add_event(self, t, kind, vehicle_id, other_id="", detail="", value=None):
+        """One row of events.parquet; an incident kind (sim/incident_log.py) is also logged
+        with ``value`` (its clearance, deceleration, ...)."""
         ev = self.events
         ev.append({"t": t, "kind": ev.code(kind), "vehicle_id": ev.code(vehicle_id),
                    "other_id": ev.code(other_id), "detail": ev.code(detail)}, 1)
         self.event_counts[kind] = self.event_counts.get(kind, 0) + 1
+        if kind in INCIDENT_EVENT_KINDS:
+            self.incident_log.add(t, kind, vehicle_id, other_id, value)
 
     def add_background(self, t, nb, s, d):
         """SUMO's vehicles near the formation at t [s] (``nb``: sumo/types.py Neighbours,

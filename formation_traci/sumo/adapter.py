@@ -19,6 +19,7 @@ import numpy as np
 from .connect import attach_socket, follow_view, start_socket
 from .member_reads import MemberReads
 from .neighbours import NeighbourReads
+from .traffic import BASE_TYPES
 from .vehicles import VehicleSetup
 from .types import (GUI_VIEW, GUI_ZOOM, KEEP_ROUTE, LANE_CHANGE_MODE_DEFAULT,  # noqa: F401
                          MATCH_THRESHOLD, ORDINARY_CLASS, REMOVED_REASONS, ROUTE_AHEAD_M,
@@ -206,6 +207,28 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         self._subscribed.add(vid)
         self._window[vid] = (route_id, -1)
         self._move(vid, x, y, psi)
+
+    def add_twin_vehicle(self, vid: str, route_id: str, mt: MemberType, x, y, psi, v) -> None:
+        """A member as the same-demand twin has it: a vehicle of the member's type ``mt`` (its
+        body) on the formation's route ``route_id``, entering at the member's CoG pose (x, y
+        [m], psi [rad]) with speed v [m/s] during the next step, then driven by SUMO's own
+        models like the traffic's vehicles of its kind (sumo/traffic.py BASE_TYPES: the
+        ordinary vehicle class, acceleration, deceleration, minimum gap, driver imperfection
+        and top speed; default speed and lane-change modes) and read as any other vehicle."""
+        api = self.api.vehicle
+        api.add(vid, route_id, typeID=mt.id, depart="now", departLane="best",
+                departPos="base", departSpeed=f"{max(float(v), 0.0):.6f}")
+        kind = ORDINARY_CLASS.get(mt.vclass, "passenger")
+        api.setVehicleClass(vid, kind)  # lanes closed to the members are open to it
+        drv = BASE_TYPES["truck" if kind == "truck" else "car"]  # SUMO's driver of its kind
+        api.setAccel(vid, float(drv["accel"]))
+        api.setDecel(vid, float(drv["decel"]))
+        api.setEmergencyDecel(vid, float(drv["emergencyDecel"]))
+        api.setMinGap(vid, float(drv["minGap"]))
+        api.setImperfection(vid, float(drv["sigma"]))
+        api.setMaxSpeed(vid, float(drv["maxSpeed"]))
+        xf, yf, ang = cog_to_sumo(x, y, psi, mt.d_front)
+        self._move_front(vid, float(xf), float(yf), float(ang), x, y)
 
     def _member_vars(self):
         tc = self.tc

@@ -2,7 +2,9 @@
 
 * :func:`flow_report`: per flow the vehicles asked for over its window up to the run's end
   (warm-up included) and the vehicles SUMO inserted; :func:`report_shortfall` turns a flow
-  below :data:`SHORTFALL_SHARE` into an ``insertion_shortfall`` event and a warning on stderr.
+  below :data:`SHORTFALL_SHARE` into an ``insertion_shortfall`` event and a warning (stderr
+  and run.json ``warnings``); :func:`report_formation_shortfall` does the same for a formation
+  flow (``formation_shortfall``).
 * :func:`write_detectors` / :func:`read_detectors`: an induction loop and a 200 m lane-area
   detector on every lane at one point of the main route, so a run reports the traffic it
   really had there (flow [veh/h], density [veh/km], space-mean speed [m/s]) over the formation's
@@ -52,6 +54,22 @@ def report_shortfall(report: dict[str, dict[str, int]], add_event, t: float) -> 
             msg = (f"flow {fid!r} inserted {r['inserted']} of {r['requested']} vehicles asked for "
                    f"({100.0 * r['inserted'] / r['requested']:.0f} %): the road could not take the demand")
             add_event(t, "insertion_shortfall", fid, "", msg)
+            msgs.append(msg)
+            print(f"warning: {msg}", file=sys.stderr)
+    return msgs
+
+
+def report_formation_shortfall(flows: dict, add_event, t: float) -> list[str]:
+    """Warn (stderr) and record a ``formation_shortfall`` event at formation time ``t`` [s] for
+    every formation flow (run.json ``formation_flows``) that inserted less than
+    :data:`SHORTFALL_SHARE` of the formations due within the run (they waited for room on the
+    road). Returns the messages."""
+    msgs = []
+    for fid, c in flows.items():
+        if c["requested"] > 0 and c["inserted"] < SHORTFALL_SHARE * c["requested"]:
+            msg = (f"formation flow {fid!r} inserted {c['inserted']} of {c['requested']} formations due "
+                   f"({100.0 * c['inserted'] / c['requested']:.0f} %): the others found no room on the road")
+            add_event(t, "formation_shortfall", fid, "", msg)
             msgs.append(msg)
             print(f"warning: {msg}", file=sys.stderr)
     return msgs
@@ -136,7 +154,7 @@ def traffic_meta(meta, rec, flows, departed, t_sumo, t0, measure) -> None:
     flow short of its demand is an ``insertion_shortfall`` event and a warning."""
     report = flow_report(flows, departed, t_sumo)
     tr = meta["traffic"] = {"flows": report}
-    report_shortfall(report, rec.add_event, max(t_sumo - t0, 0.0))
+    meta.setdefault("warnings", []).extend(report_shortfall(report, rec.add_event, max(t_sumo - t0, 0.0)))
     if measure is not None:
         tr["measured"] = {"edge": measure["edge"], "pos_m": measure["pos"],
                           **(read_detectors(measure["out"], t0, measure["area_m"], t_sumo) or {})}

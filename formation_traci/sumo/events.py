@@ -157,7 +157,7 @@ class EmergencyWatch:
             who = self.vc_ids[i - n] if i >= n else self.ids[i]
             a = a_vc[i - n] if i >= n else info["a_cap_request"][i]
             if now[i]:
-                self.rec.add_event(t, "emergency_brake", who, "", f"braking request {-a:.2f} m/s^2")
+                self.rec.add_event(t, "emergency_brake", who, "", f"braking request {-a:.2f} m/s^2", value=-a)
             else:
                 self.rec.add_event(t, "emergency_end", who, "", "back within comfortable braking")
         self.on = now

@@ -9,6 +9,9 @@ penetration flows of one traffic flow (e.g. one per lane) take their shares from
 run time a due formation waits until its members' insertion zones are free (sim/loop.py,
 SumoWorld.has_room; one formation of a flow per step, in order) and then enters; run.json
 ``formation_flows.<id>`` counts the formations requested (due within the run) and inserted.
+A run whose flows ask for no formation (a penetration of 0) and that has no other formation
+keeps its first flow's formation ``F.0``, due after the run: it never enters, and the run is
+SUMO's traffic alone, recorded and measured as any other.
 """
 from __future__ import annotations
 
@@ -59,8 +62,17 @@ def expand_flows(sc: Scenario, lanes_of: dict, source=None):
         for k in range(count):
             out.append(_instance(fl, k, fl.begin + k * period))
             flow_of[out[-1].id] = fl.id
+    if not out and not sc.members:  # no formation at all: traffic alone (see the module docstring)
+        fl = sc.formation_flows[0]
+        out.append(_instance(fl, 0, never_due(sc)))
+        flow_of[out[-1].id] = fl.id
     share_of = {fl.id: fl.of_flow or "" for fl in sc.formation_flows}
     return sc.model_copy(update={"formations": out, "formation_flows": []}), flow_of, keep, share_of
+
+
+def never_due(sc: Scenario) -> float:
+    """A departure time after the run's end [s]: a formation due then never enters."""
+    return 2.0 * float(sc.run.duration) + 1.0
 
 
 def _instance(fl, k: int, t: float) -> FormationSpec:

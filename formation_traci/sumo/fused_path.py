@@ -200,6 +200,7 @@ class FusedPath:
         key = (lanes, idx.tobytes())
         if key != self._lanes_key:  # a member changed lanes or left the run
             self._lanes_key = key
+            self.world.lanes_read = (idx, lanes)  # SumoWorld.locate's lanes
             self._li = np.full(self.n, -1, dtype=np.int64)
             self._li[idx] = self.world.packed_lanes.indices(lanes)
             self._lane_index = np.full(self.n, np.nan)

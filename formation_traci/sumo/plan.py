@@ -69,7 +69,7 @@ def prepare(sc: Scenario, source: Path | None) -> RoadPlan:
         plan = _named_fields(setup.field, source, lambda: _formation_plan(setup, road, source))
         parts.append((setup, plan, slice(at, at + len(plan.ids))))
         at += len(plan.ids)
-    if len(parts) == 1 and not parts[0][0].depart:
+    if len(parts) == 1 and not parts[0][0].depart and run_sc.members:  # the top-level formation alone
         return parts[0][1]
     _check_apart([p for p in parts if not p[0].flow], source)
     cat = (lambda name: np.concatenate([getattr(p, name) for _, p, _ in parts]))  # noqa: E731

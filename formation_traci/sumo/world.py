@@ -4,8 +4,9 @@ sense: read back where SUMO put the members (removed, placement mismatch, lane c
 and the vehicles near them; observe: traffic events and background rows; actuate: insert
 the members spawned since the last step (every member of the run before its first step),
 place the others with moveToXY; retire: members out of SUMO at once; step: SUMO's step, then tell
-SUMO the members' true speed and acceleration. A baseline twin (``baseline=True``) runs the
-same traffic without the formation: no member enters SUMO, every vehicle is recorded.
+SUMO the members' true speed and acceleration. A baseline twin (``baseline`` "same" or
+"absent") runs the same traffic without the formation: no member enters SUMO, every vehicle is
+recorded; the "same" twin has, in each member's place, a vehicle of its type that SUMO drives.
 """
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ from .sections import plan_sections
 from .sections import sumo_options as section_options
 from .sections import write_tables as write_sections
 from ..sim.incidents import clearance_lookup
-from .demand import measure_plan, traffic_meta
+from .demand import measure_plan, report_formation_shortfall, traffic_meta
 from .join import inside_formation
 from .messages import sumo_outputs_meta
 from .adapter import SumoAdapter
@@ -32,6 +33,7 @@ from ..sim.formation import virtual_car_id
 from .neighbours import NOBODY
 from .flow_inserts import counted_entry, flow_counts, room_for
 from .handover import MemberHandover
+from .member_rows import MemberRows
 from .peers import Peers
 from .sense import NeighbourGuess, PackedLanes, sense_step
 from .types import Neighbours
@@ -46,13 +48,14 @@ _NO_NB = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0))
 """sense_step's neighbour rows when there is no neighbour."""
 
 
-class SumoWorld(MemberHandover):
+class SumoWorld(MemberHandover, MemberRows):
     """The members among SUMO's traffic on the plan's road (see the module docstring)."""
 
     def __init__(self, sc: Scenario, plan: RoadPlan, fleet, rec, out_dir: Path, meta: dict,
                  baseline: bool = False, step_hook=None):
         self.sc, self.plan, self.fleet, self.rec, self.meta = sc, plan, fleet, rec, meta
         self.baseline, self.step_hook = baseline, step_hook
+        self.twin_same = baseline == "same"  # the same-demand twin (docs/metrics.md, "The twins")
         self.records_members = not baseline
         self.ids = list(plan.ids) if plan.ids else [m.id for m in sc.members]
         self._id_set = set(self.ids)
@@ -99,6 +102,9 @@ class SumoWorld(MemberHandover):
                                                         for setup, _, _ in plan.formations] or None)
         self.followed = None  # the member sumo-gui's view follows
         self.refusals = RefusalWatch(rec, self.ids, self.sumo_ids)
+        self.lanes_read = (self._every[:0], [])  # (member rows, their SUMO lane ids) of the last read
+        if not baseline:  # where an incident happened (sim/incident_log.py)
+            rec.incident_log.locate = self.locate
         self.mtypes = member_types(sc, plan)
         self.d_front = np.array([mt.d_front for mt in self.mtypes])  # CoG to front bumper [m]
         self.peers = Peers(self.ids, self.sumo_ids, self.mtypes, self.groups) if len(self.groups) > 1 else None
@@ -185,6 +191,8 @@ class SumoWorld(MemberHandover):
             if self.plan.flow_share_of is not None:
                 self.meta["formation_flows"] = flow_counts(self.plan, self.flows_inserted, t_sumo - t0,
                                                            self.adapter.departures, t0)
+                self.meta.setdefault("warnings", []).extend(report_formation_shortfall(
+                    self.meta["formation_flows"], self.rec.add_event, max(t_sumo - t0, 0.0)))
             if hasattr(self, "flows"):
                 from .fcd import true_speeds  # pandas: imported only to end a run
                 traffic_meta(self.meta, self.rec, self.flows, departed, t_sumo, t0, self.measure)
@@ -243,35 +251,6 @@ class SumoWorld(MemberHandover):
                             clearance_lookup(self.rec.incidents, self.ids, self.active,
                                              pos, heading, sensed.nb))
         return sensed
-
-    def _member_rows(self, t):
-        """SUMO's rows of the members for :func:`~.sumo_sense.sense_step` (front bumper,
-        angle, lane position, lateral position, packed lane row; NaN and -1 for members out
-        of the run or no longer in SUMO, who are reported removed), then the recorded lane
-        index and :meth:`MemberWatch.lane_changes`' arguments."""
-        n = len(self.ids)
-        here_now = self.active & self.in_sumo
-        every = here_now.all()
-        idx_act = self._every if every else np.flatnonzero(here_now)
-        front, ang, lanes, lane_idx, lat, lane_pos, present = self.adapter.read_members(
-            self.sumo_ids if every else [self.sumo_ids[i] for i in idx_act])
-        here = present.all()
-        if not here:
-            for j, i in enumerate(idx_act):
-                if not present[j]:
-                    self.members.removed(t, i)
-                    self.active[i] = False
-        li = self.packed_lanes.indices(lanes)
-        if every and here:  # every member in the run and in SUMO (no copies, no masks)
-            return (front, ang, lane_pos, lat, li, lane_idx.astype(float), idx_act, present, lanes,
-                    lane_idx)
-        rows = (np.full((n, 2), np.nan), np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan),
-                np.full(n, -1, dtype=np.int64))
-        for full, part in zip(rows, (front, ang, lane_pos, lat, li)):
-            full[idx_act] = part
-        lane_index = np.full(n, np.nan)
-        lane_index[idx_act] = np.where(present, lane_idx, np.nan)
-        return (*rows, lane_index, idx_act, present, lanes, lane_idx)
 
     def observe(self, t: float, sensed: Sensed, ref) -> None:
         info = ref.info
@@ -361,13 +340,17 @@ class SumoWorld(MemberHandover):
     def _insert(self, t_next, rows, pos, heading, v_after) -> None:
         """SUMO gets the spawned members ``rows`` at their poses, vehicles standing there (or
         in their time gap ahead) cleared first; a twin clears the same vehicles and inserts
-        no member."""
+        no member (the same-demand twin: a SUMO-driven vehicle of each member's type there)."""
         ld, ad = self.sc.leader, self.adapter
         clear_insertion_zone(ad, self.rec, t_next, pos[rows], heading[rows], v_after[rows],
                              [self.plan.vehicles[i] for i in rows],
                              ld.min_gap + ld.time_gap * v_after[rows])
         self.pending = self.pending[:0]
         if self.baseline:
+            if self.twin_same:  # the members' vehicles, driven by SUMO from here on
+                for i in rows:
+                    ad.add_twin_vehicle(self.ids[i], MEMBER_ROUTE, self.mtypes[i], pos[i, 0], pos[i, 1],
+                                        heading[i], v_after[i])
             return
         for i in rows:
             ad.insert_member(self.ids[i], MEMBER_ROUTE, self.mtypes[i], pos[i, 0], pos[i, 1],

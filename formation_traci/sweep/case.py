@@ -13,7 +13,7 @@ import sys
 import time
 import traceback
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict
 
@@ -35,6 +35,7 @@ class CaseSpec(BaseModel):
     case_dir: str  # absolute path of DIR/cases/<id>
     log_path: str  # absolute path of DIR/logs/<id>.log (written by the launcher)
     twin_dir: str | None = None  # absolute path of DIR/twins/<id> when the case's twin runs too
+    twin_mode: Literal["same", "absent"] = "same"  # which twin (runner.run_scenario's baseline)
     warm_dir: str | None = None  # absolute path of DIR/warmups: the shared warm-ups (None: off)
 
 
@@ -105,7 +106,7 @@ def run_case(case_spec: dict | CaseSpec) -> dict[str, Any]:
         res = run_scenario(sc, out, scenario_path=spec.base, force=True, progress=False,
                            warm_cache=spec.warm_dir)
         row.update(status=res.status, reason=res.reason, t_end_s=res.t_end)
-        twin = _run_twin(sc, spec, row) if spec.twin_dir is not None and res.status == "completed" else None
+        twin = _run_twin(sc, spec, row, res.status) if spec.twin_dir is not None else None
         row.update(_analyse(out, row, twin))
     except KeyboardInterrupt as exc:  # SIGINT/SIGTERM before the run stepped (set-up, warm-up)
         row.update(status="interrupted", reason=str(exc) or "SIGINT received",
@@ -118,25 +119,36 @@ def run_case(case_spec: dict | CaseSpec) -> dict[str, Any]:
     return row
 
 
-def _run_twin(sc, spec: CaseSpec, row: dict) -> Path | None:
-    """The case's twin (same scenario and seed, no formation) into ``spec.twin_dir``, after
-    the formation run in this process (one libsumo simulation at a time). A twin that does
-    not complete fails the case: its paired columns would be missing."""
+def _run_twin(sc, spec: CaseSpec, row: dict, status: str) -> Path | None:
+    """The case's twin (same scenario and seed; ``spec.twin_mode``) into ``spec.twin_dir``,
+    after the formation run in this process (one libsumo simulation at a time), whatever the
+    case's status (but interrupted). Its outcome goes to the row's ``twin_status`` and
+    ``twin_reason``; a twin that did not reach its end leaves the case's paired columns NaN
+    and its status as it was. Returns the twin's directory when it can be compared."""
     from ..runner import run_scenario
 
-    twin = Path(spec.twin_dir)
-    if twin.exists():
-        with DirLock(twin):
-            clear_run(twin)
-    if _shared_warmup(Path(spec.case_dir)):  # SUMO's state loads as in a fresh process only
-        status, reason = _twin_process(spec)
-    else:
-        res = run_scenario(sc, twin, scenario_path=spec.base, force=True, progress=False, baseline=True)
-        status, reason = res.status, res.reason
-    if status != "completed":
-        row.update(status="failed", reason=f"twin {status}: {reason}")
+    if status == "interrupted":
+        row.update(twin_status="not run", twin_reason="the case was interrupted")
         return None
-    return twin
+    twin = Path(spec.twin_dir)
+    try:
+        if twin.exists():
+            with DirLock(twin):
+                clear_run(twin)
+        if _shared_warmup(Path(spec.case_dir)):  # SUMO's state loads as in a fresh process only
+            t_status, reason = _twin_process(spec)
+        else:
+            res = run_scenario(sc, twin, scenario_path=spec.base, force=True, progress=False,
+                               baseline=spec.twin_mode)
+            t_status, reason = res.status, res.reason
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # the twin's failure is the twin's, recorded with the case
+        t_status, reason = "failed", f"{type(exc).__name__}: {exc}"
+    row.update(twin_status=t_status, twin_reason=reason)
+    if t_status == "interrupted":  # the sweep is stopping: the case runs again on a rerun
+        row.update(status="interrupted", reason=f"its twin was interrupted: {reason}")
+    return twin if t_status in RUN_FINISHED else None
 
 
 def _shared_warmup(run_dir: Path) -> bool:
@@ -180,7 +192,7 @@ def twin_main(spec_json: str) -> int:
     spec = CaseSpec.model_validate_json(spec_json)
     sc = load_scenario(spec.base, **spec.case.overrides)
     res = run_scenario(sc, Path(spec.twin_dir), scenario_path=spec.base, force=True, progress=False,
-                       baseline=True, warm_cache=spec.warm_dir)
+                       baseline=spec.twin_mode, warm_cache=spec.warm_dir)
     print(json.dumps({"status": res.status, "reason": res.reason}))
     return 0
 
@@ -188,30 +200,22 @@ def twin_main(spec_json: str) -> int:
 def _analyse(run_dir: Path, row: dict, twin: Path | None = None) -> dict[str, Any]:
     from analysis.api import analyze_run
     from analysis.load.run_data import NoTrajectoryData
+    from analysis.runs.traffic_only import no_formation_entered
 
     try:
         a = analyze_run(run_dir, figures=False, baseline=twin)
     except NoTrajectoryData as exc:
         if row["status"] not in RUN_FINISHED:
             return {}
-        meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-        if _no_formation_entered(meta):  # e.g. a penetration study's 0 %: traffic alone
-            return traffic_only_values(run_dir, meta)
         return {"status": "failed", "reason": f"analysis: {exc}"}
     meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-    out = metric_values(run_dir, a.members, meta, _formations(run_dir))
+    if no_formation_entered(meta) and a.members.empty:  # e.g. a penetration study's 0 %: traffic alone
+        out = traffic_only_values(run_dir, meta)
+    else:
+        out = metric_values(run_dir, a.members, meta, _formations(run_dir))
     if twin is not None:
         out.update(twin_values(_traffic_run(run_dir)))
     return out
-
-
-def _no_formation_entered(meta: dict) -> bool:
-    """A road run that ended where no formation ever entered the road (its formations depart
-    after the run, its formation flows inserted none): no member row, by design."""
-    sc = meta.get("scenario") or {}
-    flows = meta.get("formation_flows") or {}
-    return (sc.get("road") is not None and float(sc.get("depart") or 0.0) >= float(meta.get("t_end") or 0.0)
-            and not sc.get("formations") and not any(f.get("inserted") for f in flows.values()))
 
 
 def _formations(run_dir: Path) -> list:

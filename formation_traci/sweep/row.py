@@ -15,7 +15,8 @@ import pandas as pd
 from analysis.report.sweep_metrics import EFFECT_KEYS, METRICS  # noqa: F401 (re-exported)
 
 ID_COLUMNS: tuple[str, ...] = ("case_id", "case_index", "seed")
-STATUS_COLUMNS: tuple[str, ...] = ("status", "reason", "t_end_s")
+STATUS_COLUMNS: tuple[str, ...] = ("status", "reason", "t_end_s", "twin_status", "twin_reason")
+"""A case's outcome; ``twin_status`` / ``twin_reason``: its twin's (sweeps with twins; None without)."""
 WALL_COLUMNS: tuple[str, ...] = ("wall_s", "host", "pid")
 """Columns that depend on the machine and the clock, not on the case (ignored in comparisons)."""
 
@@ -44,7 +45,8 @@ def empty_row(case: dict, status: str, reason: str | None) -> dict[str, Any]:
         Every summary column, metrics None.
     """
     row: dict[str, Any] = {"case_id": case["id"], "case_index": case["index"], "seed": case["seed"],
-                           **case["values"], "status": status, "reason": reason, "t_end_s": None}
+                           **case["values"], "status": status, "reason": reason, "t_end_s": None,
+                           "twin_status": None, "twin_reason": None}
     row.update({k: None for k in METRICS})
     row.update({k: None for k in WALL_COLUMNS})
     return row
@@ -203,10 +205,16 @@ def traffic_only_values(run_dir: Path, meta: dict) -> dict[str, Any]:
 
 
 def _incidents(meta: dict) -> dict[str, Any]:
-    """run.json ``incidents`` (sim/incidents.py; None for a run recorded without them)."""
+    """run.json ``incidents`` (sim/incidents.py; None for a run recorded without them) and
+    the formation flows' shortfall (``formation_shortfall``: None without formation flows)."""
     inc = meta.get("incidents") or {}
-    return {k: (int(inc[k]) if k in inc else None)
-            for k in ("member_collisions", "member_removed", "stranded", "sumo_collision_artefacts")}
+    out: dict[str, Any] = {k: (int(inc[k]) if k in inc else None)
+                           for k in ("member_collisions", "member_removed", "stranded", "sumo_collision_artefacts")}
+    flows = meta.get("formation_flows") or {}
+    due = sum(int(c.get("requested") or 0) for c in flows.values())
+    out["formation_shortfall"] = (1.0 - sum(int(c.get("inserted") or 0) for c in flows.values()) / due
+                                  if due else (0.0 if flows else None))
+    return out
 
 
 def summary_frame(rows: list[dict], swept: dict[str, str]) -> pd.DataFrame:
@@ -230,7 +238,8 @@ def summary_frame(rows: list[dict], swept: dict[str, str]) -> pd.DataFrame:
     cols = [*ID_COLUMNS, *swept, *STATUS_COLUMNS, *METRICS, *WALL_COLUMNS]
     df = pd.DataFrame(sorted(rows, key=lambda r: r["case_index"]), columns=cols)
     dtypes = {"case_id": "string", "case_index": "int64", "seed": "int64", "status": "string",
-              "reason": "string", "t_end_s": "float64", "wall_s": "float64", "host": "string",
+              "reason": "string", "t_end_s": "float64",
+              "twin_status": "string", "twin_reason": "string", "wall_s": "float64", "host": "string",
               "pid": "Int64"}
     dtypes.update({k: ("Int64" if k in COUNT_METRICS else "float64") for k in METRICS})
     for k, t in swept.items():

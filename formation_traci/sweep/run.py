@@ -24,6 +24,7 @@ from .executors import run_dask, run_local
 from .expand import Sweep, load_sweep
 from .row import METRICS, WALL_COLUMNS, summary_frame, swept_dtypes
 from .spec import SweepError
+from ..twins import twin_mode
 
 SCHEMA = "formation-traci/sweep/1"
 SWEEP_JSON = "sweep.json"
@@ -113,7 +114,7 @@ def _lock(out: Path):
             fcntl.flock(f, fcntl.LOCK_UN)
 
 
-def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool = False,
+def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool | str = False,
               shared_warmup: bool = False) -> CaseSpec:
     """The :class:`CaseSpec` of one case.
 
@@ -125,8 +126,9 @@ def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool = False,
         Case index.
     out : Path
         Sweep directory (absolute).
-    baseline : bool
-        The case's twin runs too, into ``out/twins/<id>``.
+    baseline : bool or str
+        The case's twin runs too, into ``out/twins/<id>``: ``"same"`` (or True) or ``"absent"``
+        (formation_traci/twins.py).
     shared_warmup : bool
         Road cases start from their warm-up's saved state in ``out/warmups`` (simulated once
         per warm-up key; docs/sweeps.md, "The shared warm-up").
@@ -140,6 +142,7 @@ def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool = False,
     return CaseSpec(case=case, base=str(sweep.base), case_dir=str(out / CASES_DIR / case.id),
                     log_path=str(out / LOGS_DIR / f"{case.id}.log"),
                     twin_dir=str(out / TWINS_DIR / case.id) if baseline else None,
+                    twin_mode=twin_mode(baseline) or "same",
                     warm_dir=str(out / WARMUPS_DIR) if shared_warmup else None)
 
 
@@ -154,6 +157,7 @@ def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
     except Exception:
         return None, False
     if old.case != spec.case or old.base != spec.base or old.twin_dir != spec.twin_dir \
+            or (spec.twin_dir is not None and old.twin_mode != spec.twin_mode) \
             or (old.warm_dir is None) != (spec.warm_dir is None) \
             or row.get("case_id") != spec.case.id:
         return None, False
@@ -161,7 +165,8 @@ def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
         run_ok = json.loads((d / "run.json").read_text(encoding="utf-8")).get("status") in RUN_FINISHED
     except (OSError, ValueError):
         run_ok = False
-    return row, bool(run_ok and row.get("status") in RUN_FINISHED)
+    twin_ok = spec.twin_dir is None or row.get("twin_status") in RUN_FINISHED  # a failed twin: again
+    return row, bool(run_ok and row.get("status") in RUN_FINISHED and twin_ok)
 
 
 def _versions() -> dict[str, str]:
@@ -187,7 +192,7 @@ def _write_summary(path: Path, rows: dict[str, dict], swept: dict[str, str],
 
 
 def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None = None,
-              workers: int | None = None, progress: bool = True, baseline: bool = False,
+              workers: int | None = None, progress: bool = True, baseline: bool | str = False,
               sets: dict | None = None, shared_warmup: bool = False) -> SweepResult:
     """Run every case of a sweep file that is not done yet and summarise them.
 
@@ -207,12 +212,11 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         Local pool only: cases run at once (default ``os.cpu_count()``).
     progress : bool
         Show a progress bar (cases done, failed, remaining).
-    baseline : bool
-        Also run each case's twin (no formation) into ``twins/<id>/``, analyse the case
+    baseline : bool or str
+        Also run each case's twin (``"same"``/True, ``"absent"``; default the sweep file's) into ``twins/<id>/``, analyse the case
         against it (the paired ``fx_*`` summary columns) and write ``effects.csv``.
     sets : dict, optional
-        Dotted path -> value set in every case (the command line's ``--set``), checked
-        against the base scenario before anything is created.
+        Dotted path -> value set in every case (``--set``), checked before anything is created.
     shared_warmup : bool
         Cases and twins of a warm-up key start from its SUMO state in ``warmups/`` (docs/sweeps.md).
 
@@ -231,6 +235,7 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
         On Ctrl-C or SIGTERM, after the running cases stopped and the summary was written.
     """
     sweep = load_sweep(sweep_path, sets)
+    baseline = baseline or sweep.spec.baseline or False  # the sweep file's twin unless given
     _refuse_on_free_space(sweep, {"--baseline": baseline, "--shared-warmup": shared_warmup})
     out = _make_sweep_dir(Path(out_dir))
     with raising_signals(), _lock(out):  # SIGTERM stops the cases like Ctrl-C
@@ -311,7 +316,7 @@ def _sweep_meta(sweep: Sweep, swept: dict[str, str], scheduler: str | None, work
             "sweep_text": sweep.path.read_text(encoding="utf-8"), "sweep": sweep.raw,
             "base": str(sweep.base), "swept": sweep.spec.swept(), "grid_keys": list(sweep.spec.grid),
             "random_keys": list(sweep.random_keys), "sets": sweep.sets,
-            "baseline": baseline, "shared_warmup": shared_warmup, "dtypes": swept,
+            "baseline": bool(baseline), "baseline_mode": twin_mode(baseline), "shared_warmup": shared_warmup, "dtypes": swept,
             "metrics": {k: {"unit": u, "meaning": m} for k, (u, m) in METRICS.items()},
             "executor": {"kind": "dask" if scheduler else "local", "scheduler": scheduler,
                          "workers": None if scheduler else (workers or os.cpu_count())},
@@ -338,7 +343,9 @@ def _finish_meta(meta: dict, df: pd.DataFrame, interrupted: bool | str | None, n
     meta["counts"].update(run=n_run, pending=n_cases - len(df),
                           **{s: int((df["status"] == s).sum())
                              for s in ("completed", "completed_with_incidents", "failed",
-                                       "interrupted")})
+                                       "interrupted")},
+                          twins_failed=int((df["twin_status"].notna()
+                                            & ~df["twin_status"].isin(RUN_FINISHED)).sum()))
 
 
 class _RowSink:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from pydantic import (BaseModel, ConfigDict, Field, JsonValue, StringConstraints, ValidationError,
                       field_validator, model_validator)
@@ -96,6 +96,9 @@ class SweepFile(Strict):
     labels: dict[DottedPath, Label] = Field(default_factory=dict)
     timeout_s: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = Field(
         None, description="wall-clock limit per case [s]; a case over it fails")
+    baseline: Literal["same", "absent"] | None = Field(
+        None, description="run each case's twin too, as `sweep --baseline` does (formation_traci/twins.py); "
+        "the command line's --baseline wins")
 
     @field_validator("seeds")
     @classmethod
