@@ -31,9 +31,10 @@ def _flow_member(flow, j: int, member_id: str) -> tuple[str, str] | None:
 
 
 def _background(sc, member_id: str) -> str | None:
-    """The field of the traffic flow whose SUMO vehicles ``T.<n>`` can be named ``member_id``."""
+    """The field of the traffic flow whose SUMO vehicles ``T.<n>`` (and, with ``populate``,
+    ``T.p<n>``) can be named ``member_id``."""
     for t, fl in enumerate(sc.traffic.flows):
-        if re.fullmatch(rf"{re.escape(fl.id)}\.\d+", member_id):
+        if re.fullmatch(rf"{re.escape(fl.id)}\.p?\d+", member_id):
             return f"traffic.flows.{t}.id"
     return None
 

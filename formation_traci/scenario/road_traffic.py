@@ -50,6 +50,10 @@ class FlowSpec(Strict):
     mix: dict[Literal["car", "truck"], Annotated[float, Field(ge=0, le=1)]] = Field(
         default_factory=lambda: {"car": 0.85, "truck": 0.15}, description="vehicle type shares, summing to 1")
     speed_dev: NonNegFloat = Field(0.1, le=0.5, description="spread of the speed factor (normal, mean 1) [-]")
+    populate: bool = Field(False, description="also place the flow's vehicles along its whole route when it "
+                           "begins (SUMO ids '<id>.p<n>'), at the density its demand has in free flow at the "
+                           "route's speed limit, so a long road is full from the start instead of after a "
+                           "warm-up as long as the route's travel time; the flow's route must lie on the main route")
 
     @model_validator(mode="after")
     def _demand(self):

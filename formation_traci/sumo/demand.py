@@ -27,8 +27,10 @@ AREA_LENGTH = 200.0
 """Length of the lane-area detectors that measure density [m] (shorter on a short edge)."""
 
 
-def flow_report(flows, departed: dict[str, int], t_end: float) -> dict[str, dict[str, int]]:
-    """{flow id: {"requested": N, "inserted": M}}.
+def flow_report(flows, departed: dict[str, int], t_end: float,
+                populated: dict[str, int] | None = None) -> dict[str, dict[str, int]]:
+    """{flow id: {"requested": N, "inserted": M}}, the vehicles a flow placed along its
+    route when it began (``populate``) included in both.
 
     Parameters
     ----------
@@ -38,8 +40,11 @@ def flow_report(flows, departed: dict[str, int], t_end: float) -> dict[str, dict
         Flow id -> vehicles SUMO inserted.
     t_end : float
         SUMO time the run ended [s].
+    populated : dict
+        Flow id -> vehicles it placed along its route when it began.
     """
-    return {spec.id: {"requested": requested_vehicles(vph, spec.begin, end, t_end),
+    populated = populated or {}
+    return {spec.id: {"requested": requested_vehicles(vph, spec.begin, end, t_end) + populated.get(spec.id, 0),
                       "inserted": int(departed.get(spec.id, 0))}
             for spec, _, vph, end in flows}
 
@@ -149,10 +154,10 @@ def measure_plan(sc, road, sumo_dir: Path) -> dict | None:
     return {"file": sumo_dir / "measure.add.xml", "out": out, "edge": edge, "pos": pos, "area_m": area}
 
 
-def traffic_meta(meta, rec, flows, departed, t_sumo, t0, measure) -> None:
+def traffic_meta(meta, rec, flows, departed, t_sumo, t0, measure, populated=None) -> None:
     """run.json ``traffic``: flows requested/inserted, the measured operating point; a
     flow short of its demand is an ``insertion_shortfall`` event and a warning."""
-    report = flow_report(flows, departed, t_sumo)
+    report = flow_report(flows, departed, t_sumo, populated)
     tr = meta["traffic"] = {"flows": report}
     meta.setdefault("warnings", []).extend(report_shortfall(report, rec.add_event, max(t_sumo - t0, 0.0)))
     if measure is not None:

@@ -127,6 +127,9 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
             problems += more
         if edges:
             flow_routes[f.id] = (edges, net.getEdge(edges[0]).getLaneNumber() if net.hasEdge(edges[0]) else 0)
+        if f.populate and edges and not set(edges) <= set(route or ()):
+            problems.append((f"traffic.flows.{i}.populate", "expected the flow's route on the main route "
+                             "(populate places its vehicles along the main route's edges)"))
     if problems:
         raise ScenarioError(src, [(fld, f"{msg} ({net_file.name})") for fld, msg in problems])
     bad_exits = [(f"maneuvers.{i}.exit", f"expected an edge of {net_file.name} off the route (an off-ramp), got {mv.exit!r}")

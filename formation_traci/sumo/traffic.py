@@ -38,9 +38,46 @@ def requested_vehicles(vph: float, begin: float, end: float, t_end: float) -> in
     return int(math.ceil(window * vph / 3600.0 - 1e-9))
 
 
-def write_routes(path: Path, flows: list[tuple[FlowSpec, list[str], float]], end: float) -> Path:
+POPULATE_JITTER = 0.3
+"""A populated vehicle's place along the route varies by up to this share of the spacing."""
+
+
+def populate_places(vph: float, v_mps: float, lengths: list[float], seed: int) -> list[tuple[int, float]]:
+    """Where a flow's vehicles stand when it begins with ``populate``: (index of the route
+    edge, position on it [m]) in driving order.
+
+    Free flow of ``vph`` [veh/h] at ``v_mps`` [m/s] has a density of vph / (3600 v) vehicles
+    per metre of road (all lanes): one vehicle every ``3600 v / vph`` metres along the route,
+    each moved by up to :data:`POPULATE_JITTER` of that spacing (the run's seed; its own
+    stream), none in the last 50 m of an edge (SUMO's junctions) nor the route's last 100 m.
+    ``lengths`` [m]: the route's edges."""
+    import numpy as np
+
+    spacing = 3600.0 * v_mps / vph
+    total = float(sum(lengths))
+    n = max(int((total - 100.0) / spacing), 0)
+    rng = np.random.default_rng([int(seed), 0x706F70])  # its own stream: 'pop'
+    s_all = (np.arange(n) + 0.5 + rng.uniform(-POPULATE_JITTER, POPULATE_JITTER, n)) * spacing
+    starts = np.concatenate([[0.0], np.cumsum(lengths)])
+    places = []
+    for s in s_all.tolist():
+        k = int(np.searchsorted(starts, s, side="right")) - 1
+        pos = s - float(starts[k])
+        if 0 <= k < len(lengths) and pos <= lengths[k] - 50.0:
+            places.append((k, round(pos, 2)))
+    return places
+
+
+def write_routes(path: Path, flows: list[tuple[FlowSpec, list[str], float]], end: float,
+                 populated: dict[str, list[tuple[int, float]]] | None = None) -> Path:
     """Write vTypes, routes and flows. ``flows`` holds (spec, edges, veh/h); ``end`` [s] is
-    the default end of every flow. Each flow draws its types from its own distribution."""
+    the default end of every flow. Each flow draws its types from its own distribution.
+    ``populated``: flow id -> (route edge index, position [m]) of its vehicles placed when it
+    begins (:func:`populate_places`), SUMO vehicles ``<flow id>.p<n>`` on the rest of its route,
+    written downstream first: SUMO inserts each at the highest speed that is safe behind the
+    vehicles ahead of it (``departSpeed="max"``), while one written upstream first would have to be
+    safe for a fast vehicle already behind it, fail, and hold up every later one on its edge."""
+    populated = populated or {}
     lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<routes>"]
     for spec, edges, vph in flows:
         dist = f"{spec.id}_types"
@@ -53,7 +90,14 @@ def write_routes(path: Path, flows: list[tuple[FlowSpec, list[str], float]], end
             lines.append(f'    <vType id="{spec.id}_{kind}" {_attrs(attrs)}/>')
         lines.append("  </vTypeDistribution>")
         lines.append(f'  <route id="{spec.id}_route" edges="{" ".join(edges)}"/>')
+        for k in sorted({k for k, _ in populated.get(spec.id, ())}):
+            lines.append(f'  <route id="{spec.id}_route.{k}" edges="{" ".join(edges[k:])}"/>')
     for spec, edges, vph in flows:
+        placed = list(enumerate(populated.get(spec.id, ())))
+        for n, (k, pos) in placed[::-1]:  # downstream first: each is inserted behind those ahead
+            lines.append(f'  <vehicle id="{spec.id}.p{n}" type="{spec.id}_types" route="{spec.id}_route.{k}" '
+                         f'depart="{spec.begin}" departLane="best" departSpeed="{spec.depart_speed}" '
+                         f'departPos="{pos}"/>')
         f_end = spec.end if spec.end is not None else end
         lines.append(
             f'  <flow id="{spec.id}" type="{spec.id}_types" route="{spec.id}_route" '

@@ -38,7 +38,7 @@ from .peers import Peers
 from .sense import NeighbourGuess, PackedLanes, sense_step
 from .types import Neighbours
 from .plan import MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
-from .traffic import flow_vehicles_per_hour, write_routes
+from .traffic import flow_vehicles_per_hour, populate_places, write_routes
 from .warm_state import WarmSetup, merge_outputs, start_warm
 from ..sim.world import Sensed, sensed_of
 
@@ -128,7 +128,11 @@ class SumoWorld(MemberHandover, MemberRows):
             if self.plan.flow_keep and f.id in self.plan.flow_keep:  # a formation flow's share
                 vph *= self.plan.flow_keep[f.id]
             flows.append((f, edges, vph))
-        routes = write_routes(self.sumo_dir / "traffic.rou.xml", flows, t_sumo_end)
+        populated = {f.id: populate_places(vph, road.speed_limit, [road.edge_length[e] for e in edges],
+                                           run.seed)
+                     for f, edges, vph in flows if f.populate}
+        self.populated = {fid: len(p) for fid, p in populated.items()}
+        routes = write_routes(self.sumo_dir / "traffic.rou.xml", flows, t_sumo_end, populated)
         self.flows = [(f, e, vph, f.end if f.end is not None else t_sumo_end) for f, e, vph in flows]
         self.measure = measure_plan(sc, road, self.sumo_dir)
         self.sections = plan_sections(sc, road, self.sumo_dir)
@@ -195,7 +199,8 @@ class SumoWorld(MemberHandover, MemberRows):
                     self.meta["formation_flows"], self.rec.add_event, max(t_sumo - t0, 0.0)))
             if hasattr(self, "flows"):
                 from .fcd import true_speeds  # pandas: imported only to end a run
-                traffic_meta(self.meta, self.rec, self.flows, departed, t_sumo, t0, self.measure)
+                traffic_meta(self.meta, self.rec, self.flows, departed, t_sumo, t0, self.measure,
+                             self.populated)
                 sumo_outputs_meta(self.meta, self.sc, self.rec, self.sumo_dir, t0,
                                   {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)},
                                   t_sumo - t0, true_speeds(self.true_v, self.ids))
