@@ -74,20 +74,25 @@ def test_sweep_twins_a_case_that_ended_with_incidents(tmp_path):
 
 
 def test_sweep_names_the_twins_that_failed(tmp_path):
-    """Twins that cannot run (here: a free-space base, where a twin has no traffic to keep)
-    leave their cases' status alone, their paired effects NaN, and are named: summary.parquet
-    ``twin_status`` / ``twin_reason``, the terminal's last line, effects.csv's note (over 0 of
-    2 seeds, naming each case) and the sweep report."""
-    base = ROOT / "scenarios" / "thesis" / "case_2_3_1_straight.toml"
+    """Twins that cannot run (here: each twin's directory already holds a file the tool did not
+    write, which a twin never deletes) leave their cases' status alone, their paired effects NaN,
+    and are named: summary.parquet ``twin_status`` / ``twin_reason``, the terminal's last line,
+    effects.csv's note (over 0 of 2 seeds, naming each case) and the sweep report."""
+    from formation_traci.sweep.expand import load_sweep
+
+    base = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
     sweep = tmp_path / "s.toml"
     sweep.write_text(f'base = "{os.path.relpath(base, tmp_path)}"\nseeds = [1, 2]\n'
-                     '[overrides]\n"run.duration" = 1.0\n')
+                     '[overrides]\n"run.duration" = 1.0\n"traffic.warmup" = 2.0\n')
     out = tmp_path / "out"
+    for case in load_sweep(sweep).cases:
+        (out / "twins" / case.id).mkdir(parents=True)
+        (out / "twins" / case.id / "my_notes.txt").write_text("not the tool's")
     code, text = cli("sweep", sweep, "--out", out, "--no-progress", "--workers", "2", "--baseline")
     df = pd.read_parquet(out / "summary.parquet")
     assert code == 0 and (df.status == "completed").all(), text
     assert (df.twin_status == "failed").all()
-    assert df.twin_reason.str.contains("needs a road scenario").all()
+    assert df.twin_reason.str.contains("is not a previous run of formation-traci").all(), df.twin_reason.tolist()
     assert df.fx_delay_total_s.isna().all()
     assert json.loads((out / "sweep.json").read_text())["counts"]["twins_failed"] == 2
     last = text.strip().splitlines()[-1]
@@ -104,6 +109,7 @@ def test_sweep_names_the_twins_that_failed(tmp_path):
     # own, and the cases whose twin failed run again
     code, text = cli("sweep", sweep, "--out", out, "--no-progress", "--workers", "2", "--baseline")
     assert code == 0 and "2 run now, 0 done before" in text and "TWINS FAILED: 2" in text, text
+    assert all((out / "twins" / c / "my_notes.txt").read_text() == "not the tool's" for c in df.case_id)
 
 
 def _first_rows(df: pd.DataFrame, ids) -> pd.DataFrame:

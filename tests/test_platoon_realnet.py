@@ -220,3 +220,38 @@ def test_sumo_cacc_followers_pass_an_on_ramp_merge(tmp_path):
         assert (gap[gap.index > 0.5] - 16.0).abs().max() <= 0.2 * 16.0, (me, gap.describe())
         past = w["s"][me] > 2200.0
         assert past.any() and (w["v"][me][past] > 20.0).all(), me
+
+
+def _gaps(traj: pd.DataFrame) -> dict[str, pd.Series]:
+    """Each follower's bumper gap to the member ahead along its own heading [m] (passenger cars:
+    CoG to rear plus CoG to front = 4.6 m), indexed by t."""
+    m = traj[traj.vehicle_id.isin(("p0", *FOLLOWERS))]
+    w = {c: m.pivot(index="t", columns="vehicle_id", values=c) for c in ("x", "y", "heading")}
+    return {me: (w["x"][ahead] - w["x"][me]) * np.cos(w["heading"][me])
+            + (w["y"][ahead] - w["y"][me]) * np.sin(w["heading"][me]) - 4.6
+            for ahead, me in zip(("p0", *FOLLOWERS), FOLLOWERS)}
+
+
+SETTLE_S = 35.0
+"""Time SUMO's CACC takes to close the gaps the head's re-acceleration opened [s]: it closes them
+in its gap-closing mode (docs/platoon_laws.md, "SUMO's CACC on a real road"); measured ~30 s."""
+
+
+def test_sumo_cacc_gaps_return_to_the_equilibrium_once_the_head_holds_28_again(tmp_path):
+    """Once the head holds 28 m/s again (from t = 15.5 s) SUMO's CACC followers close the gaps the
+    braking and re-acceleration opened and hold the law's equilibrium gap 2 m + 0.5 s x 28 m/s =
+    16 m within 20 %, through the curve, the junction at s = 1,437 m and the on-ramp merge (no
+    vehicle between them: they neither fall back for lane reasons nor wait at the merge)."""
+    text = SCENARIO.format(law="sumo_cacc", net=LUST).replace("duration = 30.0", "duration = 60.0")
+    assert "duration = 60.0" in text
+    p = tmp_path / "long.toml"
+    p.write_text(text)
+    res = run_scenario(load_scenario(p), tmp_path / "run", force=True, progress=False)
+    assert res.status == "completed", (res.status, res.reason)
+    traj = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
+    vc = traj[traj.vehicle_id == "vc"].set_index("t").v
+    assert (vc[vc.index >= 20.0] - 28.0).abs().max() <= 0.5  # the head holds 28 m/s again
+    for me, gap in _gaps(traj).items():
+        settled = gap[gap.index >= 15.5 + SETTLE_S]
+        assert len(settled) > 100 and (settled - 16.0).abs().max() <= 0.2 * 16.0, (me, settled.describe())
+
