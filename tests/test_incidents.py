@@ -160,6 +160,42 @@ def test_stranded_member_is_one_incident_per_episode():
     assert verdict("completed", dict.fromkeys(INCIDENT_KEYS, 0)) == ("completed", None)
 
 
+def test_lane_departure_is_one_incident_per_episode():
+    """A watched follower whose centre is more than half a lane width (here 1.75 m) across
+    from its slot's offset has left its lane: one lane_departure per episode (leaving, coming
+    back, leaving again: 2), an unwatched member (the head) and a member out of the run are
+    not checked; the verdict names it."""
+    rec = _Rec()
+    inc = Incidents(rec, ["head", "f1", "f2"], [PASSENGER_CAR] * 3)
+    inc.watch_lanes(np.array([False, True, True]), np.array([0.0, 0.0, 3.5]), 1.75)
+    active = np.array([True, True, False])
+    for t, d in ((0.0, (0.0, 0.2, 3.5)), (0.05, (-2.5, -1.74, 9.0)), (0.1, (0.0, -1.76, 9.0)),
+                 (0.15, (0.0, -2.4, 9.0)), (0.2, (0.0, 0.1, 9.0)), (0.25, (0.0, 1.9, 9.0)),
+                 (0.3, (0.0, np.nan, 9.0))):
+        inc.lanes(t, np.array(d), active)
+    assert inc.counts()["lane_departures"] == 2
+    ev = [e for e in rec.events if e[1] == "lane_departure"]
+    assert [(e[0], e[2]) for e in ev] == [(0.1, "f1"), (0.25, "f1")]
+    assert verdict("completed", inc.counts()) == ("completed_with_incidents", "2 lane departures")
+
+
+def test_sumo_message_kinds():
+    """SUMO's emergency braking of a member counts (of any other vehicle not); a vType's
+    warning that names collisions is not a collision (the terminal's collision count)."""
+    from formation_traci.sumo.messages import message_kind
+    assert message_kind("Vehicle 'p1' performs emergency braking on lane 'e_1' with "
+                        "decel=9.00, wished=4.50, severity=1.00, time=31.00.") == "emergency_braking"
+    assert message_kind("Vehicle 'a'; collision with vehicle 'b', lane='e_0', gap=-1.00, "
+                        "time=3.00, stage=move.") == "collision"
+    assert message_kind("Value of 'emergencyDecel' (9) is lower than 'apparentDecel' (12) for "
+                        "vType 'member_passenger_car_cacc' may cause collisions.") == "other"
+    inc = Incidents(_Rec(), ["p0", "p1"], [PASSENGER_CAR] * 2)
+    inc.sumo_message("p1", "emergency_braking")
+    inc.sumo_message("main.3", "emergency_braking")
+    inc.sumo_message("p0", "collision")
+    assert inc.counts()["sumo_emergency_brakes"] == 1
+
+
 def test_forced_collision_exit_codes_run_json_terminal_and_report(tmp_path):
     """Two members placed into each other: exit 0 with status completed_with_incidents and the
     counts in run.json, the terminal's last line names the collision, --strict exits 1, and the
@@ -172,7 +208,8 @@ def test_forced_collision_exit_codes_run_json_terminal_and_report(tmp_path):
     assert meta["status"] == "completed_with_incidents"
     assert set(meta["incidents"]) == set(INCIDENT_KEYS)
     assert meta["incidents"] == {"member_collisions": 1, "member_removed": 0, "emergency_brakes": 0,
-                                 "stranded": 0, "sumo_collision_artefacts": 0}
+                                 "stranded": 0, "sumo_emergency_brakes": 0, "lane_departures": 0,
+                                 "sumo_collision_artefacts": 0}
     last = text.strip().splitlines()[-2:]
     assert last[0].startswith("completed_with_incidents:")
     assert "INCIDENTS: 1 member collisions" in last[1]

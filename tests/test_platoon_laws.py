@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from analysis.api import analyze_run
-from analysis.metrics.platoon import amplification
+from analysis.metrics.platoon import amplification, formation_amplification
 
 from formation_traci.scenario import ScenarioError, load_scenario
 from formation_traci.runner import run_scenario
@@ -126,14 +126,39 @@ def test_acc_short_gap_with_drive_lag_is_string_unstable(tmp_path):
     assert acc_gamma(2 * math.pi * 0.2, 1.2, 0.0) < 1.0
 
 
-def test_amplification_floors_round_off():
-    """The virtual structure's members each track the virtual car: speed errors of 1e-13 m/s
-    are round-off, the ratio is 1 (Gamma = 1), not their quotient."""
+def test_amplification_is_none_below_the_floor():
+    """A first follower whose peak speed error is below AMPLIFICATION_FLOOR_MPS (0.05 m/s) has
+    no error to propagate: round-off (1e-13 m/s, the virtual structure in free space) or the
+    ~0.003 m/s of a road's tracking give no ratio (None), whatever the tail does; at and above
+    the floor the ratio is the tail's peak over the first follower's."""
+    from analysis.metrics.platoon import AMPLIFICATION_FLOOR_MPS
+    assert AMPLIFICATION_FLOOR_MPS == 0.05
     v = np.vstack([np.sin(np.linspace(0, 6, 50))] * 4)
     v[2] += 3e-13
-    assert amplification(v)[0] == 1.0
-    v[3, 10] += 0.5
-    assert amplification(v)[0] > 1e4
+    assert amplification(v)[0] is None
+    v[1, 20] += 0.003  # the first follower's error: 0.003 m/s
+    v[3, 10] += 0.0023
+    r, first, last = amplification(v)
+    assert r is None and first == pytest.approx(0.003, rel=1e-9)
+    v[1, 20] += 0.097  # 0.1 m/s: above the floor
+    r, first, last = amplification(v)
+    assert first == pytest.approx(0.1, rel=1e-9) and r == pytest.approx(last / first, rel=1e-12)
+
+
+def test_formation_record_says_why_there_is_no_ratio():
+    """metrics.json's formation record: string_amplification None with the reason when the
+    first follower's peak is below the floor."""
+    t = np.arange(0.0, 5.0, 0.05)
+    rows = []
+    for k, dv in enumerate((0.0, 0.003, 0.0, 0.002)):
+        v = 28.0 + np.sin(t) + dv * (t > 2.0)
+        rows.append(pd.DataFrame({"t": t, "vehicle_id": f"p{k}", "formation_id": "f0", "v": v,
+                                  "x": -20.0 * k + 28.0 * t, "y": 0.0, "heading": 0.0}))
+    traj = pd.concat(rows, ignore_index=True)
+    offsets = {f"p{k}": (-20.0 * k, 0.0) for k in range(4)}
+    rec = formation_amplification(traj, offsets, 1.0)[0]
+    assert rec["string_amplification"] is None
+    assert "0.003 m/s is below 0.05 m/s" in rec["string_amplification_unavailable"]
 
 
 def test_path_keeps_constant_spacing(tmp_path):

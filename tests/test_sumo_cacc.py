@@ -59,7 +59,9 @@ def test_sumo_drives_the_followers_and_our_head_leads(twin):
     assert dx_err["p0"] > 1e-4  # ours: RK4 over the step
     members = df[df.vehicle_id.isin(IDS)]
     driven = members[members.vehicle_id != "p0"]
-    assert driven.sumo_gap.abs().max() < 1e-9
+    # SUMO's front bumper, our heading (the reference line's, within ~1e-6 rad of SUMO's
+    # angle on this straight road): sumo_gap below a micrometre
+    assert driven.sumo_gap.abs().max() < 1e-6
     for col in MODEL_ONLY:  # our model's columns: none for a vehicle SUMO drives
         assert driven[col].isna().all(), col
         assert members[members.vehicle_id == "p0"][col].notna().all(), col
@@ -138,3 +140,57 @@ def test_unknown_law_and_sumo_cacc_without_a_road_exit_2(tmp_path):
         assert not (tmp_path / f"out_{law}").exists()
     assert "controller.law" in cli("run", tmp_path / "sumo_caac.toml", "--out", tmp_path / "o",
                                    "--no-progress")[1]
+
+
+def test_sumo_emergency_braking_of_followers_is_an_incident(tmp_path):
+    """tau_s = 1e6: SUMO's CACC wants a gap of 1e6 s x v and brakes its followers at once
+    harder than their decel (SUMO's 'emergency braking' warnings about p1 ..): the run ends
+    completed_with_incidents with them counted as sumo_emergency_brakes, the terminal's last
+    line names them, --strict exits 1; no collision is counted."""
+    text = SCENARIO.read_text().replace("tau_s = 0.5,", "tau_s = 1000000.0,")
+    text = text.replace("duration = 30.0", "duration = 3.0")
+    assert "tau_s = 1000000.0" in text and "duration = 3.0" in text
+    sc = tmp_path / "tau.toml"
+    sc.write_text(text)
+    code, out = cli("run", sc, "--out", tmp_path / "r", "--no-progress")
+    assert code == 0, out
+    meta = json.loads((tmp_path / "r" / "run.json").read_text())
+    assert meta["status"] == "completed_with_incidents"
+    n = meta["incidents"]["sumo_emergency_brakes"]
+    assert n >= 7 and meta["incidents"]["member_collisions"] == 0
+    assert meta["sumo"]["messages"]["by_kind"]["emergency_braking"] >= n
+    ev = pd.read_parquet(tmp_path / "r" / "events.parquet")
+    braked = set(ev[(ev.kind == "sumo_message") & (ev.other_id == "emergency_braking")].vehicle_id)
+    assert braked <= set(IDS[1:]) and len(braked) == 7  # every follower, never our head
+    last = [line for line in out.strip().splitlines()[-3:] if line.startswith("INCIDENTS")]
+    assert last and f"{n} sumo emergency brakes" in last[0] and "collision" not in last[0]
+    code, out = cli("run", sc, "--out", tmp_path / "s", "--no-progress", "--strict")
+    assert code == 1, out
+
+
+def test_decel_above_emergency_decel_exits_2_naming_both_fields(tmp_path):
+    """SUMO would raise the vType's emergencyDecel to a larger decel by itself (and warn that
+    it 'may cause collisions'): refused when the scenario is read, nothing created."""
+    text = SCENARIO.read_text().replace("decel_mps2 = 8.0,", "decel_mps2 = 12.0,")
+    assert "decel_mps2 = 12.0" in text
+    sc = tmp_path / "decel.toml"
+    sc.write_text(text)
+    code, out = cli("run", sc, "--out", tmp_path / "r", "--no-progress")
+    assert code == 2, out
+    assert str(sc) in out and "controller.sumo_cacc" in out
+    assert "decel_mps2 = 12" in out and "emergency_decel_mps2 = 9" in out
+    assert not (tmp_path / "r").exists()
+
+
+def test_force_replaces_a_sumo_cacc_run(tmp_path):
+    """The CACC vType file the run writes (sumo/sumo_cacc.add.xml) is the tool's: --force
+    replaces the run (with traffic, whose measurement files share SUMO's additional-files
+    option with it)."""
+    text = SCENARIO.read_text().replace("duration = 30.0", "duration = 0.5") + (
+        '[traffic]\nwarmup = 1.0\n[[traffic.flows]]\nid = "main"\nveh_per_hour_per_lane = 300\n')
+    sc = tmp_path / "short.toml"
+    sc.write_text(text)
+    for _ in range(2):
+        code, out = cli("run", sc, "--out", tmp_path / "r", "--no-progress", "--force")
+        assert code == 0, out
+    assert (tmp_path / "r" / "sumo" / "sumo_cacc.add.xml").is_file()

@@ -13,8 +13,12 @@ member behind the first follower; ``gamma_mean`` their geometric mean).
 The record's ``min_gap_m`` is the smallest bumper-to-bumper gap between consecutive members
 of any of the formation's columns over the run (:func:`column_min_gap`; negative: the bodies
 overlap), with the follower (``min_gap_member``) and the time (``min_gap_t_s``).
-Peaks below :data:`SPEED_ERROR_FLOOR_MPS` count as that floor (the virtual structure's members
-each track the virtual car: their speed errors are round-off, and the ratio is 1, Gamma = 1).
+When the first follower's peak speed error is below :data:`AMPLIFICATION_FLOOR_MPS` there is
+no error to propagate: ``string_amplification`` is None and ``string_amplification_unavailable``
+says why (the virtual structure's members each track their own slot of the virtual car: their
+speed errors are round-off in free space, millimetres per second of tracking on a road; their
+quotient is noise, not a property of the law). A tail's peak below
+:data:`SPEED_ERROR_FLOOR_MPS` counts as that floor.
 """
 from __future__ import annotations
 
@@ -26,6 +30,10 @@ from analysis.metrics.footprint import member_footprints
 
 SPEED_ERROR_FLOOR_MPS = 1e-6
 """Peak speed errors below this are round-off [m/s]."""
+AMPLIFICATION_FLOOR_MPS = 0.05
+"""The first follower's peak speed error [m/s] below which ``string_amplification`` is None:
+0.18 km/h, under 2 % of the bundled sinusoid's 2.78 m/s swing and under a speedometer's
+resolution; a ratio of smaller errors measures tracking noise, not how a law passes errors on."""
 
 COMPARE_ROWS = ("string_amplification", "gamma_mean")
 """Formation-level rows of ``formation-traci compare`` (the run's first formation): our column
@@ -40,13 +48,21 @@ def compare_value(analysis, key: str):
     return analysis.formations[0].get(key) if analysis.formations else None
 
 
-def amplification(speeds: np.ndarray) -> tuple[float, float, float]:
+def amplification(speeds: np.ndarray) -> tuple[float | None, float, float]:
     """(ratio, peak |e_first| [m/s], peak |e_last| [m/s]) of a column's speeds (n >= 3 members,
-    front to back, shape (n, n_t), no NaN)."""
+    front to back, shape (n, n_t), no NaN); the ratio is None when peak |e_first| is below
+    :data:`AMPLIFICATION_FLOOR_MPS` (no error to propagate)."""
     e = np.abs(np.diff(np.asarray(speeds, float), axis=0))  # row k-1: |v_k - v_(k-1)|
     first = float(e[0].max())
     last = float(e[-1].max())
-    return (max(last, SPEED_ERROR_FLOOR_MPS) / max(first, SPEED_ERROR_FLOOR_MPS), first, last)
+    if first < AMPLIFICATION_FLOOR_MPS:
+        return None, first, last
+    return max(last, SPEED_ERROR_FLOOR_MPS) / first, first, last
+
+
+def _no_error_reason(first: float) -> str:
+    return (f"the first follower's peak speed error {first:.3g} m/s is below "
+            f"{AMPLIFICATION_FLOOR_MPS:g} m/s: no error to propagate")
 
 
 def column_min_gap(traj: pd.DataFrame, column: list, bodies: dict) -> tuple:
@@ -96,15 +112,27 @@ def formation_amplification(traj: pd.DataFrame, offsets: dict, dy_tol: float,
             if len(present) < 3 or len(v) == 0:
                 continue
             r, first, last = amplification(v.to_numpy().T)
-            if best is None or r > best["string_amplification"]:
+            if best is None or _ranks_above(r, best["string_amplification"]):
                 best = {"id": fid, "string_amplification": r, "column": present,
                         "peak_speed_error_first_mps": first, "peak_speed_error_last_mps": last,
+                        "string_amplification_unavailable": None if r is not None
+                        else _no_error_reason(first),
                         **_gamma_record(v.to_numpy().T, np.diff(v.index.to_numpy()))}
         out.append({**(best or {"id": fid, "string_amplification": None, "column": [],
                                 "peak_speed_error_first_mps": None, "peak_speed_error_last_mps": None,
+                                "string_amplification_unavailable": "no column of three members "
+                                "with common samples",
                                 "gamma_f0_hz": None, "gamma": [], "gamma_mean": None}),
                     "min_gap_m": gap[0], "min_gap_member": gap[1], "min_gap_t_s": gap[2]})
     return out
+
+
+def _ranks_above(r, best) -> bool:
+    """Does a column's ratio ``r`` replace the best so far (None: below the floor, ranks
+    lowest)?"""
+    if r is None:
+        return False
+    return best is None or r > best
 
 
 def _gamma_record(v: np.ndarray, steps: np.ndarray) -> dict:

@@ -136,6 +136,19 @@ def _leader_law(v_vc, v_set, v_set_dot, member_accels, use, accel_max, decel_eme
     return a
 
 
+@kernel(error_model="python")
+def free_road_accel(v_vc, v_set, v_set_dot, accel_max, decel_emergency, decel_follow,
+                    decel_comfort):
+    """The virtual car's acceleration [m/s^2] on its speed profile alone (the leader law
+    without the slots' gap laws): leader.traffic_aware = false."""
+    return _leader_law(v_vc, v_set, v_set_dot, _NO_ACCELS, _NO_USE, accel_max, decel_emergency,
+                       decel_follow, decel_comfort)
+
+
+_NO_ACCELS = np.zeros(0)
+_NO_USE = np.zeros(0, dtype=np.bool_)
+
+
 def member_speed_cap(gap, v_lead, time_gap, min_gap, v):
     """Largest speed reference [m/s] for a member at speed ``v`` [m/s] with a vehicle ``gap``
     [m] ahead.

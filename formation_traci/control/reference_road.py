@@ -11,7 +11,7 @@ import numpy as np
 
 from ..kernels import kernel
 from ..road.leader import road_leader_at
-from .governor import column_caps, governor_step
+from .governor import column_caps, free_road_accel, governor_step
 from .longitudinal import LongitudinalPlanner, PlannerParams, plan_step
 from .reference import FRAME_ROAD, FRAME_VEHICLE, Reference, constant_slots, set_vc_period
 from .virtual_car import along_line_advance, knot_profile_at
@@ -81,6 +81,8 @@ def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, 
         nb_rear, nb_d, nb_half_w, nb_v, lim[0], lim[1], lim[2], lim[3], lim[4],
         lim[5], nb_in_formation, nb_mate_rear)
     v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
+    if lim[6] == 0.0:  # not traffic-aware: the free-road law on the profile alone
+        a_gov = free_road_accel(v, v_set, v_set_dot, lim[2], lim[3], lim[4], lim[5])
     a_request = a_limit if a_limit < a_gov else a_gov  # Python's min(a_gov, a_limit)
     dt = dt_c * vc.shape[0]
     a_cap_in = a_cap_req.copy()
@@ -140,12 +142,15 @@ class GovernorLimits:
     decel_follow: float = math.inf
     """Largest braking of the virtual car outside emergencies [m/s^2]: what every member's
     speed loop can follow (sim/setup.py follow_limit; inf: not limiting)."""
+    traffic_aware: bool = True
+    """False: the virtual car drives its speed profile whatever the traffic ahead of the
+    slots and the members do (leader.traffic_aware); the members' own caps still act."""
 
     def packed(self) -> np.ndarray:
-        """(time_gap, min_gap, accel_max, decel_emergency, decel_follow, decel_max) for
-        :func:`road_reference_step`."""
+        """(time_gap, min_gap, accel_max, decel_emergency, decel_follow, decel_max,
+        traffic_aware 1/0) for :func:`road_reference_step`."""
         return np.array([self.time_gap, self.min_gap, self.accel_max, self.decel_emergency,
-                         self.decel_follow, self.decel_max])
+                         self.decel_follow, self.decel_max, 1.0 if self.traffic_aware else 0.0])
 
 
 def end_of_road(t: float, end_margin: float) -> tuple[str, str, str]:

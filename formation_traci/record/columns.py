@@ -16,7 +16,7 @@ DEFAULT_FORMATION_ID = "f0"
 
 
 INCIDENT_VERDICT: tuple[str, ...] = ("member_collisions", "member_removed", "emergency_brakes",
-                                     "stranded")
+                                     "stranded", "sumo_emergency_brakes", "lane_departures")
 """run.json ``incidents`` that make a run that reached its end ``completed_with_incidents``
 (sim/incidents.py defines each)."""
 INCIDENT_KEYS: tuple[str, ...] = INCIDENT_VERDICT + ("sumo_collision_artefacts",)

@@ -46,7 +46,7 @@ TOOL_SUBFILES = {
                            "comfort.parquet", "open_loop.parquet")},
     "figures": re.compile(r"^(\.[\w.\-]+\.tmp(\.png|\.gif)?|[a-z_]+\.(png|gif))$"),
     "sumo": re.compile(r"^(sumo\.log|messages\.log|traffic\.rou\.xml|ssm\.xml|measure\.xml|measure\.add\.xml"
-                       r"|fcd\.parquet|fcd\.tmp\.parquet|sections\.add\.xml|sections\.xml)$"),
+                       r"|fcd\.parquet|fcd\.tmp\.parquet|sections\.add\.xml|sections\.xml|sumo_cacc\.add\.xml)$"),
 }
 """The manifest of the folders this tool writes: the names it writes inside each (``sumo/`` also
 holds the outputs named in the run's ``run.json`` ``sumo.args``). ``--force`` replaces a run

@@ -108,6 +108,11 @@ class LeaderSpec(Strict):
     emergency_release: bool = Field(
         True, description="road: braking harder than decel_max is released at 20 m/s^3 once the emergency "
         "is over; false: at the planner's 0.8 m/s^3 like any change (the older behaviour)")
+    traffic_aware: bool = Field(
+        True, description="road: the virtual car slows for vehicles ahead of the slots; false: it drives "
+        "its speed profile whatever the traffic and the members do (every run of a scenario sees the same "
+        "virtual car: a comparison of laws over the same head); the members still brake for what is ahead "
+        "of them (their caps) and fall behind their slots, a head included (docs/platoon_laws.md)")
     accel_within_step: Literal["ramp", "hold"] = Field(
         "ramp", description="road: how the virtual car's acceleration and the members' acceleration caps, "
         "planned once per step, pass within the step: 'ramp' from the last step's value to this step's "

@@ -3,7 +3,7 @@
 that drives the followers when ``controller.law = "sumo_cacc"`` (sumo/driven.py)."""
 from __future__ import annotations
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from .base import NonNegFloat, PosFloat, Strict
 
@@ -70,6 +70,15 @@ class SumoCaccSpec(Strict):
     collision_avoidance_override_mps: NonNegFloat = Field(
         2.0, description="collisionAvoidanceOverride: largest excess over Krauss' safe speed [m/s]")
     speed_control_min_gap_m: NonNegFloat = Field(1.66, description="speedControlMinGap [m]")
+
+    @model_validator(mode="after")
+    def _decel_within_emergency(self):
+        if self.decel_mps2 > self.emergency_decel_mps2:
+            raise ValueError(
+                f"decel_mps2 = {self.decel_mps2:g} m/s^2 is above emergency_decel_mps2 = "
+                f"{self.emergency_decel_mps2:g} m/s^2: expected decel_mps2 <= emergency_decel_mps2 "
+                "(SUMO would raise the vType's emergencyDecel to decel by itself)")
+        return self
 
     def vtype_attributes(self) -> dict[str, str]:
         """SUMO vType attributes (name -> text) of these parameters."""

@@ -21,7 +21,7 @@ from ..control.laws import DEFAULT_LAW
 from ..control.laws.dispatch import law_input_at
 from ..control.reference import Reference, cap_at
 from ..control.schedule import GainSchedule
-from ..control.targets import desired_point_at
+from ..control.targets import desired_point_at, follows_lane, law_point_at
 from ..kernels import kernel, maximum, substeps
 from ..models import bicycle, kinematic
 from ..models.integrator import HELD, rhs_into, rk4_row_from
@@ -113,7 +113,8 @@ def step_members(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, 
     h = dt_c / n_sub
     for j in range(vc.shape[0]):
         for i in range(n):
-            px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, j, i)
+            px, py, tvx, tvy, tax, tay = law_point_at(law[i], pred[i], frame[i], G, vc, slots,
+                                                      j, i, x, kind, speed_in[i])
             res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py,
                                tvx, tvy, tax, tay, v_cap[i],
                                cap_at(a_cap_from[i], a_cap[i], j, vc.shape[0]), pred[i], u_prev,
@@ -151,6 +152,20 @@ def _comfort_values(kind, x, i, P, res, out, j):
     out[j, i, 0] = vk
     out[j, i, 1] = res[5]
     out[j, i, 2] = vk * res[1]
+
+
+@kernel
+def _slot_error(x, i, px, py, c, s, vals):
+    """ex, ey, e_lon, e_lat [m] and x_des, y_des of member i against the slot point (px, py)
+    into vals (_KERNEL_SIGNALS order); (c, s): the virtual car's heading."""
+    ex = px - x[i, S.X]
+    ey = py - x[i, S.Y]
+    vals[7] = ex
+    vals[8] = ey
+    vals[9] = c * ex + s * ey
+    vals[10] = -s * ex + c * ey
+    vals[11] = px
+    vals[12] = py
 
 
 @kernel
@@ -213,13 +228,17 @@ def member_signals(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred
     vals = np.empty(N_SIGNALS)
     n = x.shape[0]
     for i in range(n):
-        px, py, tvx, tvy, tax, tay = desired_point_at(frame[i], G, vc, slots, 0, i)
+        px, py, tvx, tvy, tax, tay = law_point_at(law[i], pred[i], frame[i], G, vc, slots, 0,
+                                                  i, x, kind, speed_in[i])
         res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py, tvx,
                            tvy, tax, tay, v_cap[i], cap_at(a_cap_from[i], a_cap[i], 0, vc.shape[0]),
                            pred[i], u_last, dt_c)
         th = vc[0, i, 2]
         _signal_values(kind, x, i, P, res[0], res[1], res, px, py, np.cos(th), np.sin(th),
                        vals)
+        if follows_lane(law[i], pred[i], frame[i]):  # the error to the slot itself
+            sx, sy, _, _, _, _ = desired_point_at(frame[i], G, vc, slots, 0, i)
+            _slot_error(x, i, sx, sy, np.cos(th), np.sin(th), vals)
         for q in range(N_SIGNALS):
             if cols[q] >= 0:
                 out[i, cols[q]] = vals[q]

@@ -10,6 +10,14 @@
 * ``stranded``: a member in the run below :data:`STRANDED_SPEED` for more than
   :data:`STRANDED_TIME` while its speed reference (eq 2.6) is above :data:`STRANDED_V_REF`:
   it stands while the formation wants it to drive;
+* ``sumo_emergency_brakes``: SUMO reports that it brakes a member harder than its vType's
+  ``decel`` (its "emergency braking" warning), whoever drives the member (SUMO's own
+  car-following model: ``controller.law = "sumo_cacc"``; sumo/messages.py);
+* ``lane_departures``: a member of a column under a platoon law (ours or SUMO's CACC; its
+  head, which runs the virtual structure, included) with its centre of gravity more than half a lane width
+  (:meth:`Incidents.watch_lanes`) across from its slot's lateral offset: it left its lane
+  (counted when it leaves; a ``lane_departure`` event). Only in runs without maneuvers (a
+  maneuver moves the slot);
 * ``sumo_collision_artefacts``: collisions SUMO reports for a member where our clearance is
   >= 0 (SUMO checks collisions per lane: a body that reaches into the next lane "collides"
   with a vehicle there it does not touch). Counted, recorded as ``collision_artefact``
@@ -137,7 +145,10 @@ class Incidents:
         self._sumo_prev: set = set()  # (collider, victim) SUMO reported at the last report
         self._standing = False  # any member in slow_since
         self.busy = False  # a contact, a stranded or standing member: after_clearances has work
-        self.n = dict.fromkeys(("member_collisions", "stranded", "sumo_collision_artefacts"), 0)
+        self.n = dict.fromkeys(("member_collisions", "stranded", "sumo_collision_artefacts",
+                                "sumo_emergency_brakes", "lane_departures"), 0)
+        self.lane_watch = None  # (mask, slot d [m], half lane width [m]): watch_lanes
+        self.off_lane = np.zeros(n, dtype=bool)  # out of its lane at the last check
 
     def step(self, t: float, sig: np.ndarray, active: np.ndarray) -> None:
         worst = math.inf
@@ -207,6 +218,35 @@ class Incidents:
                 self.n["member_collisions"] += 1
         self._sumo_prev = now
 
+    def watch_lanes(self, mask, slot_d, half_width: float) -> None:
+        """Check the members of ``mask`` (n,) in :meth:`lanes`: each keeps its centre of
+        gravity within ``half_width`` [m] of its slot's lateral offset ``slot_d`` (n,) [m]."""
+        mask = np.asarray(mask, dtype=bool)
+        if mask.any():
+            self.lane_watch = (mask, np.asarray(slot_d, dtype=float), float(half_width))
+
+    def lanes(self, t: float, d, active) -> None:
+        """Lane departures at t [s] from the members' lateral offsets ``d`` (n,) [m] across
+        the road's reference line (NaN: not known)."""
+        if self.lane_watch is None:
+            return
+        mask, slot_d, half = self.lane_watch
+        off = mask & active & (np.abs(d - slot_d) > half)  # NaN compares False
+        if not (off.any() or self.off_lane.any()):
+            return
+        for i in np.flatnonzero(off & ~self.off_lane):
+            self.n["lane_departures"] += 1
+            self.rec.add_event(t, "lane_departure", self.ids[i], "",
+                               f"d = {d[i]:.2f} m, its slot's {slot_d[i]:.2f} m: more than "
+                               f"{half:.2f} m (half a lane) across")
+        self.off_lane = off
+
+    def sumo_message(self, vehicle_id: str, kind: str) -> None:
+        """One of SUMO's warnings (sumo/messages.py kind) about ``vehicle_id``: an emergency
+        braking of a member is an incident."""
+        if kind == "emergency_braking" and vehicle_id in self.ids:
+            self.n["sumo_emergency_brakes"] += 1
+
     def counts(self) -> dict[str, int]:
         """run.json ``incidents`` (INCIDENT_KEYS)."""
         ev = self.rec.event_counts
@@ -214,6 +254,8 @@ class Incidents:
                 "member_removed": int(ev.get("member_removed", 0)),
                 "emergency_brakes": int(ev.get("emergency_brake", 0)),
                 "stranded": int(self.n["stranded"]),
+                "sumo_emergency_brakes": int(self.n["sumo_emergency_brakes"]),
+                "lane_departures": int(self.n["lane_departures"]),
                 "sumo_collision_artefacts": int(self.n["sumo_collision_artefacts"])}
 
 

@@ -254,6 +254,8 @@ def _record(world, fleet: Fleet, rec, t, state, sensed, ref, ref_err, sig, sig_t
         rec.add_step(t, sig, sensed.extra, ref.active, ref.truth, written)
         if rec.incidents is not None:  # collisions between members, stranded members
             rec.incidents.step(t, sig, ref.active)
+            if rec.incidents.lane_watch is not None:  # lane departures (road runs)
+                rec.incidents.lanes(t, sensed.extra["d"], ref.active)
     elif ref.truth.ndim == 1:
         rec.add_vc(t, ref.leader(), s=float(ref.truth[7]))
     else:  # a twin of several formations: their virtual cars on the road

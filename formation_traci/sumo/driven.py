@@ -8,14 +8,18 @@ acceleration told to SUMO after every step. Every follower is inserted at the po
 column would start from (same lane, same spacing), of a vType with SUMO's ``CACC``
 car-following model (``controller.sumo_cacc``; written to ``sumo/sumo_cacc.add.xml``, copied per
 member preset with the member's chassis length and width), and from then on SUMO drives it: the
-default speed mode, no lane changes, no moveToXY. SUMO's CACC follows the vehicle ahead in its
+safe-speed checks without the right of way at junctions (sumo/types.py SPEED_MODE_DRIVEN), no lane
+changes, no moveToXY. SUMO's CACC follows the vehicle ahead in its
 lane (MSCFModel_CACC.cpp: CACC when that vehicle's vType is CACC, else its ACC fallback; the
 head's vType is CACC too, so the first follower runs CACC on it).
 
 Recording. At every sense the followers' SUMO state (front bumper, angle, speed,
 acceleration) is read back and written into their rows of the fleet state (CoG frame), so the
-loop records them in the same tables as our members: x, y, heading, v from SUMO, yaw_rate the
-heading's rate over the step, a_lon SUMO's acceleration, a_lat v times yaw_rate, the formation
+loop records them in the same tables as our members: x, y, v from SUMO, heading the direction
+of the road's smooth reference line where the follower is (SUMO's angle is its lane polyline's
+segment direction and jumps at the polyline's corners: SumoDrivenWorld._lane_heading), the
+CoG from SUMO's front bumper along that heading, yaw_rate the heading's rate over the step,
+a_lon SUMO's acceleration, a_lat v times yaw_rate, the formation
 error (ex .. y_des) against their slots on the virtual car as for any member, ``sumo_gap`` ~ 0
 (their state is SUMO's); the model's own columns (v_ref, omega_ref, steer .. drag_ratio) are
 NaN. Their comfort rows at the control rate hold the step's values (SUMO changes a speed once
@@ -31,6 +35,7 @@ import numpy as np
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
 from ..record.columns import SIGNAL_COLUMNS
+from ..road.fast_line import frame_many, to_frenet_many
 from ..sim.fleet import Fleet
 from .types import sumo_to_cog
 from .world import SumoWorld
@@ -39,6 +44,20 @@ SUMO_CACC = "sumo_cacc"
 """``controller.law`` of this module (control/laws SUMO_LAWS)."""
 CACC_BASE_TYPE = "sumo_cacc"
 """The CACC vType of the additional file; every member type is a copy of it."""
+
+LANE_CHANGE_PARAMS = {"lcOvertakeRight": "1", "lcCooperativeSpeed": "0", "lcStrategic": "-1"}
+"""The followers' lane-change model parameters. SUMO's default lane-change model (LC2013)
+changes their speed for reasons of lanes, not of the column, even with lane changes off
+(lane-change mode 0), while our head, placed by moveToXY, does neither: it forbids overtaking
+on the right (a vehicle slows to the speed of slower traffic in the lane to its left: 25 m/s
+behind a 28 m/s head on LuST), it slows a vehicle to let one that wants to change into its lane
+in ahead of it, and where its strategy wants a lane change it cannot make it slows the vehicle
+as if the change were urgent (1.9 m/s^2 on LuST's off-ramp edge after the
+junction at s = 1,437 m, whose lane continues on the route); the followers fell back from the
+head they follow, to gaps of 60-76 m. ``lcOvertakeRight = 1``, ``lcCooperativeSpeed = 0`` and
+``lcStrategic = -1`` (no strategic changes) keep them with their column's head: their speed is
+their CACC's (and SUMO's safe speed); they never change lanes (lane-change mode 0), as under
+our laws."""
 
 _COL = {c: SIGNAL_COLUMNS.index(c) for c in ("v", "yaw_rate", "a_lon", "a_lat")}
 _MODEL_ONLY = [SIGNAL_COLUMNS.index(c) for c in (
@@ -153,7 +172,8 @@ class SumoDrivenWorld(SumoWorld):
         front, ang, v, a = self.adapter.driven_states([self.sumo_ids[i] for i in rows])
         here = np.isfinite(v)
         rows, front, ang, v, a = rows[here], front[here], ang[here], v[here], a[here]
-        x, y, psi = sumo_to_cog(front[:, 0], front[:, 1], ang, self.d_front[rows])
+        psi = self._lane_heading(front, ang, rows)
+        x, y, psi = sumo_to_cog(front[:, 0], front[:, 1], 90.0 - np.degrees(psi), self.d_front[rows])
         last = self._psi[rows]
         dpsi = np.angle(np.exp(1j * (psi - last)))
         r = np.where(np.isfinite(last), dpsi / self.sc.run.step, 0.0)
@@ -171,9 +191,23 @@ class SumoDrivenWorld(SumoWorld):
         self._kin = None  # the state changed in place
 
 
+    def _lane_heading(self, front, ang, rows) -> np.ndarray:
+        """The followers' heading [rad CCW from +x]: the direction of the road's smooth
+        reference line at the arc length of their centre of gravity (SUMO drives a follower
+        along its lane, whose direction that is). SUMO's own angle is the direction of its
+        lane shape's polyline segment (or of the junction's): it jumps where two segments meet
+        (by a degree or more on a real net: a yaw rate of 0.3-0.6 rad/s over one step, 10-15
+        m/s^2 of lateral acceleration at 28 m/s that no car feels); it only seeds the
+        projection and picks the branch of the angle."""
+        x0, y0, psi0 = sumo_to_cog(front[:, 0], front[:, 1], ang, self.d_front[rows])
+        s, _ = to_frenet_many(self.line.G, np.column_stack([x0, y0]), self.m_s[rows])
+        line = frame_many(self.line.G, s)[:, 4]
+        return psi0 + np.angle(np.exp(1j * (line - psi0)))
+
+
 def write_cacc_type(path: Path, attributes: dict[str, str]) -> None:
     """The SUMO additional file with the CACC vType :data:`CACC_BASE_TYPE` (``attributes``:
     SUMO attribute -> value)."""
-    attrs = " ".join(f'{k}="{v}"' for k, v in attributes.items())
+    attrs = " ".join(f'{k}="{v}"' for k, v in {**attributes, **LANE_CHANGE_PARAMS}.items())
     path.write_text(f'<additional>\n    <vType id="{CACC_BASE_TYPE}" carFollowModel="CACC" '
                     f"{attrs}/>\n</additional>\n")

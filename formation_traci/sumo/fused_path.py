@@ -179,6 +179,8 @@ class FusedPath:
         refs.after()
         self._flags = flags
         w.m_s = s_all[:n]
+        if rec.incidents.lane_watch is not None:
+            rec.incidents.lanes(t, d_all[:n], w.active)
         if nb_ids is not None:
             w._nb_guess.keep(nb_ids, s_all[n:])
         if not self._every:  # MemberWatch.lane_changes of a step with members out of the run

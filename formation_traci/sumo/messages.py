@@ -14,13 +14,17 @@ import re
 import sys
 from pathlib import Path
 
+import numpy as np
+
 _TIME = re.compile(r"time=(-?[0-9]+(?:\.[0-9]+)?)")
 _VEHICLE = re.compile(r"[Vv]ehicle '([^']+)'")
 KINDS = (("no connection to the next edge", "lane_end_stop"),
-         ("emergency braking", "emergency_braking"), ("collision", "collision"),
+         ("emergency braking", "emergency_braking"), ("collision with", "collision"),
          ("teleport", "teleport"), ("waited too long", "insertion_delay"),
          ("could not be inserted", "insertion_failed"))
-"""(text in SUMO's message, kind) pairs; anything else is ``other``."""
+"""(text in SUMO's message, kind) pairs; anything else is ``other``. A collision is SUMO's
+report "...; collision with vehicle '...'" (or "junction collision with ..."): other messages
+that name the word, e.g. a vType's deceleration "to prevent collisions", are not."""
 SUMO_ARGS = ["--no-warnings", "true"]
 """SUMO options that keep warnings off the terminal (they still reach ``--error-log``)."""
 
@@ -98,7 +102,13 @@ def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_f
     """After the run: SUMO's messages up to formation time ``t_max`` as events (run.json
     ``sumo.messages``), the FCD up to then in the frame asked for (one naming of the columns
     in both frames, units in the metadata), and which clock and frame each output uses."""
-    meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, rec.add_event, sc.run.step, t_max)
+    inc = rec.incidents
+
+    def add_event(t, kind, vid, other, detail):
+        rec.add_event(t, kind, vid, other, detail)
+        if inc is not None:
+            inc.sumo_message(vid, other)
+    meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, add_event, sc.run.step, t_max)
     if sc.sumo.fcd:
         from .fcd import cut_fcd, rewrite_fcd
         cut_fcd(sumo_dir / "fcd.parquet", t0, sc.run.step, t_max)  # the formation's part only
@@ -107,3 +117,20 @@ def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_f
     meta["sumo"]["clock"] = ("trajectories, background, events, ssm: formation time t = SUMO time - warmup, "
                              "centre of gravity; sumo/*.log, sumo/*.xml: SUMO time; sumo/fcd.parquet: "
                              f"{'formation' if sc.sumo.fcd_frame == 'formation' else 'SUMO'} frame")
+
+
+def watch_lanes(incidents, sc, fleet, plan, baseline: bool) -> None:
+    """sim/incidents.py lane departures of the road run's platoon-law columns (every member of
+    a column under a platoon law of ours or SUMO's CACC, the head included; runs without
+    maneuvers, which move slots): more than half the reference lane's width across from the
+    slot's lateral offset."""
+    if incidents is None or baseline or _has_maneuvers(sc):
+        return
+    platoon = (np.asarray(fleet.base_law) > 0) | (sc.controller.law == "sumo_cacc")
+    slot_d = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
+    incidents.watch_lanes(platoon & plan.is_road, slot_d, 0.5 * plan.road.lane_width)
+
+
+def _has_maneuvers(sc) -> bool:
+    """Does any formation of the scenario run maneuvers?"""
+    return bool(sc.maneuvers) or any(f.maneuvers for f in getattr(sc, "formations", []) or [])

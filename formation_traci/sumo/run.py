@@ -20,6 +20,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     from ..sim.road_load import road_load_part
     from ..sim.setup import build_fleet
     from .driven import world_and_fleet
+    from .messages import watch_lanes
 
     parts = plan.formations or ((None, plan, slice(0, len(sc.members))),)
     views = [sc if setup is None else setup.view for setup, _, _ in parts]
@@ -27,6 +28,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     fleet, world_class = world_and_fleet(sc, join_configs(cfgs), baseline)  # sumo_cacc: SUMO drives followers
     world = world_class(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
     world.should_stop = should_stop
+    watch_lanes(rec.incidents, sc, fleet, plan, baseline)  # lane departures of platoon columns
     built = [_formation_parts(view, p, cfg, fleet.gains[rows], world, meta)
              for view, (_, p, rows), cfg in zip(views, parts, cfgs)]
     meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
@@ -67,7 +69,8 @@ def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld,
     limits = GovernorLimits(ld.time_gap, ld.min_gap,
                             min(ld.accel_max, ADHESION_SHARE_COMFORT * mu_g, follow),
                             min(ld.decel_max, ADHESION_SHARE_COMFORT * mu_g),
-                            min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g), follow)
+                            min(ld.decel_emergency, ADHESION_SHARE_EMERGENCY * mu_g), follow,
+                            ld.traffic_aware)
     column_gap_warnings(sc, plan.slots, plan.is_road, plan.vehicles, gains, top_speed(sc, speed_profile),
                         limits.decel_emergency, meta)
     s0, v0 = float(sc.road.start), speed_profile(0.0)[0]

@@ -33,6 +33,13 @@ the formation's route up to here, moved on whenever it enters the next edge (SUM
 edges already driven in the route; docs/sumo.md)."""
 
 SPEED_MODE_DEFAULT = 31
+SPEED_MODE_DRIVEN = 23
+"""Speed mode of a member SUMO's car-following model drives (sumo/driven.py): the default's
+safe speed, acceleration, deceleration and red-light bits, without the right of way at
+junctions (bit 3). Where two lanes of an on-ramp edge merge into one (LuST: -31622#4's on-ramp
+edge, lanes 1 and 2 into lane 1) a follower that may not change lanes would otherwise wait at
+the merge for a gap in the ramp's traffic for ever, while its head, placed by moveToXY, drives
+on along the geometric lane."""
 """SUMO's default speed mode: all safe-speed, acceleration and right-of-way checks on
 (https://sumo.dlr.de/docs/TraCI/Change_Vehicle_State.html#speed_mode_0xb3)."""
 LANE_CHANGE_MODE_DEFAULT = 1621

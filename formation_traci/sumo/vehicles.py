@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .types import (LANE_CHANGE_MODE_DEFAULT, ORDINARY_CLASS, SPEED_MODE_DEFAULT, MemberType,
-                         SumoError)
+from .types import (LANE_CHANGE_MODE_DEFAULT, ORDINARY_CLASS, SPEED_MODE_DEFAULT, SPEED_MODE_DRIVEN,
+                    MemberType, SumoError)
 
 
 class VehicleSetup:
@@ -137,9 +137,10 @@ class VehicleSetup:
 
     def drive_with_sumo(self, vid: str) -> None:
         """Member ``vid`` (inserted, placed once) is driven by its vType's own car-following
-        model from now on (sumo/driven.py): SUMO's safe-speed checks on (the default speed
-        mode), lane changes off (it keeps its lane), no moveToXY."""
-        self.api.vehicle.setSpeedMode(vid, SPEED_MODE_DEFAULT)
+        model from now on (sumo/driven.py): SUMO's safe-speed and acceleration checks on, the
+        right of way at junctions not (:data:`SPEED_MODE_DRIVEN`), lane changes off (it keeps
+        its lane), no moveToXY."""
+        self.api.vehicle.setSpeedMode(vid, SPEED_MODE_DRIVEN)
         self.api.vehicle.setLaneChangeMode(vid, 0)
 
     def driven_states(self, ids: list[str]):
