@@ -77,6 +77,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         v = self.api.vehicle
         self._move_xy = v.moveToXY if fast is None else fast.vehicle_moveToXY
         self._set_previous_speed = v.setPreviousSpeed if fast is None else fast.vehicle_setPreviousSpeed
+        self._set_speed = v.setSpeed if fast is None else fast.vehicle_setSpeed
         # libsumo's simulationStep also runs its step listeners (traci's API): the package adds none
         self._sim_step = self.api.simulationStep if fast is None else fast.simulation_step
         self._all_results = (v.getAllSubscriptionResults if fast is None
@@ -226,21 +227,25 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         except self.api.TraCIException as exc:
             raise SumoError(_refusal(vid, (x, y), exc)) from exc
 
-    def place(self, ids: list[str], x, y, psi) -> list[tuple[str, str]]:
-        """Pin members to CoG poses for the coming step. Returns (id, message) of moves SUMO refused.
+    def place(self, ids: list[str], x, y, psi, v) -> list[tuple[str, str]]:
+        """Pin members to CoG poses for the coming step, with speed ``v`` [m/s] at its end.
+        Returns (id, message) of moves SUMO refused.
 
         A member whose body overlaps a neighbour lane (as last read, :meth:`read_members`) is
         first put on that lane (``moveTo``) so that the ``moveToXY`` is a lane change: SUMO
         then registers the member on both lanes (its "shadow lane") and followers in the
-        other lane see it (docs/sumo.md).
+        other lane see it (docs/sumo.md). Each move is followed by ``setSpeed`` with the
+        member's speed (docs/sumo.md, "SUMO's speed of a member").
         """
         xf, yf, ang = cog_to_sumo_rows(_f64(x), _f64(y), _f64(psi), self._d_front(ids))
-        move, overlap, refused = self._move_xy, self._overlap, []
-        for i, (vid, a, b, c) in enumerate(zip(ids, xf.tolist(), yf.tolist(), ang.tolist())):
+        move, set_speed, overlap, refused = self._move_xy, self._set_speed, self._overlap, []
+        for i, (vid, a, b, c, vi) in enumerate(zip(ids, xf.tolist(), yf.tolist(), ang.tolist(),
+                                                   np.maximum(v, 0.0).tolist())):
             if overlap and vid in overlap:
                 self._hint_lane(vid, overlap[vid])
             try:
                 move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
+                set_speed(vid, vi)
             except self.api.TraCIException as exc:
                 refused.append((vid, _refusal(vid, (x[i], y[i]), exc)))
         return refused
@@ -290,18 +295,21 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
             except self.api.TraCIException:
                 pass  # removed during the step: the next read_members reports it
 
-    def move_rows(self, ids: list[str], xf, yf, angle, pos) -> dict[str, str]:
+    def move_rows(self, ids: list[str], xf, yf, angle, pos, v) -> dict[str, str]:
         """moveToXY of the members ``ids`` to SUMO's front bumper ``xf``, ``yf`` [m] and
-        ``angle`` [deg] (float64 rows; CoG ``pos`` (n, 2) [m] for the messages), through the C++
-        reads when they are there; returns the refused moves as :meth:`place` does, {SUMO id:
+        ``angle`` [deg], then ``setSpeed`` with their speed ``v`` [m/s, not below 0] at the end
+        of the coming step (float64 rows; CoG ``pos`` (n, 2) [m] for the messages), through the
+        C++ reads when they are there; returns the refused moves as :meth:`place` does, {SUMO id:
         message} (sumo/fused_path.py: no member reaches into a neighbour lane)."""
         if self.native is not None:
-            refused = self.native.move_all(ids, xf, yf, angle, KEEP_ROUTE, MATCH_THRESHOLD)
+            refused = self.native.move_all(ids, xf, yf, angle, KEEP_ROUTE, MATCH_THRESHOLD, v)
             return {vid: _refusal(vid, pos[ids.index(vid)], msg) for vid, msg in refused}
-        move, refused = self._move_xy, {}
-        for i, (vid, a, b, c) in enumerate(zip(ids, xf.tolist(), yf.tolist(), angle.tolist())):
+        move, set_speed, refused = self._move_xy, self._set_speed, {}
+        for i, (vid, a, b, c, vi) in enumerate(zip(ids, xf.tolist(), yf.tolist(), angle.tolist(),
+                                                   v.tolist())):
             try:
                 move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
+                set_speed(vid, vi)
             except self.api.TraCIException as exc:
                 refused[vid] = _refusal(vid, pos[i], exc)
         return refused

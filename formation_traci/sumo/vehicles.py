@@ -101,6 +101,7 @@ class VehicleSetup:
                 raise SumoError(f"no route from {lane or 'its lane'} to the exit {exit_edge}: {exc}") from None
         v.setAccel(vid, accel)
         v.setDecel(vid, decel)
+        v.setSpeed(vid, -1.0)  # the speed commanded with its moves no longer holds
         v.setSpeedMode(vid, SPEED_MODE_DEFAULT)
         v.setLaneChangeMode(vid, LANE_CHANGE_MODE_DEFAULT)
         self.members.pop(vid, None)

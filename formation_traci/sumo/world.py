@@ -352,10 +352,10 @@ class SumoWorld(MemberHandover):
         if self.baseline or not len(act_idx):
             return  # a twin: the formation stays out of SUMO
         if len(act_idx) == len(ids):  # every member in the run: no copies
-            refused = dict(ad.place(self.sumo_ids, pos[:, 0], pos[:, 1], heading))
+            refused = dict(ad.place(self.sumo_ids, pos[:, 0], pos[:, 1], heading, v_after))
         else:
             refused = dict(ad.place([self.sumo_ids[i] for i in act_idx], pos[act_idx, 0],
-                                    pos[act_idx, 1], heading[act_idx]))
+                                    pos[act_idx, 1], heading[act_idx], v_after[act_idx]))
         self.refusals(t_next, act_idx, refused, self.active, ad)
 
     def _insert(self, t_next, rows, pos, heading, v_after) -> None:
