@@ -17,6 +17,7 @@ from operator import itemgetter
 import numpy as np
 
 from .connect import attach_socket, follow_view, start_socket
+from .lane_ends import LaneEnds
 from .member_reads import MemberReads
 from .neighbours import NeighbourReads
 from .vehicles import VehicleSetup
@@ -48,7 +49,7 @@ def _api(backend: str):
     return api, tc
 
 
-class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
+class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds):
     """One SUMO simulation. Call :meth:`start`, then per step :meth:`read_members` ->
     :meth:`place` -> :meth:`step` -> :meth:`set_true_speeds`, and :meth:`close` at the end
     (also after errors)."""
@@ -67,6 +68,8 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         self._lane_geometry: dict[str, tuple[float, int, str]] = {}  # lane -> (width [m], lanes of its edge, edge)
         self._bodies: dict[str, tuple[float, float, str]] = {}  # vehicle -> (length, width [m], vType)
         self._overlap: dict[str, str] = {}  # member -> the neighbour lane its body reaches into
+        self._ends: dict[str, tuple[float, str]] = {}  # member -> its lane's end (sumo/lane_ends.py)
+        self._end_of: dict = {}  # (lane, vClass, next edge) -> lane end or None (sumo/lane_ends.py)
         self._window_lane: dict[str, str] = {}  # member -> lane its route window was last checked on
         self._front_ids: list[str] = []
         self._front = np.empty(0)
@@ -238,11 +241,14 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         member's speed (docs/sumo.md, "SUMO's speed of a member").
         """
         xf, yf, ang = cog_to_sumo_rows(_f64(x), _f64(y), _f64(psi), self._d_front(ids))
-        move, set_speed, overlap, refused = self._move_xy, self._set_speed, self._overlap, []
+        move, set_speed, overlap, ends, refused = self._move_xy, self._set_speed, self._overlap, self._ends, []
         for i, (vid, a, b, c, vi) in enumerate(zip(ids, xf.tolist(), yf.tolist(), ang.tolist(),
                                                    np.maximum(v, 0.0).tolist())):
-            if overlap and vid in overlap:
-                self._hint_lane(vid, overlap[vid])
+            if overlap or ends:
+                # a lane that does not lead on for the member (sumo/lane_ends.py)
+                hint = self._cross_end(vid, vi, overlap.get(vid))
+                if hint is not None:
+                    self._hint_lane(vid, hint)
             try:
                 move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
                 set_speed(vid, vi)
@@ -334,6 +340,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
             self.api.vehicle.unsubscribe(vid)
         self._window.pop(vid, None)
         self._overlap.pop(vid, None)
+        self._ends.pop(vid, None)
         self._bodies.pop(vid, None)
         if self.native is not None:
             self.native.forget([vid])

@@ -22,6 +22,7 @@ class VehicleSetup:
     _window: dict
     _member_lane: dict
     _overlap: dict
+    _ends: dict
     _routes: dict
     _bodies: dict
     _subscribed: set
@@ -83,6 +84,7 @@ class VehicleSetup:
         window = self._window.pop(vid, None)
         lane = self._member_lane.pop(vid, "")
         self._overlap.pop(vid, None)
+        self._ends.pop(vid, None)
         mt = self.members.get(vid)
         if mt is not None and mt.vclass in ORDINARY_CLASS:  # lanes closed to members open again
             v.setVehicleClass(vid, ORDINARY_CLASS[mt.vclass])
