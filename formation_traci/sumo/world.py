@@ -190,7 +190,8 @@ class SumoWorld(MemberHandover):
                 traffic_meta(self.meta, self.rec, self.flows, departed, t_sumo, t0, self.measure)
                 sumo_outputs_meta(self.meta, self.sc, self.rec, self.sumo_dir, t0,
                                   {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)},
-                                  t_sumo - t0, true_speeds(self.true_v, self.ids))
+                                  t_sumo - t0, true_speeds(self.true_v, self.ids),
+                                  () if self.baseline else self.sumo_ids)
                 self.meta.setdefault("sections", {}).update(write_sections(
                     self.out_dir, self.sections, self.adapter.departures, t0, set(self.ids)))
 
