@@ -17,7 +17,7 @@ from ..record.ssm import SsmConverter
 from ..road.line_pack import FastLine, packed
 from ..scenario.schema import Scenario
 from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch,
-                     TrafficWatch, log_sumo_events)
+                     TrafficWatch, log_sumo_events, removal_reason)
 from .zone import clear_insertion_zone, middle_member, subscribe_context
 from .sections import drain as drain_stretch
 from .sections import plan_sections
@@ -260,7 +260,9 @@ class SumoWorld(MemberHandover):
         if not here:
             for j, i in enumerate(idx_act):
                 if not present[j]:
-                    self.members.removed(t, i)
+                    self.members.removed(t, i, removal_reason(
+                        self.sumo_ids[i], self.ev, self.sumo_dir / "messages.log",
+                        self.members.lanes.lane.get(self.ids[i], "")))
                     self.active[i] = False
         li = self.packed_lanes.indices(lanes)
         if every and here:  # every member in the run and in SUMO (no copies, no masks)
