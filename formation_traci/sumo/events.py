@@ -27,16 +27,19 @@ class LaneTracker:
 class MemberWatch:
     """What SUMO reports about the members: removed, placed elsewhere, changed lane."""
 
-    def __init__(self, rec, ids, lanes: LaneTracker):
+    def __init__(self, rec, ids, lanes: LaneTracker, log_path=None):
         n = len(ids)
         self.rec, self.ids, self.lanes = rec, ids, lanes
+        self.log_path = log_path  # SUMO's messages (sumo/messages.py): its reasons for a removal
         self.mismatch = np.zeros(n, dtype=bool)
         self.lane_prev = np.full(n, -1)
         self._off = False  # any member in self.mismatch
         self._settled = None  # lanes of the last read when every member was in it and in SUMO
 
-    def removed(self, t, i, why: str):
-        """Member i is no longer in SUMO; ``why``: :func:`removal_reason`."""
+    def removed(self, t, i, sumo_id: str, ev=None):
+        """Member i (SUMO's ``sumo_id``) is no longer in SUMO: the event with SUMO's reason
+        (:func:`removal_reason`; ``ev``: what SUMO reported for the last step)."""
+        why = removal_reason(sumo_id, ev, self.log_path, self.lanes.lane.get(self.ids[i], ""))
         self.rec.add_event(t, "member_removed", self.ids[i], "", why)
 
     def placement(self, t, gap_sumo, n_off: int):

@@ -17,7 +17,7 @@ from ..record.ssm import SsmConverter
 from ..road.line_pack import FastLine, packed
 from ..scenario.schema import Scenario
 from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch,
-                     TrafficWatch, log_sumo_events, removal_reason)
+                     TrafficWatch, log_sumo_events)
 from .zone import clear_insertion_zone, middle_member, subscribe_context
 from .sections import drain as drain_stretch
 from .sections import plan_sections
@@ -93,7 +93,7 @@ class SumoWorld(MemberHandover):
         self.along = np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])
         self.slot_d_0 = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
         lanes = LaneTracker()
-        self.members = MemberWatch(rec, self.ids, lanes)
+        self.members = MemberWatch(rec, self.ids, lanes, self.sumo_dir / "messages.log")
         self.traffic = TrafficWatch(rec, self.ids, lanes, sc.leader.time_gap, sc.leader.min_gap)
         self.emergency = EmergencyWatch(rec, self.ids, [virtual_car_id(setup.id, len(self.groups))
                                                         for setup, _, _ in plan.formations] or None)
@@ -190,8 +190,7 @@ class SumoWorld(MemberHandover):
                 traffic_meta(self.meta, self.rec, self.flows, departed, t_sumo, t0, self.measure)
                 sumo_outputs_meta(self.meta, self.sc, self.rec, self.sumo_dir, t0,
                                   {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)},
-                                  t_sumo - t0, true_speeds(self.true_v, self.ids),
-                                  () if self.baseline else self.sumo_ids)
+                                  t_sumo - t0, true_speeds(self.true_v, self.ids), self.sumo_ids)
                 self.meta.setdefault("sections", {}).update(write_sections(
                     self.out_dir, self.sections, self.adapter.departures, t0, set(self.ids)))
 
@@ -260,9 +259,7 @@ class SumoWorld(MemberHandover):
         if not here:
             for j, i in enumerate(idx_act):
                 if not present[j]:
-                    self.members.removed(t, i, removal_reason(
-                        self.sumo_ids[i], self.ev, self.sumo_dir / "messages.log",
-                        self.members.lanes.lane.get(self.ids[i], "")))
+                    self.members.removed(t, i, self.sumo_ids[i], self.ev)
                     self.active[i] = False
         li = self.packed_lanes.indices(lanes)
         if every and here:  # every member in the run and in SUMO (no copies, no masks)
