@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -135,3 +136,47 @@ def test_three_abreast_pass_lust_on_ramp_without_member_warnings(tmp_path, capfd
     traj = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
     assert traj[traj.vehicle_id == "right"].s.max() > 2300.0  # past the on-ramp's junction
     _check_no_member_warnings(res, meta, ev, {"right", "centre", "left"}, capfd.readouterr().err)
+
+
+def _drive_past_the_acceleration_lane_end(tmp_path: Path, place) -> str:
+    """A member car on the bundled on-ramp network, driven by moveToXY at 25 m/s along the lane
+    beside the acceleration lane (mw_accel lane 1) 1.0 m right of its centre (its body reaches
+    0.15 m into the acceleration lane, which ends at x = 1,800 m), on into mw_down; ``place``:
+    the adapter's move of one step. Returns SUMO's messages."""
+    from formation_traci.sumo.adapter import MemberType, SumoAdapter
+    log = tmp_path / "messages.log"
+    ad = SumoAdapter("libsumo")
+    ad.start(["-n", str(ROOT / "sumo_nets" / "onramp.net.xml"), "--no-step-log", "true", "--end", "100",
+              "--lateral-resolution", "0.8", "--step-length", "0.05", "--no-warnings", "true",
+              "--error-log", str(log)])
+    try:
+        ad.add_route("r", ["mw_accel", "mw_down"])
+        mt = MemberType(id="t_car", length=4.6, width=1.8, d_front=2.3, color=(0, 0, 255), vclass="custom1")
+        ad.add_member_type(mt)
+        x0, y0 = ad.api.simulation.convert2D("mw_accel", 150.0, 1)
+        y = y0 - 1.0
+        ad.insert_member("m", "r", mt, x0 - 2.3, y, 0.0, 25.0)
+        ad.step()
+        overlapped = False
+        for k in range(1, 160):  # 8 s: 200 m, past x = 1,800 m
+            ad.read_members(["m"])
+            overlapped |= "m" in ad._overlap
+            place(ad, x0 - 2.3 + 1.25 * k, y)
+            ad.step()
+            ad.set_true_speeds(["m"], np.array([25.0]), np.array([0.0]))
+        assert overlapped  # the member did reach into the acceleration lane
+        assert ad.api.vehicle.getRoadID("m") == "mw_down"
+    finally:
+        ad.close()
+    return log.read_text()
+
+
+def test_a_member_reaching_into_an_ending_acceleration_lane_is_not_put_on_it(tmp_path):
+    """A member whose body reaches into the neighbour lane is put on that lane before its move
+    (SUMO then has it on both lanes, sumo/adapter.py place); on the acceleration lane in the step
+    it passes that lane's end SUMO moved it along a lane with no connection into mw_down and
+    warned 'no connection to the next edge'. It is not put on a lane that ends there."""
+    said = _drive_past_the_acceleration_lane_end(
+        tmp_path, lambda ad, x, y: ad.place(["m"], np.array([x]), np.array([y]), np.array([0.0]),
+                                            np.array([25.0])))
+    assert "'m'" not in said, said
