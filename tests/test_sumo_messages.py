@@ -88,7 +88,7 @@ route = {{ from = "-30426", to = "-31622#6" }}
 -31622#4 (s ~ 1,440-2,160 m, t ~ 0-22 s). The right member's lane 1 of the on-ramp edge runs on
 as lane 0, but its own connection (1 -> 1) is closed to the members: SUMO used to stop it at that
 lane's end ("no connection to the next edge", decel=126) and then report emergency braking of
-68-257 m/s^2 for it, and 3 more for 'left' and 'right' on the junctions' internal lanes (21-40
+68-257 m/s^2 for it, and 4 more for 'left' and 'right' on the junctions' internal lanes (21-40
 m/s^2: SUMO's speed of the member taken from the distance along its route, which is off by
 centimetres there); the run was completed_with_incidents with 6 SUMO emergency brakes."""
 
