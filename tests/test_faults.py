@@ -40,6 +40,9 @@ def test_member_removed_by_sumo_formation_carries_on(tmp_path):
     # removed through TraCI after the step to t = 2.05 s: that step's subscription results still
     # list it, so it is seen gone at the next read-back at the latest
     assert len(gone) == 1 and 2.05 - 1e-9 <= gone.t.iloc[0] <= 2.1 + 1e-9
+    # taken out through TraCI, not by SUMO: the event says SUMO gave no reason and where it was
+    assert gone.detail.iloc[0].startswith("SUMO no longer has the member (last on lane ")
+    assert "reported no collision, teleport or arrival of it and no message about it" in gone.detail.iloc[0]
     assert traj[traj.vehicle_id == "left"].t.max() < gone.t.iloc[0]
     for vid in ("right", "centre"):
         assert traj[traj.vehicle_id == vid].t.max() == pytest.approx(6.0)
@@ -185,3 +188,24 @@ def test_all_members_gone_ends_the_run_cleanly(tmp_path):
     assert meta["incidents"]["member_removed"] == 3
     assert "no member left" in meta["stopped_early"]
     assert set(ev[ev.kind == "member_removed"].vehicle_id) == {"right", "centre", "left"}
+
+
+def test_member_removal_gives_sumo_s_reason(tmp_path):
+    """A member SUMO no longer has is recorded with SUMO's reason: the collision, teleport or
+    arrival SUMO reported for it in the step, and SUMO's own last message naming it (its log),
+    never only that it is gone."""
+    from formation_traci.sumo.events import removal_reason
+    from formation_traci.sumo.types import StepEvents
+    log = tmp_path / "messages.log"
+    log.write_text("Warning: Vehicle 'main.4' performs emergency braking on lane 'e_0' with decel=9.00, "
+                   "wished=4.50, severity=1.00, time=3.00.\n"
+                   "Warning: Teleporting vehicle 'left'; collision with vehicle 'main.4', lane='e_1', "
+                   "gap=-1.20, time=3.05, stage=move.\n")
+    ev = StepEvents([("left", "main.4", "e_1")], ["left"], [])
+    why = removal_reason("left", ev, log, "e_1")
+    assert why.startswith("SUMO no longer has the member (last on lane e_1): ")
+    assert "collision with main.4 on lane e_1" in why and "SUMO teleports it" in why
+    assert "SUMO: Teleporting vehicle 'left'; collision with vehicle 'main.4'" in why
+    arrived = removal_reason("right", StepEvents([], [], ["right"]), tmp_path / "none.log")
+    assert arrived == "SUMO no longer has the member: it arrived at the end of its route in SUMO"
+    assert "reported no collision, teleport or arrival" in removal_reason("centre", None, log)

@@ -207,14 +207,21 @@ def test_sumo_messages_are_events_on_the_formation_clock(tmp_path):
                    "Warning: Vehicle 'right' performs emergency stop at the end of lane 'e_1' because "
                    "there is no connection to the next edge (decel=204.28, offset=2.66), time=53.75.\n")
     got = []
-    counts = record_messages(log, 30.0, lambda *a: got.append(a), 0.05)
+    counts = record_messages(log, 30.0, lambda *a: got.append(a), 0.05, members={"right"})
     assert got[0][:4] == (pytest.approx(14.2), "sumo_message", "a", "emergency_braking")
     assert "t=14.20 s (formation clock)" in got[0][4] and "time=" not in got[0][4]
     assert got[1][0] == -30.0 and got[1][3] == "other"  # at loading: SUMO's start, before t = 0
     assert got[2][:4] == (pytest.approx(23.8), "sumo_message", "right", "lane_end_stop")
+    by_cause = counts.pop("by_cause")
     assert counts == {"warnings": 3, "errors": 0, "during_warmup": 1,
                       "by_kind": {"emergency_braking": 1, "other": 1, "lane_end_stop": 1}}
-    assert "3 warnings" in summary_line(counts)
+    assert by_cause["emergency_braking"] == {"members": 0, "background": 1}  # 'a' is no member
+    assert by_cause["lane_end_stop"] == {"members": 1, "background": 0}
+    assert by_cause["other"] == {"members": 0, "background": 1}  # names no vehicle
+    assert by_cause["collision"] == {"members": 0, "background": 0}  # every kind, also unseen
+    line = summary_line({**counts, "by_cause": by_cause})
+    assert "3 warnings" in line and "1 lane end stop (1 about members)" in line
+    assert "\n" not in line
 
 
 def test_three_abreast_through_on_ramps_and_past_exits(tmp_path, scenario, capfd):

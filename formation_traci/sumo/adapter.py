@@ -17,6 +17,7 @@ from operator import itemgetter
 import numpy as np
 
 from .connect import attach_socket, follow_view, start_socket
+from .lane_ends import LaneEnds
 from .member_reads import MemberReads
 from .neighbours import NeighbourReads
 from .traffic import BASE_TYPES
@@ -49,7 +50,7 @@ def _api(backend: str):
     return api, tc
 
 
-class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
+class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds):
     """One SUMO simulation. Call :meth:`start`, then per step :meth:`read_members` ->
     :meth:`place` -> :meth:`step` -> :meth:`set_true_speeds`, and :meth:`close` at the end
     (also after errors)."""
@@ -68,6 +69,8 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         self._lane_geometry: dict[str, tuple[float, int, str]] = {}  # lane -> (width [m], lanes of its edge, edge)
         self._bodies: dict[str, tuple[float, float, str]] = {}  # vehicle -> (length, width [m], vType)
         self._overlap: dict[str, str] = {}  # member -> the neighbour lane its body reaches into
+        self._ends: dict[str, tuple[float, str]] = {}  # member -> its lane's end (sumo/lane_ends.py)
+        self._end_of: dict = {}  # (lane, vClass, next edge) -> lane end or None (sumo/lane_ends.py)
         self._window_lane: dict[str, str] = {}  # member -> lane its route window was last checked on
         self._front_ids: list[str] = []
         self._front = np.empty(0)
@@ -78,6 +81,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         v = self.api.vehicle
         self._move_xy = v.moveToXY if fast is None else fast.vehicle_moveToXY
         self._set_previous_speed = v.setPreviousSpeed if fast is None else fast.vehicle_setPreviousSpeed
+        self._set_speed = v.setSpeed if fast is None else fast.vehicle_setSpeed
         # libsumo's simulationStep also runs its step listeners (traci's API): the package adds none
         self._sim_step = self.api.simulationStep if fast is None else fast.simulation_step
         self._all_results = (v.getAllSubscriptionResults if fast is None
@@ -249,21 +253,28 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
         except self.api.TraCIException as exc:
             raise SumoError(_refusal(vid, (x, y), exc)) from exc
 
-    def place(self, ids: list[str], x, y, psi) -> list[tuple[str, str]]:
-        """Pin members to CoG poses for the coming step. Returns (id, message) of moves SUMO refused.
+    def place(self, ids: list[str], x, y, psi, v) -> list[tuple[str, str]]:
+        """Pin members to CoG poses for the coming step, with speed ``v`` [m/s] at its end.
+        Returns (id, message) of moves SUMO refused.
 
         A member whose body overlaps a neighbour lane (as last read, :meth:`read_members`) is
         first put on that lane (``moveTo``) so that the ``moveToXY`` is a lane change: SUMO
         then registers the member on both lanes (its "shadow lane") and followers in the
-        other lane see it (docs/sumo.md).
+        other lane see it (docs/sumo.md). Each move is followed by ``setSpeed`` with the
+        member's speed (docs/sumo.md, "SUMO's speed of a member").
         """
         xf, yf, ang = cog_to_sumo_rows(_f64(x), _f64(y), _f64(psi), self._d_front(ids))
-        move, overlap, refused = self._move_xy, self._overlap, []
-        for i, (vid, a, b, c) in enumerate(zip(ids, xf.tolist(), yf.tolist(), ang.tolist())):
-            if overlap and vid in overlap:
-                self._hint_lane(vid, overlap[vid])
+        move, set_speed, overlap, ends, refused = self._move_xy, self._set_speed, self._overlap, self._ends, []
+        for i, (vid, a, b, c, vi) in enumerate(zip(ids, xf.tolist(), yf.tolist(), ang.tolist(),
+                                                   np.maximum(v, 0.0).tolist())):
+            if overlap or ends:
+                # a lane that does not lead on for the member (sumo/lane_ends.py)
+                hint = self._cross_end(vid, vi, overlap.get(vid))
+                if hint is not None:
+                    self._hint_lane(vid, hint)
             try:
                 move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
+                set_speed(vid, vi)
             except self.api.TraCIException as exc:
                 refused.append((vid, _refusal(vid, (x[i], y[i]), exc)))
         return refused
@@ -313,18 +324,21 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
             except self.api.TraCIException:
                 pass  # removed during the step: the next read_members reports it
 
-    def move_rows(self, ids: list[str], xf, yf, angle, pos) -> dict[str, str]:
+    def move_rows(self, ids: list[str], xf, yf, angle, pos, v) -> dict[str, str]:
         """moveToXY of the members ``ids`` to SUMO's front bumper ``xf``, ``yf`` [m] and
-        ``angle`` [deg] (float64 rows; CoG ``pos`` (n, 2) [m] for the messages), through the C++
-        reads when they are there; returns the refused moves as :meth:`place` does, {SUMO id:
+        ``angle`` [deg], then ``setSpeed`` with their speed ``v`` [m/s, not below 0] at the end
+        of the coming step (float64 rows; CoG ``pos`` (n, 2) [m] for the messages), through the
+        C++ reads when they are there; returns the refused moves as :meth:`place` does, {SUMO id:
         message} (sumo/fused_path.py: no member reaches into a neighbour lane)."""
         if self.native is not None:
-            refused = self.native.move_all(ids, xf, yf, angle, KEEP_ROUTE, MATCH_THRESHOLD)
+            refused = self.native.move_all(ids, xf, yf, angle, KEEP_ROUTE, MATCH_THRESHOLD, v)
             return {vid: _refusal(vid, pos[ids.index(vid)], msg) for vid, msg in refused}
-        move, refused = self._move_xy, {}
-        for i, (vid, a, b, c) in enumerate(zip(ids, xf.tolist(), yf.tolist(), angle.tolist())):
+        move, set_speed, refused = self._move_xy, self._set_speed, {}
+        for i, (vid, a, b, c, vi) in enumerate(zip(ids, xf.tolist(), yf.tolist(), angle.tolist(),
+                                                   v.tolist())):
             try:
                 move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
+                set_speed(vid, vi)
             except self.api.TraCIException as exc:
                 refused[vid] = _refusal(vid, pos[i], exc)
         return refused
@@ -349,6 +363,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup):
             self.api.vehicle.unsubscribe(vid)
         self._window.pop(vid, None)
         self._overlap.pop(vid, None)
+        self._ends.pop(vid, None)
         self._bodies.pop(vid, None)
         if self.native is not None:
             self.native.forget([vid])

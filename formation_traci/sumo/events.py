@@ -27,16 +27,20 @@ class LaneTracker:
 class MemberWatch:
     """What SUMO reports about the members: removed, placed elsewhere, changed lane."""
 
-    def __init__(self, rec, ids, lanes: LaneTracker):
+    def __init__(self, rec, ids, lanes: LaneTracker, log_path=None):
         n = len(ids)
         self.rec, self.ids, self.lanes = rec, ids, lanes
+        self.log_path = log_path  # SUMO's messages (sumo/messages.py): its reasons for a removal
         self.mismatch = np.zeros(n, dtype=bool)
         self.lane_prev = np.full(n, -1)
         self._off = False  # any member in self.mismatch
         self._settled = None  # lanes of the last read when every member was in it and in SUMO
 
-    def removed(self, t, i):
-        self.rec.add_event(t, "member_removed", self.ids[i], "", "SUMO no longer has the member")
+    def removed(self, t, i, sumo_id: str, ev=None):
+        """Member i (SUMO's ``sumo_id``) is no longer in SUMO: the event with SUMO's reason
+        (:func:`removal_reason`; ``ev``: what SUMO reported for the last step)."""
+        why = removal_reason(sumo_id, ev, self.log_path, self.lanes.lane.get(self.ids[i], ""))
+        self.rec.add_event(t, "member_removed", self.ids[i], "", why)
 
     def placement(self, t, gap_sumo, n_off: int):
         """``n_off``: how many gaps exceed PLACEMENT_TOLERANCE (sumo/sense.py counts them)."""
@@ -75,6 +79,39 @@ class MemberWatch:
                 self.lane_prev[i] = lane_idx[j]
                 prev[ids[i]] = (lanes[j].rsplit("_", 1)[0], int(lane_idx[j]))
         self._settled = list(lanes) if every else None
+
+
+def removal_reason(vid: str, ev, log_path=None, lane: str = "") -> str:
+    """Why SUMO no longer has member ``vid`` (its SUMO id): what SUMO reported of it for the last
+    step (``ev``, sumo/types.py StepEvents: a collision, a teleport, an arrival) and SUMO's own
+    last message naming it in its log ``log_path`` (sumo/messages.py), else that SUMO reported
+    none of them; ``lane``: the lane it was last seen on."""
+    why = []
+    if ev is not None:
+        for c, v, where in ev.collisions:
+            if vid in (c, v):
+                why.append(f"collision with {v if vid == c else c} on lane {where}")
+        if vid in ev.teleports:
+            why.append("SUMO teleports it (off the road until the teleport ends)")
+        if vid in ev.arrived:
+            why.append("it arrived at the end of its route in SUMO")
+    said = _last_message(log_path, vid)
+    if said:
+        why.append(f"SUMO: {said}")
+    if not why:
+        why.append("SUMO reported no collision, teleport or arrival of it and no message about it")
+    at = f" (last on lane {lane})" if lane else ""
+    return f"SUMO no longer has the member{at}: " + "; ".join(why)
+
+
+def _last_message(log_path, vid: str) -> str:
+    """SUMO's last warning or error naming vehicle ``vid`` in its log, or ''."""
+    try:
+        text = log_path.read_text(encoding="utf-8", errors="replace") if log_path is not None else ""
+    except OSError:
+        return ""
+    lines = [ln for ln in text.splitlines() if f"'{vid}'" in ln]
+    return lines[-1].partition(": ")[2] if lines else ""
 
 
 def log_sumo_events(rec, t, ev, members: set[str], names: dict | None = None,

@@ -252,7 +252,7 @@ class FusedPath:
             ids, at = w.sumo_ids, place
         else:
             ids, at = [w.sumo_ids[i] for i in idx], place[:, idx]
-        refused = ad.move_rows(ids, at[0], at[1], at[2], self.kin[0] if self._every else self.kin[0][idx])
+        refused = ad.move_rows(ids, at[0], at[1], at[2], self.kin[0] if self._every else self.kin[0][idx], at[5])
         if refused or w.refusals.counting:
             w.refusals(t_next, idx, refused, w.active, ad)
         clock.lap("sumo_place")

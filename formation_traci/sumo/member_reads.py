@@ -22,6 +22,7 @@ class MemberReads:
     native = None
     _member_lane: dict
     _overlap: dict
+    _ends: dict
     _window_lane: dict
     _lane_geometry: dict
     _settled = None
@@ -57,7 +58,7 @@ class MemberReads:
         lane position [m], the lane ids and the lane indices; None otherwise
         (sumo/fused_path.py: :meth:`read_members` then reads)."""
         settled = self._settled
-        if settled is None or self._overlap or ids != settled[0]:
+        if settled is None or self._overlap or self._ends or ids != settled[0]:
             return None
         if self.native is not None:  # the C++ reads (sumo/native_reads.py): the same rows
             got = self.native.member_table(ids)
@@ -89,6 +90,7 @@ class MemberReads:
             if not rows[i]:
                 self._member_lane.pop(vid, None)
                 self._overlap.pop(vid, None)
+                self._ends.pop(vid, None)
         if here:
             sub = [ids[i] for i in here]
             fs, angs, ls, lis, lts, lps, _ = self.read_members(sub)
@@ -117,6 +119,7 @@ class MemberReads:
                 overlap.pop(vid, None)
             if window_lane.get(vid) != lane:
                 self._advance_route_window(vid, lane)
+            self._track_end(vid, lane)
         self._settled = None
         if all(window_lane.get(vid) == lane for vid, lane in zip(ids, lanes)):
             self._settled = (list(ids), lanes, [self.members[vid].width / 2 for vid in ids],

@@ -32,7 +32,7 @@ class MemberRows:
         if not here:
             for j, i in enumerate(idx_act):
                 if not present[j]:
-                    self.members.removed(t, i)
+                    self.members.removed(t, i, self.sumo_ids[i], self.ev)
                     self.active[i] = False
         li = self.packed_lanes.indices(lanes)
         self.lanes_read = (idx_act, lanes)

@@ -6,7 +6,8 @@ event at formation time ``t = SUMO time + step - warm-up`` (SUMO stamps a messag
 step began; our events of the same step, e.g. collisions, are at the time it ends), negative
 during the warm-up; messages without a time, e.g. at loading, get ``-warm-up``; with SUMO's text
 where ``time=...`` is rewritten on the formation's clock. run.json ``sumo.messages`` counts
-them by kind, and one summary line goes to stderr.
+them by kind, run.json ``sumo_messages`` by kind and by cause (a formation member named in the
+message, or the background traffic), and one summary line goes to stderr.
 """
 from __future__ import annotations
 
@@ -37,8 +38,12 @@ def message_kind(text: str) -> str:
     return "other"
 
 
+CAUSES = ("members", "background")
+"""Who a message is about: a formation member (``members``) or any other vehicle, or none."""
+
+
 def record_messages(path: Path, t0: float, add_event, step: float = 0.0,
-                    t_max: float = float("inf")) -> dict:
+                    t_max: float = float("inf"), members=frozenset()) -> dict:
     """Turn SUMO's error log into events; returns the counts for run.json.
 
     Parameters
@@ -53,8 +58,14 @@ def record_messages(path: Path, t0: float, add_event, step: float = 0.0,
         SUMO's step length [s], added to SUMO's stamp (the start of the step).
     t_max : float
         Formation time [s] after which messages are left out (the sections' drain).
+    members : set of str
+        SUMO ids of the formation's members: a message naming one is the members'.
+
+    ``by_cause`` of the counts: {kind: {"members": n, "background": n}} for every kind of
+    :data:`KINDS` and ``other`` (run.json ``sumo_messages``).
     """
-    counts = {"warnings": 0, "errors": 0, "during_warmup": 0, "by_kind": {}}
+    by_cause = {kind: dict.fromkeys(CAUSES, 0) for kind in [k for _, k in KINDS] + ["other"]}
+    counts = {"warnings": 0, "errors": 0, "during_warmup": 0, "by_kind": {}, "by_cause": by_cause}
     if not path.exists():
         return counts
     for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
@@ -73,6 +84,7 @@ def record_messages(path: Path, t0: float, add_event, step: float = 0.0,
         if m:
             text = text[:m.start()] + f"t={t:.2f} s (formation clock)" + text[m.end():]
         v = _VEHICLE.search(text)
+        by_cause[kind]["members" if v and v.group(1) in members else "background"] += 1
         add_event(round(t, 6), "sumo_message", v.group(1) if v else "", kind, f"{level}: {text}")
     return counts
 
@@ -82,15 +94,22 @@ def summary_line(counts: dict) -> str | None:
     n = counts["warnings"] + counts["errors"]
     if n == 0:
         return None
-    kinds = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in sorted(counts["by_kind"].items()))
+    causes = counts.get("by_cause", {})
+    parts = []
+    for k, v in sorted(counts["by_kind"].items()):
+        c = causes.get(k)
+        who = f" ({c['members']} about members)" if c else ""
+        parts.append(f"{v} {k.replace('_', ' ')}{who}")
+    kinds = ", ".join(parts) or "none up to the formation's end"
     return (f"SUMO: {counts['warnings']} warnings, {counts['errors']} errors ({kinds}; "
             f"{counts['during_warmup']} in the warm-up), recorded as sumo_message events on the "
             f"formation's clock (events.parquet)")
 
 
-def report(path: Path, t0: float, add_event, step: float, t_max: float = float("inf")) -> dict:
+def report(path: Path, t0: float, add_event, step: float, t_max: float = float("inf"),
+           members=frozenset()) -> dict:
     """:func:`record_messages` and the summary line on stderr."""
-    counts = record_messages(path, t0, add_event, step, t_max)
+    counts = record_messages(path, t0, add_event, step, t_max, members)
     line = summary_line(counts)
     if line:
         print(line, file=sys.stderr)
@@ -98,9 +117,11 @@ def report(path: Path, t0: float, add_event, step: float, t_max: float = float("
 
 
 def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_front: dict,
-                      t_max: float = float("inf"), member_v: dict | None = None) -> None:
+                      t_max: float = float("inf"), member_v: dict | None = None,
+                      members=frozenset()) -> None:
     """After the run: SUMO's messages up to formation time ``t_max`` as events (run.json
-    ``sumo.messages``), the FCD up to then in the frame asked for (one naming of the columns
+    ``sumo.messages`` by kind, ``sumo_messages`` by kind and cause: ``members`` are the
+    members' SUMO ids, the keys of ``member_d_front`` too), the FCD up to then in the frame asked for (one naming of the columns
     in both frames, units in the metadata), and which clock and frame each output uses."""
     inc = rec.incidents
 
@@ -108,7 +129,10 @@ def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_f
         rec.add_event(t, kind, vid, other, detail)
         if inc is not None:
             inc.sumo_message(vid, other)
-    meta["sumo"]["messages"] = report(sumo_dir / "messages.log", t0, add_event, sc.run.step, t_max)
+    counts = report(sumo_dir / "messages.log", t0, add_event, sc.run.step, t_max,
+                    set(members) | set(member_d_front))
+    meta["sumo_messages"] = counts.pop("by_cause")
+    meta["sumo"]["messages"] = counts
     if sc.sumo.fcd:
         from .fcd import cut_fcd, rewrite_fcd
         cut_fcd(sumo_dir / "fcd.parquet", t0, sc.run.step, t_max)  # the formation's part only

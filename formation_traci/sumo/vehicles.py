@@ -22,6 +22,7 @@ class VehicleSetup:
     _window: dict
     _member_lane: dict
     _overlap: dict
+    _ends: dict
     _routes: dict
     _bodies: dict
     _subscribed: set
@@ -83,6 +84,7 @@ class VehicleSetup:
         window = self._window.pop(vid, None)
         lane = self._member_lane.pop(vid, "")
         self._overlap.pop(vid, None)
+        self._ends.pop(vid, None)
         mt = self.members.get(vid)
         if mt is not None and mt.vclass in ORDINARY_CLASS:  # lanes closed to members open again
             v.setVehicleClass(vid, ORDINARY_CLASS[mt.vclass])
@@ -101,6 +103,7 @@ class VehicleSetup:
                 raise SumoError(f"no route from {lane or 'its lane'} to the exit {exit_edge}: {exc}") from None
         v.setAccel(vid, accel)
         v.setDecel(vid, decel)
+        v.setSpeed(vid, -1.0)  # the speed commanded with its moves no longer holds
         v.setSpeedMode(vid, SPEED_MODE_DEFAULT)
         v.setLaneChangeMode(vid, LANE_CHANGE_MODE_DEFAULT)
         self.members.pop(vid, None)

@@ -96,7 +96,7 @@ class SumoWorld(MemberHandover, MemberRows):
         self.along = np.where(plan.is_road, plan.slots[:, 0], plan.rigid[:, 0])
         self.slot_d_0 = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
         lanes = LaneTracker()
-        self.members = MemberWatch(rec, self.ids, lanes)
+        self.members = MemberWatch(rec, self.ids, lanes, self.sumo_dir / "messages.log")
         self.traffic = TrafficWatch(rec, self.ids, lanes, sc.leader.time_gap, sc.leader.min_gap)
         self.emergency = EmergencyWatch(rec, self.ids, [virtual_car_id(setup.id, len(self.groups))
                                                         for setup, _, _ in plan.formations] or None)
@@ -203,7 +203,7 @@ class SumoWorld(MemberHandover, MemberRows):
                              self.populated)
                 sumo_outputs_meta(self.meta, self.sc, self.rec, self.sumo_dir, t0,
                                   {i: mt.d_front for i, mt in zip(self.ids, self.mtypes)},
-                                  t_sumo - t0, true_speeds(self.true_v, self.ids))
+                                  t_sumo - t0, true_speeds(self.true_v, self.ids), self.sumo_ids)
                 self.meta.setdefault("sections", {}).update(write_sections(
                     self.out_dir, self.sections, self.adapter.departures, t0, set(self.ids)))
 
@@ -336,10 +336,10 @@ class SumoWorld(MemberHandover, MemberRows):
         if self.baseline or not len(act_idx):
             return  # a twin: the formation stays out of SUMO
         if len(act_idx) == len(ids):  # every member in the run: no copies
-            refused = dict(ad.place(self.sumo_ids, pos[:, 0], pos[:, 1], heading))
+            refused = dict(ad.place(self.sumo_ids, pos[:, 0], pos[:, 1], heading, v_after))
         else:
             refused = dict(ad.place([self.sumo_ids[i] for i in act_idx], pos[act_idx, 0],
-                                    pos[act_idx, 1], heading[act_idx]))
+                                    pos[act_idx, 1], heading[act_idx], v_after[act_idx]))
         self.refusals(t_next, act_idx, refused, self.active, ad)
 
     def _insert(self, t_next, rows, pos, heading, v_after) -> None:

@@ -41,6 +41,7 @@ typedef const ContextSubscriptionResults (*GetAllCtxFn)();
 typedef void (*MoveFn)(const std::string&, const std::string&, const int, const double, const double, double,
                        const int, double);
 typedef void (*PrevFn)(const std::string&, double, double);
+typedef void (*SpeedFn)(const std::string&, double);
 typedef double (*DoubleFn)(const std::string&);
 typedef std::string (*StringFn)(const std::string&);
 typedef void (*StepFn)(const double);
@@ -48,6 +49,7 @@ static_assert(std::is_same_v<GetAllFn, decltype(&libsumo::Vehicle::getAllSubscri
 static_assert(std::is_same_v<GetAllCtxFn, decltype(&libsumo::Vehicle::getAllContextSubscriptionResults)>);
 static_assert(std::is_same_v<MoveFn, decltype(&libsumo::Vehicle::moveToXY)>);
 static_assert(std::is_same_v<PrevFn, decltype(&libsumo::Vehicle::setPreviousSpeed)>);
+static_assert(std::is_same_v<SpeedFn, decltype(&libsumo::Vehicle::setSpeed)>);
 static_assert(std::is_same_v<DoubleFn, decltype(&libsumo::Vehicle::getLength)>);
 static_assert(std::is_same_v<DoubleFn, decltype(&libsumo::Vehicle::getWidth)>);
 static_assert(std::is_same_v<StringFn, decltype(&libsumo::Vehicle::getTypeID)>);
@@ -60,6 +62,7 @@ static const char* SYM_STORE = "_ZN7libsumo7Vehicle21mySubscriptionResultsB5cxx1
 static const char* SYM_CTXSTORE = "_ZN7libsumo7Vehicle28myContextSubscriptionResultsB5cxx11E";  // private static
 static const char* SYM_MOVE = "_ZN7libsumo7Vehicle8moveToXYE" STR_ARG "S8_idddid";
 static const char* SYM_PREV = "_ZN7libsumo7Vehicle16setPreviousSpeedE" STR_ARG "dd";
+static const char* SYM_SPEED = "_ZN7libsumo7Vehicle8setSpeedE" STR_ARG "d";
 static const char* SYM_LENGTH = "_ZN7libsumo7Vehicle9getLengthE" STR_ARG;
 static const char* SYM_WIDTH = "_ZN7libsumo7Vehicle8getWidthE" STR_ARG;
 static const char* SYM_TYPE = "_ZN7libsumo7Vehicle9getTypeIDE" STR_ARG;
@@ -71,6 +74,7 @@ static const SubscriptionResults* p_store = nullptr;
 static const ContextSubscriptionResults* p_ctxStore = nullptr;
 static MoveFn p_move = nullptr;
 static PrevFn p_prev = nullptr;
+static SpeedFn p_speed = nullptr;
 static DoubleFn p_length = nullptr, p_width = nullptr;
 static StringFn p_type = nullptr;
 static StepFn p_step = nullptr;
@@ -301,21 +305,25 @@ static PyObject* neighbour_table(PyObject*, PyObject* args) {
     GUARD_END
 }
 
-// ---- move_all(ids, x, y, angle, keep_route, threshold) -> [(id, message)] of refused moves
+// ---- move_all(ids, x, y, angle, keep_route, threshold, v=None) -> [(id, message)] of refused moves
+// v: each member's speed at the end of the coming step [m/s], commanded with setSpeed after its
+// move (SUMO's speed of the member during the step is then ours, not one inferred from the move)
 static PyObject* move_all(PyObject*, PyObject* args) {
-    PyObject *ids_o, *xo, *yo, *ao;
+    PyObject *ids_o, *xo, *yo, *ao, *vo = Py_None;
     int keep;
     double threshold;
-    if (!PyArg_ParseTuple(args, "OOOOid", &ids_o, &xo, &yo, &ao, &keep, &threshold)) return nullptr;
+    if (!PyArg_ParseTuple(args, "OOOOid|O", &ids_o, &xo, &yo, &ao, &keep, &threshold, &vo)) return nullptr;
     Ref ids(PySequence_Fast(ids_o, "ids must be a sequence of str"));
     if (!ids.p) return nullptr;
     const Py_ssize_t n = PySequence_Fast_GET_SIZE(ids.p);
     Ref x((PyObject*)as_f64(xo, n, "x")), y((PyObject*)as_f64(yo, n, "y")), a((PyObject*)as_f64(ao, n, "angle"));
+    Ref v(vo == Py_None ? nullptr : (PyObject*)as_f64(vo, n, "v"));
     Ref refused(PyList_New(0));
-    if (!x.p || !y.p || !a.p || !refused.p) return nullptr;
+    if (!x.p || !y.p || !a.p || !refused.p || (vo != Py_None && !v.p)) return nullptr;
     const double* xp = (const double*)PyArray_DATA((PyArrayObject*)x.p);
     const double* yp = (const double*)PyArray_DATA((PyArrayObject*)y.p);
     const double* ap = (const double*)PyArray_DATA((PyArrayObject*)a.p);
+    const double* vp = v.p ? (const double*)PyArray_DATA((PyArrayObject*)v.p) : nullptr;
     GUARD_BEGIN
     static const std::string no_edge;
     std::string vid, msg;
@@ -324,6 +332,7 @@ static PyObject* move_all(PyObject*, PyObject* args) {
         if (!to_std(id, vid)) return nullptr;
         try {
             p_move(vid, no_edge, -1, xp[i], yp[i], ap[i], keep, threshold);
+            if (vp != nullptr) p_speed(vid, vp[i] > 0.0 ? vp[i] : 0.0);
             continue;
         } catch (const std::exception& e) {
             msg = e.what();
@@ -427,6 +436,7 @@ static PyObject* attach(PyObject*, PyObject* args) {
     p_getAllCtx = (GetAllCtxFn)need(SYM_GETALLCTX);
     p_move = (MoveFn)need(SYM_MOVE);
     p_prev = (PrevFn)need(SYM_PREV);
+    p_speed = (SpeedFn)need(SYM_SPEED);
     p_length = (DoubleFn)need(SYM_LENGTH);
     p_width = (DoubleFn)need(SYM_WIDTH);
     p_type = (StringFn)need(SYM_TYPE);
@@ -468,7 +478,7 @@ static PyMethodDef methods[] = {
     {"member_table", member_table, METH_VARARGS, "member_table(ids) -> (table (n,5), lanes, lane_index) | None"},
     {"neighbour_table", neighbour_table, METH_VARARGS,
      "neighbour_table(owners, exclude) -> (ids, types, lanes, table (m,7), lane_index) | None"},
-    {"move_all", move_all, METH_VARARGS, "move_all(ids, x, y, angle, keep_route, threshold) -> [(id, message)]"},
+    {"move_all", move_all, METH_VARARGS, "move_all(ids, x, y, angle, keep_route, threshold, v=None) -> [(id, message)]"},
     {"set_previous_speeds", set_previous_speeds, METH_VARARGS, "set_previous_speeds(ids, v, a)"},
     {"step", step, METH_NOARGS, "libsumo::Simulation::step(0.0)"},
     {"forget", forget, METH_O, "forget(ids): drop the cached bodies of these vehicles"},
