@@ -180,9 +180,9 @@ def test_lane_departure_is_one_incident_per_episode():
 
 
 def test_sumo_message_kinds():
-    """SUMO's emergency braking of a member SUMO drives counts (of a member we place, SUMO's
-    reading of the placement, or of any other vehicle not); a vType's warning that names
-    collisions is not a collision (the terminal's collision count)."""
+    """SUMO's emergency braking of a member counts, whoever drives it (of any other vehicle
+    not); a vType's warning that names collisions is not a collision (the terminal's collision
+    count)."""
     from formation_traci.sumo.messages import message_kind
     assert message_kind("Vehicle 'p1' performs emergency braking on lane 'e_1' with "
                         "decel=9.00, wished=4.50, severity=1.00, time=31.00.") == "emergency_braking"
@@ -191,12 +191,11 @@ def test_sumo_message_kinds():
     assert message_kind("Value of 'emergencyDecel' (9) is lower than 'apparentDecel' (12) for "
                         "vType 'member_passenger_car_cacc' may cause collisions.") == "other"
     inc = Incidents(_Rec(), ["p0", "p1"], [PASSENGER_CAR] * 2)
-    inc.driven_by_sumo = {"p1"}
-    inc.sumo_message("p0", "emergency_braking")
-    inc.sumo_message("p1", "emergency_braking")
-    inc.sumo_message("main.3", "emergency_braking")
-    inc.sumo_message("p0", "collision")
-    assert inc.counts()["sumo_emergency_brakes"] == 1
+    inc.sumo_message("emergency_braking", True)  # p0, a member we place
+    inc.sumo_message("emergency_braking", True)  # p1, a member SUMO drives
+    inc.sumo_message("emergency_braking", False)  # main.3, a background car
+    inc.sumo_message("collision", True)
+    assert inc.counts()["sumo_emergency_brakes"] == 2
 
 
 def test_forced_collision_exit_codes_run_json_terminal_and_report(tmp_path):

@@ -10,12 +10,11 @@
 * ``stranded``: a member in the run below :data:`STRANDED_SPEED` for more than
   :data:`STRANDED_TIME` while its speed reference (eq 2.6) is above :data:`STRANDED_V_REF`:
   it stands while the formation wants it to drive;
-* ``sumo_emergency_brakes``: SUMO reports that it brakes a member it drives (SUMO's own
-  car-following model: ``controller.law = "sumo_cacc"``, :attr:`Incidents.driven_by_sumo`)
-  harder than its vType's ``decel`` (its "emergency braking" warning; sumo/messages.py). The
-  same warning about a member we place is SUMO's reading of the placement (decel = 208 m/s^2
-  on LuST), not a braking: it stays a ``sumo_message`` event, and the member's own braking
-  counts as ``emergency_brakes``;
+* ``sumo_emergency_brakes``: SUMO's "emergency braking" warning about a member, whoever drives
+  it (sumo/messages.py): a member SUMO's own car-following model drives (``controller.law =
+  "sumo_cacc"``) braked harder than its vType's ``decel``; a member we place is told its
+  commanded speed with every move (docs/sumo.md, "SUMO's speed of a member"), so SUMO warns only
+  when that speed drops faster than the member type's emergency deceleration;
 * ``lane_departures``: a member of a column under a platoon law (ours or SUMO's CACC; its
   head, which runs the virtual structure, included) with its centre of gravity more than half a lane width
   (:meth:`Incidents.watch_lanes`) across from its slot's lateral offset: it left its lane
@@ -151,7 +150,6 @@ class Incidents:
         self.n = dict.fromkeys(("member_collisions", "stranded", "sumo_collision_artefacts",
                                 "sumo_emergency_brakes", "lane_departures"), 0)
         self.lane_watch = None  # (mask, slot d [m], half lane width [m]): watch_lanes
-        self.driven_by_sumo: set = set()  # ids of the members SUMO's own model drives
         self.off_lane = np.zeros(n, dtype=bool)  # out of its lane at the last check
 
     def step(self, t: float, sig: np.ndarray, active: np.ndarray) -> None:
@@ -249,10 +247,10 @@ class Incidents:
                                f"{half:.2f} m (half a lane) across")
         self.off_lane = off
 
-    def sumo_message(self, vehicle_id: str, kind: str) -> None:
-        """One of SUMO's warnings (sumo/messages.py kind) about ``vehicle_id``: an emergency
-        braking of a member SUMO drives is an incident."""
-        if kind == "emergency_braking" and vehicle_id in self.driven_by_sumo:
+    def sumo_message(self, kind: str, of_member: bool) -> None:
+        """One of SUMO's warnings (sumo/messages.py kind), ``of_member`` when it names a
+        member's SUMO vehicle: an emergency braking of a member is an incident."""
+        if kind == "emergency_braking" and of_member:
             self.n["sumo_emergency_brakes"] += 1
 
     def counts(self) -> dict[str, int]:

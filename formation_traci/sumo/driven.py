@@ -130,8 +130,6 @@ class SumoDrivenWorld(SumoWorld):
                                accel=spec.accel_mps2, decel=spec.decel_mps2,
                                emergency_decel=spec.emergency_decel_mps2) for mt in self.mtypes]
         self._psi = np.full(len(self.ids), np.nan)  # followers' heading at the last read [rad]
-        if rec.incidents is not None:  # SUMO's emergency braking of them is an incident
-            rec.incidents.driven_by_sumo = {m for m, d in zip(self.ids, fleet.driven) if d}
         meta["sumo_cacc"] = {
             "moved": [m for m, d in zip(self.ids, fleet.driven) if not d],
             "driven_by_sumo": [m for m, d in zip(self.ids, fleet.driven) if d],

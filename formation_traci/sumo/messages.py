@@ -124,13 +124,13 @@ def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_f
     members' SUMO ids, the keys of ``member_d_front`` too), the FCD up to then in the frame asked for (one naming of the columns
     in both frames, units in the metadata), and which clock and frame each output uses."""
     inc = rec.incidents
+    member_ids = set(members) | set(member_d_front)
 
     def add_event(t, kind, vid, other, detail):
         rec.add_event(t, kind, vid, other, detail)
         if inc is not None:
-            inc.sumo_message(vid, other)
-    counts = report(sumo_dir / "messages.log", t0, add_event, sc.run.step, t_max,
-                    set(members) | set(member_d_front))
+            inc.sumo_message(other, vid in member_ids)
+    counts = report(sumo_dir / "messages.log", t0, add_event, sc.run.step, t_max, member_ids)
     meta["sumo_messages"] = counts.pop("by_cause")
     meta["sumo"]["messages"] = counts
     if sc.sumo.fcd:
