@@ -232,14 +232,16 @@ def _gaps(traj: pd.DataFrame) -> dict[str, pd.Series]:
             for ahead, me in zip(("p0", *FOLLOWERS), FOLLOWERS)}
 
 
-SETTLE_S = 35.0
-"""Time SUMO's CACC takes to close the gaps the head's re-acceleration opened [s]: it closes them
-in its gap-closing mode (docs/platoon_laws.md, "SUMO's CACC on a real road"); measured ~30 s."""
+SETTLE_S = 25.0
+"""Time SUMO's CACC takes, once the head holds 28 m/s again, to close the gaps its re-acceleration
+opened to within 20 % [s]: it closes them in its gap-closing mode (docs/platoon_laws.md, "On a
+real road"); measured 15.6-18.8 s (the gaps peak at ~30 m)."""
 
 
 def test_sumo_cacc_gaps_return_to_the_equilibrium_once_the_head_holds_28_again(tmp_path):
-    """Once the head holds 28 m/s again (from t = 15.5 s) SUMO's CACC followers close the gaps the
-    braking and re-acceleration opened and hold the law's equilibrium gap 2 m + 0.5 s x 28 m/s =
+    """Once the head holds 28 m/s again (from t ~ 25.5 s: the profile asks it from 15.5 s, the
+    governor's speed law gets there jerk-limited) SUMO's CACC followers close the gaps the
+    braking and re-acceleration opened within SETTLE_S and hold the law's equilibrium gap 2 m + 0.5 s x 28 m/s =
     16 m within 20 %, through the curve, the junction at s = 1,437 m and the on-ramp merge (no
     vehicle between them: they neither fall back for lane reasons nor wait at the merge)."""
     text = SCENARIO.format(law="sumo_cacc", net=LUST).replace("duration = 30.0", "duration = 60.0")
@@ -250,8 +252,9 @@ def test_sumo_cacc_gaps_return_to_the_equilibrium_once_the_head_holds_28_again(t
     assert res.status == "completed", (res.status, res.reason)
     traj = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
     vc = traj[traj.vehicle_id == "vc"].set_index("t").v
-    assert (vc[vc.index >= 20.0] - 28.0).abs().max() <= 0.5  # the head holds 28 m/s again
+    t_hold = vc[(vc.index > 15.0) & (vc >= 27.9)].index.min()  # the governor's jerk-limited rise
+    assert t_hold <= 27.0 and (vc[vc.index >= t_hold] - 28.0).abs().max() <= 0.1
     for me, gap in _gaps(traj).items():
-        settled = gap[gap.index >= 15.5 + SETTLE_S]
+        settled = gap[gap.index >= t_hold + SETTLE_S]
         assert len(settled) > 100 and (settled - 16.0).abs().max() <= 0.2 * 16.0, (me, settled.describe())
 
