@@ -144,3 +144,19 @@ def test_governor_step_is_the_composition_of_the_laws(k_others):
         assert np.isfinite(gap).sum() >= 2 and a_vc < K_SPEED * (v_set - v_vc) + v_set_dot  # traffic binds
     if k_others == 0:
         assert a_vc == pytest.approx(K_SPEED * (v_set - v_vc) + v_set_dot) and np.isinf(v_cap).all()
+
+
+def test_time_gap_accel_takes_broadcast_inputs_without_a_warning():
+    """Gaps of several vehicles against one leader's speed (a maneuver's room check): the
+    arguments broadcast, the kernel gets writeable arrays of its compiled type, and numpy's
+    'will not create a writeable array from broadcast_array' warning (once printed on the
+    terminal of maneuver runs) is not raised; each value equals the scalar call's."""
+    import warnings
+
+    gaps = np.array([10.0, 30.0, 80.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        a = time_gap_accel(gaps, 25.0, np.float64(20.0), 1.5, 2.0)
+    assert a.shape == (3,)
+    for g, ai in zip(gaps, a):
+        assert ai == time_gap_accel(np.array([g]), np.array([25.0]), np.array([20.0]), 1.5, 2.0)[0]

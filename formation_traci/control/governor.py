@@ -76,7 +76,8 @@ def time_gap_accel(gap, v, v_lead, time_gap, min_gap):
     below by -B_COMFORT (the gap error is removed comfortably, never as an emergency).
     +inf where there is no leader.
     """
-    gap, v, v_lead = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (gap, v, v_lead)))
+    gap, v, v_lead = (np.array(a) for a in np.broadcast_arrays(  # own writeable copies: the kernel's
+        *(np.asarray(x, dtype=np.float64) for x in (gap, v, v_lead))))  # compiled types, no read-only view
     out = np.empty(gap.shape)
     _gap_laws(gap.ravel(), v.ravel(), v_lead.ravel(), float(time_gap), float(min_gap), out.reshape(-1))
     return out
