@@ -146,17 +146,34 @@ def test_governor_step_is_the_composition_of_the_laws(k_others):
         assert a_vc == pytest.approx(K_SPEED * (v_set - v_vc) + v_set_dot) and np.isinf(v_cap).all()
 
 
-def test_time_gap_accel_takes_broadcast_inputs_without_a_warning():
+def test_time_gap_accel_takes_broadcast_inputs_without_a_warning(monkeypatch):
     """Gaps of several vehicles against one leader's speed (a maneuver's room check): the
-    arguments broadcast, the kernel gets writeable arrays of its compiled type, and numpy's
-    'will not create a writeable array from broadcast_array' warning (once printed on the
-    terminal of maneuver runs) is not raised; each value equals the scalar call's."""
+    arguments broadcast, and the kernel gets arrays of its own (not numpy's read-only broadcast
+    views, whose writeable flag numba reads when it compiles for them: numpy's 'will not create
+    a writeable array from broadcast_array' warning, once printed on the terminal of maneuver
+    runs on a cold cache, where one vehicle made the speed a 1-element broadcast view); each
+    value equals the scalar call's."""
     import warnings
 
-    gaps = np.array([10.0, 30.0, 80.0])
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        a = time_gap_accel(gaps, 25.0, np.float64(20.0), 1.5, 2.0)
-    assert a.shape == (3,)
-    for g, ai in zip(gaps, a):
-        assert ai == time_gap_accel(np.array([g]), np.array([25.0]), np.array([20.0]), 1.5, 2.0)[0]
+    from formation_traci.control import governor
+
+    handed = []
+    kernel = governor._gap_laws  # the compiled law behind time_gap_accel
+
+    def recording(gap, v, v_lead, time_gap, min_gap, out):
+        handed.append((gap, v, v_lead))
+        return kernel(gap, v, v_lead, time_gap, min_gap, out)
+
+    monkeypatch.setattr(governor, "_gap_laws", recording)
+    for gaps, v_lead in ((np.array([10.0, 30.0, 80.0]), np.array([20.0, 22.0, 30.0])),
+                         (np.array([10.0]), np.array([20.0]))):  # one vehicle: a 1-element view
+        handed.clear()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            a = time_gap_accel(gaps, 25.0, v_lead, 1.5, 2.0)
+        assert a.shape == gaps.shape
+        with warnings.catch_warnings():  # what numba reads of each argument when it compiles for it
+            warnings.simplefilter("error")
+            assert all(x.flags.writeable and x.flags.c_contiguous for x in handed[0])
+        for g, vl, ai in zip(gaps, v_lead, a):
+            assert ai == time_gap_accel(np.array([g]), np.array([25.0]), np.array([vl]), 1.5, 2.0)[0]
