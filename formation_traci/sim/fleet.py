@@ -158,8 +158,13 @@ def _comfort_values(kind, x, i, P, res, out, j):
 def _slot_error(x, i, px, py, c, s, vals):
     """ex, ey, e_lon, e_lat [m] and x_des, y_des of member i against the slot point (px, py)
     into vals (_KERNEL_SIGNALS order); (c, s): the virtual car's heading."""
-    ex = px - x[i, S.X]
-    ey = py - x[i, S.Y]
+    _errors_into(px - x[i, S.X], py - x[i, S.Y], px, py, c, s, vals)
+
+
+@kernel
+def _errors_into(ex, ey, px, py, c, s, vals):
+    """ex, ey [m], their components along and across the heading (c, s) = (cos, sin), e_lon and
+    e_lat [m], and the desired point x_des, y_des [m] into vals (_KERNEL_SIGNALS order)."""
     vals[7] = ex
     vals[8] = ey
     vals[9] = c * ex + s * ey
@@ -175,14 +180,7 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
     vals[0] = x[i, S.X]
     vals[1] = x[i, S.Y]
     vals[2] = x[i, S.PSI]
-    ex = res[6]
-    ey = res[7]
-    vals[7] = ex
-    vals[8] = ey
-    vals[9] = c * ex + s * ey
-    vals[10] = -s * ex + c * ey
-    vals[11] = px
-    vals[12] = py
+    _errors_into(res[6], res[7], px, py, c, s, vals)
     vals[13] = res[2]
     vals[14] = res[3]
     if kind == KINEMATIC:

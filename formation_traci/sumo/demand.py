@@ -49,19 +49,27 @@ def flow_report(flows, departed: dict[str, int], t_end: float,
             for spec, _, vph, end in flows}
 
 
+def _shortfalls(counts: dict, kind: str, say, add_event, t: float) -> list[str]:
+    """A ``kind`` event at formation time ``t`` [s] and a warning on stderr for every entry of
+    ``counts`` (id -> {"requested", "inserted"}) below :data:`SHORTFALL_SHARE` of its request;
+    ``say(id, counts, percent)`` words it. Returns the messages."""
+    msgs = []
+    for fid, c in counts.items():
+        if c["requested"] > 0 and c["inserted"] < SHORTFALL_SHARE * c["requested"]:
+            msg = say(fid, c, 100.0 * c["inserted"] / c["requested"])
+            add_event(t, kind, fid, "", msg)
+            msgs.append(msg)
+            print(f"warning: {msg}", file=sys.stderr)
+    return msgs
+
+
 def report_shortfall(report: dict[str, dict[str, int]], add_event, t: float) -> list[str]:
     """Warn (stderr) and record an ``insertion_shortfall`` event at formation time ``t`` [s]
     for every flow that inserted less than :data:`SHORTFALL_SHARE` of its request.
     ``add_event(t, kind, vehicle_id, other_id, detail)`` records the event. Returns the messages."""
-    msgs = []
-    for fid, r in report.items():
-        if r["requested"] > 0 and r["inserted"] < SHORTFALL_SHARE * r["requested"]:
-            msg = (f"flow {fid!r} inserted {r['inserted']} of {r['requested']} vehicles asked for "
-                   f"({100.0 * r['inserted'] / r['requested']:.0f} %): the road could not take the demand")
-            add_event(t, "insertion_shortfall", fid, "", msg)
-            msgs.append(msg)
-            print(f"warning: {msg}", file=sys.stderr)
-    return msgs
+    return _shortfalls(report, "insertion_shortfall", lambda fid, r, pct: (
+        f"flow {fid!r} inserted {r['inserted']} of {r['requested']} vehicles asked for "
+        f"({pct:.0f} %): the road could not take the demand"), add_event, t)
 
 
 def report_formation_shortfall(flows: dict, add_event, t: float) -> list[str]:
@@ -69,15 +77,9 @@ def report_formation_shortfall(flows: dict, add_event, t: float) -> list[str]:
     every formation flow (run.json ``formation_flows``) that inserted less than
     :data:`SHORTFALL_SHARE` of the formations due within the run (they waited for room on the
     road). Returns the messages."""
-    msgs = []
-    for fid, c in flows.items():
-        if c["requested"] > 0 and c["inserted"] < SHORTFALL_SHARE * c["requested"]:
-            msg = (f"formation flow {fid!r} inserted {c['inserted']} of {c['requested']} formations due "
-                   f"({100.0 * c['inserted'] / c['requested']:.0f} %): the others found no room on the road")
-            add_event(t, "formation_shortfall", fid, "", msg)
-            msgs.append(msg)
-            print(f"warning: {msg}", file=sys.stderr)
-    return msgs
+    return _shortfalls(flows, "formation_shortfall", lambda fid, c, pct: (
+        f"formation flow {fid!r} inserted {c['inserted']} of {c['requested']} formations due "
+        f"({pct:.0f} %): the others found no room on the road"), add_event, t)
 
 
 def route_point(edges: list[str], lane_lengths: dict[str, float], s: float) -> tuple[str, float]:
