@@ -22,8 +22,10 @@ def case():
 
 def test_the_road_is_populated_with_about_4000_vehicles_at_free_flow_density(case):
     """populate puts one vehicle every 3600 v / vph metres (all lanes) on the main route, none in
-    an edge's last 50 m: on motorway100 at 4 x 1,400 veh/h that is (route - 100 m) / 23.2 m
-    slots times the share of the road outside the edges' last 50 m, within 1 %; 3,900-4,200."""
+    an edge's last 50 m, with vph the demand the flow keeps (the formation flows take their
+    penetration of it): on motorway100 at 0.85 x 4 x 1,550 veh/h that is (route - 100 m) / 24.7 m
+    slots times the share of the road outside the edges' last 50 m, within 1 %; with every
+    formation flow's first formation (due at once) 3,900-4,200 vehicles."""
     import sumolib
 
     from sumo_nets.motorway100 import main_route
@@ -32,13 +34,15 @@ def test_the_road_is_populated_with_about_4000_vehicles_at_free_flow_density(cas
     lengths = [net.getEdge(e).getLength() for e in main_route()]
     (flow,) = case.traffic.flows
     assert flow.populate
-    vph = 4 * flow.veh_per_hour_per_lane
+    vph = 4 * flow.veh_per_hour_per_lane * (1.0 - sum(f.penetration for f in case.formation_flows))
     spacing = 3600.0 * V_LIMIT / vph
     usable = sum(max(L - 50.0, 0.0) for L in lengths) / sum(lengths)
     expected = (sum(lengths) - 100.0) / spacing * usable
     n = len(populate_places(vph, V_LIMIT, lengths, case.run.seed))
     assert n == pytest.approx(expected, rel=0.01)
-    assert 3900 <= n <= 4200
+    members = sum(len(f.formation.members) for f in case.formation_flows)
+    assert 200 <= members <= 250
+    assert 3900 <= n + members <= 4200
     assert case.traffic.warmup <= 120.0  # a short settling, not the road's travel time
 
 
