@@ -9,9 +9,12 @@ import pytest
 
 from formation_traci.scenario import ScenarioError, load_scenario
 from formation_traci.runner import run_scenario
+from test_golden import golden
 
 ROOT = Path(__file__).resolve().parents[1]
-HIGHWAY = sorted((ROOT / "scenarios" / "highway").glob("*.toml"))
+
+HIGHWAY = golden.SETS["highway"]
+"""Every bundled highway scenario but golden.NOT_GOLDEN (too large for the suite)."""
 
 
 NO_DRAIN = {"traffic.sections.drain_max": 0.0}
