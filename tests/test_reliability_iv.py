@@ -52,7 +52,8 @@ def test_a_road_sweep_stopped_by_sigterm_resumes_to_the_same_summary(tmp_path):
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130 and "run the same command again" in err, err
-    assert set(pd.read_parquet(cut / "summary.parquet")["status"]) != {"completed"}
+    cut_rows = pd.read_parquet(cut / "summary.parquet")  # the cut case has no row or an unfinished one
+    assert int((cut_rows["status"] == "completed").sum()) < 3, cut_rows
     code, text = cli("sweep", sweep, "--out", cut, "--no-progress", "--workers", "1")
     assert code == 0 and "done before" in text, text
     assert (cut / "summary.parquet").read_bytes() == (whole / "summary.parquet").read_bytes()
