@@ -91,7 +91,7 @@ def _delay(p: pd.DataFrame, first: int, last: int, t_end: float, meta: dict) -> 
     stretch at the road's speed limit [s] (None: nobody timed over it)."""
     a = p[(p["section"] == first) & (p["t"] >= 0) & (p["t"] <= t_end)].groupby("vehicle_id")[["t", "s_m"]].first()
     b = p[p["section"] == last].groupby("vehicle_id")[["t", "s_m"]].first()
-    both = a.join(b, lsuffix="_0", rsuffix="_1", how="inner")
+    both = a.add_suffix("_0").join(b.add_suffix("_1"), how="inner")
     if not len(both):
         return None
     v_limit = float((meta.get("sumo") or {}).get("speed_limit_mps") or 36.11)
