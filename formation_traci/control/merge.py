@@ -1,0 +1,108 @@
+"""Opening a gap for ramp traffic: which ramp vehicles a formation yields to, and how hard.
+
+A ramp vehicle on an on-ramp (road/ramps.py: the ramp's feeder lanes and the acceleration
+lane) is mapped onto the merge lane at the same distance from the join: at a distance ``dist``
+[m] before the join's start (negative once it is on the acceleration lane) its front bumper is
+at ``s_r = s_start - dist`` on the reference line. It merges at ``s_m = s_start + merge_at *
+length`` (``merge_at`` of the acceleration lane, 0 for a direct join), reached at its own speed
+after ``T = (s_m - s_r) / v_r``.
+
+Of the members in the merge lane, the front-most bumper is at ``s_F`` (speed ``v_F``) and the
+rear-most rear bumper at ``s_R``. The ramp vehicle of length ``L_r`` and time gap ``tau_r`` is
+
+* **clear ahead** when its rear leads ``s_F`` by at least ``g_F = min_gap + tau_r v_F``, and
+  **clear behind** when its front trails ``s_R`` by at least ``g_R = min_gap + tau_r v_r``
+  (its own safe time gap either way): nothing to do;
+* otherwise **in conflict**. The formation opens the gap ahead of its front member when a
+  constant deceleration ``a`` of the formation over ``T`` gives it (constant ramp speed):
+
+      (s_r - L_r - s_F) + (v_r - v_F) T + a T^2 / 2 >= g_F
+      a_req = 2 (g_F - (s_r - L_r - s_F) - (v_r - v_F) T) / T^2
+
+  and ``a_req <= a_comfort``: it *yields*, its acceleration capped at ``-a_req`` (recomputed
+  every step, so the cap relaxes as the gap opens). A conflict that needs more than
+  ``a_comfort`` is left to the ramp vehicle (it merges behind), unless the formation already
+  yields to it: then the cap stays, at most ``a_comfort`` (no switching back and forth).
+
+Only ramp vehicles within ``horizon_s`` of the merge (``T <= horizon_s``) that have not reached
+``s_m`` are considered. Pure functions of (state, input, params), compiled.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..kernels import kernel
+
+CLEAR = 0
+"""A ramp vehicle out of the horizon or clear of the formation."""
+YIELD = 1
+"""A ramp vehicle the formation opens a gap for."""
+BEHIND = 2
+"""A ramp vehicle in conflict the formation cannot yield to within comfort: it merges behind."""
+
+
+class MergeParams(NamedTuple):
+    """The yield law's parameters."""
+
+    horizon_s: float  # how far ahead in time ramp vehicles are considered [s]
+    a_comfort_mps2: float  # the largest deceleration the formation yields with [m/s^2]
+    min_gap_m: float  # standstill gap added to the ramp vehicle's time gap [m]
+    merge_at: float  # where along the acceleration lane ramp vehicles merge [-], 0..1
+
+
+MERGE_DEFAULTS = MergeParams(horizon_s=10.0, a_comfort_mps2=1.5, min_gap_m=2.5, merge_at=0.5)
+"""1.5 m/s^2 leaves the planner 0.5 m/s^2 below the 2 m/s^2 longitudinal comfort reference."""
+
+
+class MergeSite(NamedTuple):
+    """One join of ramp traffic on the reference line (road/ramps.py RampJoin)."""
+
+    s_start: float  # where the join starts [m]
+    length: float  # the acceleration lane's length (0: a direct join) [m]
+
+
+class RampTraffic(NamedTuple):
+    """The ramp vehicles of one join, one entry each."""
+
+    dist: np.ndarray  # distance of the front bumper before the join's start [m] (< 0: past it)
+    v: np.ndarray  # speed [m/s]
+    length: np.ndarray  # length [m]
+    tau: np.ndarray  # time gap of its driver [s]
+    yielding: np.ndarray  # bool: the formation yields to it already
+
+
+class MergeLane(NamedTuple):
+    """The formation's members in the merge lane at the join."""
+
+    s_front: float  # front-most front bumper [m]
+    v_front: float  # that member's speed [m/s]
+    s_rear: float  # rear-most rear bumper [m]
+
+
+@kernel
+def yield_to_ramp(site, ramp, lane, p, decision):
+    """Decide for every ramp vehicle (``decision`` (m,) int64 out: CLEAR, YIELD, BEHIND; the
+    module docstring) and return the formation's acceleration cap [m/s^2] (``inf``: none)."""
+    cap = np.inf
+    s_m = site.s_start + p.merge_at * site.length
+    for j in range(ramp.dist.shape[0]):
+        decision[j] = CLEAR
+        v_r = max(ramp.v[j], 0.1)
+        s_r = site.s_start - ramp.dist[j]
+        t = (s_m - s_r) / v_r
+        if t <= 0.0 or t > p.horizon_s:
+            continue
+        g_front = p.min_gap_m + ramp.tau[j] * lane.v_front
+        g_rear = p.min_gap_m + ramp.tau[j] * ramp.v[j]
+        lead = s_r - ramp.length[j] - lane.s_front
+        if lead >= g_front or s_r <= lane.s_rear - g_rear:
+            continue
+        a_req = 2.0 * (g_front - lead - (ramp.v[j] - lane.v_front) * t) / (t * t)
+        if a_req <= p.a_comfort_mps2 or ramp.yielding[j]:
+            decision[j] = YIELD
+            cap = min(cap, -min(max(a_req, 0.0), p.a_comfort_mps2))
+        else:
+            decision[j] = BEHIND
+    return cap

@@ -1,0 +1,79 @@
+"""The yield law of control/merge.py from first principles: the deceleration it asks opens
+exactly the ramp vehicle's own safe gap at the merge point (constant speeds, constant
+deceleration); clear vehicles, vehicles beyond the horizon and vehicles that would need more
+than the comfort deceleration are left alone; a yield once started is kept."""
+import math
+
+import numpy as np
+import pytest
+
+from formation_traci.control.merge import (BEHIND, CLEAR, MERGE_DEFAULTS, YIELD, MergeLane,
+                                           MergeSite, RampTraffic, yield_to_ramp)
+
+SITE = MergeSite(s_start=1500.0, length=300.0)  # merge point at 1650 m (merge_at 0.5)
+P = MERGE_DEFAULTS
+
+
+def _ramp(dist, v, yielding=False, length=4.5, tau=1.0):
+    a = np.atleast_1d
+    return RampTraffic(a(np.float64(dist)), a(np.float64(v)), a(np.float64(length)),
+                       a(np.float64(tau)), a(np.bool_(yielding)))
+
+
+def _decide(ramp, lane):
+    out = np.empty(ramp.dist.shape[0], dtype=np.int64)
+    cap = yield_to_ramp(SITE, ramp, lane, P, out)
+    return out, cap
+
+
+def test_the_asked_deceleration_opens_exactly_the_ramp_vehicles_safe_gap_at_the_merge_point():
+    v_f, v_r = 28.0, 27.0
+    lane = MergeLane(s_front=1450.0, v_front=v_f, s_rear=1390.0)
+    ramp = _ramp(dist=40.0, v=v_r)  # mapped front bumper at 1460 m: 5.5 m ahead of the column
+    (d,), cap = _decide(ramp, lane)
+    t = (1650.0 - 1460.0) / v_r  # to the merge point at its own speed
+    g = P.min_gap_m + 1.0 * v_f
+    assert d == YIELD and -P.a_comfort_mps2 <= cap < 0.0
+    # the formation's front at constant deceleration -cap over t, the ramp vehicle at v_r
+    front_at_t = 1450.0 + v_f * t + 0.5 * cap * t * t
+    ramp_rear_at_t = 1460.0 - 4.5 + v_r * t
+    assert ramp_rear_at_t - front_at_t == pytest.approx(g, abs=1e-9)
+
+
+@pytest.mark.parametrize("dist, why", [(-400.0, "its rear leads the front member by more than its gap"),
+                                       (260.0, "it trails the rear member by more than its gap"),
+                                       (500.0, "it reaches the merge point after the horizon")])
+def test_clear_and_far_vehicles_are_left_alone(dist, why):
+    lane = MergeLane(s_front=1450.0, v_front=28.0, s_rear=1390.0)
+    (d,), cap = _decide(_ramp(dist=dist, v=26.0), lane)
+    assert d == CLEAR and math.isinf(cap), why
+
+
+def test_a_vehicle_past_the_merge_point_is_regular_traffic():
+    lane = MergeLane(s_front=1700.0, v_front=28.0, s_rear=1640.0)
+    (d,), cap = _decide(_ramp(dist=-160.0, v=25.0), lane)  # front bumper at 1660 m > 1650 m
+    assert d == CLEAR and math.isinf(cap)
+
+
+def test_a_yield_beyond_comfort_is_left_to_the_ramp_vehicle_unless_already_started():
+    lane = MergeLane(s_front=1640.0, v_front=30.0, s_rear=1580.0)
+    ramp = _ramp(dist=-130.0, v=20.0)  # at 1630 m, 0.5 s from the merge point, 10 m/s slower
+    (d,), cap = _decide(ramp, lane)
+    assert d == BEHIND and math.isinf(cap)
+    (d,), cap = _decide(ramp._replace(yielding=np.array([True])), lane)
+    assert d == YIELD and cap == -P.a_comfort_mps2
+
+
+def test_a_faster_ramp_vehicle_that_clears_by_itself_only_holds_the_formations_speed():
+    lane = MergeLane(s_front=1450.0, v_front=25.0, s_rear=1390.0)
+    (d,), cap = _decide(_ramp(dist=40.0, v=32.0), lane)  # at 1460 m, 7 m/s faster, 6 s out
+    assert d == YIELD and cap == 0.0
+
+
+def test_the_cap_is_the_most_demanding_of_several_ramp_vehicles():
+    lane = MergeLane(s_front=1450.0, v_front=28.0, s_rear=1390.0)
+    ramp = _ramp(dist=np.array([30.0, 40.0]), v=np.array([27.0, 27.0]),
+                 yielding=np.array([False, False]), length=np.array([4.5, 4.5]), tau=np.array([1.0, 1.0]))
+    d, cap = _decide(ramp, lane)
+    one = [_decide(_ramp(dist=x, v=27.0), lane)[1] for x in (30.0, 40.0)]
+    assert list(d) == [YIELD, YIELD] and cap == min(one) and one[0] != one[1]
