@@ -179,6 +179,47 @@ def test_module_and_function_sizes():
     assert not DEBT - found, f"fixed, remove from DEBT: {sorted(DEBT - found)}"
 
 
+PRIVATE_READERS = {
+    "formation_traci/kernel_load.py",  # extends numba's cache (the one module that does)
+    "formation_traci/sumo/fused_path.py",  # the fused SUMO step reads the world's and the
+    "formation_traci/sumo/fused_refs.py",  # generators' private state
+}
+"""The modules allowed to read another object's private attribute; the list only shrinks."""
+
+
+def private_reads() -> dict[str, list[str]]:
+    """Module path -> its reads ``obj._name`` (line and name) where ``obj`` is not ``self`` or
+    ``cls``: the rule of /work/shared/tools/structure_check.py (dunder names are not private;
+    ``getattr(obj, "_name")`` is not seen)."""
+    found: dict[str, list[str]] = {}
+    for p in modules().values():
+        for node in ast.walk(ast.parse(p.read_text())):
+            if (isinstance(node, ast.Attribute) and node.attr.startswith("_")
+                    and not node.attr.startswith("__")
+                    and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"))):
+                found.setdefault(p.relative_to(ROOT).as_posix(), []).append(f"{node.lineno} .{node.attr}")
+    return found
+
+
+def test_no_module_reads_another_objects_private_attribute():
+    """A module uses what another object offers publicly (a property, a method, a public
+    attribute for shared state), never its ``_name``; only ``PRIVATE_READERS`` still do."""
+    found = private_reads()
+    extra = {f: rows for f, rows in found.items() if f not in PRIVATE_READERS}
+    assert not extra, f"private attributes of another object: {extra}"
+    assert not PRIVATE_READERS - set(found), (
+        f"no private read left, remove from PRIVATE_READERS: {sorted(PRIVATE_READERS - set(found))}")
+
+
+def test_the_private_read_check_sees_a_read(tmp_path, monkeypatch):
+    (tmp_path / "formation_traci").mkdir()
+    (tmp_path / "formation_traci" / "a.py").write_text(
+        "class A:\n    def f(self, other):\n        return self._x, other._y, other.__dict__, cls_._z\n")
+    monkeypatch.setattr(__import__(__name__), "ROOT", tmp_path)
+    monkeypatch.setattr(__import__(__name__), "PACKAGES", ("formation_traci",))
+    assert private_reads() == {"formation_traci/a.py": ["3 ._y", "3 ._z"]}
+
+
 def test_one_module_imports_libsumo():
     users = set()
     for name, p in modules().items():
