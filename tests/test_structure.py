@@ -1,9 +1,11 @@
-"""Layout rules (GUIDE, issue 14): no import circle in formation_traci or analysis, no module
-over 400 lines, no function over 80 lines, exactly one module imports libsumo/traci.
+"""Layout rules (GUIDE, issue 14): no import circle in formation_traci, analysis or
+run_contract, no module over 400 lines, no function over 80 lines, exactly one module imports
+libsumo/traci, no two folders (the packages among them) import each other, no module reads
+another object's private attribute.
 
 ``DEBT`` names the modules and functions that were over the limits when the rule came in and
 have not been split yet; the test fails for any other violation and for a listed one that
-is fixed (so the list only shrinks). The test walks the source with ``ast`` (imports inside
+is fixed (so the list only shrinks); ``FOLDER_DEBT`` and ``PRIVATE_READERS`` likewise. The test walks the source with ``ast`` (imports inside
 functions count too), like /work/shared/tools/structure_check.py.
 """
 from __future__ import annotations
