@@ -23,8 +23,8 @@ from analysis.runs.traffic_only import no_formation_entered, traffic_only_doc
 from analysis.runs.summary import (DEFAULT_SETTINGS, KEY_METRICS, MEMBER_METRICS, RUN_METRICS,
                                    AnalysisSettings, RunAnalysis, compute_run, settings_dict)
 from analysis.runs.traffic_run import TRAFFIC_COMPARE_METRICS, TRAFFIC_RUN_METRICS, load_baseline
-from formation_traci.record.rundir import looks_like_run, open_report_dir, require_run_dir
-from formation_traci.record.rundir import atomic_write_text
+from run_contract.rundir import looks_like_run, open_report_dir, require_run_dir
+from run_contract.rundir import atomic_write_text
 
 __all__ = [
     "SCHEMA", "METRICS_JSON", "METRICS_CSV", "REPORT_HTML", "BASELINE_CSV", "COMM_AGE_CSV",

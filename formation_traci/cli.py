@@ -71,8 +71,8 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
     typer.echo(f"warning: {message}", err=True)
 
 
-_BAD_INPUT = (("formation_traci.errors", "SweepError"), ("formation_traci.scenario.load", "ScenarioError"),
-              ("formation_traci.record.rundir", "RunDirError"), ("analysis.load.run_data", "NoTrajectoryData"))
+_BAD_INPUT = (("run_contract.errors", "SweepError"), ("formation_traci.scenario.load", "ScenarioError"),
+              ("run_contract.rundir", "RunDirError"), ("analysis.load.run_data", "NoTrajectoryData"))
 """(module, class) of the errors that are bad input (exit 2)."""
 
 
@@ -238,10 +238,10 @@ def analyze(
     """Compute metrics of a recorded run: metrics.json, metrics.csv, figures/, report.html."""
     with _outcome():
         from analysis.api import analyze_run
-        from .record.rundir import require_run_dir
+        from run_contract.rundir import require_run_dir
 
         if baseline is not None:  # a baseline that is not a run (missing, a file, empty) is bad input (exit 2)
-            from .record.rundir import RunDirError, looks_like_run
+            from run_contract.rundir import RunDirError, looks_like_run
 
             if not looks_like_run(require_run_dir(baseline)):
                 raise RunDirError(f"{baseline}: is not a run directory (no run.json and no trajectories.parquet)")
@@ -264,7 +264,7 @@ def compare(
     """Overlay several runs (e.g. kinematic vs dynamic model) and tabulate key metrics."""
     with _outcome():
         from analysis.api import compare_runs
-        from .record.rundir import RunDirError
+        from run_contract.rundir import RunDirError
 
         if len(run_dirs) < 2:
             raise RunDirError(f"compare needs two or more run directories (got {len(run_dirs)})")

@@ -15,6 +15,10 @@ loading a kernel from its on-disk cache are skipped when nothing needs them.
 
 The machine code run is numba's own, read from its own cache: results do not change. Any
 surprise (another numba version, an unreadable file) falls back to numba's own way.
+
+This is the one module of the package that reaches into numba's internals: kernels.py's
+``@kernel`` hands each dispatcher to :func:`quick_load` and asks :func:`cache_path` where its
+cache is.
 """
 from __future__ import annotations
 
@@ -28,6 +32,7 @@ import llvmlite
 import llvmlite.binding as ll
 import numba
 from numba.core import config
+from numba.core.caching import FunctionCache
 from numba.core.codegen import JITCodeLibrary
 from numba.core.compiler_lock import global_compiler_lock
 from numba.core.runtime import _nrt_python, nrt, nrtdynmod
@@ -143,3 +148,40 @@ def init_runtime(target_context, cache_dir: str) -> None:
         _write_atomic(path, pickle.dumps(library.serialize_using_object_code(), protocol=4))
     rt._library = library
     rt._init = True
+
+
+class _QuickLoadCache(FunctionCache):
+    """numba's cache of a function, loading without the compiler's registries (the cost of a
+    warm start: kernels.py's module docstring): ``Cache.load_overload`` minus its
+    ``target_context.refresh()``."""
+
+    def load_overload(self, sig, target_context):
+        try:
+            init_runtime(target_context, self._cache_path)  # the runtime (NRT)
+            codegen = target_context.codegen()
+            lazy = lazy_unserialize(codegen, self._cache_path)
+            if lazy is not None:  # this one load: no parse of the bitcode
+                codegen.unserialize_library = lazy
+            try:
+                with self._guard_against_spurious_io_errors():
+                    return self._load_overload(sig, target_context)
+            finally:
+                if lazy is not None:
+                    del codegen.unserialize_library
+        except Exception:  # numba's internals moved (another version): its own load (a
+            # genuine failure of the cache raises there again, as numba alone would)
+            return FunctionCache.load_overload(self, sig, target_context)
+        return None  # an I/O error swallowed by the guard: numba compiles
+
+
+def quick_load(dispatcher) -> None:
+    """Make a cached ``njit`` dispatcher read its kernels through :class:`_QuickLoadCache`
+    (nothing under ``NUMBA_DISABLE_JIT`` or with another cache)."""
+    if type(getattr(dispatcher, "_cache", None)) is FunctionCache:
+        dispatcher._cache.__class__ = _QuickLoadCache
+
+
+def cache_path(dispatcher) -> str | None:
+    """The directory of a dispatcher's on-disk cache; None without one (``NUMBA_DISABLE_JIT``,
+    no ``cache=True``)."""
+    return getattr(getattr(dispatcher, "_cache", None), "cache_path", None)

@@ -14,12 +14,13 @@ Three chores live here:
   of the functions it calls: a digest of every module that defines kernels is stored next
   to each cache directory, and a directory whose digest differs is emptied of kernels;
 * a kernel read from the on-disk cache is machine code that needs numba's runtime (NRT)
-  only: :class:`_QuickLoadCache` loads it without first initialising numba's compiler
+  only: it is loaded without first initialising numba's compiler
   registries (its ``target_context.refresh()``, which imports all of numba's lowering
   modules and scipy.linalg: 0.3-0.6 s of every warm start). A compilation
   initialises them itself (numba's compiler refreshes its contexts). It also reads
   numba's runtime from the cache and leaves the kernel's bitcode unparsed until a
-  compilation links it (formation_traci/kernel_load.py).
+  compilation links it (formation_traci/kernel_load.py, the one module that reaches into
+  numba's internals).
 """
 from __future__ import annotations
 
@@ -30,7 +31,6 @@ from pathlib import Path
 
 import numpy as np
 from numba import njit
-from numba.core.caching import FunctionCache
 
 from . import kernel_load, kernel_notice
 
@@ -58,8 +58,7 @@ def _drop_stale_cache(dispatcher) -> None:
     """Numba keys its on-disk cache on the file that defines a function only, not on the
     files of the functions it calls: when any kernel module changed since a cache directory
     was written, every cached kernel in it goes (they compile afresh)."""
-    cache = getattr(dispatcher, "_cache", None)
-    path = getattr(cache, "cache_path", None)
+    path = kernel_load.cache_path(dispatcher)
     if path is None or path in _CHECKED:
         return  # NUMBA_DISABLE_JIT, or this directory was checked already
     _CHECKED.add(path)
@@ -75,36 +74,12 @@ def _drop_stale_cache(dispatcher) -> None:
         pass
 
 
-class _QuickLoadCache(FunctionCache):
-    """numba's cache of a function, loading without the compiler's registries (module
-    docstring): ``Cache.load_overload`` minus its ``target_context.refresh()``."""
-
-    def load_overload(self, sig, target_context):
-        try:
-            kernel_load.init_runtime(target_context, self._cache_path)  # the runtime (NRT)
-            codegen = target_context.codegen()
-            lazy = kernel_load.lazy_unserialize(codegen, self._cache_path)
-            if lazy is not None:  # this one load: no parse of the bitcode (kernel_load.py)
-                codegen.unserialize_library = lazy
-            try:
-                with self._guard_against_spurious_io_errors():
-                    return self._load_overload(sig, target_context)
-            finally:
-                if lazy is not None:
-                    del codegen.unserialize_library
-        except Exception:  # numba's internals moved (another version): its own load (a
-            # genuine failure of the cache raises there again, as numba alone would)
-            return FunctionCache.load_overload(self, sig, target_context)
-        return None  # an I/O error swallowed by the guard: numba compiles
-
-
 def kernel(fn=None, **options):
     """``numba.njit(cache=True, error_model="numpy")`` (options override), with the stale
-    cache check of :func:`_drop_stale_cache` and the quick load of :class:`_QuickLoadCache`."""
+    cache check of :func:`_drop_stale_cache` and the quick load of kernel_load.py."""
     def wrap(f):
         d = njit(**{"cache": True, "error_model": "numpy", **options})(f)
-        if type(getattr(d, "_cache", None)) is FunctionCache:
-            d._cache.__class__ = _QuickLoadCache
+        kernel_load.quick_load(d)
         _drop_stale_cache(d)
         return d
     return wrap(fn) if fn is not None else wrap

@@ -17,9 +17,10 @@ import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from run_contract.rundir import RUN_FINISHED, RUN_SCHEMA, RunDirError, atomic_write_text, open_out_dir
+
 from .interrupt import Interrupted, stop_on_signals
-from .record.rundir import RUN_FINISHED, RunDirError, RunDirExists, RUN_SCHEMA, open_out_dir  # noqa: F401
-from .record.writer import atomic_write_json, atomic_write_text, json_text
+from .record.writer import atomic_write_json, json_text
 from .scenario.formations import formation_views
 from .scenario.load import ScenarioError
 from .scenario.schema import Scenario
@@ -118,7 +119,7 @@ def run_scenario(sc: Scenario, out_dir: Path, *, scenario_path: str | Path | Non
 
     Raises ScenarioError or RunDirError (bad input; nothing created or changed), or
     Interrupted if a signal arrives before the run directory exists. ``out_dir`` is locked
-    for the whole run (record/rundir.py); ``force`` replaces only a previous run.
+    for the whole run (run_contract/rundir.py); ``force`` replaces only a previous run.
     """
     baseline = twin_mode(baseline, scenario_path)
     if baseline and sc.road is None:

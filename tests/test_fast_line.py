@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from formation_traci.record.columns import FILLED_BY_CALLER, SIGNAL_COLUMNS, TRAJECTORY_COLUMNS
+from run_contract.columns import TRAJECTORY_COLUMNS
+from formation_traci.record.columns import FILLED_BY_CALLER, SIGNAL_COLUMNS
 from formation_traci.road.fast_line import frame_many, to_frenet_many, to_frenet_one
 from formation_traci.road.line_pack import FastLine
 from formation_traci.road.geometry import reference_line_from_net

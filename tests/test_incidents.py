@@ -13,7 +13,8 @@ import pytest
 
 from analysis.metrics.pair_geometry import clearance as analysis_clearance
 from formation_traci.models.params import PASSENGER_CAR
-from formation_traci.record.columns import INCIDENT_KEYS, SIGNAL_COLUMNS
+from run_contract.columns import INCIDENT_KEYS
+from formation_traci.record.columns import SIGNAL_COLUMNS
 from formation_traci.sim.incidents import (REACH_MARGIN, STRANDED_TIME, Incidents, member_clearances,
                                           signed_clearance, verdict)
 from run_helpers import cli

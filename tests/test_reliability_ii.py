@@ -394,7 +394,7 @@ def _alive(pid: int) -> bool:
 def _case_pid(case_dir: Path) -> int:
     """Pid of the case process running into ``case_dir``: the holder of its lock (a forked case
     process has the command line of the server it was forked from, not its own)."""
-    from formation_traci.record.rundir import LOCK_NAME
+    from run_contract.rundir import LOCK_NAME
 
     holder = (case_dir / LOCK_NAME).read_text()
     assert "formation_traci/sweep/case.py" in holder, holder  # the case process, not another

@@ -8,9 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from formation_traci.record.columns import TRAJECTORY_COLUMNS
+from run_contract.columns import TRAJECTORY_COLUMNS
 from formation_traci.scenario import ScenarioError, load_scenario
-from formation_traci.runner import RunDirExists, run_scenario
+from formation_traci.runner import run_scenario
+from run_contract.rundir import RunDirExists
 from run_helpers import free_toml
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,9 +1,11 @@
-"""Layout rules (GUIDE, issue 14): no import circle in formation_traci or analysis, no module
-over 400 lines, no function over 80 lines, exactly one module imports libsumo/traci.
+"""Layout rules (GUIDE, issue 14): no import circle in formation_traci, analysis or
+run_contract, no module over 400 lines, no function over 80 lines, exactly one module imports
+libsumo/traci, no two folders (the packages among them) import each other, no module reads
+another object's private attribute.
 
 ``DEBT`` names the modules and functions that were over the limits when the rule came in and
 have not been split yet; the test fails for any other violation and for a listed one that
-is fixed (so the list only shrinks). The test walks the source with ``ast`` (imports inside
+is fixed (so the list only shrinks); ``FOLDER_DEBT`` and ``PRIVATE_READERS`` likewise. The test walks the source with ``ast`` (imports inside
 functions count too), like /work/shared/tools/structure_check.py.
 """
 from __future__ import annotations
@@ -13,10 +15,18 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("formation_traci", "analysis")
+PACKAGES = ("formation_traci", "analysis", "run_contract")
 MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 80
 DEBT: set[str] = set()
+FOLDER_DEBT: set[tuple[str, str]] = {
+    # sim/ and sumo/ build on the compiled kernels (kernels.py, kernel_notice.py), states.py and
+    # versions.py; runner.py, above both, runs them
+    ("formation_traci", "formation_traci.sim"),
+    ("formation_traci", "formation_traci.sumo"),
+    # a sweep case runs runner.py (with interrupt.py, twins.py); cli.py starts the sweep
+    ("formation_traci", "formation_traci.sweep"),
+}
 
 
 def modules() -> dict[str, Path]:
@@ -69,43 +79,76 @@ def test_no_import_circles():
     assert not circles, circles
 
 
-def folder(module: str) -> str | None:
+def folder(module: str) -> str:
     """The folder a module is in: formation_traci.<sub> or analysis.<sub> (load, metrics, runs,
-    figures, report); None for the modules at a package's top (formation_traci's kernels,
-    states, versions, interrupt, cli; analysis' api: the entry points over its folders)."""
+    figures, report); the package itself for the modules at its top (formation_traci's cli,
+    runner, kernels, states, versions, interrupt, ...; analysis' api; run_contract's modules)."""
     parts = module.split(".")
     if len(parts) >= 2 and (ROOT / parts[0] / parts[1]).is_dir():
         return ".".join(parts[:2])
-    return None
+    return parts[0]
 
 
 def folder_edges() -> dict[str, set[str]]:
-    """Folder -> the other folders its modules import."""
+    """Folder -> the other folders its modules import. A package is a folder too: an import
+    across packages (analysis.load -> formation_traci.record) is also an edge between the two
+    packages (analysis -> formation_traci)."""
     mods = modules()
     edges: dict[str, set[str]] = {}
     for m, p in mods.items():
-        src = folder(m)
         for d in imports(m, p, set(mods)):
-            dst = folder(d)
-            if src and dst and dst != src:
-                edges.setdefault(src, set()).add(dst)
+            for src, dst in ((folder(m), folder(d)), (m.split(".")[0], d.split(".")[0])):
+                if dst != src:
+                    edges.setdefault(src, set()).add(dst)
     return edges
+
+
+def mutual_pairs(edges: dict[str, set[str]]) -> set[tuple[str, str]]:
+    """The pairs of folders that import each other."""
+    return {tuple(sorted((a, b))) for a, bs in edges.items() for b in bs if a in edges.get(b, ())}
 
 
 def test_the_analysis_metrics_import_no_other_part_of_the_analysis():
     """analysis/metrics/ holds the definitions: pure functions that read no file, so none of
     its modules imports the loading, the per-run drivers, the figures or the report."""
-    assert folder_edges().get("analysis.metrics", set()) <= {"formation_traci.record"}
+    assert folder_edges().get("analysis.metrics", set()) <= {"run_contract"}
 
 
 def test_no_two_folders_import_each_other():
     """Folders import one way: road never imports control and control road, comm neither sim
     nor the scenario, analysis not sweep and sweep analysis (issue 26); within the analysis
-    load -> metrics, runs -> load and metrics, figures -> runs, report -> figures and runs."""
+    load -> metrics, runs -> load and metrics, figures -> runs, report -> figures and runs.
+    The packages too: formation_traci -> analysis (the command line runs the analysis), both
+    -> run_contract, never back. ``FOLDER_DEBT`` names the pairs with formation_traci's
+    top-level modules that are not untangled yet; the list only shrinks."""
+    pairs = mutual_pairs(folder_edges())
+    assert not pairs - FOLDER_DEBT, f"folders importing each other: {sorted(pairs - FOLDER_DEBT)}"
+    assert not FOLDER_DEBT - pairs, f"untangled, remove from FOLDER_DEBT: {sorted(FOLDER_DEBT - pairs)}"
+
+
+def test_the_run_contract_is_below_both_packages():
+    """The analysis imports nothing of formation_traci; run_contract (the recorded run's
+    contract) imports neither of them."""
     edges = folder_edges()
-    pairs = sorted({tuple(sorted((a, b))) for a, bs in edges.items() for b in bs
-                    if a in edges.get(b, ())})
-    assert not pairs, pairs
+    assert "formation_traci" not in edges.get("analysis", set())
+    assert not edges.get("run_contract", set()) & {"formation_traci", "analysis"}
+    assert "run_contract" in edges["analysis"] and "run_contract" in edges["formation_traci"]
+
+
+def test_the_checker_finds_two_packages_importing_each_other(tmp_path, monkeypatch):
+    """Two packages import each other even when no two of their folders do: the sweep imports
+    the analysis' top and the analysis' loading the record's columns."""
+    for pkg in ("formation_traci", "formation_traci/sweep", "formation_traci/record", "analysis",
+                "analysis/load"):
+        (tmp_path / pkg).mkdir()
+        (tmp_path / pkg / "__init__.py").write_text("")
+    (tmp_path / "formation_traci" / "sweep" / "run.py").write_text("def f():\n    from analysis.api import g\n")
+    (tmp_path / "formation_traci" / "record" / "columns.py").write_text("VC = 'vc'\n")
+    (tmp_path / "analysis" / "api.py").write_text("def g():\n    pass\n")
+    (tmp_path / "analysis" / "load" / "x.py").write_text("from formation_traci.record.columns import VC\n")
+    monkeypatch.setattr(__import__(__name__), "ROOT", tmp_path)
+    monkeypatch.setattr(__import__(__name__), "PACKAGES", ("formation_traci", "analysis"))
+    assert mutual_pairs(folder_edges()) == {("analysis", "formation_traci")}
 
 
 def test_the_generic_loop_is_apart_from_sumo():
@@ -136,6 +179,47 @@ def test_module_and_function_sizes():
     found = violations()
     assert not found - DEBT, f"over the limits: {sorted(found - DEBT)}"
     assert not DEBT - found, f"fixed, remove from DEBT: {sorted(DEBT - found)}"
+
+
+PRIVATE_READERS = {
+    "formation_traci/kernel_load.py",  # extends numba's cache (the one module that does)
+    "formation_traci/sumo/fused_path.py",  # the fused SUMO step reads the world's and the
+    "formation_traci/sumo/fused_refs.py",  # generators' private state
+}
+"""The modules allowed to read another object's private attribute; the list only shrinks."""
+
+
+def private_reads() -> dict[str, list[str]]:
+    """Module path -> its reads ``obj._name`` (line and name) where ``obj`` is not ``self`` or
+    ``cls``: the rule of /work/shared/tools/structure_check.py (dunder names are not private;
+    ``getattr(obj, "_name")`` is not seen)."""
+    found: dict[str, list[str]] = {}
+    for p in modules().values():
+        for node in ast.walk(ast.parse(p.read_text())):
+            if (isinstance(node, ast.Attribute) and node.attr.startswith("_")
+                    and not node.attr.startswith("__")
+                    and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"))):
+                found.setdefault(p.relative_to(ROOT).as_posix(), []).append(f"{node.lineno} .{node.attr}")
+    return found
+
+
+def test_no_module_reads_another_objects_private_attribute():
+    """A module uses what another object offers publicly (a property, a method, a public
+    attribute for shared state), never its ``_name``; only ``PRIVATE_READERS`` still do."""
+    found = private_reads()
+    extra = {f: rows for f, rows in found.items() if f not in PRIVATE_READERS}
+    assert not extra, f"private attributes of another object: {extra}"
+    assert not PRIVATE_READERS - set(found), (
+        f"no private read left, remove from PRIVATE_READERS: {sorted(PRIVATE_READERS - set(found))}")
+
+
+def test_the_private_read_check_sees_a_read(tmp_path, monkeypatch):
+    (tmp_path / "formation_traci").mkdir()
+    (tmp_path / "formation_traci" / "a.py").write_text(
+        "class A:\n    def f(self, other):\n        return self._x, other._y, other.__dict__, cls_._z\n")
+    monkeypatch.setattr(__import__(__name__), "ROOT", tmp_path)
+    monkeypatch.setattr(__import__(__name__), "PACKAGES", ("formation_traci",))
+    assert private_reads() == {"formation_traci/a.py": ["3 ._y", "3 ._z"]}
 
 
 def test_one_module_imports_libsumo():

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from formation_traci.record.columns import Column
+from run_contract.columns import Column
 from formation_traci.record.writer import ChunkedTable
 
 COLS = (Column("t", "float64", "s", ""), Column("id", "string", "-", ""),

@@ -10,7 +10,7 @@ from analysis.figures.figure_kit import (LINESTYLES, decimate, has_values, membe
                                          member_groups, new_figure, save_png, vc_frame_position)
 from analysis.metrics import comfort
 from analysis.runs.summary import RunAnalysis
-from formation_traci.record.columns import VIRTUAL_CAR_ID
+from run_contract.columns import VIRTUAL_CAR_ID
 
 __all__ = ["compare_figures"]
 

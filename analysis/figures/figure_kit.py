@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 
 from analysis.metrics.maneuvers import maneuver_intervals
 from analysis.runs.summary import RunAnalysis
-from formation_traci.record.columns import VIRTUAL_CAR_ID
+from run_contract.columns import VIRTUAL_CAR_ID
 
 MAX_POINTS = 20000
 """Lines with more samples are decimated (every k-th sample) before plotting."""
@@ -54,7 +54,7 @@ def save_png(fig: Figure, path: Path, dpi: int = 110) -> Path:
     truncated figure (disk full), never through a symbolic link."""
     import io
 
-    from formation_traci.record.rundir import atomic_write_bytes
+    from run_contract.rundir import atomic_write_bytes
 
     buf = io.BytesIO()
     fig.savefig(buf, dpi=dpi, format="png")

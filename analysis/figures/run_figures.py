@@ -24,7 +24,7 @@ from analysis.figures.traffic_figures import (BIRDSEYE_AHEAD_M, BIRDSEYE_BEHIND_
 from analysis.metrics import comfort, limits
 from analysis.runs.member_columns import to_float
 from analysis.runs.summary import RunAnalysis
-from formation_traci.record.columns import VIRTUAL_CAR_ID
+from run_contract.columns import VIRTUAL_CAR_ID
 
 __all__ = ["MAX_POINTS", "MAX_SCATTER", "BIRDSEYE_AHEAD_M", "BIRDSEYE_BEHIND_M",
            "BIRDSEYE_STRIP_FRAMES", "BIRDSEYE_DPI", "run_figures", "compare_figures",

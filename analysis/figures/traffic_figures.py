@@ -20,8 +20,8 @@ from analysis.figures.figure_kit import (decimate, has_values, mark_not_recorded
 from analysis.metrics import traffic
 from analysis.runs.summary import RunAnalysis
 from analysis.runs.traffic_run import member_rows, time_keys
-from formation_traci.record.columns import VIRTUAL_CAR_ID
-from formation_traci.record.rundir import atomic_write_bytes
+from run_contract.columns import VIRTUAL_CAR_ID
+from run_contract.rundir import atomic_write_bytes
 
 __all__ = ["MAX_SCATTER", "BIRDSEYE_AHEAD_M", "BIRDSEYE_BEHIND_M", "BIRDSEYE_STRIP_FRAMES",
            "BIRDSEYE_DPI", "spacetime_figure", "birdseye_animation"]

@@ -16,11 +16,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-import formation_traci.record.columns as _contract
+import run_contract.columns as _contract
 from analysis.load.run_files import (REQUIRED_META_KEYS, RUN_JSON, TRAJECTORIES, DamagedPartWarning,
                                      Issue, describe_issues, read_meta, read_table)
 from analysis.load.run_members import Member, run_members
-from formation_traci.record.columns import TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID
+from run_contract.columns import TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID
 
 __all__ = [
     "RUN_JSON",
@@ -56,7 +56,7 @@ recording (e.g. the road/SUMO-only ``s``, ``d``, ``lane_index``) is reported as 
 
 TABLE_CONTRACTS = {"background": "BACKGROUND_COLUMNS", "events": "EVENT_COLUMNS",
                    "ssm": "SSM_COLUMNS", "comfort": "COMFORT_COLUMNS"}
-"""Names of the column contracts of the optional tables in ``formation_traci.record.columns``
+"""Names of the column contracts of the optional tables in ``run_contract.columns``
 (checked when the contract exists)."""
 
 GAP_FACTOR = 1.5

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.load.run_files import RUN_JSON, Issue
-from formation_traci.record.columns import VIRTUAL_CAR_ID
+from run_contract.columns import VIRTUAL_CAR_ID
 
 __all__ = ["Member", "run_members"]
 

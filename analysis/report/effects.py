@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from formation_traci.record.rundir import RUN_FINISHED
+from run_contract.rundir import RUN_FINISHED
 
 from .sweep_metrics import EFFECT_KEYS
 

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from formation_traci.errors import SweepError
-from formation_traci.record.rundir import atomic_write_text
+from run_contract.errors import SweepError
+from run_contract.rundir import atomic_write_text
 
 from .sweep_metrics import METRICS
 
@@ -223,7 +223,7 @@ def check_report_dir(out_dir: Path, sweep_dir: Path, explicit: bool) -> None:
     -------
     None
     """
-    from formation_traci.record.rundir import LOCK_NAME, TOOL_TEMP, RunDirError, check_path, looks_like_run, refuse_links
+    from run_contract.rundir import LOCK_NAME, TOOL_TEMP, RunDirError, check_path, looks_like_run, refuse_links
 
     def refuse(why: str) -> None:
         raise SweepError(out_dir, [("--out", why + ": nothing written; choose another directory")])

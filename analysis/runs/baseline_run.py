@@ -17,7 +17,7 @@ from analysis.load.run_data import Issue, RunData, read_meta, read_table
 from analysis.metrics import traffic as tr
 from analysis.runs.near_formation import finite_mean, near_rows
 from analysis.runs.settings import AnalysisSettings
-from formation_traci.record.columns import VIRTUAL_CAR_ID
+from run_contract.columns import VIRTUAL_CAR_ID
 
 __all__ = ["BaselineData", "load_baseline"]
 

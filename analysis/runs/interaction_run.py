@@ -18,7 +18,7 @@ from analysis.metrics import traffic as tr
 from analysis.metrics.conflicts import time_keys
 from analysis.runs.near_formation import finite_mean
 from analysis.runs.settings import AnalysisSettings
-from formation_traci.record.columns import VIRTUAL_CAR_ID
+from run_contract.columns import VIRTUAL_CAR_ID
 
 __all__ = ["PAIR_CHUNK", "member_rows"]
 

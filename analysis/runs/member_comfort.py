@@ -16,7 +16,7 @@ from analysis.metrics import comfort, iso2631, limits
 from analysis.metrics.signals import contiguous_segments, peak_abs, percentile_abs, rms
 from analysis.runs.member_columns import MemberColumns, per_segment, segment_sum, to_float
 from analysis.runs.settings import AnalysisSettings
-from formation_traci.record.columns import VIRTUAL_CAR_ID
+from run_contract.columns import VIRTUAL_CAR_ID
 
 
 def control_rate_dt(data: RunData) -> float:

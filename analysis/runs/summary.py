@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from formation_traci.record.columns import INCIDENT_KEYS
+from run_contract.columns import INCIDENT_KEYS
 
 from analysis.load.run_data import GAP_FACTOR, Issue, Member, RunData
 from analysis.metrics import formation, iso2631
@@ -29,7 +29,7 @@ from analysis.runs.member_metrics import FORMATION_MEMBER_METRICS, member_metric
 from analysis.runs.settings import DEFAULT_SETTINGS, AnalysisSettings, settings_dict
 from analysis.runs.traffic_run import (TRAFFIC_MEMBER_METRICS, BaselineData, TrafficAnalysis,
                                        compute_traffic)
-from formation_traci.record.columns import VIRTUAL_CAR_ID
+from run_contract.columns import VIRTUAL_CAR_ID
 
 __all__ = [
     "AnalysisSettings",

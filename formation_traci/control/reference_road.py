@@ -192,6 +192,12 @@ class RoadReference:
         self._has_prev = False
         self.ramp = bool(ramp)  # leader.accel_within_step == "ramp" (docs/model.md)
 
+    @property
+    def v_prev(self) -> np.ndarray:
+        """The members' speeds at the previous step [m/s] (zero before the first; each step
+        updates the array in place)."""
+        return self._v_prev
+
     def plan(self, t: float, sensed) -> list:
         """What the world must do before this step's reference (control/reference.py
         WorldCommand): nothing without maneuvers."""

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .columns import SSM_COLUMNS
+from run_contract.columns import SSM_COLUMNS
+
 from .writer import ChunkedTable
 
 READ_BYTES = 1 << 20

@@ -18,9 +18,9 @@ from typing import Sequence
 
 import numpy as np
 
-from .rundir import atomic_write_bytes, atomic_write_text  # noqa: F401  (re-exported)
+from run_contract.rundir import atomic_write_text
 
-from .columns import Column
+from run_contract.columns import Column
 
 
 def _arrow(data: np.ndarray):

@@ -145,9 +145,16 @@ class ReferenceLine:
         tree = cKDTree(curve(u_of_s(tree_s).reshape(-1)))
         line = cls(length, pts, curve.t, curve.c, u_of_s.c, u_of_s.x, heading_nodes,
                    tree.data, tree_s)
-        line._made.update(curve=curve, curve_d1=d1, curve_d2=d2, curve_d3=d3, u_of_s=u_of_s,
-                          tree=tree)
+        line.keep(curve=curve, curve_d1=d1, curve_d2=d2, curve_d3=d3, u_of_s=u_of_s, tree=tree)
         return line
+
+    def keep(self, **made) -> None:
+        """Keep objects built from the line on it by name (scipy objects, road/line_pack.py's G)."""
+        self._made.update(made)
+
+    def kept(self, name: str):
+        """The object :meth:`keep` kept on the line under ``name``, else None."""
+        return self._made.get(name)
 
     def _make(self, name: str):
         got = self._made.get(name)

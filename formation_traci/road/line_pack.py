@@ -113,14 +113,14 @@ def packed(line) -> np.ndarray:
         return line
     if isinstance(line, FastLine):
         return line.G
-    made = line._made
-    G = made.get("G")
+    G = line.kept("G")
     if G is None:
-        G = made["G"] = FastLine.from_reference_line(line).G
+        G = FastLine.from_reference_line(line).G
+        line.keep(G=G)
     return G
 
 
 def keep_packed(line, G: np.ndarray) -> None:
     """Keep ``G``, the buffer :func:`packed` built for ``line`` in an earlier process (read
     back from the road cache, sumo/road_cache.py), on the ReferenceLine ``line``."""
-    line._made["G"] = G
+    line.keep(G=G)

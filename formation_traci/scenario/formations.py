@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..record.columns import DEFAULT_FORMATION_ID
+from run_contract.columns import DEFAULT_FORMATION_ID
+
 from .schema import Scenario
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 
-from ..record.columns import VIRTUAL_CAR_ID
+from run_contract.columns import VIRTUAL_CAR_ID
 
 
 def _members(sc) -> list[tuple[str, str]]:

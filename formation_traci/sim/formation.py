@@ -14,8 +14,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from run_contract.columns import VIRTUAL_CAR_ID
+
 from ..control.reference import Reference, SensingTransform
-from ..record.columns import VIRTUAL_CAR_ID
 from .fleet import FleetConfig, FleetState
 from .world import Sensed
 

@@ -59,7 +59,7 @@ class FormationGroup:
         self.a_vc = np.array([g.longitudinal.a_vc for g in gens])
         self.emergency_vc = np.zeros(len(gens), dtype=np.bool_)
         self.a_cap_prev = cat(lambda g: g.longitudinal.a_cap)
-        self.v_prev, self.emergency = cat(lambda g: g._v_prev), cat(lambda g: g.longitudinal.emergency)
+        self.v_prev, self.emergency = cat(lambda g: g.v_prev), cat(lambda g: g.longitudinal.emergency)
         self.has_prev = np.zeros(len(gens), dtype=np.bool_)
         self.reach = np.array([g.reach for g in gens])
         self.end_margin = np.array([g.end_margin for g in gens])

@@ -34,8 +34,10 @@ import math
 
 import numpy as np
 
+from run_contract.columns import INCIDENT_VERDICT as VERDICT
+
 from ..kernels import kernel
-from ..record.columns import INCIDENT_VERDICT as VERDICT, SIGNAL_COLUMNS
+from ..record.columns import SIGNAL_COLUMNS
 
 
 STRANDED_SPEED = 0.5

@@ -14,10 +14,12 @@ from typing import Iterator
 
 import numpy as np
 
+from run_contract.columns import DEFAULT_FORMATION_ID, VIRTUAL_CAR_ID
+
 from ..comm.link import CommChannel
 from ..control.reference import apply
 from ..control.reference_free import FreeReference
-from ..record.columns import DEFAULT_FORMATION_ID, SIGNAL_COLUMNS, VIRTUAL_CAR_ID
+from ..record.columns import SIGNAL_COLUMNS
 from ..scenario.formations import formation_views
 from ..scenario.schema import Scenario
 from .fleet import Fleet, FleetState

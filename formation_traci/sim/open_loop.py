@@ -21,12 +21,14 @@ from typing import Iterator
 
 import numpy as np
 
+from run_contract.columns import Column
+
 from ..control.schedule import apply as p_law
 from ..models import bicycle
 from ..models.bicycle import S, traction_from_acceleration_at
 from ..models.linear import lateral_ab, linear_params
 from ..models.params import make_tires, pack_params
-from ..record.columns import SIGNAL_COLUMNS, Column
+from ..record.columns import SIGNAL_COLUMNS
 from ..record.writer import ChunkedTable
 from ..scenario.schema import Scenario
 from ..models.integrator import DYNAMIC, LINEAR, integrate

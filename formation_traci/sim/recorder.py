@@ -6,10 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
+from run_contract.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, DEFAULT_FORMATION_ID, EVENT_COLUMNS,
+                                  TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID)
+
 from ..states import LeaderState
-from ..record.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, DEFAULT_FORMATION_ID,
-                              EVENT_COLUMNS, FILLED_BY_CALLER, SIGNAL_COLUMNS, TRAJECTORY_COLUMNS,
-                              VIRTUAL_CAR_ID)
+from ..record.columns import FILLED_BY_CALLER, SIGNAL_COLUMNS
 from ..record.writer import ChunkedTable
 from .table_cuts import TableCuts
 from .incident_log import INCIDENT_EVENT_KINDS, IncidentLog

@@ -77,7 +77,8 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds):
         self._member_get = None  # itemgetter of the members' subscription variables
         self._all_here = np.ones(0, dtype=bool)  # read_members' 'present' when SUMO has them all
         self._settled = None  # (ids, lanes, half widths, half lane widths) of _track_lanes
-        fast = getattr(self.api, "_libsumo", None)  # libsumo's functions without their wrappers
+        # libsumo's compiled module (None: traci): its functions without their wrappers
+        self._compiled = fast = getattr(self.api, "_libsumo", None)
         v = self.api.vehicle
         self._move_xy = v.moveToXY if fast is None else fast.vehicle_moveToXY
         self._set_previous_speed = v.setPreviousSpeed if fast is None else fast.vehicle_setPreviousSpeed
@@ -93,6 +94,11 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds):
         self._proc = None  # the SUMO process of the traci backend
 
     # -- lifecycle -------------------------------------------------------------------
+    @property
+    def started(self) -> bool:
+        """True from :meth:`start` (or :meth:`attach`) until :meth:`close`."""
+        return self._started
+
     def start(self, args: list[str]) -> str:
         """Start SUMO with command-line ``args`` (without the binary); returns SUMO's version."""
         cmd = [sumo_binary(self.gui and self.backend == "traci")] + list(args)
@@ -104,7 +110,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds):
             raise SumoError(f"SUMO did not start: {exc}") from exc
         self._started = True
         from .native_reads import load  # the C++ reads of sumo/native (None: SWIG's)
-        self.native = load(self.api._libsumo.__file__)
+        self.native = load(self._compiled.__file__)
         if self.native is not None:
             self.native.clear()  # the bodies it keeps are of the last simulation's vehicles
         return self.version

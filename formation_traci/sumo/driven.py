@@ -143,8 +143,8 @@ class SumoDrivenWorld(SumoWorld):
         self.adds = [str(path)]
         super().start()
 
-    def _insert(self, t_next, rows, pos, heading, v_after) -> None:
-        super()._insert(t_next, rows, pos, heading, v_after)
+    def insert_members(self, t_next, rows, pos, heading, v_after) -> None:
+        super().insert_members(t_next, rows, pos, heading, v_after)
         for i in rows:
             if self.fleet.driven[i]:
                 self.adapter.drive_with_sumo(self.sumo_ids[i])

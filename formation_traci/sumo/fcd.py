@@ -1,5 +1,5 @@
 """SUMO's FCD output, ``sumo/fcd.parquet``, rewritten after the run with one naming of its
-columns in both frames (record/columns.py FCD_COLUMNS) and each column's unit in the Parquet
+columns in both frames (run_contract/columns.py FCD_COLUMNS) and each column's unit in the Parquet
 field metadata (as the tables of the recorder; file metadata ``frame``: ``sumo`` or
 ``formation``).
 
@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..record.columns import FCD_COLUMNS, FCD_SUMO_UNITS
+from run_contract.columns import FCD_COLUMNS, FCD_SUMO_UNITS
+
 from ..record.writer import atomic_write_parquet
 from .adapter import sumo_to_cog
 from .traffic import BASE_TYPES

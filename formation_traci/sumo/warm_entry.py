@@ -19,7 +19,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from ..record.rundir import RunDirError, check_path, looks_like_run
+from run_contract.rundir import RunDirError, check_path, looks_like_run
 
 ENTRY_NAMES = frozenset({"state.xml.gz", "warm.json", "job.json", ".warm.json.tmp", "sumo.log", "messages.log",
                          "traffic.rou.xml", "measure.add.xml", "sections.add.xml", "measure.xml",

@@ -172,7 +172,7 @@ class SumoWorld(MemberHandover, MemberRows):
         (sumo/sections.py): the members leave SUMO, SUMO runs on until the stretch is empty.
         What the run reports of its traffic stays the formation's part (the tables, the
         demand, the detectors, SUMO's messages and conflicts up to now)."""
-        if self.sections is None or not self.adapter._started:
+        if self.sections is None or not self.adapter.started:
             return
         ad = self.adapter
         self._end = (ad.time, dict(ad.departed))
@@ -186,7 +186,7 @@ class SumoWorld(MemberHandover, MemberRows):
 
     def close(self) -> None:
         t0 = getattr(self, "t0", 0.0)
-        t_sumo = self.adapter.time if self.adapter._started else t0
+        t_sumo = self.adapter.time if self.adapter.started else t0
         t_sumo, departed = getattr(self, "_end", (t_sumo, self.adapter.departed))
         try:
             self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
@@ -332,7 +332,7 @@ class SumoWorld(MemberHandover, MemberRows):
         ids, ad = self.ids, self.adapter
         act_idx = np.flatnonzero(self.active & self.in_sumo & self.moved)
         if len(self.pending):  # a twin clears the same vehicles at the same step (same state)
-            self._insert(t_next, self.pending, pos, heading, v_after)
+            self.insert_members(t_next, self.pending, pos, heading, v_after)
         if self.baseline or not len(act_idx):
             return  # a twin: the formation stays out of SUMO
         if len(act_idx) == len(ids):  # every member in the run: no copies
@@ -342,7 +342,7 @@ class SumoWorld(MemberHandover, MemberRows):
                                     pos[act_idx, 1], heading[act_idx], v_after[act_idx]))
         self.refusals(t_next, act_idx, refused, self.active, ad)
 
-    def _insert(self, t_next, rows, pos, heading, v_after) -> None:
+    def insert_members(self, t_next, rows, pos, heading, v_after) -> None:
         """SUMO gets the spawned members ``rows`` at their poses, vehicles standing there (or
         in their time gap ahead) cleared first; a twin clears the same vehicles and inserts
         no member (the same-demand twin: a SUMO-driven vehicle of each member's type there)."""

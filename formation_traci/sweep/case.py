@@ -17,7 +17,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict
 
-from ..record.rundir import RUN_FINISHED, DirLock, clear_run
+from run_contract.rundir import RUN_FINISHED, DirLock, clear_run
+
 from .expand import Case
 from .row import empty_row, metric_values, traffic_only_values, twin_values
 

@@ -15,10 +15,11 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Callable
 
+from run_contract.errors import SweepError
+
 from .case import CaseSpec
 from .launch import GRACE_S, dask_case, launch_case
 from .row import empty_row
-from .spec import SweepError
 
 OnRow = Callable[[CaseSpec, dict], None]
 DRAIN_S = GRACE_S + 15.0

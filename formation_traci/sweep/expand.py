@@ -19,8 +19,10 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, JsonValue
 
+from run_contract.errors import SweepError
+
 from ..scenario.load import ScenarioError, read_toml
-from .spec import SEED_PATH, SweepError, SweepFile, read_sweep_file
+from .spec import SEED_PATH, SweepFile, read_sweep_file
 
 
 MAX_TAGS = 120

@@ -138,17 +138,20 @@ def case_entry(spec_json: str, log_path: str, env: dict, cwd: str) -> None:
     from . import case
     sys.argv = [case.__file__, spec_json]  # as `python -m`'s: the run directory's lock names it
     code = case.main([spec_json])
-    _shutdown()
+    _interpreter_exit()
     sys.exit(code)
 
 
-def _shutdown() -> None:
-    """What an interpreter does at its exit and a forked process skips: wait for the threads
-    still running (a part file being written), run the ``atexit`` functions, flush."""
+def _interpreter_exit() -> None:
+    """What an interpreter does at its exit and a forked process skips (multiprocessing ends it
+    with ``os._exit``): wait for the threads still running (a part file being written), run
+    the ``atexit`` functions, flush. Neither step has a public API: these are CPython's own
+    ``threading._shutdown`` and ``atexit._run_exitfuncs``, the calls of its finalisation,
+    looked up here and nowhere else."""
     import atexit
-    shutdown = getattr(threading, "_shutdown", None)
-    if shutdown is not None:
-        shutdown()
-    atexit._run_exitfuncs()
+    for module, name in ((threading, "_shutdown"), (atexit, "_run_exitfuncs")):
+        step = getattr(module, name, None)
+        if step is not None:
+            step()
     sys.stdout.flush()
     sys.stderr.flush()

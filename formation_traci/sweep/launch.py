@@ -19,7 +19,8 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-from ..record.rundir import RUN_FINISHED, is_locked
+from run_contract.rundir import RUN_FINISHED, is_locked
+
 from . import forked
 from .case import CASE_JSON, CaseSpec, write_case_json
 from .row import empty_row

@@ -16,14 +16,15 @@ from pathlib import Path
 
 import pandas as pd
 
+from run_contract.errors import SweepError
+from run_contract.rundir import RUN_FINISHED
+
 from ..interrupt import raising_signals
-from ..record.rundir import RUN_FINISHED
 from ..record.writer import atomic_write_json, atomic_write_parquet
 from .case import CASE_JSON, CaseSpec
 from .executors import run_dask, run_local
 from .expand import Sweep, load_sweep
 from .row import METRICS, WALL_COLUMNS, summary_frame, swept_dtypes
-from .spec import SweepError
 from ..twins import twin_mode
 
 SCHEMA = "formation-traci/sweep/1"
@@ -71,7 +72,7 @@ SWEEP_FILES = frozenset({SWEEP_JSON, SUMMARY, TIMINGS, CASES_DIR, LOGS_DIR, LOCK
 def _check_sweep_dir(out: Path) -> Path:
     """``out`` (absolute) if a sweep may write there: missing, empty, or an earlier sweep of
     this tool holding only its files (a rerun finishes it); else SweepError, nothing written."""
-    from ..record.rundir import TOOL_TEMP, RunDirError, check_path
+    from run_contract.rundir import TOOL_TEMP, RunDirError, check_path
 
     try:
         absolute = check_path(out)

@@ -13,7 +13,7 @@ from typing import Annotated, Any, Literal
 from pydantic import (BaseModel, ConfigDict, Field, JsonValue, StringConstraints, ValidationError,
                       field_validator, model_validator)
 
-from ..errors import SweepError  # noqa: F401 (re-exported)
+from run_contract.errors import SweepError
 
 DOTTED = r"^[A-Za-z_][A-Za-z0-9_]*(\.([A-Za-z_][A-Za-z0-9_]*|[0-9]+))*$"
 DottedPath = Annotated[str, StringConstraints(pattern=DOTTED)]

@@ -17,8 +17,8 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from formation_traci.record.columns import (BACKGROUND_COLUMNS, DEFAULT_FORMATION_ID, EVENT_COLUMNS, SSM_COLUMNS,
-                                            TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID)
+from run_contract.columns import (BACKGROUND_COLUMNS, DEFAULT_FORMATION_ID, EVENT_COLUMNS, SSM_COLUMNS,
+                                  TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID)
 
 Signal = Callable[[str, np.ndarray], np.ndarray]
 

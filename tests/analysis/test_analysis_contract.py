@@ -36,13 +36,16 @@ def test_import_rules(path):
     mods = imported_modules(path)
     tops = {m.split(".")[0] for m in mods}
     assert not tops & FORBIDDEN, f"{path.name} imports the simulator"
-    # the record's contract: its columns, and its directory rules (one writer, what --out may be)
-    allowed = {"formation_traci.record.columns", "formation_traci.record.rundir"}
+    # the simulator never: the record's contract (run_contract: its columns, its directory rules,
+    # the sweep's error type) is a package of its own
+    assert not {m for m in mods if m.split(".")[0] == "formation_traci"}, (
+        f"{path.name} imports formation_traci")
+    allowed = {"run_contract.columns", "run_contract.rundir"}
     if path.name == "sweep_report.py":  # the sweep's error type (the metric table and the paired
         # statistics over seeds are the analysis' own: sweep_metrics.py, effects.py)
-        allowed |= {"formation_traci.errors"}
-    assert {m for m in mods if m.startswith("formation_traci")} <= allowed, (
-        f"{path.name} imports formation_traci beyond {sorted(allowed)}")
+        allowed |= {"run_contract.errors"}
+    assert {m for m in mods if m.split(".")[0] == "run_contract"} <= allowed, (
+        f"{path.name} imports run_contract beyond {sorted(allowed)}")
     # the figure modules (analysis/figures/: run, compare, traffic, hand-over and sweep figures
     # and their shared drawing helpers)
     if path.parent.name != "figures":

@@ -1,6 +1,6 @@
-"""Errors shared across the package's folders (no imports of the package): a sweep file or
-sweep directory that cannot be used, raised by the sweep (formation_traci/sweep) and by the
-sweep's analysis (analysis/report/sweep_report.py); the command line turns it into exit 2."""
+"""The error of a sweep file or sweep directory that cannot be used, raised by the sweep
+(formation_traci/sweep) and by the sweep's analysis (analysis/report/sweep_report.py); the
+command line turns it into exit 2."""
 from __future__ import annotations
 
 from pathlib import Path

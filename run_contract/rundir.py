@@ -28,7 +28,7 @@ RUN_SCHEMA = "formation-traci/run/1"
 """``run.json["schema"]``: marks a directory as a run of this tool."""
 RUN_FINISHED = ("completed", "completed_with_incidents")
 """Statuses of a run that reached its end (``completed_with_incidents``: with a member
-collision, removal, emergency brake or stranded member, sim/incidents.py)."""
+collision, removal, emergency brake or stranded member, formation_traci/sim/incidents.py)."""
 LOCK_NAME = ".formation-traci.lock"
 """Lock file inside an output directory; holds the pid, host and command of the holder."""
 TOOL_FILES = frozenset({
@@ -39,7 +39,7 @@ TOOL_FILES = frozenset({
     "sections.parquet", "departures.parquet", "twin.csv"})
 """Names this tool writes at the top of a run directory: ``--force`` removes only these."""
 TOOL_TEMP = re.compile(r"^\.[A-Za-z0-9_.\-]+\.tmp$")
-"""Temporary files of an atomic write (record/writer.py), left by a killed process."""
+"""Temporary files of an atomic write (:func:`atomic_write_bytes`), left by a killed process."""
 _PARTS = re.compile(r"^\.?part-\d{5}\.parquet(\.tmp)?$")
 TOOL_SUBFILES = {
     **{t: _PARTS for t in ("trajectories.parquet", "events.parquet", "background.parquet", "ssm.parquet",
