@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from formation_traci.control.merge import (BEHIND, CLEAR, MERGE_DEFAULTS, YIELD, MergeLane,
+from formation_traci.control.merge import (BEHIND, CLEAR, MERGE_DEFAULTS, OUTSIDE, YIELD, MergeLane,
                                            MergeSite, RampTraffic, yield_to_ramp)
 
 SITE = MergeSite(s_start=1500.0, length=300.0)  # merge point at 1650 m (merge_at 0.5)
@@ -40,19 +40,20 @@ def test_the_asked_deceleration_opens_exactly_the_ramp_vehicles_safe_gap_at_the_
     assert ramp_rear_at_t - front_at_t == pytest.approx(g, abs=1e-9)
 
 
-@pytest.mark.parametrize("dist, why", [(-400.0, "its rear leads the front member by more than its gap"),
-                                       (260.0, "it trails the rear member by more than its gap"),
-                                       (500.0, "it reaches the merge point after the horizon")])
-def test_clear_and_far_vehicles_are_left_alone(dist, why):
-    lane = MergeLane(s_front=1450.0, v_front=28.0, s_rear=1390.0)
+@pytest.mark.parametrize("dist, front, code, why", [
+    (-60.0, 1450.0, CLEAR, "its rear leads the front member by more than its gap"),
+    (80.0, 1520.0, CLEAR, "it trails the rear member by more than its gap"),
+    (500.0, 1450.0, OUTSIDE, "it reaches the merge point after the horizon")])
+def test_clear_and_far_vehicles_are_left_alone(dist, front, code, why):
+    lane = MergeLane(s_front=front, v_front=28.0, s_rear=front - 60.0)
     (d,), cap = _decide(_ramp(dist=dist, v=26.0), lane)
-    assert d == CLEAR and math.isinf(cap), why
+    assert d == code and math.isinf(cap), why
 
 
 def test_a_vehicle_past_the_merge_point_is_regular_traffic():
     lane = MergeLane(s_front=1700.0, v_front=28.0, s_rear=1640.0)
     (d,), cap = _decide(_ramp(dist=-160.0, v=25.0), lane)  # front bumper at 1660 m > 1650 m
-    assert d == CLEAR and math.isinf(cap)
+    assert d == OUTSIDE and math.isinf(cap)
 
 
 def test_a_yield_beyond_comfort_is_left_to_the_ramp_vehicle_unless_already_started():

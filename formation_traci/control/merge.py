@@ -35,8 +35,10 @@ import numpy as np
 
 from ..kernels import kernel
 
+OUTSIDE = -1
+"""A ramp vehicle beyond the horizon or past the merge point."""
 CLEAR = 0
-"""A ramp vehicle out of the horizon or clear of the formation."""
+"""A ramp vehicle within the horizon, clear of the formation."""
 YIELD = 1
 """A ramp vehicle the formation opens a gap for."""
 BEHIND = 2
@@ -83,17 +85,18 @@ class MergeLane(NamedTuple):
 
 @kernel
 def yield_to_ramp(site, ramp, lane, p, decision):
-    """Decide for every ramp vehicle (``decision`` (m,) int64 out: CLEAR, YIELD, BEHIND; the
-    module docstring) and return the formation's acceleration cap [m/s^2] (``inf``: none)."""
+    """Decide for every ramp vehicle (``decision`` (m,) int64 out: OUTSIDE, CLEAR, YIELD, BEHIND;
+    the module docstring) and return the formation's acceleration cap [m/s^2] (``inf``: none)."""
     cap = np.inf
     s_m = site.s_start + p.merge_at * site.length
     for j in range(ramp.dist.shape[0]):
-        decision[j] = CLEAR
+        decision[j] = OUTSIDE
         v_r = max(ramp.v[j], 0.1)
         s_r = site.s_start - ramp.dist[j]
         t = (s_m - s_r) / v_r
         if t <= 0.0 or t > p.horizon_s:
             continue
+        decision[j] = CLEAR
         g_front = p.min_gap_m + ramp.tau[j] * lane.v_front
         g_rear = p.min_gap_m + ramp.tau[j] * ramp.v[j]
         lead = s_r - ramp.length[j] - lane.s_front

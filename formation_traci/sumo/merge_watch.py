@@ -1,0 +1,171 @@
+"""Ramp traffic at the joins of a formation's route, every step: the yield law's inputs read from
+SUMO, the cap it puts on each formation's requested acceleration, its events, and what each
+ramp vehicle did (run.json ``merges``, metrics.json per formation).
+
+The joins come from the network (road/ramps.py); a join is watched for a formation from when its
+front-most member is within ``horizon_s`` at ``V_WATCH`` of the join's start until its rear-most
+member has passed the end of the acceleration lane. Its vehicles are read then only (a few lanes
+a step). Modes (scenario ``[cooperation] merge``): ``open_gap`` applies the law's cap
+(control/merge.py), ``none`` only observes.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..control.merge import BEHIND, OUTSIDE, YIELD, MergeLane, MergeSite, RampTraffic, yield_to_ramp
+from ..road.ramps import ramp_joins
+
+V_WATCH = 40.0
+"""The speed at which a formation's distance to a join is turned into time when deciding to
+watch it [m/s] (above motorway speeds: a join is watched early rather than late)."""
+STOOD_MPS = 1.0
+"""A ramp vehicle below this speed waits [m/s]."""
+
+
+@dataclass(frozen=True)
+class Site:
+    """A join on the reference line (road/ramps.py RampJoin)."""
+
+    merge: MergeSite  # join start and acceleration lane length [m]
+    d_merge: float  # the merge lane's centre offset from the reference line [m]
+    half_lane: float  # half the merge lane's width [m]
+    lanes: dict  # the ramp's lanes and the acceleration lane -> distance from start to the join [m]
+    added: str  # the acceleration lane ("" for a direct join)
+
+
+def merge_sites(road, net) -> list[Site]:
+    """The joins of ``road``'s route (sumo/road_setup.py Road) on its reference line."""
+    s0 = {seg.edge: seg.s0 for seg in road.segments}
+    out = []
+    for j in ramp_joins(net, road.route):
+        edge = road.route[j.edge_index]
+        merge_lane = net.getLane(j.merge_lane)
+        lanes = dict(j.feeders)
+        if j.added_lane:
+            lanes[j.added_lane] = 0.0
+        out.append(Site(MergeSite(s0[edge], j.length_m), float(road.lane_d[edge][merge_lane.getIndex()]),
+                        merge_lane.getWidth() / 2.0, lanes, j.added_lane))
+    return out
+
+
+@dataclass
+class _Seen:
+    """What one ramp vehicle did while a formation watched its join."""
+
+    v_first: float
+    v_min: float
+    waited_s: float = 0.0
+    at_end: bool = False  # stood at the end of the acceleration lane
+    merged: bool = False
+
+
+@dataclass
+class _Watch:
+    """One formation's state at the joins."""
+
+    yielding: set = field(default_factory=set)
+    seen: dict = field(default_factory=dict)  # ramp vehicle -> _Seen
+
+
+class MergeWatch:
+    """The joins of one road run and the formations passing them (module docstring).
+    ``groups``: per formation (id, its virtual car's id, its member rows)."""
+
+    def __init__(self, sites, mode: str, params, adapter, rec, groups, dt: float):
+        self.sites, self.mode, self.p, self.adapter, self.rec = sites, mode, params, adapter, rec
+        self.groups, self.dt = groups, dt
+        self.watch = [_Watch() for _ in groups]
+        self._decision = np.empty(0, dtype=np.int64)
+
+    def limits(self, t: float, ends, m_d, v_m, active, members: set) -> np.ndarray:
+        """Each formation's cap on its requested acceleration for the step at t [s] (inf: none),
+        from its members' front and rear bumpers' arc lengths ``ends`` (2, n) [m], offsets [m]
+        and speeds [m/s] (``active``: in the run; ``members``: every member's SUMO id)."""
+        out = np.full(len(self.groups), math.inf)
+        for site in self.sites:
+            read = None
+            for f, (fid, vc_id, rows) in enumerate(self.groups):
+                rows = rows[active[rows]]
+                if not len(rows) or not self._near(site, ends[0, rows]):
+                    continue
+                if read is None:
+                    read = self.adapter.ramp_vehicles(site.lanes, members)
+                out[f] = min(out[f], self._formation(t, f, site, read, ends[:, rows], m_d[rows], v_m[rows]))
+        return out
+
+    def _near(self, site: Site, front) -> bool:
+        m = site.merge
+        return m.s_start - self.p.horizon_s * V_WATCH <= front.max() and front.min() <= m.s_start + m.length
+
+    def _formation(self, t, f, site, read, ends, d, v) -> float:
+        """Formation f's cap at ``site`` (inf: none), its events and observations."""
+        ids, lanes, rows = read
+        w, (fid, vc_id, _) = self.watch[f], self.groups[f]
+        in_lane = np.abs(d - site.d_merge) < site.half_lane
+        if not in_lane.any() or not ids:
+            self._forget(t, w, vc_id, ids)
+            return math.inf
+        front, rear = ends[0, in_lane], ends[1, in_lane]
+        lane = MergeLane(float(front.max()), float(v[in_lane][np.argmax(front)]), float(rear.min()))
+        yielding = np.array([vid in w.yielding for vid in ids])
+        ramp = RampTraffic(rows[0].copy(), rows[1].copy(), rows[2].copy(), rows[3].copy(), yielding)
+        if self._decision.shape[0] < len(ids):
+            self._decision = np.empty(len(ids), dtype=np.int64)
+        decision = self._decision[:len(ids)]
+        cap = yield_to_ramp(site.merge, ramp, lane, self.p, decision)
+        for j, vid in enumerate(ids):
+            self._observe(w, vid, lanes[j], rows[:, j], decision[j], site)
+            self._events(t, w, vc_id, vid, decision[j], cap)
+        self._forget(t, w, vc_id, ids)
+        return cap if self.mode == "open_gap" else math.inf
+
+    def _observe(self, w, vid, lane, row, code, site) -> None:
+        if code == OUTSIDE and vid not in w.seen:
+            return
+        got = w.seen.get(vid)
+        if got is None:
+            got = w.seen[vid] = _Seen(float(row[1]), float(row[1]))
+        got.v_min = min(got.v_min, float(row[1]))
+        if row[1] < STOOD_MPS:
+            got.waited_s += self.dt
+            if lane == site.added and row[4] >= site.merge.length - 10.0:
+                got.at_end = True
+
+    def _events(self, t, w, vc_id, vid, code, cap) -> None:
+        if self.mode != "open_gap":
+            return
+        if code == YIELD and vid not in w.yielding:
+            w.yielding.add(vid)
+            self.rec.add_event(t, "merge_yield_start", vc_id, vid, f"open_gap: acceleration cap {cap:.2f} m/s^2")
+        elif code in (OUTSIDE, BEHIND) and vid in w.yielding:
+            self._end(t, w, vc_id, vid, "past the merge point" if code == OUTSIDE else "merges behind")
+
+    def _end(self, t, w, vc_id, vid, why: str) -> None:
+        w.yielding.discard(vid)
+        self.rec.add_event(t, "merge_yield_end", vc_id, vid, why)
+
+    def _forget(self, t, w, vc_id, ids) -> None:
+        """Ramp vehicles no longer on the ramp's lanes have merged (or left)."""
+        here = set(ids)
+        for vid, got in w.seen.items():
+            if vid not in here and not got.merged:
+                got.merged = True
+                if vid in w.yielding:
+                    self._end(t, w, vc_id, vid, "merged")
+
+    def summary(self) -> dict:
+        """Per formation: ``ramp_vehicles``, ``merged_before_lane_end``, ``ramp_speed_loss_mps``
+        (mean of first speed less lowest speed over the ramp vehicles seen within the horizon),
+        ``ramp_wait_s`` (their mean time below STOOD_MPS)."""
+        out = {}
+        for (fid, _, _), w in zip(self.groups, self.watch):
+            seen = list(w.seen.values())
+            n = len(seen)
+            out[fid] = {"ramp_vehicles": n,
+                        "merged_before_lane_end": sum(1 for x in seen if x.merged and not x.at_end),
+                        "ramp_speed_loss_mps": float(np.mean([x.v_first - x.v_min for x in seen])) if n else None,
+                        "ramp_wait_s": float(np.mean([x.waited_s for x in seen])) if n else None}
+        return out
