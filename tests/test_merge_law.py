@@ -7,11 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from formation_traci.control.merge import (BEHIND, CLEAR, MERGE_DEFAULTS, OUTSIDE, YIELD, MergeLane,
-                                           MergeSite, RampTraffic, yield_to_ramp)
+from formation_traci.control.merge import (BEHIND, CLEAR, OUTSIDE, YIELD, MergeLane, MergeSite, RampTraffic,
+                                           merge_params, yield_to_ramp)
+from formation_traci.scenario.cooperation import CooperationSpec
 
 SITE = MergeSite(s_start=1500.0, length=300.0)  # merge point at 1650 m (merge_at 0.5)
-P = MERGE_DEFAULTS
+P = merge_params(CooperationSpec())  # 10 s horizon, 1.5 m/s^2, 2.5 m, merge at mid-lane
 
 
 def _ramp(dist, v, yielding=False, length=4.5, tau=1.0):

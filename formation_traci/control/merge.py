@@ -54,8 +54,10 @@ class MergeParams(NamedTuple):
     merge_at: float  # where along the acceleration lane ramp vehicles merge [-], 0..1
 
 
-MERGE_DEFAULTS = MergeParams(horizon_s=10.0, a_comfort_mps2=1.5, min_gap_m=2.5, merge_at=0.5)
-"""1.5 m/s^2 leaves the planner 0.5 m/s^2 below the 2 m/s^2 longitudinal comfort reference."""
+def merge_params(spec) -> MergeParams:
+    """The law's parameters from the scenario's ``[cooperation]`` (scenario/cooperation.py)."""
+    return MergeParams(float(spec.horizon_s), float(spec.decel_mps2), float(spec.min_gap_m),
+                       float(spec.merge_at))
 
 
 class MergeSite(NamedTuple):

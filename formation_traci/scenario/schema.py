@@ -14,6 +14,7 @@ from run_contract.columns import DEFAULT_FORMATION_ID
 
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict  # noqa: F401
 from .comm_spec import CommLinkSpec, CommSpec  # noqa: F401
+from .cooperation import CooperationSpec
 from .formation_parts import (GAIN_TABLES, SURFACE_NAMES, ControllerSpec, GainSpec,  # noqa: F401 (re-exported)
                               LeaderSpec, MemberSpec, VehicleOverrides, VehicleSpec)
 from .formation_spec import FormationFlowSpec, FormationSpec, FormationTemplate, formation_fits  # noqa: F401
@@ -133,6 +134,7 @@ class Scenario(Strict):
     sumo: SumoSpec = SumoSpec()
     energy: EnergySpec = EnergySpec()
     comm: CommSpec | None = Field(None, description="leader-to-member radio; default: perfect")
+    cooperation: CooperationSpec = CooperationSpec()
     open_loop: OpenLoopSpec | None = Field(None, description="drive the members open loop (free space only)")
     maneuvers: list[ManeuverSpec] = Field(default_factory=list, description="scheduled maneuvers, run one at a time in this order")
     maneuver_limits: ManeuverLimits = ManeuverLimits()
@@ -158,6 +160,12 @@ class Scenario(Strict):
             if isinstance(f, dict) and isinstance(f.get("formation"), dict) and "leader" in f["formation"]:
                 return {**data, "leader": f["formation"]["leader"]}
         return data
+
+    @model_validator(mode="after")
+    def _cooperation_on_a_road(self):
+        if "cooperation" in self.model_fields_set and self.road is None:
+            raise ValueError("cooperation: needs a [road] (ramp traffic is SUMO's)")
+        return self
 
     @model_validator(mode="after")
     def _top_level_formation(self):
