@@ -92,7 +92,8 @@ EVENT_COLUMNS: tuple[Column, ...] = (
     Column("kind", "string", "-", "collision | teleport | member_removed | move_refused | lane_change | "
                                   "cut_in | cleared_at_insertion | member_retired | emergency_brake | emergency_end | end_of_road | placement_mismatch | model_range | "
                                   "maneuver_start | maneuver_end | maneuver_postponed | maneuver_cancelled | "
-                                  "comm_timeout | comm_restored | law_fallback | law_recovered"),
+                                  "comm_timeout | comm_restored | law_fallback | law_recovered | "
+                                  "merge_yield_start | merge_yield_end"),
     Column("vehicle_id", "string", "-", "the vehicle the event is about"),
     Column("formation_id", "string", "-", "the formation of vehicle_id (a member or a virtual car), "
                                           "else empty", derived_from="vehicle_id"),

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from formation_traci.control.governor import K_GAP, K_REL
 from formation_traci.control.merge import (BEHIND, CLEAR, OUTSIDE, YIELD, MergeLane, MergeSite, RampTraffic,
                                            merge_params, yield_to_ramp)
 from formation_traci.scenario.cooperation import CooperationSpec
@@ -41,29 +42,56 @@ def test_the_asked_deceleration_opens_exactly_the_ramp_vehicles_safe_gap_at_the_
     assert ramp_rear_at_t - front_at_t == pytest.approx(g, abs=1e-9)
 
 
+def test_a_ramp_vehicle_clear_ahead_is_followed_like_a_leader_and_a_yield_goes_on():
+    lane = MergeLane(s_front=1450.0, v_front=28.0, s_rear=1390.0)
+    ramp = _ramp(dist=-20.0, v=26.0)  # at 1520 m: its rear 65.5 m ahead, 2 m/s slower
+    (d,), cap = _decide(ramp, lane)
+    lead, g = 1520.0 - 4.5 - 1450.0, P.min_gap_m + 1.0 * 28.0
+    assert d == CLEAR and cap == pytest.approx(K_GAP * (lead - g) + K_REL * (26.0 - 28.0))
+    (d,), again = _decide(ramp._replace(yielding=np.array([True])), lane)
+    assert d == YIELD and again == cap
+    close = _ramp(dist=-5.0, v=20.0)  # 50.5 m ahead, 8 m/s slower: followed within comfort only
+    assert _decide(close, lane)[1] == -P.a_comfort_mps2
+
+
 @pytest.mark.parametrize("dist, front, code, why", [
-    (-60.0, 1450.0, CLEAR, "its rear leads the front member by more than its gap"),
     (80.0, 1520.0, CLEAR, "it trails the rear member by more than its gap"),
     (500.0, 1450.0, OUTSIDE, "it reaches the merge point after the horizon")])
-def test_clear_and_far_vehicles_are_left_alone(dist, front, code, why):
+def test_clear_behind_and_far_vehicles_are_left_alone(dist, front, code, why):
     lane = MergeLane(s_front=front, v_front=28.0, s_rear=front - 60.0)
     (d,), cap = _decide(_ramp(dist=dist, v=26.0), lane)
     assert d == code and math.isinf(cap), why
 
 
-def test_a_vehicle_past_the_merge_point_is_regular_traffic():
-    lane = MergeLane(s_front=1700.0, v_front=28.0, s_rear=1640.0)
-    (d,), cap = _decide(_ramp(dist=-160.0, v=25.0), lane)  # front bumper at 1660 m > 1650 m
-    assert d == OUTSIDE and math.isinf(cap)
+def test_past_the_merge_point_a_ramp_vehicle_merges_by_the_end_of_its_lane():
+    """Still on the acceleration lane beyond mid-lane (1650 m) it is the law's until the lane ends
+    (1800 m): the gap is opened by then."""
+    v_f, v_r = 28.0, 31.0
+    lane = MergeLane(s_front=1680.0, v_front=v_f, s_rear=1620.0)
+    (d,), cap = _decide(_ramp(dist=-200.0, v=v_r), lane)  # front bumper at 1700 m
+    t = (1800.0 - 1700.0) / v_r
+    assert d == YIELD and -P.a_comfort_mps2 < cap < 0.0
+    gap = (1700.0 - 4.5 + v_r * t) - (1680.0 + v_f * t + 0.5 * cap * t * t)
+    assert gap == pytest.approx(P.min_gap_m + 1.0 * v_f, abs=1e-9)
+
+
+def _a_req(s_r, v_r, lane, s_to):
+    t = max((s_to - s_r) / v_r, 1.0)
+    g = P.min_gap_m + 1.0 * lane.v_front
+    return 2.0 * (g - (s_r - 4.5 - lane.s_front) - (v_r - lane.v_front) * t) / t ** 2
 
 
 def test_a_yield_beyond_comfort_is_left_to_the_ramp_vehicle_unless_already_started():
-    lane = MergeLane(s_front=1640.0, v_front=30.0, s_rear=1580.0)
-    ramp = _ramp(dist=-130.0, v=20.0)  # at 1630 m, 0.5 s from the merge point, 10 m/s slower
+    lane = MergeLane(s_front=1520.0, v_front=28.0, s_rear=1460.0)
+    ramp = _ramp(dist=-30.0, v=27.0)  # at 1530 m, 4.4 s from the merge point
+    assert P.a_comfort_mps2 < _a_req(1530.0, 27.0, lane, 1650.0) <= 2 * P.a_comfort_mps2
     (d,), cap = _decide(ramp, lane)
     assert d == BEHIND and math.isinf(cap)
     (d,), cap = _decide(ramp._replace(yielding=np.array([True])), lane)
     assert d == YIELD and cap == -P.a_comfort_mps2
+    slow = _ramp(dist=-30.0, v=15.0, yielding=True)  # slowed down beside the formation: let go
+    assert _a_req(1530.0, 15.0, lane, 1650.0) > 2 * P.a_comfort_mps2
+    assert _decide(slow, lane)[0][0] == BEHIND
 
 
 def test_a_faster_ramp_vehicle_that_clears_by_itself_only_holds_the_formations_speed():

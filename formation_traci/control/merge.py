@@ -5,14 +5,19 @@ lane) is mapped onto the merge lane at the same distance from the join: at a dis
 [m] before the join's start (negative once it is on the acceleration lane) its front bumper is
 at ``s_r = s_start - dist`` on the reference line. It merges at ``s_m = s_start + merge_at *
 length`` (``merge_at`` of the acceleration lane, 0 for a direct join), reached at its own speed
-after ``T = (s_m - s_r) / v_r``.
+after ``T = (s_m - s_r) / v_r``; past ``s_m`` and still on the acceleration lane it merges by the
+lane's end, ``T = (s_start + length - s_r) / v_r`` (at least ``min_time_s``). A ramp vehicle is
+the law's until it has left the ramp's lanes (the caller's: then it is traffic like any other).
 
 Of the members in the merge lane, the front-most bumper is at ``s_F`` (speed ``v_F``) and the
 rear-most rear bumper at ``s_R``. The ramp vehicle of length ``L_r`` and time gap ``tau_r`` is
 
-* **clear ahead** when its rear leads ``s_F`` by at least ``g_F = min_gap + tau_r v_F``, and
-  **clear behind** when its front trails ``s_R`` by at least ``g_R = min_gap + tau_r v_r``
-  (its own safe time gap either way): nothing to do;
+* **clear behind** when its front trails ``s_R`` by at least ``g_R = min_gap + tau_r v_r`` (its
+  own safe time gap): nothing to do;
+* **clear ahead** when its rear leads ``s_F`` by at least ``g_F = min_gap + tau_r v_F``: the
+  front member follows it as it follows a leader in its lane (the governor's time-gap law,
+  ``K_GAP (lead - g_F) + K_REL (v_r - v_F)``, not below ``-a_comfort``), so the gap stays open
+  until it has merged; a yield to it goes on;
 * otherwise **in conflict**. The formation opens the gap ahead of its front member when a
   constant deceleration ``a`` of the formation over ``T`` gives it (constant ramp speed):
 
@@ -22,10 +27,11 @@ rear-most rear bumper at ``s_R``. The ramp vehicle of length ``L_r`` and time ga
   and ``a_req <= a_comfort``: it *yields*, its acceleration capped at ``-a_req`` (recomputed
   every step, so the cap relaxes as the gap opens). A conflict that needs more than
   ``a_comfort`` is left to the ramp vehicle (it merges behind), unless the formation already
-  yields to it: then the cap stays, at most ``a_comfort`` (no switching back and forth).
+  yields to it and it needs at most twice that: then the cap stays, at most ``a_comfort`` (no
+  switching back and forth at the threshold; a ramp vehicle that slows down beside the
+  formation is let go).
 
-Only ramp vehicles within ``horizon_s`` of the merge (``T <= horizon_s``) that have not reached
-``s_m`` are considered. Pure functions of (state, input, params), compiled.
+Only ramp vehicles within ``horizon_s`` of the merge (``T <= horizon_s``) are considered. Pure functions of (state, input, params), compiled.
 """
 from __future__ import annotations
 
@@ -34,6 +40,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..kernels import kernel
+from .governor import K_GAP, K_REL
 
 OUTSIDE = -1
 """A ramp vehicle beyond the horizon or past the merge point."""
@@ -52,6 +59,7 @@ class MergeParams(NamedTuple):
     a_comfort_mps2: float  # the largest deceleration the formation yields with [m/s^2]
     min_gap_m: float  # standstill gap added to the ramp vehicle's time gap [m]
     merge_at: float  # where along the acceleration lane ramp vehicles merge [-], 0..1
+    min_time_s: float = 1.0  # the shortest time to the merge the deceleration is spread over [s]
 
 
 def merge_params(spec) -> MergeParams:
@@ -95,17 +103,24 @@ def yield_to_ramp(site, ramp, lane, p, decision):
         decision[j] = OUTSIDE
         v_r = max(ramp.v[j], 0.1)
         s_r = site.s_start - ramp.dist[j]
-        t = (s_m - s_r) / v_r
-        if t <= 0.0 or t > p.horizon_s:
+        s_to = s_m if s_r < s_m else site.s_start + site.length  # past s_m: by the lane's end
+        t = max((s_to - s_r) / v_r, p.min_time_s)
+        if t > p.horizon_s:
             continue
         decision[j] = CLEAR
         g_front = p.min_gap_m + ramp.tau[j] * lane.v_front
         g_rear = p.min_gap_m + ramp.tau[j] * ramp.v[j]
         lead = s_r - ramp.length[j] - lane.s_front
-        if lead >= g_front or s_r <= lane.s_rear - g_rear:
+        if s_r <= lane.s_rear - g_rear:
+            continue
+        if lead >= g_front:  # clear ahead: followed like a leader in the merge lane (a yield goes on)
+            follow = K_GAP * (lead - g_front) + K_REL * (ramp.v[j] - lane.v_front)
+            cap = min(cap, max(follow, -p.a_comfort_mps2))
+            if ramp.yielding[j]:
+                decision[j] = YIELD
             continue
         a_req = 2.0 * (g_front - lead - (ramp.v[j] - lane.v_front) * t) / (t * t)
-        if a_req <= p.a_comfort_mps2 or ramp.yielding[j]:
+        if a_req <= p.a_comfort_mps2 or (ramp.yielding[j] and a_req <= 2.0 * p.a_comfort_mps2):
             decision[j] = YIELD
             cap = min(cap, -min(max(a_req, 0.0), p.a_comfort_mps2))
         else:

@@ -205,8 +205,9 @@ class RoadReference:
 
     def request_limit(self, t: float, sensed) -> float:
         """An upper bound on the virtual car's requested acceleration [m/s^2] for the step
-        starting at t [s] (inf: none); a maneuver's generator bounds it and moves the slots."""
-        return math.inf
+        starting at t [s] (inf: none): the world's (``sensed.a_limit``: ramp traffic); a
+        maneuver's generator bounds it further and moves the slots."""
+        return sensed.a_limit
 
     def reference(self, t: float, sensed) -> Reference:
         """The reference of the step starting at t [s] (:func:`road_reference_step`)."""

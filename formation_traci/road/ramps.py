@@ -37,6 +37,8 @@ class RampJoin:
     edge_index: int  # the route edge where the join starts (its index in the route) [-]
     added_lane: str  # the acceleration lane's id ("" for a direct join)
     merge_lane: str  # the through lane's id the ramp traffic moves into
+    merge_index: int  # its index on the join's edge (SUMO's, 0 rightmost) [-]
+    merge_width_m: float  # its width [m]
     length_m: float  # the acceleration lane's length, over several edges if it spans them [m]
     feeders: tuple[tuple[str, float], ...]  # (lane id, its start's distance to the join [m])
 
@@ -121,11 +123,12 @@ def ramp_joins(net, edges: Sequence[str], horizon_m: float = HORIZON_M) -> list[
             if not off_route:
                 continue
             if prev in src:  # a direct join into a through lane
-                out.append(RampJoin(k, "", lane.getID(), 0.0, _feeders(lane, route, horizon_m)))
+                out.append(RampJoin(k, "", lane.getID(), lane.getIndex(), lane.getWidth(), 0.0,
+                                    _feeders(lane, route, horizon_m)))
             elif nxt is None or not _runs_on(lane, nxt, through):
                 merge = _merge_lane(lane, through)
                 if merge is not None:
-                    out.append(RampJoin(k, lane.getID(), merge.getID(),
+                    out.append(RampJoin(k, lane.getID(), merge.getID(), merge.getIndex(), merge.getWidth(),
                                         _accel_length(net, edges, k, lane),
                                         _feeders(lane, route, horizon_m)))
     return out

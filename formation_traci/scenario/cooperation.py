@@ -10,7 +10,7 @@ from .base import PosFloat, Strict
 
 class CooperationSpec(Strict):
     merge: Literal["open_gap", "none"] = Field(
-        "open_gap", description="ramp traffic at on-ramps: 'open_gap' slows the formation, within comfort, "
+        "none", description="ramp traffic at on-ramps: 'open_gap' slows the formation, within comfort, "
         "so that a ramp vehicle meets its own safe time gap ahead of the merge lane's members "
         "(control/merge.py); 'none' only observes the ramp vehicles")
     horizon_s: PosFloat = Field(10.0, le=60.0, description="ramp vehicles this far in time from their merge point are "

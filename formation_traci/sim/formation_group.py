@@ -31,7 +31,8 @@ _NO_TABLE = (np.empty(0), np.empty(0), np.empty(0), np.empty(0), np.zeros(0, dty
 def group_of(forms: list, world) -> "FormationGroup | None":
     """The group of ``forms`` when all of them (two or more) are plain road formations and the
     world can join their neighbours (SUMO); else None (the loop's per-formation path)."""
-    if len(forms) < 2 or not hasattr(world, "joined_neighbours"):
+    merges = getattr(world, "merges", None)  # a group's kernel takes no cap for ramp traffic
+    if len(forms) < 2 or not hasattr(world, "joined_neighbours") or (merges is not None and merges.mode != "none"):
         return None
     if any(type(f.generator) is not RoadReference or f.transforms for f in forms):
         return None

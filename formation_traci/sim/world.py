@@ -41,6 +41,9 @@ class Sensed:
     # member in their lane): the virtual car's slot law does not brake for them, the members
     # behind them do (empty: none)
     nb_in_formation: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
+    # the world's upper bound on the formation's requested acceleration [m/s^2] (inf: none;
+    # SUMO's world: opening a gap for ramp traffic, sumo/merge_watch.py)
+    a_limit: float = float("inf")
 
 
 def sensed_of(sensed: Sensed, sl: slice) -> Sensed:

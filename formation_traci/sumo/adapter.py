@@ -18,6 +18,7 @@ import numpy as np
 
 from .connect import attach_socket, follow_view, start_socket
 from .lane_ends import LaneEnds
+from .ramp_reads import RampReads
 from .member_reads import MemberReads
 from .neighbours import NeighbourReads
 from .traffic import BASE_TYPES
@@ -50,7 +51,7 @@ def _api(backend: str):
     return api, tc
 
 
-class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds):
+class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds, RampReads):
     """One SUMO simulation. Call :meth:`start`, then per step :meth:`read_members` ->
     :meth:`place` -> :meth:`step` -> :meth:`set_true_speeds`, and :meth:`close` at the end
     (also after errors)."""

@@ -140,6 +140,8 @@ class FusedPath:
         ev = w.ev
         if ev is not None and (ev.collisions or ev.teleports):
             return False
+        if w.merges is not None and w.merges.watching(w.m_s + w.d_front, act):
+            return False  # ramp traffic near: sumo/merge_watch.py runs in the loop's step
         idx = self._all if every else np.flatnonzero(act)
         n_act, tr, cf = len(idx), rec.traj, rec.comfort
         if (tr.rows_buffered + n_act + self.refs.vc_rows > tr.chunk_rows

@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..control.merge import BEHIND, OUTSIDE, YIELD, MergeLane, MergeSite, RampTraffic, yield_to_ramp
-from ..road.ramps import ramp_joins
 
 V_WATCH = 40.0
 """The speed at which a formation's distance to a join is turned into time when deciding to
@@ -36,18 +35,17 @@ class Site:
     added: str  # the acceleration lane ("" for a direct join)
 
 
-def merge_sites(road, net) -> list[Site]:
-    """The joins of ``road``'s route (sumo/road_setup.py Road) on its reference line."""
+def merge_sites(road) -> list[Site]:
+    """The joins of ``road``'s route (sumo/road_setup.py Road ``joins``) on its reference line."""
     s0 = {seg.edge: seg.s0 for seg in road.segments}
     out = []
-    for j in ramp_joins(net, road.route):
+    for j in road.joins:
         edge = road.route[j.edge_index]
-        merge_lane = net.getLane(j.merge_lane)
         lanes = dict(j.feeders)
         if j.added_lane:
             lanes[j.added_lane] = 0.0
-        out.append(Site(MergeSite(s0[edge], j.length_m), float(road.lane_d[edge][merge_lane.getIndex()]),
-                        merge_lane.getWidth() / 2.0, lanes, j.added_lane))
+        out.append(Site(MergeSite(s0[edge], j.length_m), float(road.lane_d[edge][j.merge_index]),
+                        j.merge_width_m / 2.0, lanes, j.added_lane))
     return out
 
 
@@ -72,19 +70,23 @@ class _Watch:
 
 class MergeWatch:
     """The joins of one road run and the formations passing them (module docstring).
-    ``groups``: per formation (id, its virtual car's id, its member rows)."""
+    ``groups``: per formation (id, its virtual car's id, its member rows); ``world``: the
+    SUMO world (its adapter, recorder, members' SUMO ids and bodies)."""
 
-    def __init__(self, sites, mode: str, params, adapter, rec, groups, dt: float):
-        self.sites, self.mode, self.p, self.adapter, self.rec = sites, mode, params, adapter, rec
-        self.groups, self.dt = groups, dt
+    def __init__(self, sites, mode: str, params, world, groups, dt: float):
+        self.sites, self.mode, self.p, self.groups, self.dt = sites, mode, params, groups, dt
+        self.adapter, self.rec, self.sumo_ids = world.adapter, world.rec, world.sumo_ids
+        self.d_front = world.d_front
+        self.length = np.array([mt.length for mt in world.mtypes])
         self.watch = [_Watch() for _ in groups]
         self._decision = np.empty(0, dtype=np.int64)
 
-    def limits(self, t: float, ends, m_d, v_m, active, members: set) -> np.ndarray:
+    def limits(self, t: float, m_s, m_d, v_m, active) -> np.ndarray:
         """Each formation's cap on its requested acceleration for the step at t [s] (inf: none),
-        from its members' front and rear bumpers' arc lengths ``ends`` (2, n) [m], offsets [m]
-        and speeds [m/s] (``active``: in the run; ``members``: every member's SUMO id)."""
+        from its members' arc lengths, offsets [m] and speeds [m/s] (``active``: in the run)."""
         out = np.full(len(self.groups), math.inf)
+        front = m_s + self.d_front
+        ends, members = np.vstack((front, front - self.length)), set(self.sumo_ids)
         for site in self.sites:
             read = None
             for f, (fid, vc_id, rows) in enumerate(self.groups):
@@ -95,6 +97,16 @@ class MergeWatch:
                     read = self.adapter.ramp_vehicles(site.lanes, members)
                 out[f] = min(out[f], self._formation(t, f, site, read, ends[:, rows], m_d[rows], v_m[rows]))
         return out
+
+    def watching(self, front, active) -> bool:
+        """Is any formation near a join, its members' front bumpers ``front`` [m] (``active``:
+        in the run)? Those steps go through the loop's own path (sumo/fused_path.py)."""
+        for site in self.sites:
+            for _, _, rows in self.groups:
+                rows = rows[active[rows]]
+                if len(rows) and self._near(site, front[rows]):
+                    return True
+        return False
 
     def _near(self, site: Site, front) -> bool:
         m = site.merge
@@ -157,7 +169,8 @@ class MergeWatch:
                     self._end(t, w, vc_id, vid, "merged")
 
     def summary(self) -> dict:
-        """Per formation: ``ramp_vehicles``, ``merged_before_lane_end``, ``ramp_speed_loss_mps``
+        """Per formation: ``ramp_vehicles``, ``merged_before_lane_end`` (those that did not stand
+        at the end of the acceleration lane), ``ramp_speed_loss_mps``
         (mean of first speed less lowest speed over the ramp vehicles seen within the horizon),
         ``ramp_wait_s`` (their mean time below STOOD_MPS)."""
         out = {}
@@ -165,7 +178,7 @@ class MergeWatch:
             seen = list(w.seen.values())
             n = len(seen)
             out[fid] = {"ramp_vehicles": n,
-                        "merged_before_lane_end": sum(1 for x in seen if x.merged and not x.at_end),
+                        "merged_before_lane_end": sum(1 for x in seen if not x.at_end),
                         "ramp_speed_loss_mps": float(np.mean([x.v_first - x.v_min for x in seen])) if n else None,
                         "ramp_wait_s": float(np.mean([x.waited_s for x in seen])) if n else None}
         return out

@@ -17,6 +17,7 @@ from sumo_nets import main_route as bundled_main_route
 
 from ..models.params import VehicleParams
 from ..road.geometry import ReferenceLine, load_net
+from ..road.ramps import ramp_joins
 from ..road.lanes import (LaneCentres, LaneShapes, geometric_route_lanes, geometric_route_shape,
                           lane_centre_offsets, sideways_internal_lanes)
 from ..scenario.load import ScenarioError
@@ -62,6 +63,7 @@ class Road:
     member_forbidden: tuple[str, ...] = ()  # internal lanes members are kept off (road/lanes.py)
     lanes: LaneCentres = None  # lane_d with the reference lane per edge, looked up by arc length
     speed_limit: float = math.nan  # the highest lane speed limit along the route [m/s]
+    joins: tuple = ()  # where ramp traffic joins the route (road/ramps.py RampJoin)
 
 
 def resolve_net(sc: Scenario, source: Path | None) -> Path:
@@ -171,7 +173,8 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
                 {e: net.getEdge(e).getLaneNumber() for e in route}, lane_d,
                 {e: net.getEdge(e).getLane(0).getLength() for e in route}, flow_routes, fit, LaneShapes(net),
                 tuple(sideways_internal_lanes(net, route)), centres,
-                max(ln.getSpeed() for e in route for ln in net.getEdge(e).getLanes()))
+                max(ln.getSpeed() for e in route for ln in net.getEdge(e).getLanes()),
+                tuple(ramp_joins(net, route)))
 
 
 _REFERENCE_CACHE: dict = {}

@@ -31,6 +31,8 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     watch_lanes(rec.incidents, sc, fleet, plan, baseline)  # lane departures of platoon columns
     built = [_formation_parts(view, p, cfg, fleet.gains[rows], world, meta)
              for view, (_, p, rows), cfg in zip(views, parts, cfgs)]
+    if plan.road.joins and not baseline:
+        world.merges = _merge_watch(sc, plan, parts, world)
     meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
                         "governor": 0.0, "control_model": 0.0, "record": 0.0}
     load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, plan.road.line)
@@ -49,6 +51,21 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     from .fused_path import fused_path
     return RunParts(world, fleet, join_states([s for _, _, s in built]), forms,
                     timing=meta["timing_s"], road_load=load, fused=fused_path)
+
+
+def _merge_watch(sc: Scenario, plan: RoadPlan, parts, world: SumoWorld):
+    """The run's watch of ramp traffic at the route's joins (sumo/merge_watch.py)."""
+    from run_contract.columns import DEFAULT_FORMATION_ID
+
+    from ..control.merge import merge_params
+    from ..sim.formation import virtual_car_id
+    from .merge_watch import MergeWatch, merge_sites
+
+    groups = [(DEFAULT_FORMATION_ID if setup is None else setup.id,
+               virtual_car_id(DEFAULT_FORMATION_ID if setup is None else setup.id, len(parts)),
+               np.arange(rows.start, rows.stop)) for setup, _, rows in parts]
+    return MergeWatch(merge_sites(plan.road), sc.cooperation.merge, merge_params(sc.cooperation),
+                      world, groups, float(sc.run.step))
 
 
 def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld, meta: dict):

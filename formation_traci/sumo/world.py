@@ -20,10 +20,8 @@ from ..scenario.schema import Scenario
 from .events import (PLACEMENT_TOLERANCE, EmergencyWatch, LaneTracker, MemberWatch, RefusalWatch,
                      TrafficWatch, log_sumo_events)
 from .zone import clear_insertion_zone, middle_member, subscribe_context
-from .sections import drain as drain_stretch
-from .sections import plan_sections
-from .sections import sumo_options as section_options
-from .sections import write_tables as write_sections
+from .sections import (drain as drain_stretch, plan_sections, sumo_options as section_options,
+                       write_tables as write_sections)
 from ..sim.incidents import clearance_lookup
 from .demand import measure_plan, report_formation_shortfall, traffic_meta
 from .join import inside_formation
@@ -107,6 +105,8 @@ class SumoWorld(MemberHandover, MemberRows):
             rec.incident_log.locate = self.locate
         self.mtypes = member_types(sc, plan)
         self.d_front = np.array([mt.d_front for mt in self.mtypes])  # CoG to front bumper [m]
+        # ramp traffic at the route's joins (sumo/merge_watch.py; set by road_run), each formation's cap [m/s^2]
+        self.merges, self.merge_caps = None, np.full(len(self.groups), np.inf)
         self.peers = Peers(self.ids, self.sumo_ids, self.mtypes, self.groups) if len(self.groups) > 1 else None
         self.adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
         if sc.sumo.ssm != "off":  # converted as the run goes, cut with the other tables (record/ssm.py)
@@ -192,6 +192,8 @@ class SumoWorld(MemberHandover, MemberRows):
             self.adapter.close()  # SUMO completes its outputs; the recorder converts ssm.xml
             merge_outputs(self.sumo_dir, self.meta.get("warm_state"))  # a shared warm-up's part
         finally:
+            if self.merges is not None:  # what the ramp vehicles did, per formation
+                self.meta["merges"] = {"mode": self.merges.mode, "by_formation": self.merges.summary()}
             if self.plan.flow_share_of is not None:
                 self.meta["formation_flows"] = flow_counts(self.plan, self.flows_inserted, t_sumo - t0,
                                                            self.adapter.departures, t0)
@@ -239,6 +241,9 @@ class SumoWorld(MemberHandover, MemberRows):
             if self.peers is not None:  # every member as the other formations' traffic
                 self.peers.lanes(rows[6], rows[8], rows[5])
                 self.peers.update(pos, heading, v_m, getattr(self, "a_mean", np.zeros(n)), m_s, m_d)
+            if self.merges is not None:  # ramp traffic at the route's joins
+                self.merge_caps = self.merges.limits(t, m_s, m_d, v_m, self.active & self.in_sumo)
+                sensed.a_limit = float(self.merge_caps[0])
         if nb_rows is None:
             sensed.nb = NOBODY
         else:
@@ -292,10 +297,16 @@ class SumoWorld(MemberHandover, MemberRows):
 
     def sensed_for(self, sensed: Sensed, rows: slice) -> Sensed:
         """What the formation of fleet rows ``rows`` senses: its members, and as its
-        neighbours SUMO's vehicles and the other formations' members (sumo/peers.py)."""
+        neighbours SUMO's vehicles and the other formations' members (sumo/peers.py); its
+        cap for ramp traffic (sumo/merge_watch.py)."""
         if self.peers is None:
-            return sensed_of(sensed, rows)
-        return self.peers.sensed_for(sensed, rows, self.active & self.in_sumo)
+            part = sensed_of(sensed, rows)
+        else:
+            part = self.peers.sensed_for(sensed, rows, self.active & self.in_sumo)
+        f = next((i for i, g in enumerate(self.groups) if g.start == rows.start), None)
+        if f is not None:
+            part.a_limit = float(self.merge_caps[f])
+        return part
 
     def joined_neighbours(self, sensed: Sensed):
         """SUMO's vehicles and every member in SUMO as one neighbour table for a formation

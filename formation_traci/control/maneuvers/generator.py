@@ -120,9 +120,10 @@ class ManeuverRoadReference(RoadReference):
         goal = self.planner.goal_ahead(t, self.s, self.v, sensed.active, lead)
         nb = sensed.nb
         if goal is None or nb is None or not len(nb.ids):
-            return math.inf
+            return sensed.a_limit
         lim = self.limits
-        return float(room_accel(goal, self.s + self.d_front, self.v, self.half_w,
+        room = float(room_accel(goal, self.s + self.d_front, self.v, self.half_w,
                                 self.body_length, sensed.active, sensed.nb_rear, sensed.nb_d,
                                 sensed.nb_half_w, nb.length, sensed.nb_v, lim.time_gap,
                                 lim.min_gap, lead))
+        return min(room, sensed.a_limit)

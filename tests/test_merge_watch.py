@@ -1,0 +1,104 @@
+"""Ramp traffic at the route's joins (sumo/merge_watch.py, control/merge.py) on the bundled
+on-ramp network: the formation sees the ramp vehicles that reach the merge within the horizon;
+``open_gap`` caps the virtual car's requested acceleration while it yields (merge_yield_start
+and merge_yield_end events naming the ramp vehicle), ``none`` only observes; run.json carries
+what the ramp vehicles did; a mode the tool does not have is bad input."""
+import json
+
+import pandas as pd
+import pytest
+
+from formation_traci.runner import run_scenario
+from formation_traci.scenario import ScenarioError, load_scenario
+from run_helpers import cli
+
+BASE = """
+name = "merge-watch"
+[run]
+duration = 45.0
+seed = 1
+[road]
+net = "onramp"
+lane = 1
+start = 600.0
+[leader]
+speed = 28.0
+[[members]]
+id = "right"
+slot = {{ along = 0.0, lanes = -1 }}
+[[members]]
+id = "centre"
+slot = {{ along = 0.0, lanes = 0 }}
+[[members]]
+id = "left"
+slot = {{ along = 0.0, lanes = 1 }}
+[traffic]
+warmup = 150.0
+[traffic.sections]
+drain_max = 0.0
+[[traffic.flows]]
+id = "main"
+veh_per_hour_per_lane = 1200
+[[traffic.flows]]
+id = "ramp"
+route = ["ramp", "mw_accel", "mw_down"]
+veh_per_hour = 900
+[cooperation]
+merge = "{mode}"
+"""
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    out = {}
+    for mode in ("open_gap", "none"):
+        d = tmp_path_factory.mktemp(mode)
+        p = d / "s.toml"
+        p.write_text(BASE.format(mode=mode))
+        res = run_scenario(load_scenario(p), d / "run", scenario_path=p, progress=False)
+        out[mode] = (res, d / "run")
+    return out
+
+
+def test_open_gap_yields_to_ramp_vehicles_with_paired_events_and_only_lowers_the_request(runs):
+    res, out = runs["open_gap"]
+    assert res.status in ("completed", "completed_with_incidents"), res.reason
+    ev = pd.read_parquet(out / "events.parquet")
+    starts = ev[ev.kind == "merge_yield_start"]
+    ends = ev[ev.kind == "merge_yield_end"]
+    assert len(starts) >= 1
+    assert set(starts.vehicle_id) == {"vc"} and set(starts.formation_id) == {"f0"}
+    assert all(o.startswith("ramp.") for o in starts.other_id)
+    assert set(ends.other_id) <= set(starts.other_id)
+    # the same traffic and seed: the runs are the same until the cap first binds (a yield's, or
+    # a ramp vehicle's ahead followed), and there the virtual car's acceleration is lower
+    vc = {m: pd.read_parquet(o / "trajectories.parquet").query("vehicle_id == 'vc'").set_index("t").a_lon
+          for m, (_, o) in runs.items()}
+    both = pd.concat(vc, axis=1).dropna()
+    differ = both[both["open_gap"] != both["none"]]
+    assert len(differ)
+    first = differ.iloc[0]
+    assert first["open_gap"] < first["none"]
+
+
+def test_the_ramp_vehicles_are_observed_in_every_mode(runs):
+    for mode, (res, out) in runs.items():
+        meta = json.loads((out / "run.json").read_text())
+        merges = meta["merges"]
+        assert merges["mode"] == mode
+        f0 = merges["by_formation"]["f0"]
+        assert f0["ramp_vehicles"] >= 3
+        assert 0 <= f0["merged_before_lane_end"] <= f0["ramp_vehicles"]
+        assert f0["ramp_speed_loss_mps"] >= 0.0 and f0["ramp_wait_s"] >= 0.0
+    ev = pd.read_parquet(runs["none"][1] / "events.parquet")
+    assert not ev.kind.str.startswith("merge_yield").any()
+
+
+@pytest.mark.parametrize("value", ["shift", "zipper"])
+def test_a_merge_mode_the_tool_does_not_have_is_bad_input(tmp_path, value):
+    p = tmp_path / "s.toml"
+    p.write_text(BASE.format(mode=value))
+    with pytest.raises(ScenarioError, match="cooperation.merge"):
+        load_scenario(p)
+    code, text = cli("run", p, "--out", tmp_path / "out")
+    assert code == 2 and "cooperation.merge" in text and not (tmp_path / "out").exists()
