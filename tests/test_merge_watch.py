@@ -94,6 +94,17 @@ def test_the_ramp_vehicles_are_observed_in_every_mode(runs):
     assert not ev.kind.str.startswith("merge_yield").any()
 
 
+def test_metrics_json_carries_the_merges_per_formation(runs, tmp_path):
+    out = runs["open_gap"][1]
+    code, text = cli("analyze", out, "--out", tmp_path / "an")
+    assert code == 0, text
+    doc = json.loads((tmp_path / "an" / "metrics.json").read_text())
+    meta = json.loads((out / "run.json").read_text())
+    assert doc["merges"] == meta["merges"]["by_formation"]
+    assert set(doc["merges"]["f0"]) == {"ramp_vehicles", "merged_before_lane_end", "ramp_speed_loss_mps",
+                                        "ramp_wait_s"}
+
+
 @pytest.mark.parametrize("value", ["shift", "zipper"])
 def test_a_merge_mode_the_tool_does_not_have_is_bad_input(tmp_path, value):
     p = tmp_path / "s.toml"

@@ -183,6 +183,8 @@ def metrics_doc(a: RunAnalysis, run_dir: Path, issues: Sequence[Issue],
         "traffic": _traffic_json(a.traffic),
         "comm_age": records(a.comm_age) if a.comm_age is not None else [],
         "maneuvers": _maneuvers_json(a),
+        # per formation: what the ramp vehicles at the route's joins did (run.json merges)
+        "merges": ((a.data.meta.get("merges") or {}).get("by_formation")) or {},
         "figures": {k: str(p.relative_to(out)) for k, p in fig_paths.items()},
     }
     return doc

@@ -169,8 +169,11 @@ def _join(analyses: dict[str, RunAnalysis]) -> RunAnalysis:
                    if i not in seen]
     records = {f: formation_record(a) for f, a in analyses.items()}
     by_formation = ((first.data.meta.get("incidents") or {}).get("by_formation")) or {}
-    for f, r in records.items():  # run.json incidents per formation (sim/incident_log.py)
+    merges = ((first.data.meta.get("merges") or {}).get("by_formation")) or {}
+    for f, r in records.items():  # run.json incidents and ramp merges per formation
         r["incidents"] = dict(by_formation.get(f) or {})
+        if f in merges:
+            r["merges"] = dict(merges[f])
     comm = [a.comm_age for a in analyses.values()]
     return replace(
         first, members=members, unavailable=unavailable, issues=tuple(issues),
