@@ -80,19 +80,26 @@ class MergeWatch:
         self.length = np.array([mt.length for mt in world.mtypes])
         self.watch = [_Watch() for _ in groups]
         self._decision = np.empty(0, dtype=np.int64)
+        firsts = np.array([rows[0] for _, _, rows in groups], dtype=np.int64)  # contiguous rows each
+        self._order = np.argsort(np.argsort(firsts))  # formation -> its rank by first row
+        self._starts = np.sort(firsts)
+        self._from = np.array([x.merge.s_start - params.horizon_s * V_WATCH for x in sites])
+        self._to = np.array([x.merge.s_start + x.merge.length for x in sites])
 
     def limits(self, t: float, m_s, m_d, v_m, active) -> np.ndarray:
         """Each formation's cap on its requested acceleration for the step at t [s] (inf: none),
         from its members' arc lengths, offsets [m] and speeds [m/s] (``active``: in the run)."""
         out = np.full(len(self.groups), math.inf)
         front = m_s + self.d_front
+        near = self._near(front, active)
+        if not near.any():
+            return out
         ends, members = np.vstack((front, front - self.length)), set(self.sumo_ids)
-        for site in self.sites:
+        for q, site in enumerate(self.sites):
             read = None
-            for f, (fid, vc_id, rows) in enumerate(self.groups):
+            for f in np.flatnonzero(near[q]):
+                rows = self.groups[f][2]
                 rows = rows[active[rows]]
-                if not len(rows) or not self._near(site, ends[0, rows]):
-                    continue
                 if read is None:
                     read = self.adapter.ramp_vehicles(site.lanes, members)
                 out[f] = min(out[f], self._formation(t, f, site, read, ends[:, rows], m_d[rows], v_m[rows]))
@@ -101,16 +108,17 @@ class MergeWatch:
     def watching(self, front, active) -> bool:
         """Is any formation near a join, its members' front bumpers ``front`` [m] (``active``:
         in the run)? Those steps go through the loop's own path (sumo/fused_path.py)."""
-        for site in self.sites:
-            for _, _, rows in self.groups:
-                rows = rows[active[rows]]
-                if len(rows) and self._near(site, front[rows]):
-                    return True
-        return False
+        return bool(self._near(front, active).any())
 
-    def _near(self, site: Site, front) -> bool:
-        m = site.merge
-        return m.s_start - self.p.horizon_s * V_WATCH <= front.max() and front.min() <= m.s_start + m.length
+    def _near(self, front, active) -> np.ndarray:
+        """(joins, formations) bool: the formation's front-most member within ``horizon_s`` at
+        V_WATCH of the join's start and its rear-most front bumper not past the acceleration
+        lane's end (members out of the run not counted; NaN positions never near)."""
+        hi = np.where(active, front, -np.inf)
+        lo = np.where(active, front, np.inf)
+        top = np.maximum.reduceat(hi, self._starts)[self._order]
+        bottom = np.minimum.reduceat(lo, self._starts)[self._order]
+        return (top >= self._from[:, None]) & (bottom <= self._to[:, None])
 
     def _formation(self, t, f, site, read, ends, d, v) -> float:
         """Formation f's cap at ``site`` (inf: none), its events and observations."""
