@@ -37,20 +37,25 @@ import numpy as np
 
 from .geometry import LINE_FIT_DEFAULT, LineFit, ReferenceLine, clean_polyline
 from .band_qp import box_forces
+from .coarse import (KNOTS_PER_SMOOTHING, SETTINGS as COARSE_SETTINGS, SMOOTHING, lane_tolerance,  # noqa: F401
+                     smoothing_length)
 from .line_fit import _DEGREE, chord_lengths, pspline_system, solve_banded_spd, solve_pspline
 
 FIT_TOLERANCE_DEFAULT = 0.6
-"""Largest lateral distance of the reference line from SUMO's lane centre [m] (road.fit_tolerance)."""
-SMOOTHING = 160.0
-"""Smoothing length of the fit [m] (wavelength of half response)."""
+"""Largest lateral distance of the reference line from SUMO's lane centre [m] (road.fit_tolerance's
+default on a finely drawn road; on a coarse one the default is the lane's band, road/coarse.py)."""
 BAND_SPACING = 5.0
 """Largest spacing of the points the tolerance is checked at along a polyline segment [m]."""
 BAND_MARGIN = 0.98
 """The constraints hold the line within this fraction of the tolerance [-] (the rest absorbs
 their linearisation)."""
+RIDGE = 1e-9
+"""Added to the diagonal of the constraints' matrix, relative to its largest entry [-]: a
+constraint yields by ``RIDGE * max(M_jj) * lam_j`` (nanometres), and bound points too close
+together for the fit to tell apart stay solvable."""
 BAND_ROUNDS = 8
 """Most linearisations of the band constraints."""
-FIT_SETTINGS = repr((LINE_FIT_DEFAULT, SMOOTHING, BAND_SPACING, BAND_MARGIN, BAND_ROUNDS))
+FIT_SETTINGS = repr((LINE_FIT_DEFAULT, COARSE_SETTINGS, BAND_SPACING, BAND_MARGIN, RIDGE, BAND_ROUNDS))
 """The settings of :func:`fit_within` beyond the tolerance (part of the road cache's key)."""
 _NEWTON_STEPS = 6
 """Newton steps of the projection of the band's points onto c(u), from their chord length."""
@@ -104,9 +109,10 @@ def _normal_offset(curve, d1, q: np.ndarray, u: np.ndarray):
     return c, n, n[:, 0] * (q[:, 0] - c[:, 0]) + n[:, 1] * (q[:, 1] - c[:, 1])
 
 
-def _band_solve(knots, lhs, rhs, c0, q, lin: dict, edge: float):
+def _band_solve(knots, lhs, rhs, c0, q, lin: dict, edge: float, ridge: bool):
     """The fit of the system (knots, lhs, rhs) closest to the free fit ``c0`` (n_coef, 2)
-    with ``|n_j . (c(u_j) - q_j)| <= edge`` at the points lin = {j: (u_j, n_j)} (band_qp.py);
+    with ``|n_j . (c(u_j) - q_j)| <= edge`` at the points lin = {j: (u_j, n_j)} (band_qp.py;
+    ``ridge``: :data:`RIDGE` added, for smoothing lengths above 160 m);
     returns the spline and the forces {j: lam_j}."""
     from scipy.interpolate import BSpline
 
@@ -121,7 +127,11 @@ def _band_solve(knots, lhs, rhs, c0, q, lin: dict, edge: float):
     at = np.asarray(rows @ c0)
     w0 = nrm[:, 0] * (at[:, 0] - q[keys, 0]) + nrm[:, 1] * (at[:, 1] - q[keys, 1])
     m = len(keys)
-    lam = box_forces((gram * cos).tolist(), w0.tolist(), [-edge] * m, [edge] * m)
+    M = (gram * cos).tolist()
+    ridge = RIDGE * max(M[k][k] for k in range(m)) if ridge else 0.0
+    for k in range(m):  # points a few metres apart on a long smoothing length: near-dependent
+        M[k][k] += ridge
+    lam = box_forces(M, w0.tolist(), [-edge] * m, [edge] * m)
     force = np.zeros((m, 2))
     for k, v in lam.items():
         force[k] = v * nrm[k]
@@ -129,19 +139,34 @@ def _band_solve(knots, lhs, rhs, c0, q, lin: dict, edge: float):
     return curve, {keys[k]: v for k, v in lam.items()}
 
 
-def fit_within(xy, tolerance: float = FIT_TOLERANCE_DEFAULT,
-               base: LineFit = LINE_FIT_DEFAULT) -> tuple[ReferenceLine, float, float]:
-    """The 160 m P-spline of the polyline ``xy`` (n, 2) [m], held within ``tolerance`` [m]
-    of it (module docstring).
+def fit_within(xy, tolerance: float = FIT_TOLERANCE_DEFAULT, base: LineFit = LINE_FIT_DEFAULT,
+               lane_band: float | None = None) -> tuple[ReferenceLine, float, float]:
+    """The P-spline of the polyline ``xy`` (n, 2) [m], held within a band of it (module
+    docstring).
+
+    Parameters
+    ----------
+    tolerance : float
+        The band [m]: the 160 m fit held within it everywhere.
+    lane_band : float or None
+        If given [m], a coarse polyline (road/coarse.py ``smoothing_length`` above 160 m) gets
+        that smoothing length and ``max(tolerance, lane_band)`` as its band instead; a finely
+        drawn one is fitted as without it.
 
     Returns
     -------
     line, smoothing_length, deviation
         The fitted line, the smoothing length used [m] and its largest distance from the
-        polyline's vertices and segment midpoints [m] (above the tolerance only if
+        polyline's points of :func:`band_points` [m] (above the band only if
         :data:`BAND_ROUNDS` linearisations did not bring every point within it).
     """
-    fit = LineFit(SMOOTHING, base.knot_spacing, base.max_segment, base.min_segment)
+    length = SMOOTHING
+    if lane_band is not None:
+        length = smoothing_length(clean_polyline(xy, base.min_segment, 1e9).tolist())
+        if length > SMOOTHING:
+            tolerance = max(tolerance, lane_band)
+    fit = LineFit(length, max(base.knot_spacing, length / KNOTS_PER_SMOOTHING), base.max_segment,
+                  base.min_segment)
     pts = clean_polyline(xy, fit.min_segment, fit.max_segment)
     knots, lhs, rhs = pspline_system(chord_lengths(pts), pts, fit)
     q, u_chord = band_points(xy, fit.min_segment)
@@ -155,6 +180,7 @@ def fit_within(xy, tolerance: float = FIT_TOLERANCE_DEFAULT,
             break
         for j in set(lin) | set(out):  # the constraints linearised at the line they bind
             lin[j] = (float(u_q[j]), n[j].copy())
-        curve, _ = _band_solve(knots, lhs, rhs, np.asarray(free.c), q, lin, BAND_MARGIN * tolerance)
+        curve, _ = _band_solve(knots, lhs, rhs, np.asarray(free.c), q, lin, BAND_MARGIN * tolerance,
+                               length > SMOOTHING)
     line = ReferenceLine.from_curve(pts, curve)
-    return line, SMOOTHING, deviation(line, xy)
+    return line, length, deviation(line, xy)

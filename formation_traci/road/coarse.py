@@ -1,0 +1,76 @@
+"""How coarse a lane polyline is, and what the reference line's fit makes of it
+(road/smoothing.py ``fit_within`` with a lane band): the smoothing length from the spacing of
+the polyline's corners, and the band a member's centre may use in its lane.
+
+A road of curvature kappa drawn with chords of length l (shape points on the road, SUMO
+driving straight between them) lies ``kappa l^2 / 8`` off each chord's midpoint: 3.0 m for
+R = 1,200 m and l = 170 m. A line of that curvature stays within half of it of the polyline
+(an arc concentric with the road, the vertices that far outside it, the chord midpoints that
+far inside); a line held closer must bend at the shape points, a wave of the spacing's
+wavelength. On a polyline whose corners are more than ~27 m apart (90 % of them closer) the
+fit's smoothing length is :data:`SPACING_FACTOR` times that spacing, so the corners' wave
+is smoothed away, and its band is the lane's (:func:`lane_tolerance`), so the road's curve
+fits in it. SUMO's own curves (sampled every few metres) and straights keep the 160 m fit.
+
+Everything here runs in plain Python floats (the same bits on every processor).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+SMOOTHING = 160.0
+"""Smallest smoothing length of the fit [m] (wavelength of half response)."""
+SPACING_FACTOR = 6.0
+"""The smoothing length is at least this many times the spacing of the polyline's corners
+(:func:`smoothing_length`): their wave (wavelength = spacing) passes at < 2e-5 [-]."""
+SPACING_QUANTILE = 0.9
+"""Quantile of the corners' spacings that sets the smoothing length [-]."""
+CORNER_MIN_DEG = 0.2
+"""A vertex turning less than this is no corner (a straight split by a node) [deg]."""
+SMOOTHING_MAX = 800.0
+"""Largest smoothing length [m] (a road curve of R = 1 km, wavelength 6.3 km, still passes
+unbiased)."""
+KNOTS_PER_SMOOTHING = 40.0
+"""Knots per smoothing length (at least the default fit's 4 m spacing): the penalty weight,
+``(L / 2 pi h)^10``, and with it the system's condition, stay those of the 160 m fit on 4 m
+knots."""
+LANE_MARGIN = 0.2
+"""The band is widened to half the narrowest lane's width less this at most [m]
+(:func:`lane_tolerance`): a member's centre on the line, plus its tracking error on the curve
+(~0.15 m), stays inside its SUMO lane."""
+SETTINGS = (SMOOTHING, SPACING_FACTOR, SPACING_QUANTILE, CORNER_MIN_DEG, SMOOTHING_MAX,
+            KNOTS_PER_SMOOTHING, LANE_MARGIN)
+"""This module's settings (part of the road cache's key, through road/smoothing.py)."""
+
+
+def lane_tolerance(width: float) -> float:
+    """The widest band for lanes ``width`` wide [m]: half of it less :data:`LANE_MARGIN`."""
+    return 0.5 * width - LANE_MARGIN
+
+
+def turning(p: list) -> list[float]:
+    """Signed turning angle at every vertex of the polyline ``p`` (list of (x, y)), left
+    positive, 0 at both ends [rad]."""
+    out = [0.0]
+    for a, b, c in zip(p, p[1:], p[2:]):
+        d = math.atan2(c[1] - b[1], c[0] - b[0]) - math.atan2(b[1] - a[1], b[0] - a[0])
+        out.append(math.remainder(d, 2.0 * math.pi))
+    return out + [0.0]
+
+
+def smoothing_length(p: list) -> float:
+    """The smoothing length [m] of the cleaned polyline ``p`` (list of (x, y)): :data:`SPACING_FACTOR`
+    times the :data:`SPACING_QUANTILE` quantile of its corners' spacings (a corner: a vertex
+    turning more than :data:`CORNER_MIN_DEG`; its spacing: the shorter of its two segments),
+    within [:data:`SMOOTHING`, :data:`SMOOTHING_MAX`]. Curves sampled every few metres (SUMO's
+    own) and straights give :data:`SMOOTHING`."""
+    turn = math.radians(CORNER_MIN_DEG)
+    delta = turning(p)
+    spacing = sorted(min(math.dist(p[k - 1], p[k]), math.dist(p[k], p[k + 1]))
+                     for k in range(1, len(p) - 1) if abs(delta[k]) > turn)
+    if not spacing:
+        return SMOOTHING
+    q = spacing[int(SPACING_QUANTILE * (len(spacing) - 1))]
+    return min(max(SMOOTHING, SPACING_FACTOR * q), SMOOTHING_MAX)
