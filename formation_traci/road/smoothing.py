@@ -37,8 +37,8 @@ import numpy as np
 
 from .geometry import LINE_FIT_DEFAULT, LineFit, ReferenceLine, clean_polyline
 from .band_qp import box_forces
-from .coarse import (KNOTS_PER_SMOOTHING, SETTINGS as COARSE_SETTINGS, SMOOTHING, lane_tolerance,  # noqa: F401
-                     smoothing_length)
+from .coarse import (KNOTS_PER_SMOOTHING, SETTINGS as COARSE_SETTINGS, SMOOTHING, band_widths,  # noqa: F401
+                     is_coarse, lane_tolerance, smoothing_length)
 from .line_fit import _DEGREE, chord_lengths, pspline_system, solve_banded_spd, solve_pspline
 
 FIT_TOLERANCE_DEFAULT = 0.6
@@ -55,17 +55,23 @@ constraint yields by ``RIDGE * max(M_jj) * lam_j`` (nanometres), and bound point
 together for the fit to tell apart stay solvable."""
 BAND_ROUNDS = 8
 """Most linearisations of the band constraints."""
-FIT_SETTINGS = repr((LINE_FIT_DEFAULT, COARSE_SETTINGS, BAND_SPACING, BAND_MARGIN, RIDGE, BAND_ROUNDS))
+COARSE_STEPS = 1000
+"""Most bounds of the band's quadratic programme on a coarse polyline (more: the lane's band is
+narrower than its chords need, and the 160 m fit within the tolerance is used) [-]."""
+COARSE_SLACK = 0.05
+"""A coarse polyline's long fit is used if within the lane's band plus this [m]."""
+FIT_SETTINGS = repr((LINE_FIT_DEFAULT, COARSE_SETTINGS, BAND_SPACING, BAND_MARGIN, RIDGE, BAND_ROUNDS,
+                     COARSE_STEPS, COARSE_SLACK))
 """The settings of :func:`fit_within` beyond the tolerance (part of the road cache's key)."""
 _NEWTON_STEPS = 6
 """Newton steps of the projection of the band's points onto c(u), from their chord length."""
 
 
-def band_points(xy, min_segment: float = LINE_FIT_DEFAULT.min_segment) -> tuple[np.ndarray, np.ndarray]:
+def band_points(xy, min_segment: float = LINE_FIT_DEFAULT.min_segment, parts: bool = False):
     """The points the tolerance is checked at: the polyline's vertices and, on each segment,
     the points that cut it into ``2 ceil(length / (2 BAND_SPACING))`` equal pieces (its
     midpoint among them), (m, 2) [m] in driving order, and their chord length along the
-    polyline (m,) [m]."""
+    polyline (m,) [m]; with ``parts``, also each point's segment (m,) and fraction along it."""
     p = clean_polyline(xy, min_segment, 1e9)
     u = chord_lengths(p)
     seg = np.diff(u)
@@ -75,7 +81,7 @@ def band_points(xy, min_segment: float = LINE_FIT_DEFAULT.min_segment) -> tuple[
     f[-1] = 1.0
     a, b = p[i], p[i + 1]
     pts = a + f[:, None] * (b - a)
-    return pts, u[i] + f * seg[i]
+    return (pts, u[i] + f * seg[i], i, f) if parts else (pts, u[i] + f * seg[i])
 
 
 def deviation(line: ReferenceLine, xy) -> float:
@@ -109,9 +115,9 @@ def _normal_offset(curve, d1, q: np.ndarray, u: np.ndarray):
     return c, n, n[:, 0] * (q[:, 0] - c[:, 0]) + n[:, 1] * (q[:, 1] - c[:, 1])
 
 
-def _band_solve(knots, lhs, rhs, c0, q, lin: dict, edge: float, ridge: bool):
+def _band_solve(knots, lhs, rhs, c0, q, lin: dict, edge: np.ndarray, ridge: bool, max_steps: int):
     """The fit of the system (knots, lhs, rhs) closest to the free fit ``c0`` (n_coef, 2)
-    with ``|n_j . (c(u_j) - q_j)| <= edge`` at the points lin = {j: (u_j, n_j)} (band_qp.py;
+    with ``|n_j . (c(u_j) - q_j)| <= edge_j`` at the points lin = {j: (u_j, n_j)} (band_qp.py;
     ``ridge``: :data:`RIDGE` added, for smoothing lengths above 160 m);
     returns the spline and the forces {j: lam_j}."""
     from scipy.interpolate import BSpline
@@ -131,7 +137,8 @@ def _band_solve(knots, lhs, rhs, c0, q, lin: dict, edge: float, ridge: bool):
     ridge = RIDGE * max(M[k][k] for k in range(m)) if ridge else 0.0
     for k in range(m):  # points a few metres apart on a long smoothing length: near-dependent
         M[k][k] += ridge
-    lam = box_forces(M, w0.tolist(), [-edge] * m, [edge] * m)
+    hi = [float(edge[j]) for j in keys]
+    lam = box_forces(M, w0.tolist(), [-x for x in hi], hi, max_steps)
     force = np.zeros((m, 2))
     for k, v in lam.items():
         force[k] = v * nrm[k]
@@ -160,11 +167,25 @@ def fit_within(xy, tolerance: float = FIT_TOLERANCE_DEFAULT, base: LineFit = LIN
         polyline's points of :func:`band_points` [m] (above the band only if
         :data:`BAND_ROUNDS` linearisations did not bring every point within it).
     """
-    length = SMOOTHING
     if lane_band is not None:
-        length = smoothing_length(clean_polyline(xy, base.min_segment, 1e9).tolist())
-        if length > SMOOTHING:
-            tolerance = max(tolerance, lane_band)
+        corners = clean_polyline(xy, base.min_segment, 1e9).tolist()
+        if is_coarse(corners, BAND_MARGIN * tolerance, BAND_MARGIN * max(tolerance, lane_band)):
+            length = smoothing_length(corners)
+            _, _, seg, frac = band_points(xy, base.min_segment, parts=True)
+            band = band_widths(corners, seg, frac, tolerance, max(tolerance, lane_band))
+            try:
+                got = _fit_band(xy, band, base, length, COARSE_STEPS)
+            except ValueError:  # the band cannot hold a smooth line: the chords' own fit
+                got = None
+            if got is not None and got[2] <= float(band.max()) + COARSE_SLACK:
+                return got
+    return _fit_band(xy, tolerance, base, SMOOTHING, 2000)
+
+
+def _fit_band(xy, tolerance, base: LineFit, length: float, max_steps: int):
+    """:func:`fit_within` at the smoothing ``length`` [m] within ``tolerance`` [m] (a float, or
+    one per point of :func:`band_points`); the band's quadratic programme gives up after
+    ``max_steps`` bounds (ValueError)."""
     fit = LineFit(length, max(base.knot_spacing, length / KNOTS_PER_SMOOTHING), base.max_segment,
                   base.min_segment)
     pts = clean_polyline(xy, fit.min_segment, fit.max_segment)
@@ -180,7 +201,7 @@ def fit_within(xy, tolerance: float = FIT_TOLERANCE_DEFAULT, base: LineFit = LIN
             break
         for j in set(lin) | set(out):  # the constraints linearised at the line they bind
             lin[j] = (float(u_q[j]), n[j].copy())
-        curve, _ = _band_solve(knots, lhs, rhs, np.asarray(free.c), q, lin, BAND_MARGIN * tolerance,
-                               length > SMOOTHING)
+        curve, _ = _band_solve(knots, lhs, rhs, np.asarray(free.c), q, lin,
+                               BAND_MARGIN * np.broadcast_to(tolerance, len(q)), length > SMOOTHING, max_steps)
     line = ReferenceLine.from_curve(pts, curve)
     return line, length, deviation(line, xy)

@@ -186,8 +186,7 @@ def _reference(net_file: str, route: tuple, lane: int, tolerance: float | None, 
     if key not in _REFERENCE_CACHE:
         from . import road_cache
         from ..road.line_pack import packed
-        from ..road.smoothing import (FIT_SETTINGS, FIT_TOLERANCE_DEFAULT, SMOOTHING, fit_within,
-                                      lane_tolerance)
+        from ..road.smoothing import FIT_SETTINGS, FIT_TOLERANCE_DEFAULT, fit_within, lane_tolerance
 
         disk_key = road_cache.entry_key(net_file, route, lane, tolerance, FIT_SETTINGS)
         got = road_cache.load(disk_key)
@@ -197,7 +196,7 @@ def _reference(net_file: str, route: tuple, lane: int, tolerance: float | None, 
             if tolerance is None:  # the default: the lane's band on a coarse polyline
                 band = lane_tolerance(min(net.getLane(x).getWidth() for x in lanes if not x.startswith(":")))
                 line, length, dev = fit_within(xy, FIT_TOLERANCE_DEFAULT, lane_band=band)
-                tolerance = FIT_TOLERANCE_DEFAULT if length == SMOOTHING else max(FIT_TOLERANCE_DEFAULT, band)
+                tolerance = FIT_TOLERANCE_DEFAULT
             else:
                 line, length, dev = fit_within(xy, tolerance)
             got = (lanes, line, {"smoothing_length_m": length, "max_deviation_m": dev,
@@ -231,10 +230,13 @@ def slot_offsets(sc: Scenario, road: Road, lane_shift: int = 0) -> np.ndarray:
 
 def lane_band_slack(road: Road) -> float:
     """How far a body may reach past SUMO's road edge [m]: as far as the reference line of a
-    coarsely drawn road may leave the lane centre beyond the default 0.6 m (road/coarse.py:
-    the lane's band, where the road's curve lies between the chords)."""
-    from ..road.smoothing import FIT_TOLERANCE_DEFAULT
-    return max(0.0, (road.fit or {}).get("tolerance_m", FIT_TOLERANCE_DEFAULT) - FIT_TOLERANCE_DEFAULT)
+    coarsely drawn road leaves the polyline beyond its tolerance (road/coarse.py: where the
+    road's curve lies between the chords, the line lies between them too)."""
+    from ..road.smoothing import SMOOTHING
+    fit = road.fit or {}
+    if fit.get("smoothing_length_m", SMOOTHING) <= SMOOTHING:
+        return 0.0
+    return max(0.0, fit["max_deviation_m"] - fit["tolerance_m"])
 
 
 def check_slots(sc: Scenario, road: Road, slots: np.ndarray, vehicles: list[VehicleParams], source,
