@@ -26,7 +26,7 @@ SMOOTHING = 160.0
 """Smallest smoothing length of the fit [m] (wavelength of half response)."""
 SPACING_FACTOR = 6.0
 """The smoothing length is at least this many times the spacing of the polyline's corners
-(:func:`smoothing_length`): their wave (wavelength = spacing) passes at < 2e-5 [-]."""
+(:func:`smoothing_length`): their wave (wavelength = spacing) passes at 6^-10 ~ 2e-8 [-]."""
 SPACING_QUANTILE = 0.9
 """Quantile of the corners' spacings that sets the smoothing length [-]."""
 CORNER_MIN_DEG = 0.2

@@ -27,7 +27,13 @@ with a peak curvature of 2.28 delta / L at 6 deg and 2.57 delta / L at 8 deg
 (tests/test_line_band.py).
 
 A line whose free fit stays in the band (every bundled network: curves sampled every 4 m) is
-that fit, unchanged. Measured on LuST (tests/test_realnet.py, docs/sumo.md "Real networks").
+that fit, unchanged.
+
+Given ``lane_band`` (the default ``road.fit_tolerance``), a polyline drawn with shape points far
+apart (road/coarse.py ``is_coarse``: a 1,200 m arc with a point every 170 m, its chords 3.0 m
+inside it) gets a smoothing length of 6 times its corners' spacing and, segment by segment, the
+band its chords need, up to ``lane_band``: the road's curvature, not its corners
+(docs/sumo.md, "Roads drawn with shape points far apart"). Measured on LuST (tests/test_realnet.py, docs/sumo.md "Real networks").
 """
 from __future__ import annotations
 
