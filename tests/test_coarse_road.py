@@ -116,3 +116,43 @@ def test_a_road_drawn_every_60_m_keeps_the_160_m_fit():
     line, length, _ = fit_within(xy, 0.6, lane_band=1.4)
     fixed, _, _ = fit_within(xy, 0.6)
     assert length == 160.0 and np.array_equal(line.coef, fixed.coef)
+
+
+def _arc_polyline(radius: float = R) -> np.ndarray:
+    """The arc of :func:`coarse_arc` as a plain polyline (straights, then a shape point every
+    170 m) [m]."""
+    pts = [(-STRAIGHT, 0.0)] + [(radius * math.sin(k * SPACING / R), radius - radius * math.cos(k * SPACING / R))
+                                for k in range(N_CHORDS + 1)]
+    a = N_CHORDS * SPACING / R
+    pts.append((pts[-1][0] + STRAIGHT * math.cos(a), pts[-1][1] + STRAIGHT * math.sin(a)))
+    return np.array(pts)
+
+
+def test_the_coarse_fit_has_the_arcs_curvature_within_the_lanes_band():
+    """Without SUMO: the line's curvature 1.3 km into the arc is 1/R within 1 % (the 160 m fit
+    within 0.6 m swings between -0.9 and +2.9 times 1/R), and the line keeps within the lane's
+    band (1.55 m: 3.5 m lanes) of the chords, 1.504 m being the least any line of that curvature
+    can keep (R sin(170 m / 2R)^2 / 2 ~ 1.504 m)."""
+    from formation_traci.road.coarse import chord_offsets, lane_tolerance
+    from formation_traci.road.smoothing import deviation, fit_within
+    xy = _arc_polyline()
+    band = lane_tolerance(3.5)
+    line, length, dev = fit_within(xy, 0.6, lane_band=band)
+    assert length == 800.0 and max(chord_offsets(xy.tolist())) == pytest.approx(1.504, abs=0.002)
+    assert dev <= band + 0.01 and deviation(line, xy) == dev
+    s = np.linspace(STRAIGHT + 600.0, STRAIGHT + 1900.0, 2001)
+    np.testing.assert_allclose(line.curvature(s), 1.0 / R, rtol=0.01)
+    fixed, _, _ = fit_within(xy, 0.6)
+    k = fixed.curvature(s) * R
+    assert k.min() < -0.5 and k.max() > 2.5
+
+
+def test_lanes_narrower_than_the_chords_need_keep_the_160_m_fit():
+    """3.2 m lanes allow 1.4 m, the chords need 1.51 m: the line is the 160 m fit within 0.6 m,
+    bit for bit (a line held within 1.4 m bends at the corners anyway)."""
+    from formation_traci.road.coarse import lane_tolerance
+    from formation_traci.road.smoothing import fit_within
+    xy = _arc_polyline()
+    line, length, _ = fit_within(xy, 0.6, lane_band=lane_tolerance(3.2))
+    fixed, _, _ = fit_within(xy, 0.6)
+    assert length == 160.0 and np.array_equal(line.coef, fixed.coef)
