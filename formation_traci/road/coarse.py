@@ -7,12 +7,11 @@ driving straight between them) lies ``kappa l^2 / 8`` off each chord's midpoint:
 R = 1,200 m and l = 170 m. A line of that curvature stays within half of it of the polyline
 (an arc concentric with the road, the vertices that far outside it, the chord midpoints that
 far inside); a line held closer must bend at the shape points, a wave of the spacing's
-wavelength. On a polyline whose corners are more than ~27 m apart (90 % of them closer) the
-fit's smoothing length is :data:`SPACING_FACTOR` times that spacing, so the corners' wave
-is smoothed away, and the band of each segment is widened to what its chord needs
-(:func:`band_widths`), at most to the lane's (:func:`lane_tolerance`), so the road's curve fits
-in it (:func:`is_coarse` says which polylines are fitted so). SUMO's own curves (sampled every few metres) and straights keep the
-160 m fit.
+wavelength. On a coarse polyline (:func:`is_coarse`) the fit's smoothing length is
+:data:`SPACING_FACTOR` times its corners' spacing, so the corners' wave is smoothed away, and
+the band of each segment is widened to what its chord needs (:func:`band_widths`), at most to
+the lane's (:func:`lane_tolerance`), so the road's curve fits in it. SUMO's own curves
+(sampled every few metres) and straights keep the 160 m fit.
 
 Everything here runs in plain Python floats (the same bits on every processor).
 """
@@ -39,7 +38,7 @@ KNOTS_PER_SMOOTHING = 40.0
 ``(L / 2 pi h)^10``, and with it the system's condition, stay those of the 160 m fit on 4 m
 knots."""
 WIDEN = 1.1
-"""A segment's band is at least this times what its chord needs (:func:`chord_offset`) [-]: the
+"""A segment's band is at least this times what its chord needs (:func:`chord_offsets`) [-]: the
 concentric arc, and a tenth more for the line to vary."""
 LANE_MARGIN = 0.2
 """The band is widened to half the narrowest lane's width less this at most [m]
