@@ -27,7 +27,13 @@ with a peak curvature of 2.28 delta / L at 6 deg and 2.57 delta / L at 8 deg
 (tests/test_line_band.py).
 
 A line whose free fit stays in the band (every bundled network: curves sampled every 4 m) is
-that fit, unchanged. Measured on LuST (tests/test_realnet.py, docs/sumo.md "Real networks").
+that fit, unchanged.
+
+Given ``lane_band`` (the default ``road.fit_tolerance``), a polyline drawn with shape points far
+apart (road/coarse.py ``is_coarse``: a 1,200 m arc with a point every 170 m, its chords 3.0 m
+inside it) gets a smoothing length of 6 times its corners' spacing and, segment by segment, the
+band its chords need, up to ``lane_band``: the road's curvature, not its corners
+(docs/sumo.md, "Roads drawn with shape points far apart"). Measured on LuST (tests/test_realnet.py, docs/sumo.md "Real networks").
 """
 from __future__ import annotations
 
@@ -37,30 +43,41 @@ import numpy as np
 
 from .geometry import LINE_FIT_DEFAULT, LineFit, ReferenceLine, clean_polyline
 from .band_qp import box_forces
+from .coarse import (KNOTS_PER_SMOOTHING, SETTINGS as COARSE_SETTINGS, SMOOTHING, band_widths,  # noqa: F401
+                     is_coarse, lane_tolerance, smoothing_length)
 from .line_fit import _DEGREE, chord_lengths, pspline_system, solve_banded_spd, solve_pspline
 
 FIT_TOLERANCE_DEFAULT = 0.6
-"""Largest lateral distance of the reference line from SUMO's lane centre [m] (road.fit_tolerance)."""
-SMOOTHING = 160.0
-"""Smoothing length of the fit [m] (wavelength of half response)."""
+"""Largest lateral distance of the reference line from SUMO's lane centre [m] (road.fit_tolerance's
+default on a finely drawn road; on a coarse one the default is the lane's band, road/coarse.py)."""
 BAND_SPACING = 5.0
 """Largest spacing of the points the tolerance is checked at along a polyline segment [m]."""
 BAND_MARGIN = 0.98
 """The constraints hold the line within this fraction of the tolerance [-] (the rest absorbs
 their linearisation)."""
+RIDGE = 1e-9
+"""Added to the diagonal of the constraints' matrix, relative to its largest entry [-]: a
+constraint yields by ``RIDGE * max(M_jj) * lam_j`` (nanometres), and bound points too close
+together for the fit to tell apart stay solvable."""
 BAND_ROUNDS = 8
 """Most linearisations of the band constraints."""
-FIT_SETTINGS = repr((LINE_FIT_DEFAULT, SMOOTHING, BAND_SPACING, BAND_MARGIN, BAND_ROUNDS))
+COARSE_STEPS = 1000
+"""Most bounds of the band's quadratic programme on a coarse polyline (more: the lane's band is
+narrower than its chords need, and the 160 m fit within the tolerance is used) [-]."""
+COARSE_SLACK = 0.05
+"""A coarse polyline's long fit is used if within the lane's band plus this [m]."""
+FIT_SETTINGS = repr((LINE_FIT_DEFAULT, COARSE_SETTINGS, BAND_SPACING, BAND_MARGIN, RIDGE, BAND_ROUNDS,
+                     COARSE_STEPS, COARSE_SLACK))
 """The settings of :func:`fit_within` beyond the tolerance (part of the road cache's key)."""
 _NEWTON_STEPS = 6
 """Newton steps of the projection of the band's points onto c(u), from their chord length."""
 
 
-def band_points(xy, min_segment: float = LINE_FIT_DEFAULT.min_segment) -> tuple[np.ndarray, np.ndarray]:
+def band_points(xy, min_segment: float = LINE_FIT_DEFAULT.min_segment, parts: bool = False):
     """The points the tolerance is checked at: the polyline's vertices and, on each segment,
     the points that cut it into ``2 ceil(length / (2 BAND_SPACING))`` equal pieces (its
     midpoint among them), (m, 2) [m] in driving order, and their chord length along the
-    polyline (m,) [m]."""
+    polyline (m,) [m]; with ``parts``, also each point's segment (m,) and fraction along it."""
     p = clean_polyline(xy, min_segment, 1e9)
     u = chord_lengths(p)
     seg = np.diff(u)
@@ -70,7 +87,7 @@ def band_points(xy, min_segment: float = LINE_FIT_DEFAULT.min_segment) -> tuple[
     f[-1] = 1.0
     a, b = p[i], p[i + 1]
     pts = a + f[:, None] * (b - a)
-    return pts, u[i] + f * seg[i]
+    return (pts, u[i] + f * seg[i], i, f) if parts else (pts, u[i] + f * seg[i])
 
 
 def deviation(line: ReferenceLine, xy) -> float:
@@ -104,9 +121,10 @@ def _normal_offset(curve, d1, q: np.ndarray, u: np.ndarray):
     return c, n, n[:, 0] * (q[:, 0] - c[:, 0]) + n[:, 1] * (q[:, 1] - c[:, 1])
 
 
-def _band_solve(knots, lhs, rhs, c0, q, lin: dict, edge: float):
+def _band_solve(knots, lhs, rhs, c0, q, lin: dict, edge: np.ndarray, ridge: bool, max_steps: int):
     """The fit of the system (knots, lhs, rhs) closest to the free fit ``c0`` (n_coef, 2)
-    with ``|n_j . (c(u_j) - q_j)| <= edge`` at the points lin = {j: (u_j, n_j)} (band_qp.py);
+    with ``|n_j . (c(u_j) - q_j)| <= edge_j`` at the points lin = {j: (u_j, n_j)} (band_qp.py;
+    ``ridge``: :data:`RIDGE` added, for smoothing lengths above 160 m);
     returns the spline and the forces {j: lam_j}."""
     from scipy.interpolate import BSpline
 
@@ -121,7 +139,12 @@ def _band_solve(knots, lhs, rhs, c0, q, lin: dict, edge: float):
     at = np.asarray(rows @ c0)
     w0 = nrm[:, 0] * (at[:, 0] - q[keys, 0]) + nrm[:, 1] * (at[:, 1] - q[keys, 1])
     m = len(keys)
-    lam = box_forces((gram * cos).tolist(), w0.tolist(), [-edge] * m, [edge] * m)
+    M = (gram * cos).tolist()
+    ridge = RIDGE * max(M[k][k] for k in range(m)) if ridge else 0.0
+    for k in range(m):  # points a few metres apart on a long smoothing length: near-dependent
+        M[k][k] += ridge
+    hi = [float(edge[j]) for j in keys]
+    lam = box_forces(M, w0.tolist(), [-x for x in hi], hi, max_steps)
     force = np.zeros((m, 2))
     for k, v in lam.items():
         force[k] = v * nrm[k]
@@ -129,19 +152,48 @@ def _band_solve(knots, lhs, rhs, c0, q, lin: dict, edge: float):
     return curve, {keys[k]: v for k, v in lam.items()}
 
 
-def fit_within(xy, tolerance: float = FIT_TOLERANCE_DEFAULT,
-               base: LineFit = LINE_FIT_DEFAULT) -> tuple[ReferenceLine, float, float]:
-    """The 160 m P-spline of the polyline ``xy`` (n, 2) [m], held within ``tolerance`` [m]
-    of it (module docstring).
+def fit_within(xy, tolerance: float = FIT_TOLERANCE_DEFAULT, base: LineFit = LINE_FIT_DEFAULT,
+               lane_band: float | None = None) -> tuple[ReferenceLine, float, float]:
+    """The P-spline of the polyline ``xy`` (n, 2) [m], held within a band of it (module
+    docstring).
+
+    Parameters
+    ----------
+    tolerance : float
+        The band [m]: the 160 m fit held within it everywhere.
+    lane_band : float or None
+        If given [m], a coarse polyline (road/coarse.py ``smoothing_length`` above 160 m) gets
+        that smoothing length and ``max(tolerance, lane_band)`` as its band instead; a finely
+        drawn one is fitted as without it.
 
     Returns
     -------
     line, smoothing_length, deviation
         The fitted line, the smoothing length used [m] and its largest distance from the
-        polyline's vertices and segment midpoints [m] (above the tolerance only if
+        polyline's points of :func:`band_points` [m] (above the band only if
         :data:`BAND_ROUNDS` linearisations did not bring every point within it).
     """
-    fit = LineFit(SMOOTHING, base.knot_spacing, base.max_segment, base.min_segment)
+    if lane_band is not None:
+        corners = clean_polyline(xy, base.min_segment, 1e9).tolist()
+        if is_coarse(corners, BAND_MARGIN * tolerance, BAND_MARGIN * max(tolerance, lane_band)):
+            length = smoothing_length(corners)
+            _, _, seg, frac = band_points(xy, base.min_segment, parts=True)
+            band = band_widths(corners, seg, frac, tolerance, max(tolerance, lane_band))
+            try:
+                got = _fit_band(xy, band, base, length, COARSE_STEPS)
+            except ValueError:  # the band cannot hold a smooth line: the chords' own fit
+                got = None
+            if got is not None and got[2] <= float(band.max()) + COARSE_SLACK:
+                return got
+    return _fit_band(xy, tolerance, base, SMOOTHING, 2000)
+
+
+def _fit_band(xy, tolerance, base: LineFit, length: float, max_steps: int):
+    """:func:`fit_within` at the smoothing ``length`` [m] within ``tolerance`` [m] (a float, or
+    one per point of :func:`band_points`); the band's quadratic programme gives up after
+    ``max_steps`` bounds (ValueError)."""
+    fit = LineFit(length, max(base.knot_spacing, length / KNOTS_PER_SMOOTHING), base.max_segment,
+                  base.min_segment)
     pts = clean_polyline(xy, fit.min_segment, fit.max_segment)
     knots, lhs, rhs = pspline_system(chord_lengths(pts), pts, fit)
     q, u_chord = band_points(xy, fit.min_segment)
@@ -155,6 +207,7 @@ def fit_within(xy, tolerance: float = FIT_TOLERANCE_DEFAULT,
             break
         for j in set(lin) | set(out):  # the constraints linearised at the line they bind
             lin[j] = (float(u_q[j]), n[j].copy())
-        curve, _ = _band_solve(knots, lhs, rhs, np.asarray(free.c), q, lin, BAND_MARGIN * tolerance)
+        curve, _ = _band_solve(knots, lhs, rhs, np.asarray(free.c), q, lin,
+                               BAND_MARGIN * np.broadcast_to(tolerance, len(q)), length > SMOOTHING, max_steps)
     line = ReferenceLine.from_curve(pts, curve)
-    return line, SMOOTHING, deviation(line, xy)
+    return line, length, deviation(line, xy)

@@ -30,8 +30,10 @@ class RoadSpec(Strict):
     lane: int = Field(1, ge=0, description="reference lane index the virtual car follows (0 = rightmost)")
     start: NonNegFloat = Field(200.0, description="virtual car's arc length along the route at t = 0 [m]")
     end_margin: NonNegFloat = Field(150.0, description="the run stops when the formation's front is this close to the route end [m]")
-    fit_tolerance: PosFloat = Field(0.6, description="largest distance of the fitted reference line from SUMO's "
-                                    "lane centre [m]; the smoothest fit within it is used (road/smoothing.py)")
+    fit_tolerance: PosFloat | None = Field(None, description="largest distance of the fitted reference line from SUMO's "
+                                           "lane centre [m]: the 160 m fit held within it (road/smoothing.py); default: "
+                                           "0.6, and on a coarsely drawn road a longer fit within half the narrowest "
+                                           "lane less 0.2 m (road/coarse.py)")
 
 
 class FlowSpec(Strict):

@@ -40,7 +40,7 @@ from ..versions import installed_versions
 
 ENV = "FORMATION_TRACI_CACHE"
 """Environment variable: the cache directory, or ``off``."""
-_CODE = ("road/geometry.py", "road/line_fit.py", "road/smoothing.py", "road/band_qp.py",
+_CODE = ("road/geometry.py", "road/line_fit.py", "road/smoothing.py", "road/coarse.py", "road/band_qp.py",
          "road/bernstein.py", "road/line_pack.py", "road/fast_line.py", "road/lanes.py", "kernels.py",
          "sumo/road_cache.py", "sumo/road_setup.py")
 """Modules whose source is part of the key (paths below the package)."""
@@ -90,12 +90,12 @@ def _cpu_features() -> str:
     return ",".join(sorted(name for name, on in features.items() if on))
 
 
-def entry_key(net_file: str, route: tuple, lane: int, tolerance: float, settings: str) -> str:
+def entry_key(net_file: str, route: tuple, lane: int, tolerance: float | None, settings: str) -> str:
     """sha256 of everything the fitted line depends on (module docstring); ``settings``:
     the repr of the fit settings (road/smoothing.py)."""
     h = hashlib.sha256()
     h.update(Path(net_file).read_bytes())
-    h.update(json.dumps([list(route), int(lane), repr(float(tolerance)), settings,
+    h.update(json.dumps([list(route), int(lane), repr(None if tolerance is None else float(tolerance)), settings,
                          _code_digest()]).encode())
     return h.hexdigest()
 

@@ -180,21 +180,28 @@ def build_road(sc: Scenario, source: Path | None) -> Road:
 _REFERENCE_CACHE: dict = {}
 
 
-def _reference(net_file: str, route: tuple, lane: int, tolerance: float, net):
+def _reference(net_file: str, route: tuple, lane: int, tolerance: float | None, net):
     """Geometric lanes of the reference lane along the route, and the line fitted to them
-    within ``tolerance`` [m] (road/smoothing.py); kept per network file (and its mtime),
+    within ``tolerance`` [m] (None: the default band, widened to the lane's on a coarse
+    polyline; road/smoothing.py, road/coarse.py); kept per network file (and its mtime),
     route, lane and tolerance in the process, and on disk (sumo/road_cache.py)."""
     key = (net_file, os.stat(net_file).st_mtime_ns, route, lane, tolerance)
     if key not in _REFERENCE_CACHE:
         from . import road_cache
         from ..road.line_pack import packed
-        from ..road.smoothing import FIT_SETTINGS, fit_within
+        from ..road.smoothing import FIT_SETTINGS, FIT_TOLERANCE_DEFAULT, fit_within, lane_tolerance
 
         disk_key = road_cache.entry_key(net_file, route, lane, tolerance, FIT_SETTINGS)
         got = road_cache.load(disk_key)
         if got is None:
             lanes = geometric_route_lanes(net, route, lane)
-            line, length, dev = fit_within(geometric_route_shape(net, route, lane), tolerance)
+            xy = geometric_route_shape(net, route, lane)
+            if tolerance is None:  # the default: the lane's band on a coarse polyline
+                band = lane_tolerance(min(net.getLane(x).getWidth() for x in lanes if not x.startswith(":")))
+                line, length, dev = fit_within(xy, FIT_TOLERANCE_DEFAULT, lane_band=band)
+                tolerance = FIT_TOLERANCE_DEFAULT
+            else:
+                line, length, dev = fit_within(xy, tolerance)
             got = (lanes, line, {"smoothing_length_m": length, "max_deviation_m": dev,
                                  "tolerance_m": tolerance})
             road_cache.store(disk_key, lanes, line, packed(line), got[2])
@@ -224,14 +231,26 @@ def slot_offsets(sc: Scenario, road: Road, lane_shift: int = 0) -> np.ndarray:
     return np.array(out, dtype=float)
 
 
+def lane_band_slack(road: Road) -> float:
+    """How far a body may reach past SUMO's road edge [m]: as far as the reference line of a
+    coarsely drawn road leaves the polyline beyond its tolerance (road/coarse.py: where the
+    road's curve lies between the chords, the line lies between them too)."""
+    from ..road.smoothing import SMOOTHING
+    fit = road.fit or {}
+    if fit.get("smoothing_length_m", SMOOTHING) <= SMOOTHING:
+        return 0.0
+    return max(0.0, fit["max_deviation_m"] - fit["tolerance_m"])
+
+
 def check_slots(sc: Scenario, road: Road, slots: np.ndarray, vehicles: list[VehicleParams], source,
                 s_max: float | None = None) -> None:
     """A slot must keep the member's body (``vehicles``, one per member) on the road
     everywhere the formation will drive (up to the virtual car's arc length ``s_max`` [m]
-    when maneuvers change the slots there)."""
+    when maneuvers change the slots there), less :func:`lane_band_slack`."""
     problems = []
+    slack = lane_band_slack(road)
     for i, m in enumerate(sc.members):
-        half = vehicles[i].width / 2
+        half = vehicles[i].width / 2 - slack
         if m.slot is None:
             continue
         dx, dy = slots[i]
