@@ -113,3 +113,15 @@ def test_a_merge_mode_the_tool_does_not_have_is_bad_input(tmp_path, value):
         load_scenario(p)
     code, text = cli("run", p, "--out", tmp_path / "out")
     assert code == 2 and "cooperation.merge" in text and not (tmp_path / "out").exists()
+
+
+def test_a_sweep_row_sums_the_ramp_vehicles_over_the_formations_and_weights_their_means():
+    from formation_traci.sweep.row import merge_values
+
+    meta = {"merges": {"mode": "open_gap", "by_formation": {
+        "a": {"ramp_vehicles": 3, "merged_before_lane_end": 2, "ramp_speed_loss_mps": 4.0, "ramp_wait_s": 1.0},
+        "b": {"ramp_vehicles": 1, "merged_before_lane_end": 1, "ramp_speed_loss_mps": 8.0, "ramp_wait_s": 0.0},
+        "c": {"ramp_vehicles": 0, "merged_before_lane_end": 0, "ramp_speed_loss_mps": None, "ramp_wait_s": None}}}}
+    assert merge_values(meta) == {"ramp_vehicles": 4, "ramp_merged_before_lane_end": 3,
+                                  "ramp_speed_loss_mps": 5.0, "ramp_wait_s": 0.75}
+    assert set(merge_values({}).values()) == {None}

@@ -214,7 +214,20 @@ def _incidents(meta: dict) -> dict[str, Any]:
     due = sum(int(c.get("requested") or 0) for c in flows.values())
     out["formation_shortfall"] = (1.0 - sum(int(c.get("inserted") or 0) for c in flows.values()) / due
                                   if due else (0.0 if flows else None))
-    return out
+    return {**out, **merge_values(meta)}
+
+
+def merge_values(meta: dict) -> dict[str, Any]:
+    """run.json ``merges`` over the formations (None without on-ramps or ramp vehicles): the
+    ramp vehicles' count, those that merged before the lane end, their mean speed loss and
+    wait (weighted by each formation's count)."""
+    seen = [m for m in ((meta.get("merges") or {}).get("by_formation") or {}).values() if m.get("ramp_vehicles")]
+    n = sum(int(m["ramp_vehicles"]) for m in seen)
+    if not n:
+        return dict.fromkeys(("ramp_vehicles", "ramp_merged_before_lane_end", "ramp_speed_loss_mps", "ramp_wait_s"))
+    mean = (lambda k: sum(float(m[k]) * int(m["ramp_vehicles"]) for m in seen) / n)  # noqa: E731
+    return {"ramp_vehicles": n, "ramp_merged_before_lane_end": sum(int(m["merged_before_lane_end"]) for m in seen),
+            "ramp_speed_loss_mps": mean("ramp_speed_loss_mps"), "ramp_wait_s": mean("ramp_wait_s")}
 
 
 def summary_frame(rows: list[dict], swept: dict[str, str]) -> pd.DataFrame:
