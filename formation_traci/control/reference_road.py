@@ -192,6 +192,20 @@ class RoadReference:
         self._has_prev = False
         self.ramp = bool(ramp)  # leader.accel_within_step == "ramp" (docs/model.md)
 
+    @property
+    def v_prev(self) -> np.ndarray:
+        """The members' speeds at the previous step [m/s] (updated in place every step)."""
+        return self._v_prev
+
+    @property
+    def has_prev(self) -> bool:
+        """A previous step's :attr:`v_prev` exists."""
+        return self._has_prev
+
+    @has_prev.setter
+    def has_prev(self, value: bool) -> None:
+        self._has_prev = bool(value)
+
     def plan(self, t: float, sensed) -> list:
         """What the world must do before this step's reference (control/reference.py
         WorldCommand): nothing without maneuvers."""

@@ -31,6 +31,7 @@ from ..models.state import DYNAMIC, KINEMATIC, motion_at
 from ..record.columns import SIGNAL_COLUMNS
 from .fleet_laws import fallback_switches, law_kernels, pack_laws
 from .fleet_rows import period_table_rows, signal_table_rows
+from .fleet_records import FleetParams, as_f64 as _f64, state_record
 from .fleet_state import FleetState
 
 _KERNEL_SIGNALS = ("x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "ex", "ey",
@@ -283,14 +284,6 @@ def _cap_from(ref: Reference) -> np.ndarray:
     return _f64(ref.a_cap if ref.a_cap_from is None else ref.a_cap_from)
 
 
-def _f64(a) -> np.ndarray:
-    """a as a C-contiguous, writeable float64 array (no copy when it already is one)."""
-    if (type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous
-            and a.flags.writeable):
-        return a
-    return np.array(a, dtype=np.float64, order="C")
-
-
 class Fleet:
     """A FleetConfig packed once into the kernels' per-member arrays.
 
@@ -362,7 +355,18 @@ class Fleet:
 
     def _u_last(self, state: FleetState) -> np.ndarray:
         """state.u_last as the kernels take it (zeros when nothing was computed yet)."""
-        return np.zeros(self.cfg.n) if state.u_last is None else _f64(state.u_last)
+        return state_record(state).u_last
+
+    def params(self, dt_c: float) -> FleetParams:
+        """The members' parameters as the kernels take them at control period dt_c [s]."""
+        return FleetParams(self.kind, self.P, self.law, self.L, self.gains, self.pred,
+                           self.n_sub(dt_c), float(dt_c))
+
+    @property
+    def package_laws(self) -> bool:
+        """Every law of the members is one of the package's own (no law added at run time:
+        sim/fleet_laws.py law_kernels)."""
+        return self._step is step_members
 
     def signals(self, state: FleetState, ref: Reference, out: np.ndarray | None = None):
         """The recorded member columns at the start of the step (SIGNAL_COLUMNS order)."""

@@ -59,7 +59,7 @@ class FormationGroup:
         self.a_vc = np.array([g.longitudinal.a_vc for g in gens])
         self.emergency_vc = np.zeros(len(gens), dtype=np.bool_)
         self.a_cap_prev = cat(lambda g: g.longitudinal.a_cap)
-        self.v_prev, self.emergency = cat(lambda g: g._v_prev), cat(lambda g: g.longitudinal.emergency)
+        self.v_prev, self.emergency = cat(lambda g: g.v_prev), cat(lambda g: g.longitudinal.emergency)
         self.has_prev = np.zeros(len(gens), dtype=np.bool_)
         self.reach = np.array([g.reach for g in gens])
         self.end_margin = np.array([g.end_margin for g in gens])
@@ -68,6 +68,12 @@ class FormationGroup:
         self.depart = np.array([f.depart for f in forms], dtype=float)
         self.counts = np.diff(self.starts)
         self._held = None  # every row's held state (a parked formation's rows), at the first settle
+
+    @property
+    def held_state(self):
+        """Every row's held state (sim/fleet_state.py FleetState; a parked formation's rows),
+        None before the first :meth:`settle`."""
+        return self._held
 
     def _sync(self, i: int) -> None:
         """Formation i's status and departure time after depart_due or retire_formation."""

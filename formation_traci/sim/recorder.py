@@ -12,6 +12,7 @@ from ..record.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, DEFAULT_FORMA
                               VIRTUAL_CAR_ID)
 from ..record.writer import ChunkedTable
 from .table_cuts import TableCuts
+from .table_records import TableBuffers
 from .incident_log import INCIDENT_EVENT_KINDS, IncidentLog
 
 
@@ -113,6 +114,20 @@ class Recorder(TableCuts):
             self._bg_floats = bg.block([c.name for c in BACKGROUND_COLUMNS if c.dtype == "float64"])
             self._bg_ints = bg.block([c.name for c in BACKGROUND_COLUMNS if c.dtype != "float64"])
             self._bg_key, self._bg_codes = ((), (), ()), None
+
+    @property
+    def buffers(self) -> TableBuffers:
+        """The tables' buffers as the compiled step takes them (sim/table_records.py)."""
+        bg = self.background is not None
+        return TableBuffers(self._sig_limits, self._float_block, self._traj_ids, self._cf_block,
+                            self._cf_ids, self._comfort_from, self._extra_block, self._vc_at,
+                            self.vc_codes, self._bg_floats if bg else np.empty((0, 0)),
+                            self._bg_ints if bg else np.empty((0, 0), dtype=np.int32))
+
+    @property
+    def any_out(self) -> bool:
+        """A signal was beyond the recorder's limits at the last recorded step."""
+        return self._any_out
 
     def tables(self) -> dict:
         """The run's tables by name (SSM only once SUMO has written its file)."""

@@ -216,6 +216,15 @@ class SumoWorld(MemberHandover, MemberRows):
             kin = self._kin = (state, *self.fleet.kinematics(state))
         return kin[1:]
 
+    @property
+    def nb_guess(self):
+        """The neighbours' arc lengths at the last sense (sumo/sense.py NeighbourGuess)."""
+        return self._nb_guess
+
+    def placed(self, state, pos, vel, heading) -> None:
+        """The kinematics of ``state``, just placed: the next sense's (:meth:`_kinematics`)."""
+        self._kin = (state, pos, vel, heading)
+
     def sense(self, k: int, t: float, state) -> Sensed:
         pos, vel, heading = self._kinematics(state)
         self._kin = None  # adopt may write into this state after sense
@@ -307,7 +316,7 @@ class SumoWorld(MemberHandover, MemberRows):
             return None, "", f"no member left in SUMO at t = {t:.2f} s"
         return None
 
-    def _subscribe_contexts(self) -> None:
+    def subscribe_contexts(self) -> None:
         """One context subscription per formation with members in SUMO, on a member near its
         middle (sumo/zone.py), renewed when that member left."""
         here = self.active & self.in_sumo if len(self.groups) > 1 else self.active
@@ -379,7 +388,7 @@ class SumoWorld(MemberHandover, MemberRows):
             ad.set_true_speeds([self.sumo_ids[i] for i in act_idx], self.v_after[act_idx],
                                self.a_mean[act_idx])
         if not self.all_bg and self.active.any():
-            self._subscribe_contexts()
+            self.subscribe_contexts()
         self.inserted = True
         if self.all_bg:
             ad.subscribe_departed()

@@ -1,0 +1,54 @@
+"""The records the compiled road references take (control/reference_road.py,
+control/reference_group.py, sumo/fused_step.py): named tuples of arrays, read by field name
+in the kernels. k formations of n members in all; a formation's rows ``starts[f]`` ..
+``starts[f + 1]`` of the member arrays."""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+class GroupPlan(NamedTuple):
+    """The formations' fixed reference data over a run (sim/formation_group.py
+    FormationGroup.plan; one formation: sumo/fused_refs.py OneFormation)."""
+
+    profs: np.ndarray  # joined speed profiles (control/virtual_car.py knot_profile_at)
+    prof_at: np.ndarray  # (k + 1,) formation f's profile profs[prof_at[f]:prof_at[f + 1]]
+    along: np.ndarray  # (n,) slot ahead of the virtual car along the line [m]
+    slot_d: np.ndarray  # (n,) road-frame slot across the line [m]
+    is_road: np.ndarray  # (n,) road-frame slot (else vehicle frame)
+    half_w: np.ndarray  # (n,) half width [m]
+    starts: np.ndarray  # (k + 1,) each formation's first member row
+    lims: np.ndarray  # (k, 7) GovernorLimits.packed [SI]
+    pps: np.ndarray  # (k, n_pp) PlannerParams.packed [SI]
+    ramps: np.ndarray  # (k,) the virtual car's acceleration ramps within the step
+    frame: np.ndarray  # (n,) slot frame codes (control/reference.py FRAME_ROAD, FRAME_VEHICLE)
+    slots: np.ndarray  # the members' slots (control/reference.py constant_slots) [m]
+    depart: np.ndarray  # (k,) each formation's departure time [s]
+
+
+class PlannerState(NamedTuple):
+    """The references' state between steps, updated in place (control/longitudinal.py)."""
+
+    a_vc: np.ndarray  # (k,) the virtual car's acceleration [m/s^2]
+    emergency_vc: np.ndarray  # (k,) the virtual car on emergency braking
+    has_prev: np.ndarray  # (k,) a previous step's v_prev exists
+    a_cap_prev: np.ndarray  # (n,) the members' caps of the last step [m/s^2]
+    v_prev: np.ndarray  # (n,) the members' speeds at the last step [m/s]
+    emergency: np.ndarray  # (n,) member on emergency braking
+
+
+class ReferenceOut(NamedTuple):
+    """What a step of the references writes (one row per member or formation)."""
+
+    vc: np.ndarray  # (n_ctrl, n, 8) each member's virtual car per control period
+    a_cap_from: np.ndarray  # (n,) the members' caps at the step's start [m/s^2]
+    a_request: np.ndarray  # (k,) the governor's request [m/s^2]
+    s_next: np.ndarray  # (k,) the virtual car's arc length at the step's end [m]
+    v_next: np.ndarray  # (k,) its speed at the step's end [m/s]
+    gap: np.ndarray  # (n,) gap to the leader ahead of each slot [m]
+    lead_idx: np.ndarray  # (n,) that leader's neighbour row (-1: none)
+    a_cap_req: np.ndarray  # (n,) the caps requested [m/s^2]
+    a_cap: np.ndarray  # (n,) the caps in force at the step's end [m/s^2]
+    truth: np.ndarray  # (k, 8) each running formation's virtual car at t (NaN: not running)

@@ -1,0 +1,25 @@
+"""The recorder's table buffers as the compiled step takes them (sim/recorder.py
+Recorder.buffers; sumo/fused_step.py): a named tuple of the same arrays over a run."""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+class TableBuffers(NamedTuple):
+    """The tables' buffers (one row per column, one column per table row)."""
+
+    limits: np.ndarray  # (signal columns,) bound of |signal|: beyond it a row is flagged [SI]
+    traj: np.ndarray  # the trajectory table's float block: t, then the signal columns, ...
+    traj_ids: np.ndarray  # its vehicle_id codes
+    comfort: np.ndarray  # the comfort table's float block
+    comfort_ids: np.ndarray  # its vehicle_id codes
+    comfort_cols: np.ndarray  # signal column of each comfort value
+    extras: np.ndarray  # the trajectory's road and SUMO columns (s, d, lane_index, sumo_gap,
+    # slot, leader_age_s: record/columns.py FILLED_BY_CALLER)
+    vc_cols: np.ndarray  # float-block rows of a virtual car's t, x, y, heading, v, yaw_rate,
+    # a_lon, a_lat, s, d
+    vc_codes: np.ndarray  # (k,) each formation's vehicle_id code
+    bg_floats: np.ndarray  # the background table's float block
+    bg_ints: np.ndarray  # its integer block: id, type and lane codes, lane index
