@@ -52,3 +52,16 @@ class ReferenceOut(NamedTuple):
     a_cap_req: np.ndarray  # (n,) the caps requested [m/s^2]
     a_cap: np.ndarray  # (n,) the caps in force at the step's end [m/s^2]
     truth: np.ndarray  # (k, 8) each running formation's virtual car at t (NaN: not running)
+
+
+class StepReference(NamedTuple):
+    """A step's reference as the members' kernels take it (control/reference.py Reference;
+    sim/fleet.py step_members, member_signals)."""
+
+    G: np.ndarray  # the reference line (road/line_pack.py)
+    frame: np.ndarray  # (n,) slot frame codes
+    vc: np.ndarray  # (n_ctrl, n, 8) each member's virtual car per control period
+    slots: np.ndarray  # the members' slots [m]
+    v_cap: np.ndarray  # (n,) speed caps [m/s] (inf: none)
+    a_cap: np.ndarray  # (n,) acceleration caps at the step's end [m/s^2]
+    a_cap_from: np.ndarray  # (n,) at its start [m/s^2] (control/reference.py cap_at)

@@ -6,6 +6,8 @@ control/formation.py ``rigid_target_at``) or road coordinates (road/targets.py
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..kernels import kernel
@@ -16,6 +18,18 @@ from ..road.targets import road_target_at
 from .formation import V_EPS, rigid_target_at
 from .laws.dispatch import ACC, CACC_PLOEG
 from .reference import FRAME_ROAD
+
+
+class Target(NamedTuple):
+    """A member's desired point in a control period (:func:`law_point_at`): what a control
+    law steers about (control/laws/__init__.py)."""
+
+    px: float  # position x [m]
+    py: float  # position y [m]
+    vx: float  # velocity x [m/s]
+    vy: float  # velocity y [m/s]
+    ax: float  # acceleration x [m/s^2]
+    ay: float  # acceleration y [m/s^2]
 
 
 @kernel
@@ -79,3 +93,15 @@ def law_point_at(law_i, pred_i, frame_i, G, vc, slots, j, i, x, kind, speed_in_i
         return px, py, tvx, tvy, tax, tay
     v, _, _ = motion_at(kind, x, i, speed_in_i)
     return lane_point_at(G, vc, slots, j, i, x[i, S.X], x[i, S.Y], v, px, py, tvx, tvy)
+
+
+@kernel
+def target_at(fleet, state, ref, j, i):
+    """Member i's desired point in control period j (:func:`law_point_at`) as a
+    :class:`Target`; ``fleet``, ``state``, ``ref``: the kernels' records of the members'
+    parameters and state and of the step's reference (sim/fleet_records.py,
+    control/reference_records.py StepReference)."""
+    px, py, tvx, tvy, tax, tay = law_point_at(fleet.law[i], fleet.pred[i], ref.frame[i], ref.G,
+                                              ref.vc, ref.slots, j, i, state.x, fleet.kind,
+                                              state.speed_in[i])
+    return Target(px, py, tvx, tvy, tax, tay)

@@ -12,7 +12,7 @@ from ..record.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, DEFAULT_FORMA
                               VIRTUAL_CAR_ID)
 from ..record.writer import ChunkedTable
 from .table_cuts import TableCuts
-from .table_records import TableBuffers
+from .table_records import SignalRows, TableBuffers
 from .incident_log import INCIDENT_EVENT_KINDS, IncidentLog
 
 
@@ -205,7 +205,7 @@ class Recorder(TableCuts):
             cf.column(name)[sl].reshape(m, n)[:] = vals[:, :, q]
         cf.commit(m * n)
 
-    def signal_rows(self, mask) -> tuple | None:
+    def signal_rows(self, mask) -> SignalRows | None:
         """Where sim/fleet.py member_signals writes the members' rows of the step itself
         (Fleet.signals_into; then :meth:`add_step` with ``written``), or None when it must
         not: a member out of the run (``mask``), a signal out of range at the step before
@@ -215,8 +215,8 @@ class Recorder(TableCuts):
         if (self._any_out or at + n + len(self.vc_codes) > tr.chunk_rows or c_at + n > cf.chunk_rows
                 or (mask is not None and mask.tobytes() != self._all_in)):
             return None
-        return (self._sig_limits, self._float_block, self._traj_ids, at, self._cf_block,
-                self._cf_ids, c_at, self._comfort_from)
+        return SignalRows(self._sig_limits, self._float_block, self._traj_ids, at, self._cf_block,
+                          self._cf_ids, c_at, self._comfort_from)
 
     def add_step(self, t, sig: np.ndarray, extra: dict, mask, truth: np.ndarray,
                  written: bool = False) -> None:

@@ -23,3 +23,23 @@ class TableBuffers(NamedTuple):
     vc_codes: np.ndarray  # (k,) each formation's vehicle_id code
     bg_floats: np.ndarray  # the background table's float block
     bg_ints: np.ndarray  # its integer block: id, type and lane codes, lane index
+
+
+class SignalRows(NamedTuple):
+    """Where sim/fleet.py member_signals writes the members' rows of a step (sim/recorder.py
+    Recorder.signal_rows); ``at`` < 0: nowhere."""
+
+    limits: np.ndarray  # (signal columns,) bound of |signal|: beyond it no row is written [SI]
+    traj: np.ndarray  # the trajectory table's float block
+    traj_ids: np.ndarray  # its vehicle_id codes
+    at: int  # the members' first row of the trajectory buffer
+    comfort: np.ndarray  # the comfort table's float block
+    comfort_ids: np.ndarray  # its vehicle_id codes
+    c_at: int  # the members' first row of the comfort buffer
+    comfort_cols: np.ndarray  # signal column of each comfort value
+
+
+NO_SIGNAL_ROWS = SignalRows(np.empty(0), np.empty((0, 0)), np.empty(0, dtype=np.int32), -1,
+                            np.empty((0, 0)), np.empty(0, dtype=np.int32), -1,
+                            np.empty(0, dtype=np.int64))
+"""member_signals' rows when none are written."""

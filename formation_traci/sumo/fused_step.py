@@ -65,12 +65,14 @@ import math
 import numpy as np
 
 from ..control.reference_group import group_reference_step
+from ..control.reference_records import StepReference
 from ..kernels import kernel, maximum
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
 from ..sim.fleet import kinematics_rows, member_signals, step_members
 from ..sim.fleet_rows import period_table_rows, signal_table_rows
 from ..sim.incidents import member_clearances
+from ..sim.table_records import SignalRows
 from .sense import sense_step
 from .types import cog_to_sumo_rows
 
@@ -113,15 +115,13 @@ def fused_step(fleet, road, plan, planner, ref, tables, inc, out, state, held, s
     for i in range(n):
         out.lead_obs[i] = ref.lead_idx[i] if ref.lead_idx[i] < m else -1
     _background_rows(tables, sensed, at.bg_at, t, nb_x, nb_y, nb_psi, s_all[n:], d_all[n:])
-    v_cap = np.full(n, np.inf)
-    rec_flags, n_act, worst = _record(fleet, road, plan, ref, tables, inc, out, state, sensed,
-                                      at, v_cap, (s_all, d_all))
+    targets = StepReference(road.G, plan.frame, ref.vc, plan.slots, np.full(n, np.inf),
+                            ref.a_cap, ref.a_cap_from)
+    rec_flags, n_act, worst = _record(fleet, road, targets, tables, inc, out, state, sensed, at,
+                                      (s_all, d_all), ref.truth)
     flags |= rec_flags
-    x1, ts1, sp1, ul1 = step_members(x, state.theta_star, speed_in, state.u_last, fleet.kind,
-                                     fleet.P, fleet.law, fleet.L, fleet.gains, fleet.pred,
-                                     road.G, plan.frame, ref.vc, plan.slots, v_cap, ref.a_cap,
-                                     ref.a_cap_from, fleet.dt_c, fleet.n_sub, out.periods, t,
-                                     tables.comfort, tables.comfort_ids, -1)
+    x1, ts1, sp1, ul1 = step_members(fleet, state, targets, out.periods, t, tables.comfort,
+                                     tables.comfort_ids, -1)
     if out.periods.shape[0] > 1:
         period_table_rows(out.periods, t, fleet.dt_c, tables.comfort, tables.comfort_ids,
                           at.c_at + n_act, sensed.active)
@@ -136,24 +136,24 @@ def fused_step(fleet, road, plan, planner, ref, tables, inc, out, state, held, s
 
 
 @kernel
-def _record(fleet, road, plan, ref, tables, inc, out, state, sensed, at, v_cap, sd):
-    """The step's recorded rows (member_signals, the road and SUMO columns, the virtual cars'
-    rows) and the members' clearances; ``sd``: the members' and neighbours' arc lengths and
-    offsets [m]. Returns (OUT_OF_RANGE | SLOW, the members' rows written, the smallest
-    clearance [m])."""
+def _record(fleet, road, targets, tables, inc, out, state, sensed, at, sd, truth):
+    """The step's recorded rows (member_signals on the step's reference ``targets``, the road
+    and SUMO columns, the virtual cars' rows from ``truth``) and the members' clearances;
+    ``sd``: the members' and neighbours' arc lengths and offsets [m]. Returns (OUT_OF_RANGE |
+    SLOW, the members' rows written, the smallest clearance [m])."""
     t = at.t
-    member_signals(state.x, state.theta_star, state.speed_in, state.u_last, fleet.kind, fleet.P,
-                   fleet.law, fleet.L, fleet.gains, fleet.pred, road.G, plan.frame, ref.vc,
-                   plan.slots, v_cap, ref.a_cap, ref.a_cap_from, fleet.dt_c, road.cols, out.sig,
-                   t, tables.limits, tables.traj, tables.traj_ids, -1, tables.comfort,
-                   tables.comfort_ids, at.c_at, tables.comfort_cols)
+    member_signals(fleet, state, targets, road.cols, out.sig, t,
+                   SignalRows(tables.limits, tables.traj, tables.traj_ids, -1, tables.comfort,
+                              tables.comfort_ids, at.c_at, tables.comfort_cols))
     n_act = signal_table_rows(out.sig, t, tables.traj, tables.traj_ids, at.at, tables.comfort,
                               tables.comfort_ids, at.c_at, tables.comfort_cols, sensed.active)
-    flags = _road_columns(out, tables, road, inc, ref, sensed, at, sd[0], sd[1])
+    flags = _road_columns(out, tables, road, inc, truth, sensed, at, sd[0], sd[1])
     c = inc.cols
     worst = member_clearances(out.sig, c[0], c[1], c[2], inc.shift, inc.length, inc.width,
                               sensed.active, inc.clear)
     return flags, n_act, worst
+
+
 @kernel
 def _reference(road, plan, planner, ref, at, m_s, m_d, v_m, active, nbs, dt_c):
     """Every formation's reference (group_reference_step at each formation's own time
@@ -233,7 +233,7 @@ def _background_rows(tables, sensed, at, t, x, y, psi, s, d):
 
 
 @kernel
-def _road_columns(out, tables, road, inc, ref, sensed, at, s_all, d_all):
+def _road_columns(out, tables, road, inc, truth, sensed, at, s_all, d_all):
     """After the members' rows (those in the run, ``sensed.active``): their road and SUMO
     columns at rows ``at.at`` .. of the trajectory table (Recorder.add_step's ``extra``), each
     running formation's virtual-car row after them; returns OUT_OF_RANGE (a signal beyond the
@@ -259,7 +259,6 @@ def _road_columns(out, tables, road, inc, ref, sensed, at, s_all, d_all):
         extras[5, r] = 0.0
         r += 1
     e = r
-    truth = ref.truth
     for f in range(truth.shape[0]):
         if truth[f, 0] == truth[f, 0]:
             _vc_row(tables.traj, e, tables.vc_cols, at.t, truth[f])
