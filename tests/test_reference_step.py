@@ -10,6 +10,8 @@ import pytest
 
 from formation_traci.control.governor import column_caps, governor_step
 from formation_traci.control.longitudinal import LongitudinalPlanner, PlannerParams, plan_accel, plan_caps
+from formation_traci.control.reference_records import (MemberPlanner, MemberRows, NeighbourRows,
+                                                       RoadPlan)
 from formation_traci.control.reference_road import GovernorLimits, road_reference_step, road_vc_rows
 from formation_traci.control.virtual_car import knot_profile_at
 from formation_traci.road.geometry import reference_line_from_net
@@ -93,10 +95,11 @@ def test_fused_reference_step_equals_the_laws_composed(seed, ramp):
                         sensed, old, v_prev_old, ramp)
         v_prev_old = sensed[2].copy()
         vc, cap_from = np.empty((N_CTRL, n, 8)), np.empty(n)
-        got = road_reference_step(G, prof, t, s, v, a_limit, along, slot_d, is_road, d_front,
-                                  half_w, *sensed, LIM.packed(), PP.packed(), new.a_vc, new.a_cap,
-                                  v_prev_new, has_prev, new.emergency, DT_C, vc, ramp, cap_from,
-                                  np.zeros(0, np.bool_), np.zeros(0))
+        got = road_reference_step(
+            RoadPlan(G, prof, along, slot_d, is_road, d_front, half_w, LIM.packed(), PP.packed(),
+                     DT_C, ramp), t, s, v, a_limit, MemberRows(*sensed[:4]),
+            NeighbourRows(*sensed[4:], np.zeros(0, np.bool_), np.zeros(0)), new.a_vc, has_prev,
+            MemberPlanner(new.a_cap, v_prev_new, new.emergency), vc, cap_from)
         new.a_vc, has_prev = got[1], True
         for w, g in zip(want[:9], got):
             assert np.asarray(w).tobytes() == np.asarray(g).tobytes()

@@ -36,8 +36,8 @@ class OneFormation:
         self.s, self.v, self.a_vc = np.empty(1), np.empty(1), np.empty(1)
         self.em_vc, self.has_prev = np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.bool_)
         pl = self.pl
-        self.plan = GroupPlan(gen.prof, np.array([0, len(gen.prof)], dtype=np.int64), gen.along,
-                              gen.slot_d, gen.is_road, gen.half_w,
+        self.plan = GroupPlan(gen.G, gen.prof, np.array([0, len(gen.prof)], dtype=np.int64),
+                              gen.along, gen.slot_d, gen.is_road, gen.d_front, gen.half_w,
                               np.array([0, len(gen.frame)], dtype=np.int64), gen.lim[None, :],
                               pl.pp[None, :], np.array([gen.ramp]), gen.frame, gen.slots,
                               np.zeros(1))
@@ -88,11 +88,8 @@ class GroupOfFormations:
         g = self.group = group
         self.reach = g.reach
         self.running, self.parked, self.vc_rows = g.status == _RUNNING, None, 0
-        self.plan = GroupPlan(g.profs, g.prof_at, g.along, g.slot_d, g.is_road, g.half_w,
-                              g.starts, g.lims, g.pps, g.ramps, g.frame, g.slots, g.depart)
+        self.plan, self.planner = g.plan, g.planner
         self.bodies, self.peers = _bodies(g.d_front, world), True
-        self.planner = PlannerState(g.a_vc, g.emergency_vc, g.has_prev, g.a_cap_prev, g.v_prev,
-                                    g.emergency)
         self._kept = (g.a_vc, g.emergency_vc, g.has_prev, g.a_cap_prev, g.v_prev, g.emergency,
                       g.depart)
 

@@ -65,7 +65,7 @@ import math
 import numpy as np
 
 from ..control.reference_group import group_reference_step
-from ..control.reference_records import StepReference
+from ..control.reference_records import MemberRows, NeighbourRows, StepReference
 from ..kernels import kernel, maximum
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
@@ -191,14 +191,10 @@ def _reference(road, plan, planner, ref, at, m_s, m_d, v_m, active, nbs, dt_c):
         speed[q] = v_m[i]
         owner[q] = i
         q += 1
-    group_reference_step(road.G, plan.profs, plan.prof_at, at.t - plan.depart, at.s, at.v,
-                         plan.along, plan.slot_d, plan.is_road, bodies[0].copy(), plan.half_w,
-                         m_s, m_d, v_m, active, rear, d, half, speed,
-                         np.zeros(m + n, dtype=np.bool_), owner, plan.starts, plan.lims, plan.pps,
-                         planner.a_vc, planner.emergency_vc, planner.a_cap_prev, planner.v_prev,
-                         planner.has_prev, planner.emergency, dt_c, ref.vc, plan.ramps,
-                         ref.a_cap_from, running, ref.a_request, ref.s_next, ref.v_next, ref.gap,
-                         ref.lead_idx, ref.a_cap_req, ref.a_cap, ref.truth)
+    group_reference_step(plan, planner, ref, at.t - plan.depart, at.s, at.v, running,
+                         MemberRows(m_s, m_d, v_m, active),
+                         NeighbourRows(rear, d, half, speed, np.zeros(m + n, dtype=np.bool_),
+                                       np.empty(0)), owner, dt_c)
     for f in range(k):
         if running[f] and planner.emergency_vc[f]:
             return EMERGENCY
