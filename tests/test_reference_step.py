@@ -36,8 +36,8 @@ def composed(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, ha
     slot_s = s + along
     a_gov, gap, lead, v_cap, a_cap_req = governor_step(
         m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v, v_set, v_set_dot,
-        nb_rear, nb_d, nb_half_w, nb_v, LIM.time_gap, LIM.min_gap, LIM.accel_max, LIM.decel_emergency, LIM.decel_follow,
-        LIM.decel_max, np.zeros(0, np.bool_), np.zeros(0))
+        NeighbourRows(nb_rear, nb_d, nb_half_w, nb_v, np.zeros(0, np.bool_), np.zeros(0)),
+        LIM.packed())
     v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
     a_request = min(a_gov, a_limit)
     dt = DT_C * N_CTRL
@@ -50,9 +50,7 @@ def composed(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, ha
                                             p.jerk_emergency, p.decel_comfort, p.jerk_release)
     planner.a_vc = a_vc
     a_cap = np.empty_like(planner.a_cap)
-    plan_caps(planner.a_cap, v_c, a_c, v_m, a_m, dt, p.tau, p.jerk_max, p.jerk_emergency,
-              p.decel_comfort, p.tau_speed_cap, p.lift_margin, a_cap, planner.emergency,
-              p.jerk_release)
+    plan_caps(planner.a_cap, v_c, a_c, v_m, a_m, dt, p.packed(), a_cap, planner.emergency)
     planner.a_cap = a_cap
     a_cap[off] = np.inf
     vc = np.empty((N_CTRL, len(v_m), 8))

@@ -11,7 +11,8 @@ import numpy as np
 
 from ..kernels import kernel
 from ..road.leader import road_leader_at
-from .governor import column_caps, free_road_accel, governor_step
+from .governor import (ACCEL_MAX, DECEL_EMERGENCY, DECEL_FOLLOW, DECEL_MAX, TRAFFIC_AWARE,
+                       column_caps, free_road_accel, governor_step)
 from .longitudinal import LongitudinalPlanner, PlannerParams, plan_step
 from .reference import FRAME_ROAD, FRAME_VEHICLE, Reference, constant_slots, set_vc_period
 from .reference_records import MemberPlanner, MemberRows, NeighbourRows, RoadPlan
@@ -81,11 +82,11 @@ def road_reference_step(plan, t, s, v, a_limit, members, nbs, a_vc_prev, has_pre
     slot_s = s + plan.along
     a_gov, gap, lead_idx, v_cap, a_cap_req = governor_step(
         m_s + d_front, m_d, slot_s + d_front, slot_d, plan.half_w, v_m, active, v, v_set,
-        v_set_dot, nbs.rear, nbs.d, nbs.half_w, nbs.v, lim[0], lim[1], lim[2], lim[3], lim[4],
-        lim[5], nbs.in_formation, nbs.mate_rear)
+        v_set_dot, nbs, lim)
     v_cap, a_cap_req = column_caps(slot_s, slot_d, plan.half_w, active, v_cap, a_cap_req)
-    if lim[6] == 0.0:  # not traffic-aware: the free-road law on the profile alone
-        a_gov = free_road_accel(v, v_set, v_set_dot, lim[2], lim[3], lim[4], lim[5])
+    if lim[TRAFFIC_AWARE] == 0.0:  # not traffic-aware: the free-road law on the profile alone
+        a_gov = free_road_accel(v, v_set, v_set_dot, lim[ACCEL_MAX], lim[DECEL_EMERGENCY],
+                                lim[DECEL_FOLLOW], lim[DECEL_MAX])
     a_request = a_limit if a_limit < a_gov else a_gov  # Python's min(a_gov, a_limit)
     dt = dt_c * vc.shape[0]
     a_cap_in = a_cap_req.copy()

@@ -30,7 +30,7 @@ from ..sim.fleet_records import StateRecord, state_record
 from ..sim.fleet_state import FleetState
 from ..sim.loop import check_finite
 from .events import PLACEMENT_TOLERANCE
-from .fused_records import RoadRun, SensedRows, StepAt, StepOut
+from .fused_records import RoadRun, SensedRows, StepAt, StepOut, fused_run
 from .fused_refs import GroupOfFormations, OneFormation
 from .fused_step import EMERGENCY, NOT_FINITE, OUT_OF_RANGE, SLOW, fused_step
 
@@ -90,7 +90,6 @@ class FusedPath:
         self.n_steps = int(round(sc.run.duration / sc.run.step))
         self.ids = list(fl.cfg.ids)
         k = len(parts.formations)
-        self.fleet_params = fl.params(gen.dt_c)
         self.road = RoadRun(w.line.G, PLACEMENT_TOLERANCE, w.d_front, self.step_s, refs.bodies,
                             refs.peers, w.slot_index, fl.cols)
         self.ref_out = ReferenceOut(
@@ -99,8 +98,8 @@ class FusedPath:
         self.out = StepOut(np.full((n, len(SIGNAL_COLUMNS)), np.nan), np.empty((gen.n_ctrl, n, 3)),
                            np.empty(n), np.empty(n), np.empty((6, n)), np.empty((n, 2)),
                            np.empty((n, 2)), np.empty(n), np.empty(n, dtype=np.int64))
-        self.tables = rec.buffers
-        self.inc = rec.incidents.arrays
+        self.run = fused_run(fl.params(gen.dt_c), self.road, refs.plan, refs.planner, self.ref_out,
+                             rec.buffers, rec.incidents.arrays, self.out)
         self._slot = w.slot_index
         self._lanes_key = None  # the settled lanes the packed rows below are of
         self._li = self._lane_index = None
@@ -162,8 +161,7 @@ class FusedPath:
         at = StepAt(t, s, v, tr.rows_buffered, cf.rows_buffered, rec.background.rows_buffered,
                     refs.running, refs.parked)
         x, ts, sp, ul, s_all, d_all, n_off, worst, flags = fused_step(
-            self.fleet_params, self.road, refs.plan, refs.planner, self.ref_out, self.tables,
-            self.inc, self.out, state_record(state), StateRecord(*refs.held(state)), sensed, at)
+            self.run, state_record(state), StateRecord(*refs.held(state)), sensed, at)
         refs.after()
         self._flags = flags
         w.m_s = s_all[:n]

@@ -1,12 +1,16 @@
 """The records of the compiled step of a road run (sumo/fused_step.py): named tuples of
 arrays, built by sumo/fused_path.py (once per run for :class:`RoadRun` and :class:`StepOut`,
-per step for :class:`SensedRows` and :class:`StepAt`), read by field name in the kernels.
-n members, m neighbours, k formations."""
+per step for :class:`SensedRows` and :class:`StepAt`), read by field name in the kernels,
+and :class:`FusedRun`, the run's records in one. n members, m neighbours, k formations."""
 from __future__ import annotations
 
 from typing import NamedTuple
 
 import numpy as np
+from numba import types
+from numba.experimental import structref
+
+from ..kernels import kernel
 
 
 class RoadRun(NamedTuple):
@@ -67,3 +71,32 @@ class StepAt(NamedTuple):
     bg_at: int  # of the background table's
     running: np.ndarray  # (k,) the formations running (the others' virtual cars stand)
     parked: np.ndarray  # (n,) the rows of the formations not running (held)
+
+
+@structref.register
+class FusedRunType(types.StructRef):
+    """numba's type of a :class:`FusedRun`."""
+
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class FusedRun(structref.StructRefProxy):
+    """The records the compiled step takes that stay the same over a run, in one object the
+    compiled code holds by reference (passed to a compiled call as one pointer: a named
+    tuple is unpacked field by field at every call). Fields: ``fleet``
+    (sim/fleet_records.py FleetParams), ``road`` (:class:`RoadRun`), ``plan``, ``planner``,
+    ``ref`` (control/reference_records.py GroupPlan, PlannerState, ReferenceOut), ``tables``
+    (sim/table_records.py TableBuffers), ``inc`` (sim/incidents.py IncidentArrays), ``out``
+    (:class:`StepOut`). Made by :func:`fused_run`."""
+
+
+structref.define_proxy(FusedRun, FusedRunType,
+                       ["fleet", "road", "plan", "planner", "ref", "tables", "inc", "out"])
+
+
+@kernel
+def fused_run(fleet, road, plan, planner, ref, tables, inc, out):
+    """The :class:`FusedRun` of these records (compiled and cached: no compilation at a run's
+    start)."""
+    return FusedRun(fleet, road, plan, planner, ref, tables, inc, out)

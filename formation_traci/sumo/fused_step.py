@@ -22,8 +22,9 @@ Python (sumo/fused_path.py), which also decides which steps are usual. The resul
 of the loop's step, bit for bit (tests/test_fused_step.py).
 
 The arguments of :func:`fused_step` are records (named tuples of arrays, the fields named
-and their units given where each is defined); the first eight are built once per run (the
-same arrays every step), the last four per step:
+and their units given where each is defined): ``run`` (sumo/fused_records.py FusedRun, built
+once per run: the same arrays every step) holds the first eight below, the last four are the
+step's:
 
 fleet     sim/fleet_records.py FleetParams (sim/fleet.py Fleet.params: the model, the laws,
           the gains, the sub-steps and the control period);
@@ -73,7 +74,7 @@ from ..sim.fleet import kinematics_rows, member_signals, step_members
 from ..sim.fleet_rows import period_table_rows, signal_table_rows
 from ..sim.incidents import member_clearances
 from ..sim.table_records import SignalRows
-from .sense import sense_step
+from .sense import NeighbourReads, SumoRows, sense_step
 from .types import cog_to_sumo_rows
 
 OUT_OF_RANGE = 1
@@ -87,13 +88,15 @@ EMERGENCY = 8
 
 
 @kernel
-def fused_step(fleet, road, plan, planner, ref, tables, inc, out, state, held, sensed, at):
+def fused_step(run, state, held, sensed, at):
     """One usual step of the road run at ``at.t`` [s]: the module docstring says what it
     runs and what each record is ("The arguments"). Returns (x, theta_star, speed_in, u_last)
     after the step, the members' and the neighbours' arc lengths and offsets (n + m,) [m],
     the count of members farther than ``road.tolerance`` from where SUMO has them, the
     smallest clearance between members [m] and the flags OUT_OF_RANGE | NOT_FINITE | SLOW |
     EMERGENCY."""
+    fleet, road, plan, planner, ref = run.fleet, run.road, run.plan, run.planner, run.ref
+    tables, inc, out = run.tables, run.inc, run.out
     t = at.t
     x, speed_in, nb, members = state.x, state.speed_in, sensed.nb, sensed.members
     n = x.shape[0]
@@ -102,10 +105,11 @@ def fused_step(fleet, road, plan, planner, ref, tables, inc, out, state, held, s
     nb_v = nb[:, 3].copy()
     pos0, vel0, hd0 = kinematics_rows(x, speed_in, fleet.kind)  # sense (SumoWorld.sense)
     s_all, d_all, v_sense, g, n_off, nb_x, nb_y, nb_psi, rear, nb_half_w = sense_step(
-        road.G, pos0, vel0, sensed.s_guess, hd0, road.d_front, members[:, 0:2].copy(),
-        members[:, 2].copy(), members[:, 4].copy(), members[:, 3].copy(), sensed.li,
-        sensed.lane_table, sensed.lane_points, road.tolerance, nb[:, 0:2].copy(),
-        nb[:, 2].copy(), nb_length, nb_width, sensed.nb_guess)
+        road.G, pos0, vel0, sensed.s_guess, hd0, road.d_front,
+        SumoRows(members[:, 0:2].copy(), members[:, 2].copy(), members[:, 4].copy(),
+                 members[:, 3].copy(), sensed.li), sensed.lane_table, sensed.lane_points,
+        road.tolerance, NeighbourReads(nb[:, 0:2].copy(), nb[:, 2].copy(), nb_length, nb_width,
+                                       sensed.nb_guess))
     for i in range(n):
         out.v_m[i] = v_sense[i]
         out.m_gap[i] = g[i]

@@ -35,7 +35,7 @@ from .flow_inserts import counted_entry, flow_counts, room_for
 from .handover import MemberHandover
 from .member_rows import MemberRows
 from .peers import Peers
-from .sense import NeighbourGuess, PackedLanes, sense_step
+from .sense import NeighbourGuess, NeighbourReads, PackedLanes, SumoRows, sense_step
 from .types import Neighbours
 from .plan import MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import flow_vehicles_per_hour, populate_places, write_routes
@@ -234,8 +234,8 @@ class SumoWorld(MemberHandover, MemberRows):
         nb_in = _NO_NB if nb_rows is None else (*nb_rows[2:4], *nb_rows[6:8], self._nb_guess(nb_rows[0]))
         lanes, n = self.packed_lanes, len(self.ids)
         s, d, v_m, gap, n_off, *nb_out = sense_step(
-            self.line.G, pos, vel, self.m_s, heading, self.d_front, *rows[:5], lanes.table,
-            lanes.points, PLACEMENT_TOLERANCE, *nb_in)
+            self.line.G, pos, vel, self.m_s, heading, self.d_front, SumoRows(*rows[:5]),
+            lanes.table, lanes.points, PLACEMENT_TOLERANCE, NeighbourReads(*nb_in))
         m_s, m_d = s[:n], d[:n]
         self.m_s = m_s
         sensed = Sensed(self.active, {"s": m_s, "d": m_d, "slot": self.slot_index}, v_m, m_s, m_d)
