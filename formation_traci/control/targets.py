@@ -6,8 +6,6 @@ control/formation.py ``rigid_target_at``) or road coordinates (road/targets.py
 """
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
 from ..kernels import kernel
@@ -15,21 +13,10 @@ from ..models.bicycle import S
 from ..models.state import motion_at
 from ..road.fast_line import to_frenet_one
 from ..road.targets import road_target_at
-from .formation import V_EPS, rigid_target_at
+from .formation import V_EPS, Target, rigid_target_at
 from .laws.dispatch import ACC, CACC_PLOEG
 from .reference import FRAME_ROAD
 
-
-class Target(NamedTuple):
-    """A member's desired point in a control period (:func:`law_point_at`): what a control
-    law steers about (control/laws/__init__.py)."""
-
-    px: float  # position x [m]
-    py: float  # position y [m]
-    vx: float  # velocity x [m/s]
-    vy: float  # velocity y [m/s]
-    ax: float  # acceleration x [m/s^2]
-    ay: float  # acceleration y [m/s^2]
 
 
 @kernel
@@ -39,9 +26,7 @@ def desired_point_at(frame_i, G, vc, slots, j, i):
         return road_target_at(G, vc[j, i, 7], vc[j, i, 3], vc[j, i, 5], slots[j, i, 0],
                               slots[j, i, 1], slots[j, i, 2], slots[j, i, 3], slots[j, i, 4],
                               slots[j, i, 5])
-    return rigid_target_at(vc[j, i, 0], vc[j, i, 1], vc[j, i, 2], vc[j, i, 3], vc[j, i, 4],
-                           vc[j, i, 5], vc[j, i, 6], slots[j, i, 0], slots[j, i, 1],
-                           slots[j, i, 2], slots[j, i, 3], slots[j, i, 4], slots[j, i, 5])
+    return rigid_target_at(vc[j, i], slots[j, i])
 
 
 @kernel

@@ -13,7 +13,7 @@ A law is a module with
   ``x`` (models/bicycle.py S), ``theta_star`` [rad], ``speed_in`` [m/s] and ``u_last``, every
   member's input u0 of the control period before (a_r [m/s^2] on the dynamic model: what a
   CACC receives of its predecessor, and a dynamic law's own state); ``target``
-  (control/targets.py Target) the desired point p [m], p' [m/s], p'' [m/s^2]. It returns
+  (control/formation.py Target) the desired point p [m], p' [m/s], p'' [m/s^2]. It returns
   (u0, u1, v_ref [m/s], omega_ref [rad/s], theta* dot [rad/s], v_ref dot [m/s^2], ex, ey [m],
   heading error [rad]) (control/laws/virtual_structure.py).
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from ...kernels import kernel, maximum, minimum
 from ...models.state import KINEMATIC, motion_at
-from ..formation import V_EPS, formation_at
+from ..formation import V_EPS, Target, formation_at
 from ...models.bicycle import S
 from ..schedule import speed_law, yaw_law
 from . import virtual_structure
@@ -73,7 +73,7 @@ def accel_of(kind, p, u_last):
 @kernel
 def leader_at(target):
     """Speed [m/s] and acceleration [m/s^2] of the platoon's reference as member i received it:
-    its desired point's (``target``: control/targets.py Target) speed and its acceleration along
+    its desired point's (``target``: control/formation.py Target) speed and its acceleration along
     it (the virtual car's v and v dot on a straight road; the radio's copy under [comm])."""
     tvx, tvy = target.vx, target.vy
     sp = np.hypot(tvx, tvy)
@@ -102,9 +102,9 @@ def lane_keeping_at(fleet, state, i, target):
     ey = py - x[i, S.Y]
     e_lon = ex * cx + ey * cy
     vr, om, tsd, vrd, _, _, he = formation_at(
-        px - e_lon * cx, py - e_lon * cy, tvx, tvy, target.ax, target.ay, x[i, S.X], x[i, S.Y],
-        v * np.cos(course), v * np.sin(course), x[i, S.PSI], state.theta_star[i], L[i, K],
-        L[i, K_THETA])
+        Target(px - e_lon * cx, py - e_lon * cy, tvx, tvy, target.ax, target.ay), x[i, S.X],
+        x[i, S.Y], v * np.cos(course), v * np.sin(course), x[i, S.PSI], state.theta_star[i],
+        L[i, K], L[i, K_THETA])
     if kind == KINEMATIC:
         return om, vr, om, tsd, vrd, ex, ey, he
     return yaw_law(fleet.gains, i, om, r), vr, om, tsd, vrd, ex, ey, he

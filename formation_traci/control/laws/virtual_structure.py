@@ -30,9 +30,8 @@ def input_at(fleet, state, i, target, v_cap_i, a_cap_i):
     kind, x, L = fleet.kind, state.x, fleet.L
     v, r, course = motion_at(kind, x, i, state.speed_in[i])
     vr, om, tsd, vrd, ex, ey, he = formation_at(
-        target.px, target.py, target.vx, target.vy, target.ax, target.ay, x[i, S.X], x[i, S.Y],
-        v * np.cos(course), v * np.sin(course), x[i, S.PSI], state.theta_star[i], L[i, K],
-        L[i, K_THETA])
+        target, x[i, S.X], x[i, S.Y], v * np.cos(course), v * np.sin(course), x[i, S.PSI],
+        state.theta_star[i], L[i, K], L[i, K_THETA])
     vr = minimum(vr, v_cap_i)
     if kind == KINEMATIC:
         return vr, om, vr, om, tsd, vrd, ex, ey, he
