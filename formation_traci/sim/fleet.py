@@ -306,6 +306,7 @@ class Fleet:
         self.gains = _f64([[a.g_min, a.g_max, a.k_min, b.g_min, b.g_max, b.k_min]
                            for a, b in zip(sg, yg, strict=True)])
         self.cols = signal_column_map()
+        self._params = None
 
     @property
     def resistances(self) -> bool:
@@ -346,9 +347,14 @@ class Fleet:
         return FleetState(x, ts, sp, ul)
 
     def params(self, dt_c: float) -> FleetParams:
-        """The members' parameters as the kernels take them at control period dt_c [s]."""
-        return FleetParams(self.kind, self.P, self.law, self.L, self.gains, self.pred,
-                           self.n_sub(dt_c), float(dt_c))
+        """The members' parameters as the kernels take them at control period dt_c [s] (the
+        same record while the arrays are the same ones)."""
+        got = self._params
+        if (got is None or got.dt_c != dt_c or got.P is not self.P or got.law is not self.law
+                or got.L is not self.L or got.gains is not self.gains or got.pred is not self.pred):
+            got = self._params = FleetParams(self.kind, self.P, self.law, self.L, self.gains,
+                                             self.pred, self.n_sub(dt_c), float(dt_c))
+        return got
 
     @property
     def package_laws(self) -> bool:

@@ -18,7 +18,9 @@ A law is a module with
   heading error [rad]) (control/laws/virtual_structure.py).
 
 Built-in laws are named in :data:`BUILTIN` and dispatched by code in the compiled step
-(control/laws/dispatch.py, cached with the other kernels); :func:`register_law` adds a law
+(control/laws/dispatch.py, cached with the other kernels; their ``input_at`` and the platoon
+helpers are ``@kernel(inline="always")``: compiled into the step's kernels, the records are
+not passed from call to call); :func:`register_law` adds a law
 from anywhere at run time (compiled for its fleet when first used, not cached on disk).
 The platoon laws (acc, cacc_path, cacc_ploeg: control/laws/platoon.py, docs/platoon_laws.md)
 are longitudinal laws on the column's predecessor with the virtual structure's lateral loop.

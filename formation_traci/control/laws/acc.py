@@ -26,7 +26,7 @@ def accel_at(x, i, p, v, vp, L):
                                                                - gap))
 
 
-@kernel
+@kernel(inline="always")
 def input_at(fleet, state, i, target, v_cap_i, a_cap_i):
     """Member i's model input (control/laws/__init__.py): the ACC law behind its predecessor,
     the virtual-structure law at the head. A CACC member on radio loss runs this law on its

@@ -36,7 +36,7 @@ def accel_at(gap, v, vp, ap, v0, a0, d, c1, xi, wn):
     return (1.0 - c1) * ap + c1 * a0 + a3 * (v - vp) + a4 * (v - v0) + a5 * (d - gap)
 
 
-@kernel
+@kernel(inline="always")
 def input_at(fleet, state, i, target, v_cap_i, a_cap_i):
     """Member i's model input (control/laws/__init__.py): the PATH law behind its
     predecessor, the virtual-structure law at the head."""

@@ -28,7 +28,7 @@ def accel_at(u, gap, v, vp, up, h, kp, kd, r0, dt_c):
     return u + du * dt_c
 
 
-@kernel
+@kernel(inline="always")
 def input_at(fleet, state, i, target, v_cap_i, a_cap_i):
     """Member i's model input (control/laws/__init__.py): Ploeg's law behind its
     predecessor, the virtual-structure law at the head."""

@@ -13,7 +13,7 @@ CACC_PATH = 2
 CACC_PLOEG = 3
 
 
-@kernel
+@kernel(inline="always")
 def law_input_at(fleet, state, i, target, v_cap_i, a_cap_i):
     """Member i's model input under its law ``fleet.law[i]`` (the tuple every law's
     ``input_at`` returns: control/laws/__init__.py)."""

@@ -82,7 +82,7 @@ def leader_at(target):
     return sp, (target.ax * tvx + target.ay * tvy) / sp
 
 
-@kernel
+@kernel(inline="always")
 def lane_keeping_at(fleet, state, i, target):
     """The lateral loop of a platoon member: (u1, v_ref, omega_ref, theta* dot, v_ref dot, ex,
     ey, heading error). Eqs (2.5)-(2.10) about the desired point shifted along its direction of
@@ -110,7 +110,7 @@ def lane_keeping_at(fleet, state, i, target):
     return yaw_law(fleet.gains, i, om, r), vr, om, tsd, vrd, ex, ey, he
 
 
-@kernel
+@kernel(inline="always")
 def member_input(a_r, fleet, state, i, target, v_cap_i, a_cap_i):
     """The model input of a platoon member with longitudinal command a_r [m/s^2]: the law's
     tuple (control/laws/__init__.py). a_r is capped by the safety layer (a_cap, and the speed
@@ -128,7 +128,7 @@ def member_input(a_r, fleet, state, i, target, v_cap_i, a_cap_i):
     return a, u1, vr, om, tsd, vrd, ex, ey, he
 
 
-@kernel
+@kernel(inline="always")
 def head_input(fleet, state, i, target, v_cap_i, a_cap_i):
     """The head of the column: the virtual-structure law on its slot."""
     return virtual_structure.input_at(fleet, state, i, target, v_cap_i, a_cap_i)

@@ -21,7 +21,7 @@ K, K_THETA = 0, 1
 """The columns of k [m/s] and k_theta [1/s]."""
 
 
-@kernel
+@kernel(inline="always")
 def input_at(fleet, state, i, target, v_cap_i, a_cap_i):
     """Model input of member i for its desired point ``target`` (p, p', p''): (u0, u1, capped
     v_ref [m/s], omega_ref [rad/s], theta* dot [rad/s], v_ref dot [m/s^2], ex, ey [m], heading
