@@ -165,14 +165,36 @@ def end_of_road(t: float, end_margin: float) -> tuple[str, str, str]:
             f"end of the route reached at t = {t:.2f} s")
 
 
+@dataclass(frozen=True)
+class SlotLayout:
+    """The members' slots and bodies as a :class:`RoadReference` takes them (n members)."""
+
+    slots: np.ndarray  # (n, 2) road-frame slots: along, across the line [m] (NaN rows: rigid)
+    rigid: np.ndarray  # (n, 2) vehicle-frame slots [m] (NaN rows: road-frame)
+    is_road: np.ndarray  # (n,) road-frame slot
+    half_w: object  # half width [m]: one, or one per member
+    d_front: object  # CoG to front bumper [m]: one, or one per member
+
+
+@dataclass(frozen=True)
+class StepTiming:
+    """A step's control periods as a :class:`RoadReference` takes them."""
+
+    dt_c: float  # control period [s]
+    n_ctrl: int  # control periods per step
+    ramp: bool = True  # leader.accel_within_step == "ramp" (docs/model.md)
+    release: bool = True  # leader.emergency_release
+
+
 class RoadReference:
     """The virtual car of a road run: s [m] and v [m/s] along the line, the governor's
     acceleration per step; ``slots`` / ``rigid`` (n, 2) with NaN rows for the other kind."""
 
-    def __init__(self, G, length: float, slots, rigid, is_road, s0: float, v0: float,
-                 speed_profile, limits: GovernorLimits, half_w, d_front,
-                 end_margin: float, dt_c: float, n_ctrl: int, ramp: bool = True,
-                 release: bool = True):
+    def __init__(self, G, length: float, layout: "SlotLayout", s0: float, v0: float,
+                 speed_profile, limits: GovernorLimits, end_margin: float, timing: "StepTiming"):
+        slots, rigid, is_road = layout.slots, layout.rigid, layout.is_road
+        half_w, d_front = layout.half_w, layout.d_front
+        dt_c, n_ctrl, ramp, release = timing.dt_c, timing.n_ctrl, timing.ramp, timing.release
         self.G, self.length = G, float(length)
         self.is_road = np.asarray(is_road, dtype=bool)
         self.frame = np.where(self.is_road, FRAME_ROAD, FRAME_VEHICLE).astype(np.int64)
