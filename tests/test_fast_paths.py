@@ -213,7 +213,7 @@ def test_compiled_member_sense_equals_the_python_sumo_gap_and_projection():
     replaces (curved and real lanes, members off their lane, out of SUMO, no lane)."""
     import sumolib
     from formation_traci.road.line_pack import FastLine, packed
-    from formation_traci.sumo.sense import PackedLanes, sense_step
+    from formation_traci.sumo.sense import NeighbourReads, PackedLanes, SumoRows, sense_step
     rng = np.random.default_rng(5)
     line = lines()[2]
     fast = FastLine(float(line.length), packed(line))
@@ -241,8 +241,8 @@ def test_compiled_member_sense_equals_the_python_sumo_gap_and_projection():
             li = packed_lanes.indices(lanes).copy()
             guess = np.where(rng.random(n) < 0.5, np.nan, rng.uniform(0.0, line.length, n))
             s, d, v, gap, n_off, *nb = sense_step(
-                fast.G, pos, vel, guess, heading, d_front, front, angle, lane_pos, lat, li,
-                packed_lanes.table, packed_lanes.points, 0.1, *NO_NEIGHBOUR)
+                fast.G, pos, vel, guess, heading, d_front, SumoRows(front, angle, lane_pos, lat, li),
+                packed_lanes.table, packed_lanes.points, 0.1, NeighbourReads(*NO_NEIGHBOUR))
             ref = reference_sumo_gap(shapes, pos, heading, d_front, front, angle, lanes, lane_pos, lat)
             assert np.array_equal(gap, ref, equal_nan=True)
             assert n_off == np.count_nonzero(ref > 0.1) and all(len(a) == 0 for a in nb)
@@ -250,8 +250,9 @@ def test_compiled_member_sense_equals_the_python_sumo_gap_and_projection():
             assert np.array_equal(s, s_ref) and np.array_equal(d, d_ref)
             assert np.array_equal(v, np.hypot(vel[:, 0], vel[:, 1]))
             empty = (np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0, dtype=np.int64))
-            out = sense_step(fast.G, pos, vel, guess, heading, d_front, *empty,
-                             packed_lanes.table, packed_lanes.points, 0.1, *NO_NEIGHBOUR)
+            out = sense_step(fast.G, pos, vel, guess, heading, d_front, SumoRows(*empty),
+                             packed_lanes.table, packed_lanes.points, 0.1,
+                             NeighbourReads(*NO_NEIGHBOUR))
             assert np.array_equal(out[0], s) and np.isnan(out[3]).all()
 
 
@@ -261,7 +262,7 @@ def test_compiled_neighbour_sense_equals_the_numpy_one_whatever_the_guess():
     with last step's s as the guess, in the same call as the members) give what
     sumo_to_cog_rows, FastLine.to_frenet without a guess and the numpy arithmetic gave."""
     from formation_traci.road.line_pack import FastLine, packed
-    from formation_traci.sumo.sense import NeighbourGuess, sense_step
+    from formation_traci.sumo.sense import NeighbourGuess, NeighbourReads, SumoRows, sense_step
     rng = np.random.default_rng(9)
     no_lane = (np.empty(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3)))
     used = 0
@@ -284,8 +285,9 @@ def test_compiled_neighbour_sense_equals_the_numpy_one_whatever_the_guess():
             g = guess(ids)
             s, d, v, gap, n_off, x, y, psi, rear, half_w = sense_step(
                 fast.G, pos, np.ones((members, 2)), np.full(members, np.nan), np.zeros(members),
-                np.ones(members), np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), *no_lane,
-                0.1, front, angle, length, width, g)
+                np.ones(members),
+                SumoRows(np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), no_lane[0]),
+                no_lane[1], no_lane[2], 0.1, NeighbourReads(front, angle, length, width, g))
             guess.keep(ids, s[members:])
             x_ref, y_ref, psi_ref = sumo_to_cog_rows(front, angle, length * 0.5)
             assert np.array_equal(x, x_ref) and np.array_equal(y, y_ref) and np.array_equal(psi, psi_ref)

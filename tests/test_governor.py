@@ -119,6 +119,7 @@ def test_governor_step_is_the_composition_of_the_laws(k_others):
     when composed as the loop composed them: gaps to the members' and the slots' leaders, the
     virtual car's law over the active members' slot gaps, the speed cap and the acceleration cap."""
     from formation_traci.control.governor import governor_step
+    from formation_traci.control.reference_records import NeighbourRows
     rng = np.random.default_rng(k_others)
     n = 5
     m_s = 1000.0 + rng.uniform(-40, 0, n)
@@ -129,9 +130,10 @@ def test_governor_step_is_the_composition_of_the_laws(k_others):
     o_rear = 1000.0 + rng.uniform(-60, 80, k_others)
     o_d, o_hw, o_v = rng.choice([-3.5, 0.0, 3.5], k_others), np.full(k_others, HALF_W), rng.uniform(20, 35, k_others)
     v_vc, v_set, v_set_dot, tg, mg, a_max, d_em = 29.0, 30.0, 0.1, 1.2, 2.0, 2.0, 6.0
-    a_vc, gap, idx, v_cap, a_cap = governor_step(m_s, m_d, slot_s, slot_d, half_w, v_m, active, v_vc, v_set,
-                                                 v_set_dot, o_rear, o_d, o_hw, o_v, tg, mg, a_max, d_em,
-                                                 np.inf, np.inf, np.zeros(0, np.bool_), np.zeros(0))
+    a_vc, gap, idx, v_cap, a_cap = governor_step(
+        m_s, m_d, slot_s, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
+        NeighbourRows(o_rear, o_d, o_hw, o_v, np.zeros(0, np.bool_), np.zeros(0)),
+        np.array([tg, mg, a_max, d_em, np.inf, np.inf, 1.0]))
     g_ref, vl_ref, idx_ref = vehicles_ahead(m_s, m_d, half_w, o_rear, o_d, o_hw, o_v)
     gs, vls, _ = vehicles_ahead(slot_s, slot_d, half_w, o_rear, o_d, o_hw, o_v)
     acc_slot = time_gap_accel(gs, np.full(n, v_vc), vls, tg, mg)

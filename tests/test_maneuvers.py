@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from formation_traci.control.maneuvers.assign import assign_slots, min_clearance
-from formation_traci.control.maneuvers.gap import Others, check_gaps
+from formation_traci.control.maneuvers.gap import GapMargins, Others, check_gaps
 from formation_traci.control.maneuvers.planner import ManeuverPlanner, Situation
 from formation_traci.control.maneuvers.transition import (ComfortLimits, hold_plan, quintic,
                                                           slots_at, transition_duration)
@@ -99,7 +99,7 @@ def _others(rows):
 def test_gap_check_predicts_margins_front_and_rear():
     one = lambda x: np.array([x], dtype=float)
     args = dict(d0=one(0.0), d1=one(-3.5), length=one(4.6), width=one(1.8), v_m=one(25.0),
-                duration=5.0, time_gap=1.0, min_gap=5.0, member_ids=["m"])
+                duration=5.0, margins=GapMargins(1.0, 5.0), member_ids=["m"])
     behind = lambda gap, v=25.0: _others([("car1", 100.0 - 4.6 / 2 - 4.5 / 2 - gap, -3.5, 4.5, 1.8, v)])
     # behind in the target lane at the same speed: needs 5 + 1.0 * 25 = 30 m bumper to bumper
     v = check_gaps(one(100.0), one(0.0), others=behind(20.0), **args)
@@ -118,7 +118,8 @@ def test_gap_check_predicts_margins_front_and_rear():
     ahead = _others([("a", 100.0 + 4.6 / 2 + 4.5 / 2 + 31.0, -3.5, 4.5, 1.8, 25.0)])
     assert check_gaps(one(100.0), one(0.0), others=ahead, **args).ok
     # ahead, the governor's margins when larger: 2 m + 1.5 s * 25 m/s = 39.5 m
-    v = check_gaps(one(100.0), one(0.0), others=ahead, ahead_time_gap=1.5, ahead_min_gap=2.0, **args)
+    v = check_gaps(one(100.0), one(0.0), others=ahead,
+                   **{**args, "margins": GapMargins(1.0, 5.0, 1.5, 2.0)})
     assert not v.ok and v.shortfall == pytest.approx(39.5 - 31.0)
     beside = _others([("b", 101.0, -3.5, 4.5, 1.8, 25.0)])
     assert not check_gaps(one(100.0), one(0.0), others=beside, **args).ok
@@ -289,18 +290,19 @@ def test_room_law_acts_on_the_gaps_one_look_ahead_later():
     h seconds on at constant speeds: a faster car coming up beside the goal slot is braked for
     before it arrives, a slower car ahead counts K_GAP (v_vc - v_o) h earlier."""
     from formation_traci.control.governor import K_GAP
-    from formation_traci.control.maneuvers.generator import ROOM_DECEL, room_accel
+    from formation_traci.control.maneuvers.generator import ROOM_DECEL, Around, room_accel
     goal = np.array([[0.0, -3.5]])
     one = lambda x: np.array([x], dtype=float)
     front, v = 500.0, 25.0  # the slot's front bumper [m] (the virtual car's front), speed [m/s]
-    args = dict(half_w=one(0.9), length=one(4.6), active=np.ones(1, bool), o_d=one(-3.5),
-                o_half_w=one(0.9), o_length=one(4.5), time_gap=1.5, min_gap=2.0)
+    args = dict(half_w=one(0.9), length=one(4.6), active=np.ones(1, bool), time_gap=1.5,
+                min_gap=2.0)
+    car = lambda rear, v_o: Around(rear, one(-3.5), one(0.9), one(4.5), v_o)
     # 30 m/s, its front 5 m behind the slot's rear: not there yet, there within 1.75 s
     rear = one(front - 4.6 - 5.0 - 4.5)
-    assert room_accel(goal, front, v, o_rear=rear, o_v=one(30.0), **args) == np.inf
-    assert room_accel(goal, front, v, o_rear=rear, o_v=one(30.0), horizon=1.75, **args) == -ROOM_DECEL
+    assert room_accel(goal, front, v, others=car(rear, one(30.0)), **args) == np.inf
+    assert room_accel(goal, front, v, others=car(rear, one(30.0)), horizon=1.75, **args) == -ROOM_DECEL
     # 20 m/s, 100 m ahead: predicted 8.75 m closer
-    far = dict(o_rear=one(front + 100.0), o_v=one(20.0))
-    a0 = room_accel(goal, front, v, **far, **args)
-    a1 = room_accel(goal, front, v, horizon=1.75, **far, **args)
+    far = car(one(front + 100.0), one(20.0))
+    a0 = room_accel(goal, front, v, others=far, **args)
+    a1 = room_accel(goal, front, v, horizon=1.75, others=far, **args)
     assert a0 - a1 == pytest.approx(K_GAP * 5.0 * 1.75)

@@ -56,7 +56,8 @@ def test_moving_rigid_slot_derivatives_are_exact():
 
     def p(t):
         X, Y, th, v, om, vd, omd = vc(t)
-        return np.array(rigid_target_at(X, Y, th, v, om, vd, omd, *_slot(t)))
+        return np.array(rigid_target_at(np.array([X, Y, th, v, om, vd, omd]),
+                                        np.array(_slot(t), dtype=float)))
 
     h, t = 1e-4, 3.0
     base = p(t)

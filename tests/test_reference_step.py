@@ -10,6 +10,8 @@ import pytest
 
 from formation_traci.control.governor import column_caps, governor_step
 from formation_traci.control.longitudinal import LongitudinalPlanner, PlannerParams, plan_accel, plan_caps
+from formation_traci.control.reference_records import (MemberPlanner, MemberRows, NeighbourRows,
+                                                       RoadPlan)
 from formation_traci.control.reference_road import GovernorLimits, road_reference_step, road_vc_rows
 from formation_traci.control.virtual_car import knot_profile_at
 from formation_traci.road.geometry import reference_line_from_net
@@ -34,8 +36,8 @@ def composed(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, ha
     slot_s = s + along
     a_gov, gap, lead, v_cap, a_cap_req = governor_step(
         m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v, v_set, v_set_dot,
-        nb_rear, nb_d, nb_half_w, nb_v, LIM.time_gap, LIM.min_gap, LIM.accel_max, LIM.decel_emergency, LIM.decel_follow,
-        LIM.decel_max, np.zeros(0, np.bool_), np.zeros(0))
+        NeighbourRows(nb_rear, nb_d, nb_half_w, nb_v, np.zeros(0, np.bool_), np.zeros(0)),
+        LIM.packed())
     v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
     a_request = min(a_gov, a_limit)
     dt = DT_C * N_CTRL
@@ -48,9 +50,7 @@ def composed(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, ha
                                             p.jerk_emergency, p.decel_comfort, p.jerk_release)
     planner.a_vc = a_vc
     a_cap = np.empty_like(planner.a_cap)
-    plan_caps(planner.a_cap, v_c, a_c, v_m, a_m, dt, p.tau, p.jerk_max, p.jerk_emergency,
-              p.decel_comfort, p.tau_speed_cap, p.lift_margin, a_cap, planner.emergency,
-              p.jerk_release)
+    plan_caps(planner.a_cap, v_c, a_c, v_m, a_m, dt, p.packed(), a_cap, planner.emergency)
     planner.a_cap = a_cap
     a_cap[off] = np.inf
     vc = np.empty((N_CTRL, len(v_m), 8))
@@ -93,10 +93,11 @@ def test_fused_reference_step_equals_the_laws_composed(seed, ramp):
                         sensed, old, v_prev_old, ramp)
         v_prev_old = sensed[2].copy()
         vc, cap_from = np.empty((N_CTRL, n, 8)), np.empty(n)
-        got = road_reference_step(G, prof, t, s, v, a_limit, along, slot_d, is_road, d_front,
-                                  half_w, *sensed, LIM.packed(), PP.packed(), new.a_vc, new.a_cap,
-                                  v_prev_new, has_prev, new.emergency, DT_C, vc, ramp, cap_from,
-                                  np.zeros(0, np.bool_), np.zeros(0))
+        got = road_reference_step(
+            RoadPlan(G, prof, along, slot_d, is_road, d_front, half_w, LIM.packed(), PP.packed(),
+                     DT_C, ramp), t, s, v, a_limit, MemberRows(*sensed[:4]),
+            NeighbourRows(*sensed[4:], np.zeros(0, np.bool_), np.zeros(0)), new.a_vc, has_prev,
+            MemberPlanner(new.a_cap, v_prev_new, new.emergency), vc, cap_from)
         new.a_vc, has_prev = got[1], True
         for w, g in zip(want[:9], got):
             assert np.asarray(w).tobytes() == np.asarray(g).tobytes()

@@ -14,8 +14,8 @@ def pack(cfg):
 
 
 @njit(cache=False)
-def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay,
-             v_cap_i, a_cap_i, pred_i, u_last, dt_c):
-    v = L[i, 0]
-    u0 = v if kind == 0 else 2.0 * (v - x[i, 3])
-    return u0, 0.0, v, 0.0, 0.0, 0.0, px - x[i, 0], py - x[i, 1], 0.0
+def input_at(fleet, state, i, target, v_cap_i, a_cap_i):
+    x = state.x
+    v = fleet.L[i, 0]
+    u0 = v if fleet.kind == 0 else 2.0 * (v - x[i, 3])
+    return u0, 0.0, v, 0.0, 0.0, 0.0, target.px - x[i, 0], target.py - x[i, 1], 0.0

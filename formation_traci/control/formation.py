@@ -12,11 +12,17 @@ sim/fleet.py; :func:`rigid_targets`, :func:`formation_control` and
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from ..kernels import clip, kernel, maximum, wrap_angle as _wrap
 from ..states import LeaderState, Targets  # noqa: F401 (re-exported)
+
+VC_X, VC_Y, VC_THETA, VC_V, VC_OMEGA, VC_V_DOT, VC_OMEGA_DOT, VC_S = range(8)
+"""Slots of a virtual car's row (control/reference.py VC_FIELDS: Reference.vc's last axis)."""
+SLOT_DX, SLOT_DY, SLOT_DX_DOT, SLOT_DY_DOT, SLOT_DX_DDOT, SLOT_DY_DDOT = range(6)
+"""Slots of a slot's row (control/reference.py SLOT_FIELDS: Reference.slots' last axis)."""
 
 V_EPS = 0.5
 """Floor of the commanded speed in the denominators of (2.9) and of v dot [m/s] (ours)."""
@@ -40,10 +46,25 @@ class FormationOutput:
     heading_error: np.ndarray  # (2.10) [rad], wrapped to (-pi, pi]
 
 
+class Target(NamedTuple):
+    """A member's desired point in a control period (control/targets.py law_point_at): what a control
+    law steers about (control/laws/__init__.py)."""
+
+    px: float  # position x [m]
+    py: float  # position y [m]
+    vx: float  # velocity x [m/s]
+    vy: float  # velocity y [m/s]
+    ax: float  # acceleration x [m/s^2]
+    ay: float  # acceleration y [m/s^2]
+
+
 @kernel
-def rigid_target_at(X, Y, th, v, om, v_dot, om_dot, dx, dy, dx_dot, dy_dot, dx_ddot, dy_ddot):
+def rigid_target_at(car, slot):
     """Desired point of a slot d = (dx, dy) in the virtual car's frame, eq (2.4), and its
-    time derivatives: (px, py, vx, vy, ax, ay).
+    time derivatives: (px, py, vx, vy, ax, ay). ``car``: the virtual car's x, y [m], theta
+    [rad], v [m/s], omega [rad/s], v_dot [m/s^2], omega_dot [rad/s^2] (a Reference.vc row,
+    control/reference.py VC_FIELDS); ``slot``: dx, dy [m], their rates [m/s] and second
+    derivatives [m/s^2] (a Reference.slots row, SLOT_FIELDS).
 
     p_d = p_vc + R(theta) d,
     p_d' = v t + omega R J d + R d',
@@ -51,6 +72,10 @@ def rigid_target_at(X, Y, th, v, om, v_dot, om_dot, dx, dy, dx_dot, dy_dot, dx_d
     with t = (cos theta, sin theta), n = (-sin theta, cos theta), J = rotation by +90 deg;
     d' = d'' = 0 is the seed's rigid structure.
     """
+    X, Y, th, v, om = car[VC_X], car[VC_Y], car[VC_THETA], car[VC_V], car[VC_OMEGA]
+    v_dot, om_dot = car[VC_V_DOT], car[VC_OMEGA_DOT]
+    dx, dy, dx_dot, dy_dot = slot[SLOT_DX], slot[SLOT_DY], slot[SLOT_DX_DOT], slot[SLOT_DY_DOT]
+    dx_ddot, dy_ddot = slot[SLOT_DX_DDOT], slot[SLOT_DY_DDOT]
     c = np.cos(th)
     s = np.sin(th)
     rdx = dx * c - dy * s
@@ -69,10 +94,11 @@ def rigid_target_at(X, Y, th, v, om, v_dot, om_dot, dx, dy, dx_dot, dy_dot, dx_d
 
 
 @kernel
-def formation_at(px, py, tvx, tvy, tax, tay, X, Y, velx, vely, heading, theta_star, k, k_theta):
-    """Eqs (2.5)-(2.10) for one member with desired point (p, p', p'') and position,
-    velocity, heading, theta* (2.11): (v_ref, omega_ref, theta* dot, v_ref dot, ex, ey,
-    heading error).
+def formation_at(target, X, Y, velx, vely, heading, theta_star, k, k_theta):
+    """Eqs (2.5)-(2.10) for one member with desired point ``target`` (p, p', p'':
+    control/formation.py Target) and position X, Y [m], velocity velx, vely [m/s], heading
+    [rad], theta* (2.11) [rad], gains k [m/s] and k_theta [1/s]: (v_ref, omega_ref, theta*
+    dot, v_ref dot, ex, ey, heading error).
 
     e = p_d - p (2.5); (x~, y~) = p_d' + k tanh(e) (2.7); v_ref = |(x~, y~)| (2.6);
     theta* dot from the rotation of (x~, y~) (2.9); omega_ref = theta* dot + k_theta
@@ -80,8 +106,9 @@ def formation_at(px, py, tvx, tvy, tax, tay, X, Y, velx, vely, heading, theta_st
     around (ours, docs/model.md): when (x~, y~) points sideways or behind the member it
     fades into waiting (theta* relaxes to the heading at K_WAIT).
     """
-    ex = px - X
-    ey = py - Y
+    tvx, tvy, tax, tay = target.vx, target.vy, target.ax, target.ay
+    ex = target.px - X
+    ey = target.py - Y
     tlx = tvx + k * np.tanh(ex)
     tly = tvy + k * np.tanh(ey)
     chx = np.cosh(ex)
@@ -125,8 +152,8 @@ def rigid_targets(vc: LeaderState, offsets: np.ndarray) -> Targets:
     """Desired points of a rigid virtual structure, eq (2.4), and their derivatives
     (:func:`rigid_target_at` per member; offsets (n, 2) (d_x, d_y) [m], x forward, y left)."""
     offsets = np.asarray(offsets, dtype=float)
-    T = np.array([rigid_target_at(vc.x, vc.y, vc.theta, vc.v, vc.omega, vc.v_dot, vc.omega_dot,
-                                  float(dx), float(dy), 0.0, 0.0, 0.0, 0.0)
+    car = np.array([vc.x, vc.y, vc.theta, vc.v, vc.omega, vc.v_dot, vc.omega_dot], dtype=float)
+    T = np.array([rigid_target_at(car, np.array([dx, dy, 0.0, 0.0, 0.0, 0.0], dtype=float))
                   for dx, dy in offsets], dtype=float).reshape(len(offsets), 6)
     return Targets(T[:, 0:2], T[:, 2:4], T[:, 4:6])
 
@@ -152,9 +179,9 @@ def formation_control(targets: Targets, pos: np.ndarray, vel: np.ndarray, headin
     n = len(pos)
     k = np.broadcast_to(np.asarray(k, dtype=float), (n,))
     k_theta = np.broadcast_to(np.asarray(k_theta, dtype=float), (n,))
-    out = np.array([formation_at(targets.p[i, 0], targets.p[i, 1], targets.v[i, 0],
-                                 targets.v[i, 1], targets.a[i, 0], targets.a[i, 1], pos[i, 0],
-                                 pos[i, 1], vel[i, 0], vel[i, 1], heading[i], theta_star[i],
-                                 k[i], k_theta[i]) for i in range(n)], dtype=float)
+    out = np.array([formation_at(Target(targets.p[i, 0], targets.p[i, 1], targets.v[i, 0],
+                                        targets.v[i, 1], targets.a[i, 0], targets.a[i, 1]),
+                                 pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], heading[i],
+                                 theta_star[i], k[i], k_theta[i]) for i in range(n)], dtype=float)
     out = out.reshape(n, 7)
     return FormationOutput(*(out[:, j].copy() for j in range(7)))

@@ -47,6 +47,12 @@ def vehicles_ahead(m_s_front, m_d, m_half_w, o_s_rear, o_d, o_half_w, o_v):
     return _vehicles_ahead(m_s_front, m_d, m_half_w, *o)
 
 
+TIME_GAP, MIN_GAP, ACCEL_MAX, DECEL_EMERGENCY, DECEL_FOLLOW, DECEL_MAX, TRAFFIC_AWARE = range(7)
+"""Slots of the packed governor limits (control/reference_road.py GovernorLimits.packed):
+time gap [s], minimum gap [m], largest acceleration, emergency deceleration, largest braking
+outside emergencies, comfortable deceleration [m/s^2], traffic-aware 1/0."""
+
+
 @kernel(error_model="python")
 def _vehicles_ahead(m_s_front, m_d, m_half_w, o_s_rear, o_d, o_half_w, o_v):
     """Loop form of :func:`vehicles_ahead` (compiled: it runs every step over every pair)."""
@@ -212,24 +218,31 @@ def mate_caps(gap, v_lead, v, spacing, time_gap, min_gap, decel_emergency):
 
 
 @kernel(error_model="python")
-def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_vc, v_set, v_set_dot,
-                  o_s_rear, o_d, o_half_w, o_v, time_gap, min_gap, accel_max, decel_emergency,
-                  decel_follow, decel_comfort, o_in_formation, o_mate_rear):
+def governor_step(m_s_front, m_d, slot_s_front, slot_d, half_w, v_m, active, v_vc, v_set,
+                  v_set_dot, others, lim):
     """One step of the governor over all members (compiled; the laws are the functions above).
 
     Members at their front bumpers (``m_s_front`` [m], ``m_d`` [m]) and their slots
     (``slot_s_front``, ``slot_d``), half widths [m], speeds ``v_m`` [m/s], ``active`` mask;
-    the other vehicles as in :func:`vehicles_ahead`. Returns the virtual car's acceleration
-    [m/s^2] (:func:`leader_accel` over the slots' :func:`time_gap_accel` at the virtual car's
-    speed ``v_vc``; braking that is not an emergency, i.e. not below ``-decel_comfort``, at most
-    ``decel_follow`` [m/s^2]), each member's gap [m], leader index (-1: none), speed cap [m/s] and
-    acceleration cap [m/s^2] (:func:`member_caps`). Vehicles flagged ``o_in_formation`` (a
-    mask as long as the others, or empty: none) are not seen by the slots' laws (a released
-    member inside the formation: the virtual car braking for it would brake the members ahead
-    of it, which it follows), only by the members' caps; ``o_mate_rear`` [m] (as long as the
-    others, or empty: none; NaN: not one) is the rear of the slot such a vehicle held, and a
-    member right behind it takes :func:`mate_caps` with the spacing of their slots (at least
-    min_gap) instead of :func:`member_caps`."""
+    the other vehicles ``others`` (control/reference_records.py NeighbourRows: rear, d,
+    half_w, v as in :func:`vehicles_ahead`); ``lim`` the packed limits
+    (control/reference_road.py GovernorLimits.packed, slots :data:`TIME_GAP` ..). Returns the
+    virtual car's acceleration [m/s^2] (:func:`leader_accel` over the slots'
+    :func:`time_gap_accel` at the virtual car's speed ``v_vc``; braking that is not an
+    emergency, i.e. not below ``-decel_comfort``, at most ``decel_follow`` [m/s^2]), each
+    member's gap [m], leader index (-1: none), speed cap [m/s] and acceleration cap [m/s^2]
+    (:func:`member_caps`). Vehicles flagged ``others.in_formation`` (a mask as long as the
+    others, or empty: none) are not seen by the slots' laws (a released member inside the
+    formation: the virtual car braking for it would brake the members ahead of it, which it
+    follows), only by the members' caps; ``others.mate_rear`` [m] (as long as the others, or
+    empty: none; NaN: not one) is the rear of the slot such a vehicle held, and a member right
+    behind it takes :func:`mate_caps` with the spacing of their slots (at least min_gap)
+    instead of :func:`member_caps`."""
+    o_s_rear, o_d, o_half_w, o_v = others.rear, others.d, others.half_w, others.v
+    o_in_formation, o_mate_rear = others.in_formation, others.mate_rear
+    time_gap, min_gap, accel_max = lim[TIME_GAP], lim[MIN_GAP], lim[ACCEL_MAX]
+    decel_emergency, decel_follow, decel_comfort = (lim[DECEL_EMERGENCY], lim[DECEL_FOLLOW],
+                                                    lim[DECEL_MAX])
     n = m_s_front.shape[0]
     gap, v_lead, index = _vehicles_ahead(m_s_front, m_d, half_w, o_s_rear, o_d, o_half_w, o_v)
     slot_rear = o_s_rear

@@ -70,6 +70,10 @@ class PlannerParams:
                          self.tau_speed_cap, self.lift_margin, self.jerk_release])
 
 
+TAU, JERK_MAX, JERK_EMERGENCY, DECEL_COMFORT, TAU_SPEED_CAP, LIFT_MARGIN, JERK_RELEASE = range(7)
+"""Slots of :meth:`PlannerParams.packed`."""
+
+
 @kernel
 def plan_accel(a_prev, a_request, dt, tau, jerk_max, jerk_emergency, decel_comfort,
                jerk_release=0.0):
@@ -95,9 +99,9 @@ def plan_accel(a_prev, a_request, dt, tau, jerk_max, jerk_emergency, decel_comfo
 
 
 @kernel
-def plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, tau, jerk_max, jerk_emergency,
-              decel_comfort, tau_speed_cap, lift_margin, a_out, emergency, jerk_release=0.0):
-    """Smoothed acceleration caps [m/s^2] of every member, in place.
+def plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, pp, a_out, emergency):
+    """Smoothed acceleration caps [m/s^2] of every member, in place (``pp``: the
+    :class:`PlannerParams` as :meth:`PlannerParams.packed`, slots :data:`TAU` ..).
 
     The request is ``min(a_cap, (v_cap - v_member) / tau_speed_cap)`` (inf: no cap). A cap
     that appears (previous value inf) starts from the member's acceleration ``a_member`` (or
@@ -105,6 +109,9 @@ def plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, tau, jerk_max, j
     than ``decel_comfort`` of braking. A cap whose request lifts rises by ``jerk_max dt`` per
     step while it is less than ``lift_margin`` above ``a_member`` (it still binds), and is
     dropped (inf) after that."""
+    tau, jerk_max, jerk_emergency = pp[TAU], pp[JERK_MAX], pp[JERK_EMERGENCY]
+    decel_comfort, tau_speed_cap, lift_margin = pp[DECEL_COMFORT], pp[TAU_SPEED_CAP], pp[LIFT_MARGIN]
+    jerk_release = pp[JERK_RELEASE]
     for i in range(v_cap.shape[0]):
         req = min(a_cap[i], (v_cap[i] - v_member[i]) / tau_speed_cap)
         if not math.isfinite(req):
@@ -126,11 +133,9 @@ def plan_step(a_vc_prev, a_request, a_cap_prev, v_cap, a_cap, v_member, a_member
     """One step of the whole planner: the virtual car's acceleration (:func:`plan_accel`,
     returned with its emergency flag) and the members' caps (:func:`plan_caps` into ``a_out``
     and ``emergency``). ``pp``: the :class:`PlannerParams` as :meth:`PlannerParams.packed`."""
-    tau, jerk_max, jerk_emergency, decel_comfort = pp[0], pp[1], pp[2], pp[3]
-    a_vc, emergency_vc = plan_accel(a_vc_prev, a_request, dt, tau, jerk_max, jerk_emergency,
-                                    decel_comfort, pp[6])
-    plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, tau, jerk_max, jerk_emergency,
-              decel_comfort, pp[4], pp[5], a_out, emergency, pp[6])
+    a_vc, emergency_vc = plan_accel(a_vc_prev, a_request, dt, pp[TAU], pp[JERK_MAX],
+                                    pp[JERK_EMERGENCY], pp[DECEL_COMFORT], pp[JERK_RELEASE])
+    plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, pp, a_out, emergency)
     return a_vc, emergency_vc
 
 

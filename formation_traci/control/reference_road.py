@@ -11,9 +11,11 @@ import numpy as np
 
 from ..kernels import kernel
 from ..road.leader import road_leader_at
-from .governor import column_caps, free_road_accel, governor_step
+from .governor import (ACCEL_MAX, DECEL_EMERGENCY, DECEL_FOLLOW, DECEL_MAX, TRAFFIC_AWARE,
+                       column_caps, free_road_accel, governor_step)
 from .longitudinal import LongitudinalPlanner, PlannerParams, plan_step
 from .reference import FRAME_ROAD, FRAME_VEHICLE, Reference, constant_slots, set_vc_period
+from .reference_records import MemberPlanner, MemberRows, NeighbourRows, RoadPlan
 from .virtual_car import along_line_advance, knot_profile_at
 
 
@@ -48,41 +50,43 @@ def ramp_advance(s, v, a, jerk, dt):
 
 
 @kernel(error_model="python")
-def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, half_w,
-                        m_s, m_d, v_m, active, nb_rear, nb_d, nb_half_w, nb_v, lim, pp,
-                        a_vc_prev, a_cap_prev, v_prev, has_prev, emergency, dt_c, vc, ramp,
-                        a_cap_from, nb_in_formation, nb_mate_rear):
+def road_reference_step(plan, t, s, v, a_limit, members, nbs, a_vc_prev, has_prev, planner, vc,
+                        a_cap_from):
     """One step of the road reference in one compiled call: the governor over the members and
-    their neighbours (:func:`governor_step`, :func:`column_caps`; slot ``along`` the line
-    ahead of the virtual car at ``s`` [m], across it ``slot_d_road`` [m] for road-frame slots,
-    the member's own ``m_d`` otherwise), its request capped by ``a_limit`` [m/s^2] (inf: none;
-    a maneuver's room-making deceleration), the jerk-limited planner (:func:`plan_step`;
-    members not in the run get no caps) and the virtual car's rows into ``vc``
-    (:func:`road_vc_rows`, control period ``dt_c`` [s]). With ``ramp`` the virtual car's
-    acceleration goes from the last step's value to this step's within the step and
-    ``a_cap_from`` receives the caps of the last step (the members' caps ramp the same way in
-    sim/fleet.py); without, both are held over the step. ``nb_in_formation``, ``nb_mate_rear``:
-    released members inside the formation and the rears of their slots (:func:`governor_step`,
-    :func:`mate_rears`). ``lim``: :meth:`GovernorLimits.packed`;
-    ``pp``: :meth:`PlannerParams.packed`. The members' acceleration is their mean over the
-    previous step (``v_prev`` [m/s], updated in place; zero at the first step, ``has_prev``
-    False). One call instead of six.
+    their neighbours (:func:`governor_step`, :func:`column_caps`; ``plan``:
+    control/reference_records.py RoadPlan, slot ``along`` the line ahead of the virtual car
+    at ``s`` [m], across it ``slot_d`` [m] for road-frame slots, the member's own offset
+    otherwise; ``members``: MemberRows, ``nbs``: NeighbourRows), its request capped by
+    ``a_limit`` [m/s^2] (inf: none; a maneuver's room-making deceleration), the jerk-limited
+    planner (:func:`plan_step`; members not in the run get no caps) and the virtual car's
+    rows into ``vc`` (:func:`road_vc_rows`, control period ``plan.dt_c`` [s]). With
+    ``plan.ramp`` the virtual car's acceleration goes from the last step's value
+    ``a_vc_prev`` [m/s^2] to this step's within the step and ``a_cap_from`` receives the caps
+    of the last step (the members' caps ramp the same way in sim/fleet.py); without, both are
+    held over the step. ``nbs.in_formation``, ``nbs.mate_rear``: released members inside the
+    formation and the rears of their slots (:func:`governor_step`, :func:`mate_rears`).
+    ``plan.lim``: :meth:`GovernorLimits.packed`; ``plan.pp``: :meth:`PlannerParams.packed`.
+    The members' acceleration is their mean over the previous step (``planner.v_prev``
+    [m/s], updated in place; zero at the first step, ``has_prev`` False). One call instead
+    of six.
 
     Returns (a_request, a_vc, emergency_vc, s_next, v_next, gap, lead_idx, a_cap_request,
-    a_cap); ``a_cap_prev`` and ``emergency`` are the planner's state, updated in place."""
+    a_cap); ``planner`` (MemberPlanner: a_cap_prev, v_prev, emergency) is updated in place."""
+    m_s, m_d, v_m, active = members.s, members.d, members.v, members.active
+    d_front, lim, dt_c = plan.d_front, plan.lim, plan.dt_c
     n = m_s.shape[0]
     slot_d = np.empty(n)  # np.where(is_road, slot_d_road, m_d); np.where's numba implementation
     for i in range(n):  # would load numba's arraymath and scipy.linalg at every start (0.3 s)
-        slot_d[i] = slot_d_road[i] if is_road[i] else m_d[i]
-    v_set, v_set_dot = knot_profile_at(prof, 0, t)
-    slot_s = s + along
+        slot_d[i] = plan.slot_d[i] if plan.is_road[i] else m_d[i]
+    v_set, v_set_dot = knot_profile_at(plan.prof, 0, t)
+    slot_s = s + plan.along
     a_gov, gap, lead_idx, v_cap, a_cap_req = governor_step(
-        m_s + d_front, m_d, slot_s + d_front, slot_d, half_w, v_m, active, v, v_set, v_set_dot,
-        nb_rear, nb_d, nb_half_w, nb_v, lim[0], lim[1], lim[2], lim[3], lim[4],
-        lim[5], nb_in_formation, nb_mate_rear)
-    v_cap, a_cap_req = column_caps(slot_s, slot_d, half_w, active, v_cap, a_cap_req)
-    if lim[6] == 0.0:  # not traffic-aware: the free-road law on the profile alone
-        a_gov = free_road_accel(v, v_set, v_set_dot, lim[2], lim[3], lim[4], lim[5])
+        m_s + d_front, m_d, slot_s + d_front, slot_d, plan.half_w, v_m, active, v, v_set,
+        v_set_dot, nbs, lim)
+    v_cap, a_cap_req = column_caps(slot_s, slot_d, plan.half_w, active, v_cap, a_cap_req)
+    if lim[TRAFFIC_AWARE] == 0.0:  # not traffic-aware: the free-road law on the profile alone
+        a_gov = free_road_accel(v, v_set, v_set_dot, lim[ACCEL_MAX], lim[DECEL_EMERGENCY],
+                                lim[DECEL_FOLLOW], lim[DECEL_MAX])
     a_request = a_limit if a_limit < a_gov else a_gov  # Python's min(a_gov, a_limit)
     dt = dt_c * vc.shape[0]
     a_cap_in = a_cap_req.copy()
@@ -91,6 +95,7 @@ def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, 
             v_cap[i] = np.inf
             a_cap_in[i] = np.inf
     a_m = np.zeros(n)
+    v_prev, a_cap_prev = planner.v_prev, planner.a_cap_prev
     if has_prev:
         for i in range(n):
             a_m[i] = (v_m[i] - v_prev[i]) / dt
@@ -98,14 +103,14 @@ def road_reference_step(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, 
     a_cap = np.empty(n)
     a_cap_from[:] = a_cap_prev
     a_vc, emergency_vc = plan_step(a_vc_prev, a_request, a_cap_prev, v_cap, a_cap_in, v_m, a_m,
-                                   dt, pp, a_cap, emergency)
+                                   dt, plan.pp, a_cap, planner.emergency)
     for i in range(n):
         if not active[i]:  # a cap being eased out goes with its member
             a_cap[i] = np.inf
     a_cap_prev[:] = a_cap
-    if not ramp:
+    if not plan.ramp:
         a_cap_from[:] = a_cap
-    s_next, v_next = road_vc_rows(G, s, v, a_vc_prev if ramp else a_vc, a_vc, dt_c, vc)
+    s_next, v_next = road_vc_rows(plan.G, s, v, a_vc_prev if plan.ramp else a_vc, a_vc, dt_c, vc)
     return a_request, a_vc, emergency_vc, s_next, v_next, gap, lead_idx, a_cap_req, a_cap
 
 
@@ -160,14 +165,36 @@ def end_of_road(t: float, end_margin: float) -> tuple[str, str, str]:
             f"end of the route reached at t = {t:.2f} s")
 
 
+@dataclass(frozen=True)
+class SlotLayout:
+    """The members' slots and bodies as a :class:`RoadReference` takes them (n members)."""
+
+    slots: np.ndarray  # (n, 2) road-frame slots: along, across the line [m] (NaN rows: rigid)
+    rigid: np.ndarray  # (n, 2) vehicle-frame slots [m] (NaN rows: road-frame)
+    is_road: np.ndarray  # (n,) road-frame slot
+    half_w: object  # half width [m]: one, or one per member
+    d_front: object  # CoG to front bumper [m]: one, or one per member
+
+
+@dataclass(frozen=True)
+class StepTiming:
+    """A step's control periods as a :class:`RoadReference` takes them."""
+
+    dt_c: float  # control period [s]
+    n_ctrl: int  # control periods per step
+    ramp: bool = True  # leader.accel_within_step == "ramp" (docs/model.md)
+    release: bool = True  # leader.emergency_release
+
+
 class RoadReference:
     """The virtual car of a road run: s [m] and v [m/s] along the line, the governor's
     acceleration per step; ``slots`` / ``rigid`` (n, 2) with NaN rows for the other kind."""
 
-    def __init__(self, G, length: float, slots, rigid, is_road, s0: float, v0: float,
-                 speed_profile, limits: GovernorLimits, half_w, d_front,
-                 end_margin: float, dt_c: float, n_ctrl: int, ramp: bool = True,
-                 release: bool = True):
+    def __init__(self, G, length: float, layout: "SlotLayout", s0: float, v0: float,
+                 speed_profile, limits: GovernorLimits, end_margin: float, timing: "StepTiming"):
+        slots, rigid, is_road = layout.slots, layout.rigid, layout.is_road
+        half_w, d_front = layout.half_w, layout.d_front
+        dt_c, n_ctrl, ramp, release = timing.dt_c, timing.n_ctrl, timing.ramp, timing.release
         self.G, self.length = G, float(length)
         self.is_road = np.asarray(is_road, dtype=bool)
         self.frame = np.where(self.is_road, FRAME_ROAD, FRAME_VEHICLE).astype(np.int64)
@@ -193,10 +220,24 @@ class RoadReference:
         self.ramp = bool(ramp)  # leader.accel_within_step == "ramp" (docs/model.md)
 
     @property
+    def road_plan(self) -> RoadPlan:
+        """The reference's fixed data as :func:`road_reference_step` takes it."""
+        return RoadPlan(self.G, self.prof, self.along, self.slot_d, self.is_road, self.d_front,
+                        self.half_w, self.lim, self.longitudinal.pp, self.dt_c, self.ramp)
+
+    @property
     def v_prev(self) -> np.ndarray:
-        """The members' speeds at the previous step [m/s] (zero before the first; each step
-        updates the array in place)."""
+        """The members' speeds at the previous step [m/s] (updated in place every step)."""
         return self._v_prev
+
+    @property
+    def has_prev(self) -> bool:
+        """A previous step's :attr:`v_prev` exists."""
+        return self._has_prev
+
+    @has_prev.setter
+    def has_prev(self, value: bool) -> None:
+        self._has_prev = bool(value)
 
     def plan(self, t: float, sensed) -> list:
         """What the world must do before this step's reference (control/reference.py
@@ -217,11 +258,12 @@ class RoadReference:
         a_cap_from = np.empty(len(self.frame))
         (a_request, pl.a_vc, pl.emergency_vc, s_next, v_next, gap, lead_idx, a_cap_req,
          a_cap) = road_reference_step(
-            self.G, self.prof, float(t), self.s, self.v, a_limit, self.along, self.slot_d,
-            self.is_road, self.d_front, self.half_w, sensed.m_s, sensed.m_d, sensed.v_m,
-            sensed.active, sensed.nb_rear, sensed.nb_d, sensed.nb_half_w, sensed.nb_v, self.lim,
-            pl.pp, pl.a_vc, pl.a_cap, self._v_prev, self._has_prev, pl.emergency, self.dt_c, vc, self.ramp, a_cap_from,
-            sensed.nb_in_formation, self.mate_rears(sensed))
+            self.road_plan, float(t), self.s, self.v, a_limit,
+            MemberRows(sensed.m_s, sensed.m_d, sensed.v_m, sensed.active),
+            NeighbourRows(sensed.nb_rear, sensed.nb_d, sensed.nb_half_w, sensed.nb_v,
+                          sensed.nb_in_formation, self.mate_rears(sensed)),
+            pl.a_vc, self._has_prev, MemberPlanner(pl.a_cap, self._v_prev, pl.emergency), vc,
+            a_cap_from)
         self._has_prev = True
         self._next = (s_next, v_next)
         truth = vc[0, 0].copy()  # period 0: road_leader_at(G, s, v, a_vc) and s

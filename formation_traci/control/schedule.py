@@ -55,6 +55,24 @@ def p_law(reference, actual, g_min, g_max, k_min):
     return scheduled_gain(e, g_min, g_max, k_min) * e
 
 
+SPEED_G_MIN, SPEED_G_MAX, SPEED_K_MIN, YAW_G_MIN, YAW_G_MAX, YAW_K_MIN = range(6)
+"""Columns of the members' gain rows (sim/fleet.py Fleet.gains): g_min, g_max, k_min of the
+speed loop's schedule, then of the yaw loop's."""
+
+
+@kernel
+def speed_law(gains, i, reference, actual):
+    """Member i's speed loop (3.32-3.34) on its gain row: a_r [m/s^2] from the speeds [m/s]."""
+    return p_law(reference, actual, gains[i, SPEED_G_MIN], gains[i, SPEED_G_MAX],
+                 gains[i, SPEED_K_MIN])
+
+
+@kernel
+def yaw_law(gains, i, reference, actual):
+    """Member i's steering-rate loop (3.37) on its gain row [rad/s] from the yaw rates [rad/s]."""
+    return p_law(reference, actual, gains[i, YAW_G_MIN], gains[i, YAW_G_MAX], gains[i, YAW_K_MIN])
+
+
 FOLLOW_ERROR_MAX = 5.0
 """Largest speed error [m/s] over which a member's speed law is asked for its acceleration
 (:func:`law_peak`): a reference the member can follow only further behind is not followed."""

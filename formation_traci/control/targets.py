@@ -13,9 +13,10 @@ from ..models.bicycle import S
 from ..models.state import motion_at
 from ..road.fast_line import to_frenet_one
 from ..road.targets import road_target_at
-from .formation import V_EPS, rigid_target_at
+from .formation import V_EPS, Target, rigid_target_at
 from .laws.dispatch import ACC, CACC_PLOEG
 from .reference import FRAME_ROAD
+
 
 
 @kernel
@@ -25,9 +26,7 @@ def desired_point_at(frame_i, G, vc, slots, j, i):
         return road_target_at(G, vc[j, i, 7], vc[j, i, 3], vc[j, i, 5], slots[j, i, 0],
                               slots[j, i, 1], slots[j, i, 2], slots[j, i, 3], slots[j, i, 4],
                               slots[j, i, 5])
-    return rigid_target_at(vc[j, i, 0], vc[j, i, 1], vc[j, i, 2], vc[j, i, 3], vc[j, i, 4],
-                           vc[j, i, 5], vc[j, i, 6], slots[j, i, 0], slots[j, i, 1],
-                           slots[j, i, 2], slots[j, i, 3], slots[j, i, 4], slots[j, i, 5])
+    return rigid_target_at(vc[j, i], slots[j, i])
 
 
 @kernel
@@ -79,3 +78,15 @@ def law_point_at(law_i, pred_i, frame_i, G, vc, slots, j, i, x, kind, speed_in_i
         return px, py, tvx, tvy, tax, tay
     v, _, _ = motion_at(kind, x, i, speed_in_i)
     return lane_point_at(G, vc, slots, j, i, x[i, S.X], x[i, S.Y], v, px, py, tvx, tvy)
+
+
+@kernel
+def target_at(fleet, state, ref, j, i):
+    """Member i's desired point in control period j (:func:`law_point_at`) as a
+    :class:`Target`; ``fleet``, ``state``, ``ref``: the kernels' records of the members'
+    parameters and state and of the step's reference (sim/fleet_records.py,
+    control/reference_records.py StepReference)."""
+    px, py, tvx, tvy, tax, tay = law_point_at(fleet.law[i], fleet.pred[i], ref.frame[i], ref.G,
+                                              ref.vc, ref.slots, j, i, state.x, fleet.kind,
+                                              state.speed_in[i])
+    return Target(px, py, tvx, tvy, tax, tay)

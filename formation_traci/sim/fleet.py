@@ -21,7 +21,8 @@ from ..control.laws import DEFAULT_LAW
 from ..control.laws.dispatch import law_input_at
 from ..control.reference import Reference, cap_at
 from ..control.schedule import GainSchedule
-from ..control.targets import desired_point_at, follows_lane, law_point_at
+from ..control.reference_records import StepReference
+from ..control.targets import desired_point_at, follows_lane, target_at
 from ..kernels import kernel, maximum, substeps
 from ..models import bicycle, kinematic
 from ..models.integrator import HELD, rhs_into, rk4_row_from
@@ -31,6 +32,8 @@ from ..models.state import DYNAMIC, KINEMATIC, motion_at
 from ..record.columns import SIGNAL_COLUMNS
 from .fleet_laws import fallback_switches, law_kernels, pack_laws
 from .fleet_rows import period_table_rows, signal_table_rows
+from .table_records import NO_SIGNAL_ROWS
+from .fleet_records import FleetParams, StateRecord, as_f64 as _f64, state_record
 from .fleet_state import FleetState
 
 _KERNEL_SIGNALS = ("x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "ex", "ey",
@@ -87,38 +90,35 @@ def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, target
 # ---------------------------------------------------------------------------- kernels
 
 @kernel
-def step_members(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, G, frame, vc,
-                 slots, v_cap, a_cap, a_cap_from, dt_c, n_sub, comfort, t0, table, table_ids, at):
-    """One step: for each of the vc.shape[0] control periods of dt_c [s], every member's
-    input from the reference under its control law (``law``: control/laws dispatch code,
-    ``L`` the per-member law parameters, ``pred`` the member ahead, ``u_last`` every member's
-    u0 of the period before: the laws of period j read those of period j - 1), held over RK4
-    in n_sub sub-steps (models/integrator.py). Inputs are not modified;
-    returns (x, theta_star, speed_in, u_last) after the step. When ``comfort`` has a row per
-    period ((n_ctrl, n, 3); else pass an empty array), member i's speed [m/s], a_lon and
-    a_lat [m/s^2] at the start of period j go to comfort[j, i] (the values
-    :func:`member_signals` records for that period); with ``at`` >= 0 too, periods 1 ..
-    n_ctrl - 1 also as comfort table rows at columns at, at + 1, ... of ``table`` (t = t0 +
-    j dt_c [s], speed, a_lon, a_lat) and ``table_ids`` (code i), period by period."""
+def step_members(fleet, state, ref, comfort, t0, table, table_ids, at):
+    """One step: for each of the ref.vc.shape[0] control periods of ``fleet.dt_c`` [s], every
+    member's input from the reference ``ref`` (control/reference_records.py StepReference)
+    under its control law (``fleet``: sim/fleet_records.py FleetParams; every law of period
+    j reads the members' u0 of period j - 1 as ``u_last``), held over RK4 in ``fleet.n_sub``
+    sub-steps (models/integrator.py). ``state`` (StateRecord) is not modified; returns (x,
+    theta_star, speed_in, u_last) after the step. When ``comfort`` has a row per period
+    ((n_ctrl, n, 3); else pass an empty array), member i's speed [m/s], a_lon and a_lat
+    [m/s^2] at the start of period j go to comfort[j, i] (the values :func:`member_signals`
+    records for that period); with ``at`` >= 0 too, periods 1 .. n_ctrl - 1 also as comfort
+    table rows at columns at, at + 1, ... of ``table`` (t = t0 + j dt_c [s], speed, a_lon,
+    a_lat) and ``table_ids`` (code i), period by period."""
+    kind, P, dt_c, vc = fleet.kind, fleet.P, fleet.dt_c, ref.vc
+    x = state.x.copy()
     n = x.shape[0]
     m = x.shape[1]
-    x = x.copy()
-    theta_star = theta_star.copy()
-    speed_in = speed_in.copy()
-    u_prev = u_last.copy()
+    theta_star = state.theta_star.copy()
+    speed_in = state.speed_in.copy()
+    u_prev = state.u_last.copy()
+    now = StateRecord(x, theta_star, speed_in, u_prev)  # the laws' view, updated in place
     U0 = np.empty(n)
     U1 = np.empty(n)
     tsd = np.empty(n)
     w = np.empty((5, m))
-    h = dt_c / n_sub
+    h = dt_c / fleet.n_sub
     for j in range(vc.shape[0]):
         for i in range(n):
-            px, py, tvx, tvy, tax, tay = law_point_at(law[i], pred[i], frame[i], G, vc, slots,
-                                                      j, i, x, kind, speed_in[i])
-            res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py,
-                               tvx, tvy, tax, tay, v_cap[i],
-                               cap_at(a_cap_from[i], a_cap[i], j, vc.shape[0]), pred[i], u_prev,
-                               dt_c)
+            res = law_input_at(fleet, now, i, target_at(fleet, now, ref, j, i), ref.v_cap[i],
+                               cap_at(ref.a_cap_from[i], ref.a_cap[i], j, vc.shape[0]))
             U0[i] = res[0]
             U1[i] = res[1]
             tsd[i] = res[4]
@@ -132,7 +132,7 @@ def step_members(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, 
                 comfort[j, i, 0] = x[i, S.V]
                 comfort[j, i, 1], comfort[j, i, 2] = bicycle.body_accelerations(
                     x[i, S.V], x[i, S.BETA], x[i, S.R], w[0, S.V], w[0, S.BETA])
-            rk4_row_from(kind, x[i], U0[i], U1[i], P, i, h, n_sub, w, HELD, k1)
+            rk4_row_from(kind, x[i], U0[i], U1[i], P, i, h, fleet.n_sub, w, HELD, k1)
             if kind == KINEMATIC:
                 speed_in[i] = maximum(U0[i], 0.0)
         for i in range(n):
@@ -212,43 +212,42 @@ def _signal_values(kind, x, i, P, u0, u1, res, px, py, c, s, vals):
 
 
 @kernel
-def member_signals(x, theta_star, speed_in, u_last, kind, P, law, L, gains, pred, G, frame, vc,
-                   slots, v_cap, a_cap, a_cap_from, dt_c, cols, out, t, limits, traj, traj_ids, at, comfort,
-                   comfort_ids, c_at, comfort_cols):
-    """The recorded signals at the start of a step (the first control period's reference)
-    into out[i, cols[q]]; e_lon / e_lat in the frame of the member's virtual car.
+def member_signals(fleet, state, ref, cols, out, t, rows):
+    """The recorded signals at the start of a step (the first control period's reference
+    ``ref``) into out[i, cols[q]]; e_lon / e_lat in the frame of the member's virtual car.
 
-    With ``at`` >= 0, also the members' table rows at time t [s] unless a |signal| exceeds
-    ``limits`` (one per column of out): member i's row is column at + i of ``traj`` (one
-    row per table column: t, then out's columns) and of ``traj_ids`` (its code, i), and
-    column c_at + i of ``comfort`` (t, then out's columns ``comfort_cols``) and
-    ``comfort_ids``. Returns True when it wrote the rows (sim/recorder.py signal_rows)."""
+    With ``rows.at`` >= 0 (``rows``: sim/table_records.py SignalRows), also the members'
+    table rows at time t [s] unless a |signal| exceeds ``rows.limits`` (one per column of
+    out): member i's row is column at + i of ``rows.traj`` (one row per table column: t, then
+    out's columns) and of ``rows.traj_ids`` (its code, i), and column c_at + i of
+    ``rows.comfort`` (t, then out's columns ``comfort_cols``) and ``rows.comfort_ids``.
+    Returns True when it wrote the rows (sim/recorder.py signal_rows)."""
+    kind, x, vc = fleet.kind, state.x, ref.vc
     vals = np.empty(N_SIGNALS)
     n = x.shape[0]
     for i in range(n):
-        px, py, tvx, tvy, tax, tay = law_point_at(law[i], pred[i], frame[i], G, vc, slots, 0,
-                                                  i, x, kind, speed_in[i])
-        res = law_input_at(law[i], kind, x, i, theta_star[i], speed_in[i], L, gains, px, py, tvx,
-                           tvy, tax, tay, v_cap[i], cap_at(a_cap_from[i], a_cap[i], 0, vc.shape[0]),
-                           pred[i], u_last, dt_c)
+        tg = target_at(fleet, state, ref, 0, i)
+        res = law_input_at(fleet, state, i, tg, ref.v_cap[i],
+                           cap_at(ref.a_cap_from[i], ref.a_cap[i], 0, vc.shape[0]))
         th = vc[0, i, 2]
-        _signal_values(kind, x, i, P, res[0], res[1], res, px, py, np.cos(th), np.sin(th),
-                       vals)
-        if follows_lane(law[i], pred[i], frame[i]):  # the error to the slot itself
-            sx, sy, _, _, _, _ = desired_point_at(frame[i], G, vc, slots, 0, i)
+        _signal_values(kind, x, i, fleet.P, res[0], res[1], res, tg.px, tg.py, np.cos(th),
+                       np.sin(th), vals)
+        frame_i = ref.frame[i]
+        if follows_lane(fleet.law[i], fleet.pred[i], frame_i):  # the error to the slot itself
+            sx, sy, _, _, _, _ = desired_point_at(frame_i, ref.G, vc, ref.slots, 0, i)
             _slot_error(x, i, sx, sy, np.cos(th), np.sin(th), vals)
         for q in range(N_SIGNALS):
             if cols[q] >= 0:
                 out[i, cols[q]] = vals[q]
-    if at < 0:
+    if rows.at < 0:
         return False
     m = out.shape[1]
     for i in range(n):
         for q in range(m):
-            if abs(out[i, q]) > limits[q]:
+            if abs(out[i, q]) > rows.limits[q]:
                 return False  # out of range: the caller records the rows (and the event)
-    signal_table_rows(out, t, traj, traj_ids, at, comfort, comfort_ids, c_at, comfort_cols,
-                      np.ones(n, dtype=np.bool_))
+    signal_table_rows(out, t, rows.traj, rows.traj_ids, rows.at, rows.comfort, rows.comfort_ids,
+                      rows.c_at, rows.comfort_cols, np.ones(n, dtype=np.bool_))
     return True
 
 
@@ -272,23 +271,12 @@ def kinematics_rows(x, speed_in, kind):
 # ------------------------------------------------------------------------ the wrapper
 
 _NO_COMFORT = np.empty((0, 0, 3))
-_NO_ROWS = (np.empty(0), np.empty((0, 0)), np.empty(0, dtype=np.int32), -1, np.empty((0, 0)),
-            np.empty(0, dtype=np.int32), -1, np.empty(0, dtype=np.int64))
-"""member_signals' table-row arguments when no rows are written."""
 _NO_PERIOD_ROWS = (np.empty((0, 0)), np.empty(0, dtype=np.int32), -1)
 """step_members' table-row arguments when no rows are written."""
 
 def _cap_from(ref: Reference) -> np.ndarray:
     """The members' caps at the start of the step [m/s^2] (period 0's: cap_at)."""
     return _f64(ref.a_cap if ref.a_cap_from is None else ref.a_cap_from)
-
-
-def _f64(a) -> np.ndarray:
-    """a as a C-contiguous, writeable float64 array (no copy when it already is one)."""
-    if (type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous
-            and a.flags.writeable):
-        return a
-    return np.array(a, dtype=np.float64, order="C")
 
 
 class Fleet:
@@ -318,6 +306,7 @@ class Fleet:
         self.gains = _f64([[a.g_min, a.g_max, a.k_min, b.g_min, b.g_max, b.k_min]
                            for a, b in zip(sg, yg, strict=True)])
         self.cols = signal_column_map()
+        self._params = None
 
     @property
     def resistances(self) -> bool:
@@ -352,17 +341,26 @@ class Fleet:
         (sim/recorder.py Recorder.period_rows) periods 1 .. n_ctrl - 1 go into the comfort
         table's buffers too, in the same compiled call."""
         x, ts, sp, ul = self._step(
-            _f64(state.x), _f64(state.theta_star), _f64(state.speed_in), self._u_last(state),
-            self.kind, self.P,
-            self.law, self.L, self.gains, self.pred, ref.line, ref.frame, ref.vc, ref.slots,
-            _f64(ref.v_cap), _f64(ref.a_cap), _cap_from(ref), float(ref.dt), self.n_sub(ref.dt),
+            self.params(ref.dt), state_record(state), self.reference(ref),
             _NO_COMFORT if comfort is None else comfort, float(ref.t),
             *(_NO_PERIOD_ROWS if rows is None else rows))
         return FleetState(x, ts, sp, ul)
 
-    def _u_last(self, state: FleetState) -> np.ndarray:
-        """state.u_last as the kernels take it (zeros when nothing was computed yet)."""
-        return np.zeros(self.cfg.n) if state.u_last is None else _f64(state.u_last)
+    def params(self, dt_c: float) -> FleetParams:
+        """The members' parameters as the kernels take them at control period dt_c [s] (the
+        same record while the arrays are the same ones)."""
+        got = self._params
+        if (got is None or got.dt_c != dt_c or got.P is not self.P or got.law is not self.law
+                or got.L is not self.L or got.gains is not self.gains or got.pred is not self.pred):
+            got = self._params = FleetParams(self.kind, self.P, self.law, self.L, self.gains,
+                                             self.pred, self.n_sub(dt_c), float(dt_c))
+        return got
+
+    @property
+    def package_laws(self) -> bool:
+        """Every law of the members is one of the package's own (no law added at run time:
+        sim/fleet_laws.py law_kernels)."""
+        return self._step is step_members
 
     def signals(self, state: FleetState, ref: Reference, out: np.ndarray | None = None):
         """The recorded member columns at the start of the step (SIGNAL_COLUMNS order)."""
@@ -376,11 +374,14 @@ class Fleet:
         """:meth:`signals` into ``out`` (n, len(SIGNAL_COLUMNS)); with ``rows`` (sim/recorder.py
         Recorder.signal_rows) also written as the step's table rows at t [s], in the same
         compiled call: returns True when they were (False: out of range, or no ``rows``)."""
-        return self._signals(_f64(state.x), _f64(state.theta_star), _f64(state.speed_in),
-                             self._u_last(state), self.kind, self.P, self.law, self.L,
-                             self.gains, self.pred, ref.line, ref.frame, ref.vc, ref.slots,
-                             _f64(ref.v_cap), _f64(ref.a_cap), _cap_from(ref), float(ref.dt),
-                             self.cols, out, float(t), *(_NO_ROWS if rows is None else rows))
+        return self._signals(self.params(ref.dt), state_record(state), self.reference(ref),
+                             self.cols, out, float(t), NO_SIGNAL_ROWS if rows is None else rows)
+
+    @staticmethod
+    def reference(ref: Reference) -> StepReference:
+        """The step's reference as the kernels take it."""
+        return StepReference(ref.line, ref.frame, ref.vc, ref.slots, _f64(ref.v_cap),
+                             _f64(ref.a_cap), _cap_from(ref))
 
     def kinematics(self, state: FleetState):
         """Position (n, 2) [m], velocity (n, 2) [m/s], heading (n,) [rad]."""

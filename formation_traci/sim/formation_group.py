@@ -17,6 +17,8 @@ import numpy as np
 
 from ..control.reference import Reference
 from ..control.reference_group import group_reference_step
+from ..control.reference_records import (GroupPlan, MemberRows, NeighbourRows, PlannerState,
+                                         ReferenceOut)
 from ..control.reference_road import RoadReference, end_of_road
 from .fleet_state import FleetState
 from .formation import depart_due, retire_formation
@@ -24,6 +26,7 @@ from .formation import depart_due, retire_formation
 WAITING, RUNNING, DONE = 0, 1, 2
 _CODE = {"waiting": WAITING, "running": RUNNING, "done": DONE}
 
+_NO_MATES = np.empty(0)
 _NO_TABLE = (np.empty(0), np.empty(0), np.empty(0), np.empty(0), np.zeros(0, dtype=np.bool_),
              np.empty(0, dtype=np.int64))
 
@@ -70,6 +73,25 @@ class FormationGroup:
         self.counts = np.diff(self.starts)
         self._held = None  # every row's held state (a parked formation's rows), at the first settle
 
+    @property
+    def plan(self) -> GroupPlan:
+        """The formations' fixed reference data as the compiled references take them."""
+        return GroupPlan(self.G, self.profs, self.prof_at, self.along, self.slot_d, self.is_road,
+                         self.d_front, self.half_w, self.starts, self.lims, self.pps, self.ramps,
+                         self.frame, self.slots, self.depart)
+
+    @property
+    def planner(self) -> PlannerState:
+        """The references' planner state (updated in place by the compiled references)."""
+        return PlannerState(self.a_vc, self.emergency_vc, self.has_prev, self.a_cap_prev,
+                            self.v_prev, self.emergency)
+
+    @property
+    def held_state(self):
+        """Every row's held state (sim/fleet_state.py FleetState; a parked formation's rows),
+        None before the first :meth:`settle`."""
+        return self._held
+
     def _sync(self, i: int) -> None:
         """Formation i's status and departure time after depart_due or retire_formation."""
         f = self.forms[i]
@@ -94,12 +116,11 @@ class FormationGroup:
         a_request, s_next, v_next = np.empty(k_f), np.empty(k_f), np.empty(k_f)
         t_f = t - self.depart
         group_reference_step(
-            self.G, self.profs, self.prof_at, t_f, self.s, self.v, self.along, self.slot_d,
-            self.is_road, self.d_front, self.half_w, sensed.m_s, sensed.m_d, sensed.v_m,
-            sensed.active, nb_rear, nb_d, nb_half_w, nb_v, nb_in_f, owner, self.starts, self.lims,
-            self.pps, self.a_vc, self.emergency_vc, self.a_cap_prev, self.v_prev, self.has_prev,
-            self.emergency, self.dt_c, vc, self.ramps, a_cap_from, run, a_request, s_next, v_next,
-            gap, lead_idx, a_cap_req, a_cap, truth)
+            self.plan, self.planner,
+            ReferenceOut(vc, a_cap_from, a_request, s_next, v_next, gap, lead_idx, a_cap_req,
+                         a_cap, truth),
+            t_f, self.s, self.v, run, MemberRows(sensed.m_s, sensed.m_d, sensed.v_m, sensed.active),
+            NeighbourRows(nb_rear, nb_d, nb_half_w, nb_v, nb_in_f, _NO_MATES), owner, self.dt_c)
         self._next = (run, s_next, v_next)
         rows = np.repeat(run, np.diff(self.starts))
         n_nb = None if sensed.nb is None else len(sensed.nb.ids)

@@ -31,6 +31,7 @@ consecutive recorded steps is one incident.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -128,6 +129,17 @@ def member_clearances(sig, x_col, y_col, h_col, shift, length, width, active, ou
     return worst
 
 
+class IncidentArrays(NamedTuple):
+    """What the compiled step reads of the incidents' watch (sumo/fused_step.py)."""
+
+    cols: np.ndarray  # the signal columns x, y, heading, v, v_ref
+    shift: np.ndarray  # (n,) CoG to the body's centre [m]
+    length: np.ndarray  # (n,) [m]
+    width: np.ndarray  # (n,) [m]
+    clear: np.ndarray  # (n, n) clearance between members [m] (written)
+    stranded: np.ndarray  # STRANDED_SPEED [m/s], STRANDED_V_REF [m/s]
+
+
 class Incidents:
     """Counts the incidents of a run (module docstring) and records their events.
 
@@ -153,6 +165,13 @@ class Incidents:
                                 "sumo_emergency_brakes", "lane_departures"), 0)
         self.lane_watch = None  # (mask, slot d [m], half lane width [m]): watch_lanes
         self.off_lane = np.zeros(n, dtype=bool)  # out of its lane at the last check
+
+    @property
+    def arrays(self) -> IncidentArrays:
+        """The arrays the compiled step works on (the same ones over a run)."""
+        return IncidentArrays(np.array([_X, _Y, _H, _V, _VREF], dtype=np.int64), self.shift,
+                              self.length, self.width, self.clear,
+                              np.array([STRANDED_SPEED, STRANDED_V_REF]))
 
     def step(self, t: float, sig: np.ndarray, active: np.ndarray) -> None:
         worst = math.inf

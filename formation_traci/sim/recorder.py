@@ -13,6 +13,7 @@ from ..states import LeaderState
 from ..record.columns import FILLED_BY_CALLER, SIGNAL_COLUMNS
 from ..record.writer import ChunkedTable
 from .table_cuts import TableCuts
+from .table_records import SignalRows, TableBuffers
 from .incident_log import INCIDENT_EVENT_KINDS, IncidentLog
 
 
@@ -115,6 +116,20 @@ class Recorder(TableCuts):
             self._bg_ints = bg.block([c.name for c in BACKGROUND_COLUMNS if c.dtype != "float64"])
             self._bg_key, self._bg_codes = ((), (), ()), None
 
+    @property
+    def buffers(self) -> TableBuffers:
+        """The tables' buffers as the compiled step takes them (sim/table_records.py)."""
+        bg = self.background is not None
+        return TableBuffers(self._sig_limits, self._float_block, self._traj_ids, self._cf_block,
+                            self._cf_ids, self._comfort_from, self._extra_block, self._vc_at,
+                            self.vc_codes, self._bg_floats if bg else np.empty((0, 0)),
+                            self._bg_ints if bg else np.empty((0, 0), dtype=np.int32))
+
+    @property
+    def any_out(self) -> bool:
+        """A signal was beyond the recorder's limits at the last recorded step."""
+        return self._any_out
+
     def tables(self) -> dict:
         """The run's tables by name (SSM only once SUMO has written its file)."""
         out = {"trajectories": self.traj, "comfort": self.comfort, "events": self.events}
@@ -191,7 +206,7 @@ class Recorder(TableCuts):
             cf.column(name)[sl].reshape(m, n)[:] = vals[:, :, q]
         cf.commit(m * n)
 
-    def signal_rows(self, mask) -> tuple | None:
+    def signal_rows(self, mask) -> SignalRows | None:
         """Where sim/fleet.py member_signals writes the members' rows of the step itself
         (Fleet.signals_into; then :meth:`add_step` with ``written``), or None when it must
         not: a member out of the run (``mask``), a signal out of range at the step before
@@ -201,8 +216,8 @@ class Recorder(TableCuts):
         if (self._any_out or at + n + len(self.vc_codes) > tr.chunk_rows or c_at + n > cf.chunk_rows
                 or (mask is not None and mask.tobytes() != self._all_in)):
             return None
-        return (self._sig_limits, self._float_block, self._traj_ids, at, self._cf_block,
-                self._cf_ids, c_at, self._comfort_from)
+        return SignalRows(self._sig_limits, self._float_block, self._traj_ids, at, self._cf_block,
+                          self._cf_ids, c_at, self._comfort_from)
 
     def add_step(self, t, sig: np.ndarray, extra: dict, mask, truth: np.ndarray,
                  written: bool = False) -> None:

@@ -36,6 +36,20 @@ class MemberWatch:
         self._off = False  # any member in self.mismatch
         self._settled = None  # lanes of the last read when every member was in it and in SUMO
 
+    @property
+    def settled(self):
+        """The lanes of the last read when every member was in it and in SUMO (None: none)."""
+        return self._settled
+
+    def forget_lanes(self) -> None:
+        """The next read compares no lanes (members went out of the run)."""
+        self._settled = None
+
+    @property
+    def off(self) -> bool:
+        """A member was misplaced at the last placement check."""
+        return self._off
+
     def removed(self, t, i, sumo_id: str, ev=None):
         """Member i (SUMO's ``sumo_id``) is no longer in SUMO: the event with SUMO's reason
         (:func:`removal_reason`; ``ev``: what SUMO reported for the last step)."""
@@ -180,6 +194,11 @@ class EmergencyWatch:
         self.vc_ids = list(vc_ids or ["vc"])  # one virtual car per formation
         self.on = np.zeros(len(self.ids) + len(self.vc_ids), dtype=bool)  # members, then the virtual cars
         self._any_on = False  # self.on.any()
+
+    @property
+    def any_on(self) -> bool:
+        """The virtual car or a member was on emergency braking at the last call."""
+        return self._any_on
 
     def __call__(self, t, info: dict) -> None:
         """``info``: Reference.info; several formations: ``emergency`` and ``a_request`` one

@@ -25,20 +25,18 @@ import numpy as np
 
 from ..control.reference_road import RoadReference
 from ..record.columns import COMFORT_COLUMNS, FILLED_BY_CALLER, SIGNAL_COLUMNS
-from ..sim.fleet import step_members
-from ..sim.incidents import STRANDED_SPEED, STRANDED_V_REF, _H, _V, _VREF, _X, _Y
+from ..control.reference_records import ReferenceOut
+from ..sim.fleet_records import StateRecord, state_record
 from ..sim.fleet_state import FleetState
 from ..sim.loop import check_finite
 from .events import PLACEMENT_TOLERANCE
+from .fused_records import RoadRun, SensedRows, StepAt, StepOut, fused_run
 from .fused_refs import GroupOfFormations, OneFormation
 from .fused_step import EMERGENCY, NOT_FINITE, OUT_OF_RANGE, SLOW, fused_step
 
 SWITCH = "FORMATION_TRACI_FUSED"
 """Environment variable: ``off`` runs every step through the loop's own path (a diagnostic:
 the files are the same either way, tests/test_fused_step.py)."""
-
-_VC_COLUMNS = ("t", "x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "s", "d")
-"""The float columns of a virtual-car row (sim/recorder.py Recorder._vc_row), fused_step's order."""
 
 _NO_NB = (np.empty((0, 7)), np.empty(0), np.empty((3, 0), dtype=np.int32), np.empty(0, dtype=np.int64))
 """fused_step's neighbour arguments for a step with no vehicle near the formation."""
@@ -70,7 +68,7 @@ def fused_path(parts, rec, sc, group=None):
             or type(world) is not SumoWorld or world.baseline or world.adapter.gui
             or world.adapter.backend != "libsumo" or parts.road_load is not None
             or not (one or group is not None) or sc.maneuvers
-            or fleet._step is not step_members or rec.incidents is None or not rec.incidents.pairs):
+            or not fleet.package_laws or rec.incidents is None or not rec.incidents.pairs):
         return None
     refs = OneFormation(forms[0].generator, world) if one else GroupOfFormations(group, world)
     return FusedPath(parts, rec, sc, refs)
@@ -92,28 +90,16 @@ class FusedPath:
         self.n_steps = int(round(sc.run.duration / sc.run.step))
         self.ids = list(fl.cfg.ids)
         k = len(parts.formations)
-        self.vc = np.empty((gen.n_ctrl, n, 8))
-        self.a_cap_from, self.gap, self.a_cap_req, self.a_cap = (np.empty(n) for _ in range(4))
-        self.lead_idx, self.lead_obs = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
-        self.a_request, self.s_next, self.v_next = np.empty(k), np.empty(k), np.empty(k)
-        self.truth = np.empty((k, 8))
-        self.sig = np.full((n, len(SIGNAL_COLUMNS)), np.nan)
-        vc_cols = np.array([rec._floats.index(c) for c in _VC_COLUMNS], dtype=np.int64)
-        inc = rec.incidents
-        self.periods = np.empty((gen.n_ctrl, n, 3))
-        self.v_m, self.m_gap, self.place = np.empty(n), np.empty(n), np.empty((6, n))
-        self.kin = (np.empty((n, 2)), np.empty((n, 2)), np.empty(n))
-        self.run_args = (
-            fl.kind, fl.P, fl.law, fl.L, fl.gains, fl.pred, fl.n_sub(gen.dt_c), gen.dt_c,
-            self.step_s, w.line.G, PLACEMENT_TOLERANCE, w.d_front, *refs.run_args, self.vc,
-            self.a_cap_from, self.a_request, self.s_next, self.v_next, self.gap, self.lead_idx,
-            self.lead_obs, self.a_cap_req, self.a_cap, self.truth, self.sig, fl.cols,
-            rec._sig_limits, rec._float_block, rec._traj_ids, rec._cf_block, rec._cf_ids,
-            rec._comfort_from, rec._extra_block, w.slot_index, vc_cols, rec.vc_codes,
-            rec._bg_floats, rec._bg_ints, np.array([_X, _Y, _H, _V, _VREF], dtype=np.int64),
-            inc.shift, inc.length, inc.width, inc.clear,
-            np.array([STRANDED_SPEED, STRANDED_V_REF]), self.periods, self.v_m, self.m_gap,
-            self.place, *self.kin)
+        self.road = RoadRun(w.line.G, PLACEMENT_TOLERANCE, w.d_front, self.step_s, refs.bodies,
+                            refs.peers, w.slot_index, fl.cols)
+        self.ref_out = ReferenceOut(
+            np.empty((gen.n_ctrl, n, 8)), np.empty(n), np.empty(k), np.empty(k), np.empty(k),
+            np.empty(n), np.empty(n, dtype=np.int64), np.empty(n), np.empty(n), np.empty((k, 8)))
+        self.out = StepOut(np.full((n, len(SIGNAL_COLUMNS)), np.nan), np.empty((gen.n_ctrl, n, 3)),
+                           np.empty(n), np.empty(n), np.empty((6, n)), np.empty((n, 2)),
+                           np.empty((n, 2)), np.empty(n), np.empty(n, dtype=np.int64))
+        self.run = fused_run(fl.params(gen.dt_c), self.road, refs.plan, refs.planner, self.ref_out,
+                             rec.buffers, rec.incidents.arrays, self.out)
         self._slot = w.slot_index
         self._lanes_key = None  # the settled lanes the packed rows below are of
         self._li = self._lane_index = None
@@ -133,7 +119,7 @@ class FusedPath:
         act = w.active
         every = act.tobytes() == self._all_in
         if (k >= self.n_steps or not w.inserted or len(w.pending) or w.released or w.adopting
-                or rec._any_out or (k + 1) % rec.steps_per_chunk == 0
+                or rec.any_out or (k + 1) % rec.steps_per_chunk == 0
                 or w.slot_index is not self._slot or not self.refs.usual(t)
                 or ((w.in_sumo.tobytes() != self._all_in) if every else (act & ~w.in_sumo).any())):
             return False
@@ -145,10 +131,10 @@ class FusedPath:
         idx = self._all if every else np.flatnonzero(act)
         n_act, tr, cf = len(idx), rec.traj, rec.comfort
         if (tr.rows_buffered + n_act + self.refs.vc_rows > tr.chunk_rows
-                or cf.rows_buffered + n_act * self.periods.shape[0] > cf.chunk_rows):
+                or cf.rows_buffered + n_act * self.out.periods.shape[0] > cf.chunk_rows):
             return False
         rows = w.adapter.settled_members(w.sumo_ids if every else [w.sumo_ids[i] for i in idx])
-        if rows is None or not (rows[1] == w.members._settled if every
+        if rows is None or not (rows[1] == w.members.settled if every
                                 else w.members.unchanged(idx, rows[1], rows[2])):
             return False
         nb = w.adapter.neighbour_table(w.all_bg, native=True)
@@ -169,24 +155,24 @@ class FusedPath:
             nb_ids, nb_in = None, _NO_NB
         else:
             nb_ids, types, lane_ids, table, nb_li = nb
-            nb_in = (table, w._nb_guess(nb_ids), rec.background_codes(nb_ids, types, lane_ids), nb_li)
+            nb_in = (table, w.nb_guess(nb_ids), rec.background_codes(nb_ids, types, lane_ids), nb_li)
         s, v = self.refs.before()
         tr, cf, refs = rec.traj, rec.comfort, self.refs
+        sensed = SensedRows(members, li, lane_index, w.m_s, w.packed_lanes.table,
+                            w.packed_lanes.points, *nb_in, w.active)
+        at = StepAt(t, s, v, tr.rows_buffered, cf.rows_buffered, rec.background.rows_buffered,
+                    refs.running, refs.parked)
         x, ts, sp, ul, s_all, d_all, n_off, worst, flags = fused_step(
-            *self.run_args, t, s, v, state.x, state.theta_star, state.speed_in,
-            self.fleet._u_last(state), w.packed_lanes.table, w.packed_lanes.points, w.m_s,
-            members, li, lane_index, *nb_in, tr.rows_buffered, cf.rows_buffered,
-            rec.background.rows_buffered, w.active, refs.running, refs.parked,
-            *refs.held(state))
+            self.run, state_record(state), StateRecord(*refs.held(state)), sensed, at)
         refs.after()
         self._flags = flags
         w.m_s = s_all[:n]
         if rec.incidents.lane_watch is not None:
             rec.incidents.lanes(t, d_all[:n], w.active)
         if nb_ids is not None:
-            w._nb_guess.keep(nb_ids, s_all[n:])
+            w.nb_guess.keep(nb_ids, s_all[n:])
         if not self._every:  # MemberWatch.lane_changes of a step with members out of the run
-            w.members._settled = None
+            w.members.forget_lanes()
         self._events(t, n_off, flags, worst, nb)
         tr.commit(len(idx) + refs.vc_rows)
         cf.commit(len(idx))
@@ -217,21 +203,21 @@ class FusedPath:
         """The step's events in the loop's order: placement (sense), emergency braking and
         the neighbours' lane changes and cut-ins (observe, then the background rows), signals
         out of range and the members' incidents (record)."""
-        w, rec = self.world, self.rec
-        if n_off or w.members._off:
-            w.members.placement(t, self.m_gap, n_off)
-        if flags & EMERGENCY or w.emergency._any_on:
-            w.emergency(t, self.refs.emergency_info(self.a_request, self.a_cap_req))
+        w, rec, out = self.world, self.rec, self.out
+        if n_off or w.members.off:
+            w.members.placement(t, self.out.m_gap, n_off)
+        if flags & EMERGENCY or w.emergency.any_on:
+            w.emergency(t, self.refs.emergency_info(self.ref_out.a_request, self.ref_out.a_cap_req))
         if nb is None:
-            w.traffic(t, _NO_VIEW, self.lead_obs, self.gap, self.v_m, w.active)
+            w.traffic(t, _NO_VIEW, out.lead_obs, self.ref_out.gap, out.v_m, w.active)
         else:
-            w.traffic(t, _NbView(nb[0], nb[2], nb[4]), self.lead_obs, self.gap, self.v_m, w.active)
+            w.traffic(t, _NbView(nb[0], nb[2], nb[4]), out.lead_obs, self.ref_out.gap, out.v_m, w.active)
             rec.background.commit(len(nb[0]))
         if flags & OUT_OF_RANGE or not self._every:  # Recorder.add_signal_rows' check
-            rec.flag_range(t, self.sig, w.active)
+            rec.flag_range(t, out.sig, w.active)
         inc = rec.incidents
         if worst < 0.0 or flags & SLOW or inc.busy:
-            inc.after_clearances(t, self.sig, w.active, worst)
+            inc.after_clearances(t, out.sig, w.active, worst)
 
     # ------------------------------------------------------------------ after the step
     def finish(self, k: int, t_next: float, state, clock) -> None:
@@ -240,21 +226,21 @@ class FusedPath:
         loop's sim/timing.py PhaseClock)."""
         w, ad, idx = self.world, self.world.adapter, self._idx
         clock.lap("record")  # the loop's caller: the step's end, part files, progress (runner.py)
-        if self.periods.shape[0] > 1:
-            self.rec.comfort.commit((self.periods.shape[0] - 1) * len(idx))
-        self.refs.settle(self.s_next, self.v_next)
+        if self.out.periods.shape[0] > 1:
+            self.rec.comfort.commit((self.out.periods.shape[0] - 1) * len(idx))
+        self.refs.settle(self.ref_out.s_next, self.ref_out.v_next)
         if self._flags & NOT_FINITE:
             check_finite(state, self.ids, t_next)
-        place = self.place
+        place = self.out.place
         w.v_after, w.a_mean = place[3].copy(), place[4].copy()
         if w.true_v is not None:
             w.true_v[int(round(t_next / self.step_s))] = np.where(w.active, w.v_after, np.nan)
-        w._kin = (state, *self.kin)  # the next sense's, if the loop's step takes it
+        w.placed(state, self.out.pos, self.out.vel, self.out.heading)  # the next sense's
         if self._every:
             ids, at = w.sumo_ids, place
         else:
             ids, at = [w.sumo_ids[i] for i in idx], place[:, idx]
-        refused = ad.move_rows(ids, at[0], at[1], at[2], self.kin[0] if self._every else self.kin[0][idx], at[5])
+        refused = ad.move_rows(ids, at[0], at[1], at[2], self.out.pos if self._every else self.out.pos[idx], at[5])
         if refused or w.refusals.counting:
             w.refusals(t_next, idx, refused, w.active, ad)
         clock.lap("sumo_place")
@@ -263,7 +249,7 @@ class FusedPath:
             w.step_hook(k, t_next, ad)
         ad.tell_speeds(ids, at[5], at[4])
         if refused and not w.all_bg and w.active.any():  # a member dropped: SumoWorld.step's
-            w._subscribe_contexts()
+            w.subscribe_contexts()
         if w.all_bg:
             ad.subscribe_departed()
         clock.lap("sumo_step")

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..control.reference_records import GroupPlan, PlannerState
+
 _WAITING, _RUNNING = 0, 1
 """sim/formation_group.py's codes of a waiting and a running formation."""
 
@@ -34,13 +36,15 @@ class OneFormation:
         self.s, self.v, self.a_vc = np.empty(1), np.empty(1), np.empty(1)
         self.em_vc, self.has_prev = np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.bool_)
         pl = self.pl
-        self.run_args = (gen.prof, np.array([0, len(gen.prof)], dtype=np.int64), gen.along,
-                         gen.slot_d, gen.is_road, gen.half_w,
-                         np.array([0, len(gen.frame)], dtype=np.int64), gen.lim[None, :],
-                         pl.pp[None, :], np.array([gen.ramp]), gen.frame, gen.slots, np.zeros(1),
-                         _bodies(gen.d_front, world), False, self.a_vc, self.em_vc,
-                         self.has_prev, pl.a_cap, gen._v_prev, pl.emergency)
-        self._kept = (pl.a_cap, gen._v_prev, pl.emergency)
+        self.plan = GroupPlan(gen.G, gen.prof, np.array([0, len(gen.prof)], dtype=np.int64),
+                              gen.along, gen.slot_d, gen.is_road, gen.d_front, gen.half_w,
+                              np.array([0, len(gen.frame)], dtype=np.int64), gen.lim[None, :],
+                              pl.pp[None, :], np.array([gen.ramp]), gen.frame, gen.slots,
+                              np.zeros(1))
+        self.bodies, self.peers = _bodies(gen.d_front, world), False
+        self.planner = PlannerState(self.a_vc, self.em_vc, self.has_prev, pl.a_cap, gen.v_prev,
+                                    pl.emergency)
+        self._kept = (pl.a_cap, gen.v_prev, pl.emergency)
 
     def held(self, state):
         """The held state's arrays (no member of one formation is ever parked: any rows)."""
@@ -51,19 +55,19 @@ class OneFormation:
         reference's still."""
         gen, pl = self.gen, self.pl
         a_cap, v_prev, emergency = self._kept
-        return (gen.s + self.reach <= gen.length and pl.a_cap is a_cap and gen._v_prev is v_prev
+        return (gen.s + self.reach <= gen.length and pl.a_cap is a_cap and gen.v_prev is v_prev
                 and pl.emergency is emergency)
 
     def before(self):
         """The step's (s, v) [m, m/s]; the planner's scalars into their arrays."""
         gen, pl = self.gen, self.pl
         self.s[0], self.v[0], self.a_vc[0] = gen.s, gen.v, pl.a_vc
-        self.em_vc[0], self.has_prev[0] = pl.emergency_vc, gen._has_prev
+        self.em_vc[0], self.has_prev[0] = pl.emergency_vc, gen.has_prev
         return self.s, self.v
 
     def after(self) -> None:
         """The planner's scalars back from their arrays (RoadReference.reference's)."""
-        self.gen._has_prev, self.pl.a_vc = True, float(self.a_vc[0])
+        self.gen.has_prev, self.pl.a_vc = True, float(self.a_vc[0])
         self.pl.emergency_vc = bool(self.em_vc[0])
 
     def emergency_info(self, a_request, a_cap_req) -> dict:
@@ -84,10 +88,8 @@ class GroupOfFormations:
         g = self.group = group
         self.reach = g.reach
         self.running, self.parked, self.vc_rows = g.status == _RUNNING, None, 0
-        self.run_args = (g.profs, g.prof_at, g.along, g.slot_d, g.is_road, g.half_w, g.starts,
-                         g.lims, g.pps, g.ramps, g.frame, g.slots, g.depart,
-                         _bodies(g.d_front, world), True, g.a_vc, g.emergency_vc, g.has_prev,
-                         g.a_cap_prev, g.v_prev, g.emergency)
+        self.plan, self.planner = g.plan, g.planner
+        self.bodies, self.peers = _bodies(g.d_front, world), True
         self._kept = (g.a_vc, g.emergency_vc, g.has_prev, g.a_cap_prev, g.v_prev, g.emergency,
                       g.depart)
 
@@ -106,11 +108,11 @@ class GroupOfFormations:
             return False
         self.running, self.vc_rows = run, int(run.sum())
         self.parked = np.repeat(~run, g.counts)
-        return g._held is not None or not self.parked.any()
+        return g.held_state is not None or not self.parked.any()
 
     def held(self, state):
         """The parked rows' held state (FormationGroup.settle's; the state itself when none)."""
-        h = self.group._held
+        h = self.group.held_state
         if h is None:  # nothing parked: any rows
             return state.x, state.theta_star, state.speed_in, state.theta_star
         return h.x, h.theta_star, h.speed_in, h.u_last

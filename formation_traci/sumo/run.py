@@ -71,7 +71,7 @@ def _merge_watch(sc: Scenario, plan: RoadPlan, parts, world: SumoWorld):
 def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld, meta: dict):
     """(reference generator, transforms, initial state) of the formation ``sc`` sees, whose
     members are ``plan``'s (``gains``: their rows of sim/fleet.py Fleet.gains)."""
-    from ..control.reference_road import GovernorLimits, RoadReference
+    from ..control.reference_road import GovernorLimits, RoadReference, SlotLayout, StepTiming
     from ..sim.fleet import initial_state
     from ..sim.column_gaps import column_gap_warnings
     from ..sim.setup import follow_limit, profile, road_mu, top_speed
@@ -94,14 +94,15 @@ def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld,
     tg0 = initial_targets(plan.road, plan.slots, plan.rigid, plan.is_road, s0, v0, 0.0)
     yaw0 = plan.speed0 * line.curvature(line.to_frenet(plan.pos0)[0])
     state = initial_state(cfg, plan.pos0, plan.heading0, plan.speed0, yaw0, np.zeros(cfg.n), tg0)
-    args = (world.line.G, world.line.length, plan.slots, plan.rigid, plan.is_road, s0, v0,
-            speed_profile, limits, np.array([v.width / 2 for v in plan.vehicles]),
-            np.array([v.cog_to_front_bumper for v in plan.vehicles]),
-            sc.road.end_margin, run.step / n_ctrl, n_ctrl)
     # docs/model.md, "Accelerations within a step" and "Leave without stranding"
     ramp, release = sc.leader.accel_within_step == "ramp", sc.leader.emergency_release
+    layout = SlotLayout(plan.slots, plan.rigid, plan.is_road,
+                        np.array([v.width / 2 for v in plan.vehicles]),
+                        np.array([v.cog_to_front_bumper for v in plan.vehicles]))
+    args = (world.line.G, world.line.length, layout, s0, v0, speed_profile, limits,
+            sc.road.end_margin, StepTiming(run.step / n_ctrl, n_ctrl, ramp, release))
     if not sc.maneuvers:
-        return RoadReference(*args, ramp=ramp, release=release), [], state
+        return RoadReference(*args), [], state
     from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
     from ..control.maneuvers.planner import ManeuverPlanner
     from .road_setup import road_room
@@ -111,6 +112,5 @@ def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld,
                               lengths, widths, list(plan.ids or world.ids), road_room(plan.road),
                               (ld.time_gap, ld.min_gap),
                               np.array([v.cog_to_front_bumper for v in plan.vehicles]))
-    gen = ManeuverRoadReference(*args, ramp=ramp, release=release, planner=planner,
-                                length=lengths)
+    gen = ManeuverRoadReference(*args, planner=planner, length=lengths)
     return gen, [PlanSlots(planner)], state

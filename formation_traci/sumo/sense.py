@@ -13,12 +13,34 @@ conversions and ``math.hypot`` (:func:`~..kernels.py_hypot`), bit for bit
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from ..kernels import kernel, py_hypot
 from ..road.fast_line import to_frenet_many
 from .types import cog_to_sumo_one, sumo_to_cog_one
+
+
+class SumoRows(NamedTuple):
+    """SUMO's rows of the members as :func:`sense_step` takes them (sumo/world.py
+    SumoWorld._member_rows; ``li`` of length 0: no rows)."""
+
+    front: np.ndarray  # (n, 2) front bumper x, y [m] (NaN: not in SUMO)
+    angle: np.ndarray  # (n,) SUMO's angle [deg]
+    lane_pos: np.ndarray  # (n,) lane position [m]
+    lat: np.ndarray  # (n,) lateral position [m]
+    li: np.ndarray  # (n,) packed lane rows (-1: not used)
+
+
+class NeighbourReads(NamedTuple):
+    """SUMO's rows of the neighbours as :func:`sense_step` takes them."""
+
+    front: np.ndarray  # (m, 2) front bumper x, y [m]
+    angle: np.ndarray  # (m,) SUMO's angle [deg]
+    length: np.ndarray  # (m,) [m]
+    width: np.ndarray  # (m,) [m]
+    guess: np.ndarray  # (m,) last step's arc length [m] (NaN: none)
 
 
 class PackedLanes:
@@ -96,27 +118,30 @@ def lane_point(table, points, li, pos, lat):
 
 
 @kernel
-def sense_step(G, pos, vel, s_guess, heading, d_front, front, angle, lane_pos, lat, li, table,
-               points, tolerance, nb_front, nb_angle, nb_length, nb_width, nb_guess):
+def sense_step(G, pos, vel, s_guess, heading, d_front, rows, table, points, tolerance, nbs):
     """One step's sense, members then neighbours, in one call.
 
     Members: arc length s [m] and lateral offset d [m] of our CoG ``pos`` (n, 2) [m] along
     the line ``G`` (``s_guess``: last step's s, NaN: none), speed [m/s] from ``vel`` (n, 2),
-    and, when SUMO's rows are given (``li`` of length n, else length 0: gap NaN),
-    ``sumo_gap`` [m]: the larger of the distance between our CoG and SUMO's (SUMO's front
-    bumper ``front`` (n, 2) [m] and ``angle`` (n,) [deg]; NaN: not in SUMO) and the distance
-    between our front bumper (``d_front`` [m] ahead of the CoG along ``heading`` [rad]) and
-    lane row ``li``'s point at ``lane_pos`` [m], ``lat`` [m] (li < 0 or a non-finite
-    position: not used); and how many gaps exceed ``tolerance`` [m].
+    and, when SUMO's rows are given (``rows``: :class:`SumoRows`, ``li`` of length n, else
+    length 0: gap NaN), ``sumo_gap`` [m]: the larger of the distance between our CoG and
+    SUMO's (SUMO's front bumper ``front`` (n, 2) [m] and ``angle`` (n,) [deg]; NaN: not in
+    SUMO) and the distance between our front bumper (``d_front`` [m] ahead of the CoG along
+    ``heading`` [rad]) and packed lane row ``li``'s point (``table``, ``points``:
+    :class:`PackedLanes`) at ``lane_pos`` [m], ``lat`` [m] (li < 0 or a non-finite position:
+    not used); and how many gaps exceed ``tolerance`` [m].
 
-    Neighbours (m of them): their centre x, y [m] and heading [rad] from SUMO's front bumper
-    ``nb_front`` (m, 2) [m], ``nb_angle`` [deg] and ``nb_length`` [m]; their s, d along the
-    line (``nb_guess``: last step's s, NaN: none), the arc length of their rear
-    (s - length / 2) [m] and their half width [m] (``nb_width`` / 2).
+    Neighbours (m of them, ``nbs``: :class:`NeighbourReads`): their centre x, y [m] and
+    heading [rad] from SUMO's front bumper ``front`` (m, 2) [m], ``angle`` [deg] and
+    ``length`` [m]; their s, d along the line (``guess``: last step's s, NaN: none), the arc
+    length of their rear (s - length / 2) [m] and their half width [m] (``width`` / 2).
 
     Returns (s, d) of members and neighbours concatenated (n + m,), the members' speed, gap
     and count of gaps over the tolerance, and the neighbours' x, y, heading, rear, half width.
     """
+    front, angle, lane_pos, lat, li = rows.front, rows.angle, rows.lane_pos, rows.lat, rows.li
+    nb_front, nb_angle, nb_length, nb_width = nbs.front, nbs.angle, nbs.length, nbs.width
+    nb_guess = nbs.guess
     n = pos.shape[0]
     m = nb_front.shape[0]
     xy = np.empty((n + m, 2))

@@ -33,7 +33,7 @@ from .flow_inserts import counted_entry, flow_counts, room_for
 from .handover import MemberHandover
 from .member_rows import MemberRows
 from .peers import Peers
-from .sense import NeighbourGuess, PackedLanes, sense_step
+from .sense import NeighbourGuess, NeighbourReads, PackedLanes, SumoRows, sense_step
 from .types import Neighbours
 from .plan import MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import flow_vehicles_per_hour, populate_places, write_routes
@@ -218,6 +218,15 @@ class SumoWorld(MemberHandover, MemberRows):
             kin = self._kin = (state, *self.fleet.kinematics(state))
         return kin[1:]
 
+    @property
+    def nb_guess(self):
+        """The neighbours' arc lengths at the last sense (sumo/sense.py NeighbourGuess)."""
+        return self._nb_guess
+
+    def placed(self, state, pos, vel, heading) -> None:
+        """The kinematics of ``state``, just placed: the next sense's (:meth:`_kinematics`)."""
+        self._kin = (state, pos, vel, heading)
+
     def sense(self, k: int, t: float, state) -> Sensed:
         pos, vel, heading = self._kinematics(state)
         self._kin = None  # adopt may write into this state after sense
@@ -227,8 +236,8 @@ class SumoWorld(MemberHandover, MemberRows):
         nb_in = _NO_NB if nb_rows is None else (*nb_rows[2:4], *nb_rows[6:8], self._nb_guess(nb_rows[0]))
         lanes, n = self.packed_lanes, len(self.ids)
         s, d, v_m, gap, n_off, *nb_out = sense_step(
-            self.line.G, pos, vel, self.m_s, heading, self.d_front, *rows[:5], lanes.table,
-            lanes.points, PLACEMENT_TOLERANCE, *nb_in)
+            self.line.G, pos, vel, self.m_s, heading, self.d_front, SumoRows(*rows[:5]),
+            lanes.table, lanes.points, PLACEMENT_TOLERANCE, NeighbourReads(*nb_in))
         m_s, m_d = s[:n], d[:n]
         self.m_s = m_s
         sensed = Sensed(self.active, {"s": m_s, "d": m_d, "slot": self.slot_index}, v_m, m_s, m_d)
@@ -318,7 +327,7 @@ class SumoWorld(MemberHandover, MemberRows):
             return None, "", f"no member left in SUMO at t = {t:.2f} s"
         return None
 
-    def _subscribe_contexts(self) -> None:
+    def subscribe_contexts(self) -> None:
         """One context subscription per formation with members in SUMO, on a member near its
         middle (sumo/zone.py), renewed when that member left."""
         here = self.active & self.in_sumo if len(self.groups) > 1 else self.active
@@ -390,7 +399,7 @@ class SumoWorld(MemberHandover, MemberRows):
             ad.set_true_speeds([self.sumo_ids[i] for i in act_idx], self.v_after[act_idx],
                                self.a_mean[act_idx])
         if not self.all_bg and self.active.any():
-            self._subscribe_contexts()
+            self.subscribe_contexts()
         self.inserted = True
         if self.all_bg:
             ad.subscribe_departed()

@@ -4,18 +4,23 @@ A law is a module with
 
 * ``PARAMS``: the names of its per-member parameters (columns of the array ``L``);
 * ``pack(cfg) -> (n, len(PARAMS))``: those parameters from a sim/fleet.py FleetConfig;
-* ``input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay,
-  v_cap_i, a_cap_i, pred_i, u_last, dt_c)``: a ``@kernel`` giving member i's model input for
-  its desired point (p, p', p'') and the safety caps; ``pred_i`` is the member ahead of i in
-  the formation's column (-1: none), whose state row a platoon law reads in ``x``;
-  ``u_last`` (n,) every member's input u0 of the control period before (a_r [m/s^2] on the
-  dynamic model: what a CACC receives of its predecessor, and a dynamic law's own state);
-  ``dt_c`` the control period [s]. It returns
+* ``input_at(fleet, state, i, target, v_cap_i, a_cap_i)``: a ``@kernel`` giving member i's
+  model input for its desired point and the safety caps ``v_cap_i`` [m/s], ``a_cap_i``
+  [m/s^2]. ``fleet`` (sim/fleet_records.py FleetParams) holds the members' parameters: the
+  model ``kind``, the law parameter rows ``L``, the gain rows ``gains`` (control/schedule.py
+  SPEED_G_MIN ..), ``pred`` the member ahead of each in the formation's column (-1: none),
+  the control period ``dt_c`` [s]; ``state`` (StateRecord) every member's state: the rows
+  ``x`` (models/bicycle.py S), ``theta_star`` [rad], ``speed_in`` [m/s] and ``u_last``, every
+  member's input u0 of the control period before (a_r [m/s^2] on the dynamic model: what a
+  CACC receives of its predecessor, and a dynamic law's own state); ``target``
+  (control/formation.py Target) the desired point p [m], p' [m/s], p'' [m/s^2]. It returns
   (u0, u1, v_ref [m/s], omega_ref [rad/s], theta* dot [rad/s], v_ref dot [m/s^2], ex, ey [m],
   heading error [rad]) (control/laws/virtual_structure.py).
 
 Built-in laws are named in :data:`BUILTIN` and dispatched by code in the compiled step
-(control/laws/dispatch.py, cached with the other kernels); :func:`register_law` adds a law
+(control/laws/dispatch.py, cached with the other kernels; their ``input_at`` and the platoon
+helpers are ``@kernel(inline="always")``: compiled into the step's kernels, the records are
+not passed from call to call); :func:`register_law` adds a law
 from anywhere at run time (compiled for its fleet when first used, not cached on disk).
 The platoon laws (acc, cacc_path, cacc_ploeg: control/laws/platoon.py, docs/platoon_laws.md)
 are longitudinal laws on the column's predecessor with the virtual structure's lateral loop.

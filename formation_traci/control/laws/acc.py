@@ -15,31 +15,29 @@ from . import platoon
 
 PARAMS = (*platoon.COMMON, *platoon.ACC_PARAMS)
 DEFAULTS = platoon.ACC_DEFAULTS
-_H = platoon.ACC_AT
 
 
 @kernel
 def accel_at(x, i, p, v, vp, L):
     """The ACC law's a_r [m/s^2] of member i behind p (speeds v, vp [m/s])."""
-    h = L[i, _H]
+    h = L[i, platoon.HEADWAY]
     gap = platoon.gap_at(x, i, p, L)
-    return -(1.0 / h) * ((v - vp) + L[i, _H + 1] * (h * v + L[i, _H + 2] - gap))
+    return -(1.0 / h) * ((v - vp) + L[i, platoon.GAP_GAIN] * (h * v + L[i, platoon.STANDSTILL]
+                                                               - gap))
 
 
-@kernel
-def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay,
-             v_cap_i, a_cap_i, pred_i, u_last, dt_c):
-    """Member i's model input (control/laws/__init__.py): the ACC law behind pred_i, the
-    virtual-structure law at the head. A CACC member on radio loss runs this law on its ACC
-    block (sim/fleet_laws.py)."""
-    if pred_i < 0:
-        return platoon.head_input(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx,
-                                  tvy, tax, tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c)
-    v, _, _ = motion_at(kind, x, i, speed_in_i)
-    vp = platoon.speed_of(kind, x, pred_i, u_last)
-    a = accel_at(x, i, pred_i, v, vp, L)
-    return platoon.member_input(a, kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx,
-                                tvy, tax, tay, v_cap_i, a_cap_i, dt_c)
+@kernel(inline="always")
+def input_at(fleet, state, i, target, v_cap_i, a_cap_i):
+    """Member i's model input (control/laws/__init__.py): the ACC law behind its predecessor,
+    the virtual-structure law at the head. A CACC member on radio loss runs this law on its
+    ACC block (sim/fleet_laws.py)."""
+    p = fleet.pred[i]
+    if p < 0:
+        return platoon.head_input(fleet, state, i, target, v_cap_i, a_cap_i)
+    v, _, _ = motion_at(fleet.kind, state.x, i, state.speed_in[i])
+    vp = platoon.speed_of(fleet.kind, state.x, p, state.u_last)
+    a = accel_at(state.x, i, p, v, vp, fleet.L)
+    return platoon.member_input(a, fleet, state, i, target, v_cap_i, a_cap_i)
 
 
 def pack(cfg):

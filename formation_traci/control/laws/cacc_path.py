@@ -22,7 +22,8 @@ from . import platoon
 
 PARAMS = (*platoon.COMMON, *platoon.ACC_PARAMS, "spacing_m", "c1", "xi", "omega_n_hz")
 DEFAULTS = {"spacing_m": 5.0, "c1": 0.5, "xi": 1.0, "omega_n_hz": 0.2}
-_D = platoon.OWN_AT
+SPACING, C1, XI, F_N = range(platoon.OWN_AT, platoon.OWN_AT + 4)
+"""The columns of d [m], C1 [-], xi [-] and f_n [Hz]."""
 
 
 @kernel
@@ -35,21 +36,20 @@ def accel_at(gap, v, vp, ap, v0, a0, d, c1, xi, wn):
     return (1.0 - c1) * ap + c1 * a0 + a3 * (v - vp) + a4 * (v - v0) + a5 * (d - gap)
 
 
-@kernel
-def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay,
-             v_cap_i, a_cap_i, pred_i, u_last, dt_c):
-    """Member i's model input (control/laws/__init__.py): the PATH law behind pred_i, the
-    virtual-structure law at the head."""
-    if pred_i < 0:
-        return platoon.head_input(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx,
-                                  tvy, tax, tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c)
-    v, _, _ = motion_at(kind, x, i, speed_in_i)
-    v0, a0 = platoon.leader_at(tvx, tvy, tax, tay)
-    a = accel_at(platoon.gap_at(x, i, pred_i, L), v, platoon.speed_of(kind, x, pred_i, u_last),
-                 platoon.accel_of(kind, pred_i, u_last), v0, a0, L[i, _D], L[i, _D + 1],
-                 L[i, _D + 2], 2.0 * np.pi * L[i, _D + 3])
-    return platoon.member_input(a, kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx,
-                                tvy, tax, tay, v_cap_i, a_cap_i, dt_c)
+@kernel(inline="always")
+def input_at(fleet, state, i, target, v_cap_i, a_cap_i):
+    """Member i's model input (control/laws/__init__.py): the PATH law behind its
+    predecessor, the virtual-structure law at the head."""
+    p = fleet.pred[i]
+    if p < 0:
+        return platoon.head_input(fleet, state, i, target, v_cap_i, a_cap_i)
+    kind, x, L, u_last = fleet.kind, state.x, fleet.L, state.u_last
+    v, _, _ = motion_at(kind, x, i, state.speed_in[i])
+    v0, a0 = platoon.leader_at(target)
+    a = accel_at(platoon.gap_at(x, i, p, L), v, platoon.speed_of(kind, x, p, u_last),
+                 platoon.accel_of(kind, p, u_last), v0, a0, L[i, SPACING], L[i, C1], L[i, XI],
+                 2.0 * np.pi * L[i, F_N])
+    return platoon.member_input(a, fleet, state, i, target, v_cap_i, a_cap_i)
 
 
 def pack(cfg):

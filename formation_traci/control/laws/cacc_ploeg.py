@@ -17,7 +17,8 @@ from . import platoon
 
 PARAMS = (*platoon.COMMON, *platoon.ACC_PARAMS, "h_s", "kp", "kd", "standstill_m")
 DEFAULTS = {"h_s": 0.5, "kp": 0.2, "kd": 0.7, "standstill_m": 2.0}
-_H = platoon.OWN_AT
+H_S, KP, KD, R0 = range(platoon.OWN_AT, platoon.OWN_AT + 4)
+"""The columns of h [s], kp [1/s^2], kd [1/s] and r0 [m]."""
 
 
 @kernel
@@ -27,21 +28,20 @@ def accel_at(u, gap, v, vp, up, h, kp, kd, r0, dt_c):
     return u + du * dt_c
 
 
-@kernel
-def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay,
-             v_cap_i, a_cap_i, pred_i, u_last, dt_c):
-    """Member i's model input (control/laws/__init__.py): Ploeg's law behind pred_i, the
-    virtual-structure law at the head."""
-    if pred_i < 0:
-        return platoon.head_input(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx,
-                                  tvy, tax, tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c)
-    v, _, _ = motion_at(kind, x, i, speed_in_i)
+@kernel(inline="always")
+def input_at(fleet, state, i, target, v_cap_i, a_cap_i):
+    """Member i's model input (control/laws/__init__.py): Ploeg's law behind its
+    predecessor, the virtual-structure law at the head."""
+    p = fleet.pred[i]
+    if p < 0:
+        return platoon.head_input(fleet, state, i, target, v_cap_i, a_cap_i)
+    kind, x, L, u_last = fleet.kind, state.x, fleet.L, state.u_last
+    v, _, _ = motion_at(kind, x, i, state.speed_in[i])
     u = platoon.accel_of(kind, i, u_last)
-    a = accel_at(u, platoon.gap_at(x, i, pred_i, L), v, platoon.speed_of(kind, x, pred_i, u_last),
-                 platoon.accel_of(kind, pred_i, u_last), L[i, _H], L[i, _H + 1], L[i, _H + 2],
-                 L[i, _H + 3], dt_c)
-    return platoon.member_input(a, kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx,
-                                tvy, tax, tay, v_cap_i, a_cap_i, dt_c)
+    a = accel_at(u, platoon.gap_at(x, i, p, L), v, platoon.speed_of(kind, x, p, u_last),
+                 platoon.accel_of(kind, p, u_last), L[i, H_S], L[i, KP], L[i, KD], L[i, R0],
+                 fleet.dt_c)
+    return platoon.member_input(a, fleet, state, i, target, v_cap_i, a_cap_i)
 
 
 def pack(cfg):

@@ -13,31 +13,24 @@ CACC_PATH = 2
 CACC_PLOEG = 3
 
 
-@kernel
-def law_input_at(code, kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax,
-                 tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c):
-    """Member i's model input under its law ``code`` (the tuple every law's ``input_at``
-    returns: control/laws/virtual_structure.py)."""
+@kernel(inline="always")
+def law_input_at(fleet, state, i, target, v_cap_i, a_cap_i):
+    """Member i's model input under its law ``fleet.law[i]`` (the tuple every law's
+    ``input_at`` returns: control/laws/__init__.py)."""
+    code = fleet.law[i]
     if code == ACC:
-        return acc.input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy,
-                            tax, tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c)
+        return acc.input_at(fleet, state, i, target, v_cap_i, a_cap_i)
     if code == CACC_PATH:
-        return cacc_path.input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx,
-                                  tvy, tax, tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c)
+        return cacc_path.input_at(fleet, state, i, target, v_cap_i, a_cap_i)
     if code == CACC_PLOEG:
-        return cacc_ploeg.input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx,
-                                   tvy, tax, tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c)
-    return virtual_structure.input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py,
-                                      tvx, tvy, tax, tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c)
+        return cacc_ploeg.input_at(fleet, state, i, target, v_cap_i, a_cap_i)
+    return virtual_structure.input_at(fleet, state, i, target, v_cap_i, a_cap_i)
 
 
-def runtime_dispatch(code, kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy,
-                     tax, tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c):
+def runtime_dispatch(fleet, state, i, target, v_cap_i, a_cap_i):
     """The dispatch of a fleet with a law registered at run time (code -1): compiled per law
     with ``LAW`` bound to its ``input_at`` and ``builtin`` to :func:`law_input_at`
     (kernels.rebind; sim/fleet.py)."""
-    if code >= 0:
-        return builtin(code, kind, x, i, theta_star_i, speed_in_i, L, gains, px, py,  # noqa: F821
-                       tvx, tvy, tax, tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c)
-    return LAW(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy,  # noqa: F821
-               tax, tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c)
+    if fleet.law[i] >= 0:
+        return builtin(fleet, state, i, target, v_cap_i, a_cap_i)  # noqa: F821
+    return LAW(fleet, state, i, target, v_cap_i, a_cap_i)  # noqa: F821

@@ -20,19 +20,24 @@ import numpy as np
 
 from ...kernels import kernel, maximum, minimum
 from ...models.state import KINEMATIC, motion_at
-from ..formation import V_EPS, formation_at
-from ..schedule import p_law
+from ..formation import V_EPS, Target, formation_at
+from ...models.bicycle import S
+from ..schedule import speed_law, yaw_law
 from . import virtual_structure
 
 COMMON = ("k", "k_theta", "front_m", "rear_m")
 """The first columns of every platoon law's parameter rows."""
 N_COMMON = len(COMMON)
+K, K_THETA, FRONT, REAR = range(N_COMMON)
+"""The common columns: k [m/s], k_theta [1/s], CoG to front and to rear bumper [m]."""
 ACC_PARAMS = ("headway_s", "gap_gain", "standstill_m")
 """The ACC block that follows (controller.acc): the ACC law's own parameters and a CACC's
 fallback on radio loss (sim/fleet_laws.py)."""
 ACC_DEFAULTS = {"headway_s": 1.2, "gap_gain": 0.1, "standstill_m": 2.0}
 ACC_AT = N_COMMON
 """First column of the ACC block."""
+HEADWAY, GAP_GAIN, STANDSTILL = range(ACC_AT, ACC_AT + len(ACC_PARAMS))
+"""The ACC block's columns: h [s], lambda [1/s], r0 [m]."""
 OWN_AT = N_COMMON + len(ACC_PARAMS)
 """First column of a CACC's own parameters."""
 
@@ -41,10 +46,10 @@ OWN_AT = N_COMMON + len(ACC_PARAMS)
 def gap_at(x, i, p, L):
     """Bumper-to-bumper gap [m] from member i to the member p ahead: the centres of gravity's
     distance along i's heading less p's CoG-to-rear and i's CoG-to-front lengths."""
-    c = np.cos(x[i, 2])
-    s = np.sin(x[i, 2])
-    d = (x[p, 0] - x[i, 0]) * c + (x[p, 1] - x[i, 1]) * s
-    return d - L[p, 3] - L[i, 2]
+    c = np.cos(x[i, S.PSI])
+    s = np.sin(x[i, S.PSI])
+    d = (x[p, S.X] - x[i, S.X]) * c + (x[p, S.Y] - x[i, S.Y]) * s
+    return d - L[p, REAR] - L[i, FRONT]
 
 
 @kernel
@@ -66,66 +71,67 @@ def accel_of(kind, p, u_last):
 
 
 @kernel
-def leader_at(tvx, tvy, tax, tay):
+def leader_at(target):
     """Speed [m/s] and acceleration [m/s^2] of the platoon's reference as member i received it:
-    its desired point's speed and its acceleration along it (the virtual car's v and v dot on a
-    straight road; the radio's copy under [comm])."""
+    its desired point's (``target``: control/formation.py Target) speed and its acceleration along
+    it (the virtual car's v and v dot on a straight road; the radio's copy under [comm])."""
+    tvx, tvy = target.vx, target.vy
     sp = np.hypot(tvx, tvy)
     if sp < V_EPS:
         return sp, 0.0
-    return sp, (tax * tvx + tay * tvy) / sp
+    return sp, (target.ax * tvx + target.ay * tvy) / sp
 
 
-@kernel
-def lane_keeping_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay):
+@kernel(inline="always")
+def lane_keeping_at(fleet, state, i, target):
     """The lateral loop of a platoon member: (u1, v_ref, omega_ref, theta* dot, v_ref dot, ex,
     ey, heading error). Eqs (2.5)-(2.10) about the desired point shifted along its direction of
     travel by the along error, so only the lateral error steers; u1 is the steering rate of
     (3.37) (dynamic) or omega_ref (unicycle). ex, ey [m] are the error to the slot itself."""
-    v, r, course = motion_at(kind, x, i, speed_in_i)
+    kind, x, L = fleet.kind, state.x, fleet.L
+    px, py, tvx, tvy = target.px, target.py, target.vx, target.vy
+    v, r, course = motion_at(kind, x, i, state.speed_in[i])
     sp = np.hypot(tvx, tvy)
     if sp > V_EPS:
         cx = tvx / sp
         cy = tvy / sp
     else:
-        cx = np.cos(x[i, 2])
-        cy = np.sin(x[i, 2])
-    ex = px - x[i, 0]
-    ey = py - x[i, 1]
+        cx = np.cos(x[i, S.PSI])
+        cy = np.sin(x[i, S.PSI])
+    ex = px - x[i, S.X]
+    ey = py - x[i, S.Y]
     e_lon = ex * cx + ey * cy
     vr, om, tsd, vrd, _, _, he = formation_at(
-        px - e_lon * cx, py - e_lon * cy, tvx, tvy, tax, tay, x[i, 0], x[i, 1],
-        v * np.cos(course), v * np.sin(course), x[i, 2], theta_star_i, L[i, 0], L[i, 1])
+        Target(px - e_lon * cx, py - e_lon * cy, tvx, tvy, target.ax, target.ay), x[i, S.X],
+        x[i, S.Y], v * np.cos(course), v * np.sin(course), x[i, S.PSI], state.theta_star[i],
+        L[i, K], L[i, K_THETA])
     if kind == KINEMATIC:
         return om, vr, om, tsd, vrd, ex, ey, he
-    return p_law(om, r, gains[i, 3], gains[i, 4], gains[i, 5]), vr, om, tsd, vrd, ex, ey, he
+    return yaw_law(fleet.gains, i, om, r), vr, om, tsd, vrd, ex, ey, he
 
 
-@kernel
-def member_input(a_r, kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax,
-                 tay, v_cap_i, a_cap_i, dt_c):
+@kernel(inline="always")
+def member_input(a_r, fleet, state, i, target, v_cap_i, a_cap_i):
     """The model input of a platoon member with longitudinal command a_r [m/s^2]: the law's
     tuple (control/laws/__init__.py). a_r is capped by the safety layer (a_cap, and the speed
     loop 3.32 towards v_cap when the member is faster); the unicycle integrates it into its
-    speed input over the control period dt_c [s]."""
-    v, r, course = motion_at(kind, x, i, speed_in_i)
+    speed input over the control period ``fleet.dt_c`` [s]."""
+    speed_in_i = state.speed_in[i]
+    v, r, course = motion_at(fleet.kind, state.x, i, speed_in_i)
     a = minimum(a_r, a_cap_i)
     if v > v_cap_i:
-        a = minimum(a, p_law(v_cap_i, v, gains[i, 0], gains[i, 1], gains[i, 2]))
-    u1, vr, om, tsd, vrd, ex, ey, he = lane_keeping_at(kind, x, i, theta_star_i, speed_in_i, L,
-                                                       gains, px, py, tvx, tvy, tax, tay)
-    if kind == KINEMATIC:
-        vk = maximum(speed_in_i + a * dt_c, 0.0)
+        a = minimum(a, speed_law(fleet.gains, i, v_cap_i, v))
+    u1, vr, om, tsd, vrd, ex, ey, he = lane_keeping_at(fleet, state, i, target)
+    if fleet.kind == KINEMATIC:
+        vk = maximum(speed_in_i + a * fleet.dt_c, 0.0)
         return vk, u1, vk, om, tsd, a, ex, ey, he
     return a, u1, vr, om, tsd, vrd, ex, ey, he
 
 
-@kernel
-def head_input(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay,
-               v_cap_i, a_cap_i, pred_i, u_last, dt_c):
+@kernel(inline="always")
+def head_input(fleet, state, i, target, v_cap_i, a_cap_i):
     """The head of the column: the virtual-structure law on its slot."""
-    return virtual_structure.input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py,
-                                      tvx, tvy, tax, tay, v_cap_i, a_cap_i, pred_i, u_last, dt_c)
+    return virtual_structure.input_at(fleet, state, i, target, v_cap_i, a_cap_i)
 
 
 def pack_rows(cfg, name: str, params: tuple[str, ...], defaults: dict[str, float]) -> np.ndarray:

@@ -13,29 +13,30 @@ from ...kernels import kernel, minimum
 from ...models.bicycle import S
 from ...models.state import KINEMATIC, motion_at
 from ..formation import formation_at
-from ..schedule import p_law
+from ..schedule import speed_law, yaw_law
 
 PARAMS = ("k", "k_theta")
 """Columns of the law's parameter rows."""
+K, K_THETA = 0, 1
+"""The columns of k [m/s] and k_theta [1/s]."""
 
 
-@kernel
-def input_at(kind, x, i, theta_star_i, speed_in_i, L, gains, px, py, tvx, tvy, tax, tay,
-             v_cap_i, a_cap_i, pred_i, u_last, dt_c):
-    """Model input of member i for its desired point (p, p', p''): (u0, u1, capped v_ref
-    [m/s], omega_ref [rad/s], theta* dot [rad/s], v_ref dot [m/s^2], ex, ey [m], heading
+@kernel(inline="always")
+def input_at(fleet, state, i, target, v_cap_i, a_cap_i):
+    """Model input of member i for its desired point ``target`` (p, p', p''): (u0, u1, capped
+    v_ref [m/s], omega_ref [rad/s], theta* dot [rad/s], v_ref dot [m/s^2], ex, ey [m], heading
     error [rad]). u0, u1: a_r [m/s^2] and the steering rate [rad/s] (dynamic model), v_ref
-    and omega_ref (unicycle). ``pred_i`` (the member ahead) is not used by this law."""
-    v, r, course = motion_at(kind, x, i, speed_in_i)
+    and omega_ref (unicycle). The member ahead (``fleet.pred``) is not used by this law."""
+    kind, x, L = fleet.kind, state.x, fleet.L
+    v, r, course = motion_at(kind, x, i, state.speed_in[i])
     vr, om, tsd, vrd, ex, ey, he = formation_at(
-        px, py, tvx, tvy, tax, tay, x[i, S.X], x[i, S.Y], v * np.cos(course), v * np.sin(course),
-        x[i, S.PSI], theta_star_i, L[i, 0], L[i, 1])
+        target, x[i, S.X], x[i, S.Y], v * np.cos(course), v * np.sin(course), x[i, S.PSI],
+        state.theta_star[i], L[i, K], L[i, K_THETA])
     vr = minimum(vr, v_cap_i)
     if kind == KINEMATIC:
         return vr, om, vr, om, tsd, vrd, ex, ey, he
-    a_r = minimum(p_law(vr, v, gains[i, 0], gains[i, 1], gains[i, 2]), a_cap_i)
-    return (a_r, p_law(om, r, gains[i, 3], gains[i, 4], gains[i, 5]), vr, om, tsd, vrd, ex, ey,
-            he)
+    a_r = minimum(speed_law(fleet.gains, i, vr, v), a_cap_i)
+    return a_r, yaw_law(fleet.gains, i, om, r), vr, om, tsd, vrd, ex, ey, he
 
 
 def pack(cfg) -> np.ndarray:

@@ -18,6 +18,7 @@ Checked on SAMPLES values of tau.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -48,9 +49,17 @@ class GapVerdict:
     shortfall: float  # largest missing gap [m] (0 when ok)
 
 
+class GapMargins(NamedTuple):
+    """The margins :func:`check_gaps` asks of a member's path."""
+
+    time_gap: float  # t_gap [s]
+    min_gap: float  # g_min [m]
+    ahead_time_gap: float | None = None  # towards vehicles ahead of a member (None: time_gap)
+    ahead_min_gap: float | None = None  # [m] (None: min_gap)
+
+
 def check_gaps(s0, along_shift, d0, d1, length, width, v_m, others: Others, duration: float,
-               time_gap: float, min_gap: float, member_ids=None,
-               ahead_time_gap: float | None = None, ahead_min_gap: float | None = None) -> GapVerdict:
+               margins: GapMargins, member_ids=None) -> GapVerdict:
     """Check every member's predicted path against ``others``.
 
     Parameters
@@ -64,12 +73,12 @@ def check_gaps(s0, along_shift, d0, d1, length, width, v_m, others: Others, dura
         formation drives on at).
     duration : float
         Transition duration T [s].
-    time_gap, min_gap : float
-        Margins t_gap [s] and g_min [m].
-    ahead_time_gap, ahead_min_gap : float, optional
-        Margins towards vehicles ahead of a member (default: the same); pass the governor's
-        time gap so that a member never lands inside the gap its own speed cap keeps.
+    margins : GapMargins
+        Margins t_gap [s] and g_min [m]; towards vehicles ahead of a member
+        ``ahead_time_gap``, ``ahead_min_gap`` (default: the same): pass the governor's time
+        gap so that a member never lands inside the gap its own speed cap keeps.
     """
+    time_gap, min_gap, ahead_time_gap, ahead_min_gap = margins
     n = len(s0)
     ids = member_ids or [str(i) for i in range(n)]
     if len(others.ids) == 0:

@@ -15,6 +15,7 @@ into the step's Reference.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -54,8 +55,18 @@ class PlanSlots:
         return ref.with_(slots=slots)
 
 
-def room_accel(goal, s_vc_front, v_vc, half_w, length, active, o_rear, o_d, o_half_w, o_length,
-               o_v, time_gap, min_gap, horizon: float = 0.0) -> float:
+class Around(NamedTuple):
+    """The vehicles around the goal slots (k of them) as :func:`room_accel` takes them."""
+
+    rear: np.ndarray  # rear bumper's arc length [m]
+    d: np.ndarray  # offset [m]
+    half_w: np.ndarray  # half width [m]
+    length: np.ndarray  # [m]
+    v: np.ndarray  # speed [m/s]
+
+
+def room_accel(goal, s_vc_front, v_vc, half_w, length, active, others: Around, time_gap,
+               min_gap, horizon: float = 0.0) -> float:
     """Acceleration [m/s^2] of the virtual car that keeps every goal slot (n, 2) a time gap
     behind the nearest vehicle in its lane that is ahead of it or beside it (front bumper
     ahead of the slot's rear; gap = its rear minus the slot's front, negative when beside),
@@ -63,6 +74,7 @@ def room_accel(goal, s_vc_front, v_vc, half_w, length, active, o_rear, o_d, o_ha
     vehicle. ``s_vc_front``: the virtual car's arc length plus the CoG-to-front distance [m].
     With ``horizon`` h [s] > 0 the law acts on the situation predicted h on at constant speeds:
     every other vehicle's rear moves by (o_v - v_vc) h relative to the goal slots."""
+    o_rear, o_d, o_half_w, o_length, o_v = others
     if not len(o_rear):
         return np.inf
     o_rear = o_rear + (o_v - v_vc) * horizon  # where they will be relative to us
@@ -123,7 +135,7 @@ class ManeuverRoadReference(RoadReference):
             return sensed.a_limit
         lim = self.limits
         room = float(room_accel(goal, self.s + self.d_front, self.v, self.half_w,
-                                self.body_length, sensed.active, sensed.nb_rear, sensed.nb_d,
-                                sensed.nb_half_w, nb.length, sensed.nb_v, lim.time_gap,
-                                lim.min_gap, lead))
+                                self.body_length, sensed.active,
+                                Around(sensed.nb_rear, sensed.nb_d, sensed.nb_half_w, nb.length,
+                                       sensed.nb_v), lim.time_gap, lim.min_gap, lead))
         return min(room, sensed.a_limit)

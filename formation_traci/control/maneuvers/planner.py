@@ -18,7 +18,7 @@ import numpy as np
 
 from ...road.lanes import LaneCentres
 from .assign import assign_slots, min_clearance
-from .gap import Others, check_gaps
+from .gap import GapMargins, Others, check_gaps
 from .join import describe, join_duration, path_clearance, pick_vehicle, without
 from .transition import ComfortLimits, hold_plan, slots_at, transition_duration
 from .triggers import is_due, queue_behind
@@ -204,8 +204,9 @@ class ManeuverPlanner:
         if spec.check_gaps:
             verdict = check_gaps(np.array([o.s[j]]), np.array([goal[0] - start[0]]),
                                  np.array([o.d[j]]), np.array([goal[1]]), self.lengths[[i]],
-                                 self.widths[[i]], np.array([sn.v_vc]), rest, T, self.gap_time,
-                                 self.gap_min, [spec.member], *self.ahead)
+                                 self.widths[[i]], np.array([sn.v_vc]), rest, T,
+                                 GapMargins(self.gap_time, self.gap_min, *self.ahead),
+                                 [spec.member])
             if not verdict.ok:
                 return False, f"no room: {verdict.reason}", []
         clear = path_clearance(start, goal, r0 * T, self.plan[a, 2:4], float(self.lengths[i]),
@@ -281,7 +282,8 @@ class ManeuverPlanner:
             ai = np.flatnonzero(a)
             verdict = check_gaps(sn.m_s[ai], goal[ai, 0] - start[ai, 0], sn.m_d[ai], goal[ai, 1],
                                  self.lengths[ai], self.widths[ai], sn.v_m[ai], sn.others, T,
-                                 self.gap_time, self.gap_min, [self.ids[i] for i in ai], *self.ahead)
+                                 GapMargins(self.gap_time, self.gap_min, *self.ahead),
+                                 [self.ids[i] for i in ai])
             if not verdict.ok:
                 return False, f"no room: {verdict.reason}"
         clear = min_clearance(start[a], goal[a], self.lengths[a], self.widths[a])
