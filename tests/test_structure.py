@@ -183,8 +183,6 @@ def test_module_and_function_sizes():
 
 PRIVATE_READERS = {
     "formation_traci/kernel_load.py",  # extends numba's cache (the one module that does)
-    "formation_traci/sumo/fused_path.py",  # the fused SUMO step reads the world's and the
-    "formation_traci/sumo/fused_refs.py",  # generators' private state
 }
 """The modules allowed to read another object's private attribute; the list only shrinks."""
 

@@ -17,7 +17,7 @@ from .reference_road import road_reference_step, road_vc_rows
 
 
 @kernel(error_model="python")
-def group_reference_step(plan, planner, out, t_f, s, v, running, members, nbs, owner, dt_c):
+def group_reference_step(plan, planner, out, t_f, s, v, running, a_limit, members, nbs, owner, dt_c):
     """One step of every formation f of the group (``plan``: control/reference_records.py
     GroupPlan, rows ``starts[f]:starts[f + 1]``, profile ``profs[prof_at[f]:prof_at[f + 1]]``,
     its own time ``t_f[f]`` [s], virtual car at ``s[f]`` [m], ``v[f]`` [m/s]): per formation
@@ -26,7 +26,8 @@ def group_reference_step(plan, planner, out, t_f, s, v, running, members, nbs, o
     ReferenceOut, ``a_request``, ``s_next``, ``v_next`` per formation and ``gap``,
     ``lead_idx``, ``a_cap_req``, ``a_cap`` per member written, ``truth`` (k, 8) each running
     formation's virtual car at t, NaN for the others). ``members``: MemberRows of every
-    member; ``nbs``: NeighbourRows of the joined table (``mate_rear`` unused). The neighbours
+    member; ``a_limit`` (k,): the world's cap on each formation's requested acceleration
+    [m/s^2] (inf: none; ramp traffic); ``nbs``: NeighbourRows of the joined table (``mate_rear`` unused). The neighbours
     a formation sees: the rows of the joined table whose ``owner`` (member row, -1 for SUMO's
     vehicles) is not one of its members; its lead indices count in that subset."""
     starts, vc, truth = plan.starts, out.vc, out.truth
@@ -50,7 +51,7 @@ def group_reference_step(plan, planner, out, t_f, s, v, running, members, nbs, o
             RoadPlan(plan.G, plan.profs[plan.prof_at[f]:plan.prof_at[f + 1]], plan.along[a:b],
                      plan.slot_d[a:b], plan.is_road[a:b], plan.d_front[a:b], plan.half_w[a:b],
                      plan.lims[f], plan.pps[f], dt_c, plan.ramps[f]),
-            t_f[f], s[f], v[f], np.inf,
+            t_f[f], s[f], v[f], a_limit[f],
             MemberRows(members.s[a:b], members.d[a:b], members.v[a:b], members.active[a:b]),
             _seen_by(nbs, owner, a, b, m), planner.a_vc[f], planner.has_prev[f],
             MemberPlanner(planner.a_cap_prev[a:b], planner.v_prev[a:b], planner.emergency[a:b]),

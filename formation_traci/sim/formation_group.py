@@ -34,8 +34,7 @@ _NO_TABLE = (np.empty(0), np.empty(0), np.empty(0), np.empty(0), np.zeros(0, dty
 def group_of(forms: list, world) -> "FormationGroup | None":
     """The group of ``forms`` when all of them (two or more) are plain road formations and the
     world can join their neighbours (SUMO); else None (the loop's per-formation path)."""
-    merges = getattr(world, "merges", None)  # a group's kernel takes no cap for ramp traffic
-    if len(forms) < 2 or not hasattr(world, "joined_neighbours") or (merges is not None and merges.mode != "none"):
+    if len(forms) < 2 or not hasattr(world, "joined_neighbours"):
         return None
     if any(type(f.generator) is not RoadReference or f.transforms for f in forms):
         return None
@@ -119,7 +118,8 @@ class FormationGroup:
             self.plan, self.planner,
             ReferenceOut(vc, a_cap_from, a_request, s_next, v_next, gap, lead_idx, a_cap_req,
                          a_cap, truth),
-            t_f, self.s, self.v, run, MemberRows(sensed.m_s, sensed.m_d, sensed.v_m, sensed.active),
+            t_f, self.s, self.v, run, np.full(k_f, np.inf) if sensed.a_limits is None else sensed.a_limits,
+            MemberRows(sensed.m_s, sensed.m_d, sensed.v_m, sensed.active),
             NeighbourRows(nb_rear, nb_d, nb_half_w, nb_v, nb_in_f, _NO_MATES), owner, self.dt_c)
         self._next = (run, s_next, v_next)
         rows = np.repeat(run, np.diff(self.starts))

@@ -44,6 +44,7 @@ class Sensed:
     # the world's upper bound on the formation's requested acceleration [m/s^2] (inf: none;
     # SUMO's world: opening a gap for ramp traffic, sumo/merge_watch.py)
     a_limit: float = float("inf")
+    a_limits: object = None  # (k,) the same per formation, in the world's order (None: none)
 
 
 def sensed_of(sensed: Sensed, sl: slice) -> Sensed:

@@ -1,14 +1,26 @@
 """Where SUMO has the members: their rows for the step's sensing, and where one of them was
 last sensed (an incident's place, sim/incident_log.py). A mixin of sumo/world.py SumoWorld,
-which has the attributes used here (adapter, ids, active, in_sumo, members, packed_lanes,
-m_s, lanes_read, _every)."""
+which has the attributes used here (adapter, fleet, ids, active, in_sumo, members, packed_lanes,
+m_s, lanes_read, _every, _kin)."""
 from __future__ import annotations
 
 import numpy as np
 
 
 class MemberRows:
-    """_member_rows and locate of SumoWorld (see the module docstring)."""
+    """_member_rows, locate and the members' kinematics of SumoWorld (see the module docstring)."""
+
+    def _kinematics(self, state):
+        """fleet.kinematics(state), computed once per state: actuate's is the next sense's
+        (the loop hands sense the state it placed; a join's adopt writes into it only after)."""
+        kin = self._kin
+        if kin is None or kin[0] is not state:
+            kin = self._kin = (state, *self.fleet.kinematics(state))
+        return kin[1:]
+
+    def placed(self, state, pos, vel, heading) -> None:
+        """The kinematics of ``state``, just placed: the next sense's (:meth:`_kinematics`)."""
+        self._kin = (state, pos, vel, heading)
 
     def _id_index(self, vid: str):
         """Fleet row of member ``vid`` (None: not a member)."""

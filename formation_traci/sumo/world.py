@@ -86,7 +86,7 @@ class SumoWorld(MemberHandover, MemberRows):
         self.ctx_owner = [None] * len(self.groups)  # each formation's context subscription
         self.m_s = np.full(n, np.nan)  # members' arc length at the last sense [m] (NaN: none yet)
         self.packed_lanes = PackedLanes(plan.road.shapes)
-        self._nb_guess = NeighbourGuess()
+        self.nb_guess = NeighbourGuess()  # the neighbours' arc lengths at the last sense
         self.ev = None
         self.released: set[str] = set()  # SUMO ids of members handed over by a leave
         self.true_v = {} if sc.sumo.fcd and sc.sumo.fcd_frame == "formation" else None  # k -> v [m/s]
@@ -210,30 +210,13 @@ class SumoWorld(MemberHandover, MemberRows):
                     self.out_dir, self.sections, self.adapter.departures, t0, set(self.ids)))
 
     # ------------------------------------------------------------------------- sense
-    def _kinematics(self, state):
-        """fleet.kinematics(state), computed once per state: actuate's is the next sense's
-        (the loop hands sense the state it placed; a join's adopt writes into it only after)."""
-        kin = self._kin
-        if kin is None or kin[0] is not state:
-            kin = self._kin = (state, *self.fleet.kinematics(state))
-        return kin[1:]
-
-    @property
-    def nb_guess(self):
-        """The neighbours' arc lengths at the last sense (sumo/sense.py NeighbourGuess)."""
-        return self._nb_guess
-
-    def placed(self, state, pos, vel, heading) -> None:
-        """The kinematics of ``state``, just placed: the next sense's (:meth:`_kinematics`)."""
-        self._kin = (state, pos, vel, heading)
-
     def sense(self, k: int, t: float, state) -> Sensed:
         pos, vel, heading = self._kinematics(state)
         self._kin = None  # adopt may write into this state after sense
         member_rows = self.inserted and not self.baseline  # a baseline twin has no member in SUMO
         rows = self._member_rows(t) if member_rows else _NO_ROWS
         nb_rows = self.adapter.neighbour_rows(self.all_bg) if self.inserted else None  # all: baseline
-        nb_in = _NO_NB if nb_rows is None else (*nb_rows[2:4], *nb_rows[6:8], self._nb_guess(nb_rows[0]))
+        nb_in = _NO_NB if nb_rows is None else (*nb_rows[2:4], *nb_rows[6:8], self.nb_guess(nb_rows[0]))
         lanes, n = self.packed_lanes, len(self.ids)
         s, d, v_m, gap, n_off, *nb_out = sense_step(
             self.line.G, pos, vel, self.m_s, heading, self.d_front, SumoRows(*rows[:5]),
@@ -252,7 +235,7 @@ class SumoWorld(MemberHandover, MemberRows):
                 self.peers.update(pos, heading, v_m, getattr(self, "a_mean", np.zeros(n)), m_s, m_d)
             if self.merges is not None:  # ramp traffic at the route's joins
                 self.merge_caps = self.merges.limits(t, m_s, m_d, v_m, self.active & self.in_sumo)
-                sensed.a_limit = float(self.merge_caps[0])
+                sensed.a_limit, sensed.a_limits = float(self.merge_caps[0]), self.merge_caps
         if nb_rows is None:
             sensed.nb = NOBODY
         else:
@@ -260,7 +243,7 @@ class SumoWorld(MemberHandover, MemberRows):
             x, y, psi, sensed.nb_rear, sensed.nb_half_w = nb_out
             sensed.nb = Neighbours(ids, types, x, y, psi, v, a, length, width, lane_ids, lane_index)
             sensed.nb_s, sensed.nb_d, sensed.nb_v = s[n:], d[n:], v
-            self._nb_guess.keep(ids, sensed.nb_s)
+            self.nb_guess.keep(ids, sensed.nb_s)
             if self.released:  # released members inside the formation (sumo/join.py)
                 sensed.nb_in_formation = inside_formation(self.released, sensed, m_s + self.d_front,
                                                           self.plan.vehicles, self.active)
