@@ -23,7 +23,7 @@ numpy, numba and libsumo, starts SUMO on the SUMO case's network and makes one s
 formation and nothing recorded. What a warm run takes beyond it is this package's share.
 The last line (a fixed interface, issue 33) is ``warm start: X.XX s``: the slower case's
 median time to the first step. The first warm run after the cold one also writes the side
-files of formation_traci/kernel_load.py (~50 ms more); the median of >= 3 leaves it out.
+files of formation_traci/core/kernel_load.py (~50 ms more); the median of >= 3 leaves it out.
 """
 from __future__ import annotations
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 import sys
 
-from .interrupt import Interrupted, exit_130_on_signals, raising_signals
+from .core.interrupt import Interrupted, exit_130_on_signals, raising_signals
 
 if __name__ == "__main__" or os.path.basename(sys.argv[0]) == "formation-traci":
     exit_130_on_signals()  # (formation_traci/__init__.py did so already, before any import)
@@ -28,7 +28,7 @@ app = typer.Typer(add_completion=False, no_args_is_help=True,
 _DEBUG = {"on": False}
 
 
-from .twins import TWIN_MODES  # noqa: E402
+from .run.twins import TWIN_MODES  # noqa: E402
 
 
 def _twin_mode_args(args: list[str]) -> list[str]:

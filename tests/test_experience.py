@@ -23,7 +23,7 @@ def test_version_flag_prints_the_installed_version():
 def test_compiling_is_announced_once_on_a_cold_cache_and_not_on_a_warm_one(tmp_path):
     """kernels.py's one-line notice: printed once when kernels compile (empty numba cache),
     silent when they come from the cache."""
-    from formation_traci.kernels import _NOTICE
+    from formation_traci.core.kernels import _NOTICE
 
     code = ("from formation_traci.control.schedule import p_law, scheduled_gain\n"
             "p_law(1.0, 0.0, 0.2, 8.0, 1.0); scheduled_gain(0.5, 0.2, 8.0, 1.0)\n")

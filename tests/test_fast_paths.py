@@ -175,7 +175,7 @@ def test_a_run_does_not_import_pandas(tmp_path):
 def test_py_hypot_is_pythons_math_hypot_bit_for_bit():
     """The compiled lane-point distance uses CPython's hypot, not the C library's (they
     differ in the last bit for about 1 input in 1000)."""
-    from formation_traci.kernels import py_hypot
+    from formation_traci.core.kernels import py_hypot
     rng = np.random.default_rng(11)
     n = 200_000
     a = rng.uniform(-5, 5, n) * 10.0 ** rng.integers(-12, 6, n)

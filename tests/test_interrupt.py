@@ -33,7 +33,7 @@ def test_signal_marks_run_interrupted_and_keeps_data(tmp_path, sig):
 LANDS_IN_A_CALLBACK = r'''
 import os, signal, time
 import llvmlite.binding as llvm
-from formation_traci.interrupt import Interrupted, stop_on_signals
+from formation_traci.core.interrupt import Interrupted, stop_on_signals
 try:
     llvm.initialize()
 except Exception:  # newer llvmlite initialises itself

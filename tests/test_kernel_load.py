@@ -1,6 +1,6 @@
 """Issue 33 item 3, start-up: cached kernels read without parsing their bitcode and numba's
-runtime read from the cache (formation_traci/kernel_load.py), and what a compilation tells
-the user (formation_traci/kernel_notice.py)."""
+runtime read from the cache (formation_traci/core/kernel_load.py), and what a compilation tells
+the user (formation_traci/core/kernel_notice.py)."""
 from __future__ import annotations
 
 import io
@@ -14,13 +14,13 @@ import numpy as np
 from numba import njit
 from numba.core import event
 
-from formation_traci.kernel_notice import CompileWatch, NOTICE
+from formation_traci.core.kernel_notice import CompileWatch, NOTICE
 
 ROOT = Path(__file__).resolve().parents[1]
 
 PROBE = '''
 import numpy as np
-from formation_traci.kernels import kernel, py_hypot
+from formation_traci.core.kernels import kernel, py_hypot
 
 @kernel
 def lengths(x):  # allocates (numba's runtime) and calls a kernel of the package
@@ -75,7 +75,7 @@ def test_a_kernel_read_lazily_gives_the_compiled_values_and_links_into_a_new_com
     assert sum(f.read_text().endswith("\nend") for f in cache.glob("symbols-*.nbsym")) >= 2
 
 
-MOVED = ("import formation_traci.kernel_load as kl\n"
+MOVED = ("import formation_traci.core.kernel_load as kl\n"
          "def moved(*args):\n"
          "    raise TypeError('numba internals of another version')\n"
          "kl.{name} = moved\n")

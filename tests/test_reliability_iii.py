@@ -327,7 +327,7 @@ def test_the_reserve_holds_the_final_run_json_of_many_members_when_nothing_else_
     failed part file too, so it cannot tell the old fixed 256 kB reserve (which this test fails
     on: a 500-member run.json is ~350 kB) from one sized after the first run.json."""
     from formation_traci.record.writer import json_text
-    from formation_traci.runner import RESERVE_BYTES, _reserve, _write_final, run_meta
+    from formation_traci.run.scenario_run import RESERVE_BYTES, _reserve, _write_final, run_meta
     meta = run_meta(load_scenario(_many_members(tmp_path, 500)), "many.toml")
     assert len(json_text(meta)) > RESERVE_BYTES  # the case the fixed reserve could not hold
     with small_disk(tmp_path, "2m") as disk:
@@ -345,7 +345,7 @@ def test_the_reserve_holds_the_final_run_json_of_many_members_when_nothing_else_
 def test_without_any_space_the_final_run_json_replaces_the_first_in_place(tmp_path):
     """No reserve and not a byte free: the final run.json (without indentation) takes the
     first one's place instead of raising and leaving it 'running'."""
-    from formation_traci.runner import _write_final, atomic_write_json, run_meta
+    from formation_traci.run.scenario_run import _write_final, atomic_write_json, run_meta
     meta = run_meta(load_scenario(_many_members(tmp_path, 200)), "many.toml")
     with small_disk(tmp_path, "1m") as disk:
         out = disk / "run"

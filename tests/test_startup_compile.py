@@ -1,7 +1,7 @@
 """Issue 30 item 4: one kernel compilation covers every scenario kind. After the main job
 (the README's demo scenario, run with a cold numba cache) a maneuver scenario, a [comm]
 scenario and a free-space scenario load every kernel from the cache: none prints the
-"compiling" notice (formation_traci/kernels.py) again. Before sim/warm.py the maneuver run
+"compiling" notice (formation_traci/core/kernels.py) again. Before sim/warm.py the maneuver run
 compiled the slot planner's kernels and the comm run the channel's.
 
 The four runs are real processes of their own (their own numba cache and road cache, nothing

@@ -1,5 +1,5 @@
 """Versions for run.json and cache keys without importlib.metadata's start-up cost
-(formation_traci/versions.py), and pyarrow imported only when the first part is written."""
+(formation_traci/core/versions.py), and pyarrow imported only when the first part is written."""
 from __future__ import annotations
 
 import importlib.metadata as md
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from formation_traci.runner import RECORDED_DISTRIBUTIONS, versions
-from formation_traci.versions import installed_versions, platform_name
+from formation_traci.run.scenario_run import RECORDED_DISTRIBUTIONS, versions
+from formation_traci.core.versions import installed_versions, platform_name
 
 ROOT = Path(__file__).resolve().parents[1]
 

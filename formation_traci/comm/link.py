@@ -32,7 +32,7 @@ import numpy as np
 from ..control.governor import member_caps, vehicles_ahead
 from ..control.reference import Reference
 from ..control.virtual_car import along_line_advance
-from ..kernels import kernel
+from ..core.kernels import kernel
 from ..road.leader import road_leader_at
 from .channel import Channel
 from .predict import predict_planar

@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 
 from ..control.virtual_car import along_line_advance
-from ..kernels import kernel
+from ..core.kernels import kernel
 from ..road.fast_line import frame_at
 
 predict_along_line = along_line_advance

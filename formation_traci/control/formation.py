@@ -16,8 +16,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..kernels import clip, kernel, maximum, wrap_angle as _wrap
-from ..states import LeaderState, Targets  # noqa: F401 (re-exported)
+from ..core.kernels import clip, kernel, maximum, wrap_angle as _wrap
+from ..core.states import LeaderState, Targets  # noqa: F401 (re-exported)
 
 VC_X, VC_Y, VC_THETA, VC_V, VC_OMEGA, VC_V_DOT, VC_OMEGA_DOT, VC_S = range(8)
 """Slots of a virtual car's row (control/reference.py VC_FIELDS: Reference.vc's last axis)."""

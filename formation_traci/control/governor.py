@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 
 K_SPEED = 0.5
 """Free-road speed law gain [1/s]: a = K (v_set - v) + v_set dot."""

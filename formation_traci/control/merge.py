@@ -39,7 +39,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 from .governor import K_GAP, K_REL
 
 OUTSIDE = -1

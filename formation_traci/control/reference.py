@@ -23,8 +23,8 @@ from typing import Callable, Protocol, runtime_checkable
 
 import numpy as np
 
-from ..kernels import kernel
-from ..states import LeaderState
+from ..core.kernels import kernel
+from ..core.states import LeaderState
 
 VC_FIELDS = ("x", "y", "theta", "v", "omega", "v_dot", "omega_dot", "s")
 """Columns of Reference.vc (last axis)."""

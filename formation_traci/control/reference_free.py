@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels import kernel, substeps
+from ..core.kernels import kernel, substeps
 from .reference import FRAME_VEHICLE, Reference, constant_slots, set_vc_period
 from .virtual_car import FreeLeader, free_pose_advance, knot_profile_at, pack_profiles, yaw_offset
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 from .reference_records import MemberPlanner, MemberRows, NeighbourRows, RoadPlan
 from .reference_road import road_reference_step, road_vc_rows
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 from ..road.leader import road_leader_at
 from .governor import (ACCEL_MAX, DECEL_EMERGENCY, DECEL_FOLLOW, DECEL_MAX, TRAFFIC_AWARE,
                        column_caps, free_road_accel, governor_step)

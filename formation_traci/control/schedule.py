@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 
 
 @dataclass(frozen=True, slots=True)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 from ..models.bicycle import S
 from ..models.state import motion_at
 from ..road.fast_line import to_frenet_one

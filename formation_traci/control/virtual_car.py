@@ -11,9 +11,9 @@ from typing import Literal
 
 import numpy as np
 
-from ..kernels import kernel, substeps
+from ..core.kernels import kernel, substeps
 from ..models.integrator import KINEMATIC, rk4_row
-from ..states import LeaderState
+from ..core.states import LeaderState
 
 
 @kernel

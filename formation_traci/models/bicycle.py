@@ -38,7 +38,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from ..kernels import clip, kernel, maximum
+from ..core.kernels import clip, kernel, maximum
 from .params import (_A, _AREA, _B, _BF, _BR, _CD, _CF, _CR, _DF, _DR, _DRAG, _EF, _ER, _GRADE,
                      _H, _IZZ, _LIN, _M, _MU, _RES, _RHO, _SMAX, _SRMAX, _TAU, _TAUSTOP, _VHIGH,
                      _VLOW, _DLAG, _SLAG, G, BicycleParams, pack_params)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels import kernel, rebind, substeps
+from ..core.kernels import kernel, rebind, substeps
 from . import bicycle, kinematic, linear
 from .state import DYNAMIC, KINEMATIC, LINEAR  # noqa: F401 (the kinds, re-exported)
 

@@ -11,7 +11,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from ..kernels import kernel, maximum
+from ..core.kernels import kernel, maximum
 
 
 class KS(IntEnum):

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 from .params import VehicleParams, Tires
 
 

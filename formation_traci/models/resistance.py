@@ -1,6 +1,6 @@
 """Longitudinal driving resistances of a member: rolling (eq 3.15), aerodynamic drag, grade.
 
-Each law is written once as a ``@kernel`` (formation_traci/kernels.py): the bicycle model's
+Each law is written once as a ``@kernel`` (formation_traci/core/kernels.py): the bicycle model's
 kernels (models/bicycle.py ``resistance_at``, ``rhs_at``, ``outputs_at``) call them per
 scalar, and the same functions take floats or arrays of shape (n,). The force opposes the
 motion and acts along the velocity of the centre of gravity (see docs/energy.md for what
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 from .params import G, RHO_AIR_STANDARD  # noqa: F401  (re-exported: the law's default air)
 
 

@@ -7,7 +7,7 @@ law changing.
 """
 from __future__ import annotations
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 from .bicycle import S
 
 KINEMATIC = 0

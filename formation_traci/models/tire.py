@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 
 
 @kernel

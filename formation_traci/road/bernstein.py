@@ -11,7 +11,7 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-from ..kernels import kernel
+from ..core.kernels import kernel
 
 if TYPE_CHECKING:  # pragma: no cover
     from scipy.interpolate import BPoly

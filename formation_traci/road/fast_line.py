@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from ..kernels import kernel, wrap_angle as _wrap
+from ..core.kernels import kernel, wrap_angle as _wrap
 
 LEAF_SIZE = 8
 """Samples per leaf of the ball tree over the line's samples."""

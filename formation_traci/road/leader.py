@@ -1,8 +1,8 @@
 """The virtual car driving along a road reference line (eq 2.3 constrained to the road)."""
 from __future__ import annotations
 
-from ..states import LeaderState
-from ..kernels import kernel
+from ..core.states import LeaderState
+from ..core.kernels import kernel
 from .fast_line import frame_at
 from .line_pack import packed
 from .geometry import ReferenceLine

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..states import Targets
-from ..kernels import kernel
+from ..core.states import Targets
+from ..core.kernels import kernel
 from .fast_line import frame_at
 from .line_pack import packed
 from .geometry import ReferenceLine

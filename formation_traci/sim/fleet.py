@@ -23,7 +23,7 @@ from ..control.reference import Reference, cap_at
 from ..control.schedule import GainSchedule
 from ..control.reference_records import StepReference
 from ..control.targets import desired_point_at, follows_lane, target_at
-from ..kernels import kernel, maximum, substeps
+from ..core.kernels import kernel, maximum, substeps
 from ..models import bicycle, kinematic
 from ..models.integrator import HELD, rhs_into, rk4_row_from
 from ..models.params import _DRAG, _GRADE, BicycleParams, N_PARAMS, pack_params

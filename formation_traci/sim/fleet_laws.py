@@ -9,7 +9,7 @@ import numpy as np
 
 from ..control.laws import law_code, law_module
 from ..control.laws.dispatch import ACC, CACC_PATH, CACC_PLOEG, law_input_at, runtime_dispatch
-from ..kernels import rebind
+from ..core.kernels import rebind
 
 FALLS_BACK = (CACC_PATH, CACC_PLOEG)
 """Law codes that fall back to ACC on radio loss."""

@@ -4,7 +4,7 @@ add_signal_rows, add_comfort_rows and add_comfort_periods write, in their layout
 per column, a table row per member in the run), from inside the compiled call."""
 from __future__ import annotations
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 
 
 @kernel

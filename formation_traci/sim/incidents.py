@@ -37,7 +37,7 @@ import numpy as np
 
 from run_contract.columns import INCIDENT_VERDICT as VERDICT
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 from ..record.columns import SIGNAL_COLUMNS
 
 

@@ -9,7 +9,7 @@ import numpy as np
 from run_contract.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, DEFAULT_FORMATION_ID, EVENT_COLUMNS,
                                   TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID)
 
-from ..states import LeaderState
+from ..core.states import LeaderState
 from ..record.columns import FILLED_BY_CALLER, SIGNAL_COLUMNS
 from ..record.writer import ChunkedTable
 from .table_cuts import TableCuts

@@ -10,7 +10,7 @@ compiled) does nothing here.
 """
 from __future__ import annotations
 
-from .. import kernel_notice, kernels
+from ..core import kernel_notice, kernels
 
 
 def compile_every_kind() -> bool:

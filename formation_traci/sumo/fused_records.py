@@ -10,7 +10,7 @@ import numpy as np
 from numba import types
 from numba.experimental import structref
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 
 
 class RoadRun(NamedTuple):

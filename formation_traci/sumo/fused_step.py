@@ -67,7 +67,7 @@ import numpy as np
 
 from ..control.reference_group import group_reference_step
 from ..control.reference_records import MemberRows, NeighbourRows, StepReference
-from ..kernels import kernel, maximum
+from ..core.kernels import kernel, maximum
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
 from ..sim.fleet import kinematics_rows, member_signals, step_members

@@ -36,12 +36,12 @@ import numpy as np
 
 from ..road.geometry import ReferenceLine
 from ..road.line_pack import keep_packed
-from ..versions import installed_versions
+from ..core.versions import installed_versions
 
 ENV = "FORMATION_TRACI_CACHE"
 """Environment variable: the cache directory, or ``off``."""
 _CODE = ("road/geometry.py", "road/line_fit.py", "road/smoothing.py", "road/coarse.py", "road/band_qp.py",
-         "road/bernstein.py", "road/line_pack.py", "road/fast_line.py", "road/lanes.py", "kernels.py",
+         "road/bernstein.py", "road/line_pack.py", "road/fast_line.py", "road/lanes.py", "core/kernels.py",
          "sumo/road_cache.py", "sumo/road_setup.py")
 """Modules whose source is part of the key (paths below the package)."""
 _CODE_DIGEST: list = []

@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..kernels import kernel, py_hypot
+from ..core.kernels import kernel, py_hypot
 from ..road.fast_line import to_frenet_many
 from .types import cog_to_sumo_one, sumo_to_cog_one
 

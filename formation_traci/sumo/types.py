@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..kernels import kernel
+from ..core.kernels import kernel
 
 KEEP_ROUTE = 1
 """moveToXY keepRoute bits: 1 = map only onto edges of the member's route (never off the road,

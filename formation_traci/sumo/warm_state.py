@@ -139,7 +139,7 @@ def _normalised(args: list[str], sumo_dir: Path) -> tuple[list[str], dict[str, s
 
 def warm_key(args: list[str], sumo_dir: Path, setup: WarmSetup, warm_steps: int) -> str:
     """Hash of exactly what SUMO's warm-up depends on (see the module docstring)."""
-    from ..versions import installed_versions
+    from ..core.versions import installed_versions
 
     norm, files = _normalised(args, sumo_dir)
     doc = {"format": FORMAT, "args": norm, "files": files, "setup": setup.to_json(),

@@ -97,7 +97,7 @@ def run_case(case_spec: dict | CaseSpec) -> dict[str, Any]:
             with DirLock(out):  # RunDirBusy if the case still runs in another process
                 clear_run(out)
         from ..scenario import ScenarioError, load_scenario
-        from ..runner import run_scenario
+        from ..run.scenario_run import run_scenario
 
         try:
             sc = load_scenario(spec.base, **spec.case.overrides)
@@ -126,7 +126,7 @@ def _run_twin(sc, spec: CaseSpec, row: dict, status: str) -> Path | None:
     case's status (but interrupted). Its outcome goes to the row's ``twin_status`` and
     ``twin_reason``; a twin that did not reach its end leaves the case's paired columns NaN
     and its status as it was. Returns the twin's directory when it can be compared."""
-    from ..runner import run_scenario
+    from ..run.scenario_run import run_scenario
 
     if status == "interrupted":
         row.update(twin_status="not run", twin_reason="the case was interrupted")
@@ -188,7 +188,7 @@ def twin_main(spec_json: str) -> int:
         Exit code: 0 once the twin ran (whatever its status).
     """
     from ..scenario import load_scenario
-    from ..runner import run_scenario
+    from ..run.scenario_run import run_scenario
 
     spec = CaseSpec.model_validate_json(spec_json)
     sc = load_scenario(spec.base, **spec.case.overrides)

@@ -19,13 +19,13 @@ import pandas as pd
 from run_contract.errors import SweepError
 from run_contract.rundir import RUN_FINISHED
 
-from ..interrupt import raising_signals
+from ..core.interrupt import raising_signals
 from ..record.writer import atomic_write_json, atomic_write_parquet
 from .case import CASE_JSON, CaseSpec
 from .executors import run_dask, run_local
 from .expand import Sweep, load_sweep
 from .row import METRICS, WALL_COLUMNS, summary_frame, swept_dtypes
-from ..twins import twin_mode
+from ..run.twins import twin_mode
 
 SCHEMA = "formation-traci/sweep/1"
 SWEEP_JSON = "sweep.json"
@@ -129,7 +129,7 @@ def case_spec(sweep: Sweep, index: int, out: Path, baseline: bool | str = False,
         Sweep directory (absolute).
     baseline : bool or str
         The case's twin runs too, into ``out/twins/<id>``: ``"same"`` (or True) or ``"absent"``
-        (formation_traci/twins.py).
+        (formation_traci/run/twins.py).
     shared_warmup : bool
         Road cases start from their warm-up's saved state in ``out/warmups`` (simulated once
         per warm-up key; docs/sweeps.md, "The shared warm-up").
@@ -171,7 +171,7 @@ def _previous(spec: CaseSpec) -> tuple[dict | None, bool]:
 
 
 def _versions() -> dict[str, str]:
-    from ..runner import versions
+    from ..run.scenario_run import versions
 
     return versions(("dask", "distributed"))
 
@@ -265,7 +265,7 @@ def run_sweep(sweep_path: str | Path, out_dir: str | Path, scheduler: str | None
             _finish_meta(meta, df, interrupted, on_row.ok + on_row.failed, len(specs))
             atomic_write_json(out / SWEEP_JSON, meta)
     if interrupted:
-        from ..interrupt import Interrupted
+        from ..core.interrupt import Interrupted
         raise Interrupted(interrupted if isinstance(interrupted, str) else "SIGINT")
     files = {"sweep_json": out / SWEEP_JSON, "summary": summary_path, "effects": out / EFFECTS_CSV}
     return SweepResult(out_dir=out, summary=df, n_cases=len(specs), n_completed=n_ok, n_failed=len(df) - n_ok,

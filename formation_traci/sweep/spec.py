@@ -97,7 +97,7 @@ class SweepFile(Strict):
     timeout_s: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = Field(
         None, description="wall-clock limit per case [s]; a case over it fails")
     baseline: Literal["same", "absent"] | None = Field(
-        None, description="run each case's twin too, as `sweep --baseline` does (formation_traci/twins.py); "
+        None, description="run each case's twin too, as `sweep --baseline` does (formation_traci/run/twins.py); "
         "the command line's --baseline wins")
 
     @field_validator("seeds")

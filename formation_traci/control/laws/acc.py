@@ -9,7 +9,7 @@ Defaults are Plexe's: h = 1.2 s, lambda (gap_gain) = 0.1 1/s, r0 = 2 m.
 """
 from __future__ import annotations
 
-from ...kernels import kernel
+from ...core.kernels import kernel
 from ...models.state import motion_at
 from . import platoon
 

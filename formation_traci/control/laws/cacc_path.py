@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...kernels import kernel, maximum
+from ...core.kernels import kernel, maximum
 from ...models.state import motion_at
 from . import platoon
 

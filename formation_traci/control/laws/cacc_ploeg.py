@@ -11,7 +11,7 @@ h = 0.5 s, kp = 0.2 1/s^2, kd = 0.7 1/s, r0 = 2 m.
 """
 from __future__ import annotations
 
-from ...kernels import kernel
+from ...core.kernels import kernel
 from ...models.state import motion_at
 from . import platoon
 

@@ -4,7 +4,7 @@ name in BUILTIN and one branch here; a law registered at run time (``register_la
 dispatch of its own (control/laws/__init__.py ``law_kernels``)."""
 from __future__ import annotations
 
-from ...kernels import kernel
+from ...core.kernels import kernel
 from . import acc, cacc_path, cacc_ploeg, virtual_structure
 
 VIRTUAL_STRUCTURE = 0

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...kernels import kernel, maximum, minimum
+from ...core.kernels import kernel, maximum, minimum
 from ...models.state import KINEMATIC, motion_at
 from ..formation import V_EPS, Target, formation_at
 from ...models.bicycle import S

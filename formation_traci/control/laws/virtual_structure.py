@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...kernels import kernel, minimum
+from ...core.kernels import kernel, minimum
 from ...models.bicycle import S
 from ...models.state import KINEMATIC, motion_at
 from ..formation import formation_at

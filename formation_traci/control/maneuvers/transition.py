@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...kernels import kernel
+from ...core.kernels import kernel
 
 H1_PEAK = 15.0 / 8.0
 """Peak of h' [-]."""

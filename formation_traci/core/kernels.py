@@ -9,7 +9,7 @@ Three chores live here:
 
 * what the user is told while kernels compile (a cold numba cache costs tens of seconds;
   the user should not see a silent stall): the notice with how long it takes, a failure, a
-  slow compilation, the time it took (formation_traci/kernel_notice.py);
+  slow compilation, the time it took (formation_traci/core/kernel_notice.py);
 * numba keys its on-disk cache on the file that defines a function only, not on the files
   of the functions it calls: a digest of every module that defines kernels is stored next
   to each cache directory, and a directory whose digest differs is emptied of kernels;
@@ -19,7 +19,7 @@ Three chores live here:
   modules and scipy.linalg: 0.3-0.6 s of every warm start). A compilation
   initialises them itself (numba's compiler refreshes its contexts). It also reads
   numba's runtime from the cache and leaves the kernel's bitcode unparsed until a
-  compilation links it (formation_traci/kernel_load.py, the one module that reaches into
+  compilation links it (formation_traci/core/kernel_load.py, the one module that reaches into
   numba's internals).
 """
 from __future__ import annotations
@@ -41,7 +41,7 @@ _STAMP = "formation_kernels.digest"
 def _package_digest() -> str:
     """sha256 over every module of the package that defines kernels."""
     h = hashlib.sha256()
-    root = Path(__file__).resolve().parent
+    root = Path(__file__).resolve().parents[1]  # the package (this module is in core/)
     for p in sorted(root.rglob("*.py")):
         text = p.read_bytes()
         if b"@kernel" in text or p.name == "kernels.py":

@@ -20,7 +20,7 @@ def twin_mode(baseline, source=None) -> str | None:
     if baseline is True:
         return TWIN_MODES[0]
     if baseline not in TWIN_MODES:
-        from .scenario.load import ScenarioError
+        from ..scenario.load import ScenarioError
 
         raise ScenarioError(source or "<scenario>",
                             [("--baseline", f"expected one of {list(TWIN_MODES)}, got {baseline!r}")])
