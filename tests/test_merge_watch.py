@@ -125,3 +125,11 @@ def test_a_sweep_row_sums_the_ramp_vehicles_over_the_formations_and_weights_thei
     assert merge_values(meta) == {"ramp_vehicles": 4, "ramp_merged_before_lane_end": 3,
                                   "ramp_speed_loss_mps": 5.0, "ramp_wait_s": 0.75}
     assert set(merge_values({}).values()) == {None}
+
+
+def test_cooperation_in_free_space_is_bad_input(tmp_path):
+    p = tmp_path / "free.toml"
+    p.write_text('[run]\nduration = 1.0\n[leader]\nspeed = 10.0\n[[members]]\nid = "a"\n'
+                 'offset = [0.0, 0.0]\n[cooperation]\nmerge = "open_gap"\n')
+    with pytest.raises(ScenarioError, match="cooperation: needs a \\[road\\]"):
+        load_scenario(p)

@@ -57,7 +57,7 @@ def _check(out, member, dt):
 def test_free_space_member_retires_and_spawns_again(tmp_path, monkeypatch):
     tr = OutAndBack(0)
     _capture(monkeypatch, loop, "free_space_run", tr)
-    monkeypatch.setattr("formation_traci.runner.free_space_run", loop.free_space_run)
+    monkeypatch.setattr("formation_traci.run.scenario_run.free_space_run", loop.free_space_run)
     p = tmp_path / "s.toml"
     p.write_text(free_toml(3.0))
     res = run_scenario(load_scenario(p), tmp_path / "run", force=True, progress=False,

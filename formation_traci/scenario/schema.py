@@ -163,7 +163,7 @@ class Scenario(Strict):
 
     @model_validator(mode="after")
     def _cooperation_on_a_road(self):
-        if "cooperation" in self.model_fields_set and self.road is None:
+        if self.road is None and self.cooperation != CooperationSpec():  # the default is echoed in run.json
             raise ValueError("cooperation: needs a [road] (ramp traffic is SUMO's)")
         return self
 

@@ -218,9 +218,20 @@ def _incidents(meta: dict) -> dict[str, Any]:
 
 
 def merge_values(meta: dict) -> dict[str, Any]:
-    """run.json ``merges`` over the formations (None without on-ramps or ramp vehicles): the
-    ramp vehicles' count, those that merged before the lane end, their mean speed loss and
-    wait (weighted by each formation's count)."""
+    """The ramp vehicles' columns of a case's row.
+
+    Parameters
+    ----------
+    meta : dict
+        ``run.json`` content (its ``merges``: sumo/merge_watch.py).
+
+    Returns
+    -------
+    dict
+        ``ramp_vehicles`` (over the formations), ``ramp_merged_before_lane_end``,
+        ``ramp_speed_loss_mps`` and ``ramp_wait_s`` (means weighted by each formation's count);
+        all None without on-ramps or ramp vehicles.
+    """
     seen = [m for m in ((meta.get("merges") or {}).get("by_formation") or {}).values() if m.get("ramp_vehicles")]
     n = sum(int(m["ramp_vehicles"]) for m in seen)
     if not n:
