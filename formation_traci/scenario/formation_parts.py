@@ -3,9 +3,9 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
-from ..control.laws import DEFAULT_LAW, SUMO_LAWS, law_names
+from ..control.laws import DEFAULT_LAW, SUMO_LAWS, law_names, law_spec
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict
 from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec, SumoCaccSpec
 from .maneuvers import SlotSpec
@@ -78,6 +78,37 @@ class ControllerSpec(Strict):
     speed_gains: GAIN_TABLES | GainSpec = Field(
         "table_3_4", description="linear-velocity schedule (3.34); 'table_3_6' for the truck")
     yaw_gains: GAIN_TABLES | GainSpec = Field("table_3_8", description="angular-velocity schedule (3.34)")
+
+    runtime_params: dict[str, dict] = Field(default_factory=dict, description=(
+        "parameters of laws registered at run time, from their [controller.<law>] tables, "
+        "validated by each law's SPEC (control/laws/__init__.py)"))
+
+    @model_validator(mode="before")
+    @classmethod
+    def _runtime_law_tables(cls, data):
+        """[controller.<law>] of a law registered at run time with a SPEC: validated by it."""
+        if not isinstance(data, dict):
+            return data
+        tables = {k: data[k] for k in data if k not in cls.model_fields and law_spec(k) is not None}
+        if not tables:
+            return data
+        out = {k: v for k, v in data.items() if k not in tables}
+        return {**out, "runtime_params": {**(out.get("runtime_params") or {}), **tables}}
+
+    @field_validator("runtime_params")
+    @classmethod
+    def _by_their_specs(cls, given):
+        out = {}
+        for name, table in given.items():
+            spec = law_spec(name)
+            if spec is None:
+                raise ValueError(f"{name}: expected a law registered at run time with a SPEC")
+            try:
+                out[name] = spec.model_validate(table).model_dump()
+            except ValidationError as exc:
+                raise ValueError("; ".join(f"{name}.{'.'.join(map(str, e['loc']))}: {e['msg']}"
+                                           for e in exc.errors())) from None
+        return out
 
     @field_validator("law")
     @classmethod

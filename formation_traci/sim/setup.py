@@ -141,8 +141,10 @@ LANE_TOLERANCE_M = 1.0
 
 
 def _law_params(ctl) -> dict:
-    """{law: {parameter: value}} of the platoon laws' scenario tables (controller.acc, ...)."""
-    return {name: getattr(ctl, name).model_dump() for name in ("acc", "cacc_path", "cacc_ploeg")}
+    """{law: {parameter: value}} of the platoon laws' scenario tables (controller.acc, ...) and
+    of the laws registered at run time (controller.<law>, validated by the law's SPEC)."""
+    return {**{name: getattr(ctl, name).model_dump() for name in ("acc", "cacc_path", "cacc_ploeg")},
+            **ctl.runtime_params}
 
 
 def column_predecessors(sc: Scenario) -> tuple[int, ...]:

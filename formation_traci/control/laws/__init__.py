@@ -3,7 +3,11 @@
 A law is a module with
 
 * ``PARAMS``: the names of its per-member parameters (columns of the array ``L``);
-* ``pack(cfg) -> (n, len(PARAMS))``: those parameters from a sim/fleet.py FleetConfig;
+* ``pack(cfg) -> (n, len(PARAMS))``: those parameters from a sim/fleet.py FleetConfig (its
+  ``law_params``: per member, {law name: {parameter: value}});
+* optionally ``SPEC``: a pydantic model of its parameters with their defaults, which the
+  scenario's ``[controller.<name>]`` table is validated against (a law registered at run time;
+  the built-in laws' tables are scenario/law_specs.py);
 * ``input_at(fleet, state, i, target, v_cap_i, a_cap_i)``: a ``@kernel`` giving member i's
   model input for its desired point and the safety caps ``v_cap_i`` [m/s], ``a_cap_i``
   [m/s^2]. ``fleet`` (sim/fleet_records.py FleetParams) holds the members' parameters: the
@@ -66,6 +70,13 @@ def register_law(name: str, module: ModuleType) -> None:
         if not hasattr(module, attr):
             raise TypeError(f"law module {module.__name__} has no {attr!r}")
     _RUNTIME[name] = module
+
+
+def law_spec(name: str):
+    """The parameter schema (a pydantic model with its defaults) of law ``name`` registered at
+    run time, read from the scenario's ``[controller.<name>]``; None when it has none."""
+    module = _RUNTIME.get(name)
+    return getattr(module, "SPEC", None) if module is not None else None
 
 
 def law_module(name: str) -> ModuleType:
