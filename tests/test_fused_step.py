@@ -82,7 +82,7 @@ MOST = 0.6
 """The share of a case's steps the fused step must take at least ..."""
 FEWER = {"refused moves, placement mismatch": 15 / 120}
 """... but there the centre member, snapped to the edge of the open lane, reaches into the
-next lane from step 21 on: those steps are the loop's (sumo/adapter.py place's moveTo hint)."""
+next lane from step 21 on: those steps are the loop's (sumo/adapter/__init__.py place's moveTo hint)."""
 
 
 CASES = {

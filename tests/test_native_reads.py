@@ -1,4 +1,4 @@
-"""The C++ extension of sumo/native_reads.py against libsumo's SWIG results, in a real SUMO: the
+"""The C++ extension of sumo/adapter/native_reads.py against libsumo's SWIG results, in a real SUMO: the
 members' and neighbours' tables bit for bit at every step, the moves (and the refused ones,
 with SWIG's message), the cached build, the switch. The extension must build here (CI has gcc
 and Python's headers): a machine where it does not fails these tests, it does not skip them.
@@ -20,7 +20,7 @@ import libsumo._libsumo as _ls
 import numpy as np
 import pytest
 
-from formation_traci.sumo import native_reads
+from formation_traci.sumo.adapter import native_reads
 
 ROOT = Path(__file__).resolve().parents[1]
 NET = ROOT / "sumo_nets" / "straight3.net.xml"
@@ -76,7 +76,7 @@ def sim(tmp_path_factory):
         mod.clear()
 
 
-# ---- the SWIG path + the Python extraction (sumo/member_reads.py, sumo/neighbours.py) ---------
+# ---- the SWIG path + the Python extraction (sumo/adapter/member_reads.py, sumo/adapter/neighbours.py) ---------
 def swig_members(ids):
     res = _ls.vehicle_getAllSubscriptionResults()
     rows = [res.get(vid) for vid in ids]
@@ -196,11 +196,11 @@ def test_tables_and_moves_equal_swig_at_every_step(sim):
 
 
 def _m4_leaves() -> None:
-    """Member m4 (a context owner) leaves the run, once, as sumo/adapter.py removes one: each
+    """Member m4 (a context owner) leaves the run, once, as sumo/adapter/__init__.py removes one: each
     test that needs it gone says so (a test selected alone with -k passes too)."""
     if "m4" not in libsumo.vehicle.getIDList():
         return
-    libsumo.vehicle.unsubscribeContext("m4", C.CMD_GET_VEHICLE_VARIABLE, 100.0)  # as sumo/adapter.py
+    libsumo.vehicle.unsubscribeContext("m4", C.CMD_GET_VEHICLE_VARIABLE, 100.0)  # as sumo/adapter/__init__.py
     libsumo.vehicle.unsubscribe("m4")  # does: else libsumo 1.28's next step fails
     libsumo.vehicle.remove("m4")  # an owner: neighbour_table skips an owner without results
     libsumo.simulationStep()
@@ -242,7 +242,7 @@ def test_switched_off(monkeypatch):
 CHILD = """
 import json, time
 import libsumo._libsumo as sw
-from formation_traci.sumo import native_reads as nr
+from formation_traci.sumo.adapter import native_reads as nr
 t = time.perf_counter()
 m = nr.load(sw.__file__)
 print(json.dumps({"ok": m is not None, "reason": nr.REASON, "file": getattr(m, "__file__", None),

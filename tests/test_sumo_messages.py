@@ -173,7 +173,7 @@ def _drive_past_the_acceleration_lane_end(tmp_path: Path, place) -> str:
 
 def test_a_member_reaching_into_an_ending_acceleration_lane_is_not_put_on_it(tmp_path):
     """A member whose body reaches into the neighbour lane is put on that lane before its move
-    (SUMO then has it on both lanes, sumo/adapter.py place); on the acceleration lane in the step
+    (SUMO then has it on both lanes, sumo/adapter/__init__.py place); on the acceleration lane in the step
     it passes that lane's end SUMO moved it along a lane with no connection into mw_down and
     warned 'no connection to the next edge'. It is not put on a lane that ends there."""
     said = _drive_past_the_acceleration_lane_end(

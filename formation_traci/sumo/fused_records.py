@@ -43,7 +43,7 @@ class StepOut(NamedTuple):
 
 
 class SensedRows(NamedTuple):
-    """What SUMO reports of the step (sumo/member_reads.py, sumo/neighbours.py)."""
+    """What SUMO reports of the step (sumo/adapter/member_reads.py, sumo/adapter/neighbours.py)."""
 
     members: np.ndarray  # (n, 5) front bumper x, y [m], angle [deg], lateral position [m],
     # lane position [m]; NaN rows for the members out of the run

@@ -291,7 +291,7 @@ def _placed(kind, x, speed_in, x1, sp1, road, out):
         place[2, i] = ang[i]
         place[3, i] = after
         place[4, i] = (after - before) / step
-        place[5, i] = maximum(after, 0.0)  # np.maximum(v, 0.0): sumo/adapter.py set_true_speeds
+        place[5, i] = maximum(after, 0.0)  # np.maximum(v, 0.0): sumo/adapter/__init__.py set_true_speeds
         pos[i, 0] = p1[i, 0]
         pos[i, 1] = p1[i, 1]
         vel[i, 0] = v1[i, 0]

@@ -2,7 +2,7 @@
 
 The planner (control/maneuvers/join.py) picks the vehicle; :func:`take_over` (called from the
 reference generator in the step of the decision) makes it a member in SUMO
-(sumo/adapter.py ``take_over``), drops it from the neighbours the governor and the recorder
+(sumo/adapter/__init__.py ``take_over``), drops it from the neighbours the governor and the recorder
 see in this step, puts its road coordinates and speed into the member's sensed values, and
 queues its state; :func:`adopt` (the loop calls ``world.adopt`` before the members' signals
 are recorded) writes that state into the fleet: the member's CoG where SUMO has the vehicle

@@ -1,6 +1,6 @@
 """Several formations on one road: each sees the members of the others as traffic.
 
-SUMO's neighbour reads leave every member out (sumo/neighbours.py); a formation's
+SUMO's neighbour reads leave every member out (sumo/adapter/neighbours.py); a formation's
 governor, gap and lane checks must still see the members of the other formations. Each
 step :class:`Peers` keeps every member as a neighbour row (body centre, heading, speed,
 acceleration, body, lane, road coordinates: the same fields SUMO's vehicles have in

@@ -116,14 +116,13 @@ def drain(adapter, plan: dict, members: list[str], max_s: float, step: float,
     inside the stretch now has passed its last section, at most ``max_s`` [s] (or until
     ``should_stop()``, polled every :data:`CHECK_EVERY_S`, says so: Ctrl-C). Returns what
     run.json records (``drain_s``, ``left_inside``: vehicles still inside at the end)."""
-    api = adapter.api
     for vid in members:
         try:
             adapter.remove_vehicle(vid)
         except Exception:
             pass  # already gone
-    ids = set(api.vehicle.getIDList()) - set(members)
-    pending = {v for v in ids if _inside(plan, api.vehicle.getRoadID(v), api.vehicle.getLanePosition(v))}
+    pending = {v for v, (edge, pos) in adapter.vehicle_places().items()
+               if v not in members and _inside(plan, edge, pos)}
     n_steps, every = int(round(max_s / step)), max(1, int(round(CHECK_EVERY_S / step)))
     k = 0
     while pending and k < n_steps:
@@ -132,9 +131,8 @@ def drain(adapter, plan: dict, members: list[str], max_s: float, step: float,
         if k % every == 0:
             if should_stop is not None and should_stop():
                 break
-            present = set(api.vehicle.getIDList())
-            pending = {v for v in pending if v in present
-                       and _inside(plan, api.vehicle.getRoadID(v), api.vehicle.getLanePosition(v))}
+            places = adapter.vehicle_places(pending)
+            pending = {v for v in pending if v in places and _inside(plan, *places[v])}
     return {"drain_s": k * step, "left_inside": len(pending)}
 
 

@@ -26,7 +26,7 @@ def ssm_args(mode: str, member_ids: list[str], xml_path: Path) -> list[str]:
     """SUMO command-line options of the SSM device for ``mode`` ("members", "all" or "off")."""
     if mode == "off" or (mode == "members" and not member_ids):
         return []
-    # "members": the members' vType carries has.ssm.device (sumo/adapter.py); SUMO's
+    # "members": the members' vType carries has.ssm.device (sumo/adapter/__init__.py); SUMO's
     # --device.ssm.explicit id list is kept from the first simulation of a libsumo process
     who = ["--device.ssm.probability", "1"] if mode == "all" else []
     return who + ["--device.ssm.file", str(xml_path), "--device.ssm.measures", SSM_MEASURES,

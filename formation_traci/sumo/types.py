@@ -1,4 +1,4 @@
-"""What the SUMO adapter (sumo/adapter.py, the only module that imports libsumo/traci)
+"""What the SUMO adapter (sumo/adapter/__init__.py, the only module that imports libsumo/traci)
 shares with the rest of the package, without importing SUMO: its constants, the frame
 conversions and the small dataclasses of its results.
 
@@ -134,7 +134,7 @@ class MemberType:
 @dataclass(frozen=True)
 class StepEvents:
     """What SUMO reported during one step (ids are SUMO vehicle ids). Frozen: a quiet step
-    returns one shared instance (sumo/adapter.py ``step``)."""
+    returns one shared instance (sumo/adapter/__init__.py ``step``)."""
 
     collisions: list[tuple[str, str, str]] = field(default_factory=list)  # (collider, victim, lane)
     teleports: list[str] = field(default_factory=list)

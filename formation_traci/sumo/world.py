@@ -1,4 +1,4 @@
-"""SUMO as the World of a road run (over the one libsumo adapter, sumo/adapter.py).
+"""SUMO as the World of a road run (over the one libsumo adapter, sumo/adapter/__init__.py).
 
 sense: read back where SUMO put the members (removed, placement mismatch, lane changes)
 and the vehicles near them; observe: traffic events and background rows; actuate: insert
@@ -28,7 +28,7 @@ from .join import inside_formation
 from .messages import sumo_outputs_meta
 from .adapter import SumoAdapter
 from ..sim.formation import virtual_car_id
-from .neighbours import NOBODY
+from .adapter.neighbours import NOBODY
 from .flow_inserts import counted_entry, flow_counts, room_for
 from .handover import MemberHandover
 from .member_rows import MemberRows

@@ -1,6 +1,6 @@
 """The vehicles near the members, read through SUMO's subscriptions.
 
-A mixin of the SUMO adapter (sumo/adapter.py, the only module that imports
+A mixin of the SUMO adapter (sumo/adapter/__init__.py, the only module that imports
 libsumo/traci): it works on the adapter's ``api`` (the libsumo or traci module) and
 ``tc`` (its constants) and imports no SUMO itself.
 """
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .types import Neighbours, sumo_to_cog
+from ..types import Neighbours, sumo_to_cog
 
 
 def _nobody() -> Neighbours:
@@ -88,7 +88,7 @@ class NeighbourReads:
         """:meth:`neighbour_rows` as (ids, vTypes, lane ids, table (m, 7) of front bumper x, y
         [m], angle [deg], speed [m/s], acceleration [m/s^2], length, width [m], lane index
         (m,)); one conversion of the subscription rows (sumo/fused_path.py, with ``native``
-        through the C++ reads of sumo/native_reads.py when they are there: the same rows),
+        through the C++ reads of sumo/adapter/native_reads.py when they are there: the same rows),
         None when no vehicle is near."""
         if native and not all_vehicles and self.native is not None:
             return self.native.neighbour_table(sorted(self._context), self.members)

@@ -1,9 +1,9 @@
 """Where SUMO put the formation's members, read through their subscriptions.
 
-A mixin of the SUMO adapter (sumo/adapter.py, the only module that imports
+A mixin of the SUMO adapter (sumo/adapter/__init__.py, the only module that imports
 libsumo/traci): it works on the adapter's ``api`` and its member bookkeeping and imports no
 SUMO itself. Per member it keeps the lane last read, the neighbour lane its body reaches
-into (sumo/adapter.py ``place`` puts it there first) and its route window.
+into (sumo/adapter/__init__.py ``place`` puts it there first) and its route window.
 """
 from __future__ import annotations
 
@@ -60,7 +60,7 @@ class MemberReads:
         settled = self._settled
         if settled is None or self._overlap or self._ends or ids != settled[0]:
             return None
-        if self.native is not None:  # the C++ reads (sumo/native_reads.py): the same rows
+        if self.native is not None:  # the C++ reads (sumo/adapter/native_reads.py): the same rows
             got = self.native.member_table(ids)
             if got is None:
                 return None

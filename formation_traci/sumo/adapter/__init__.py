@@ -4,10 +4,10 @@ It owns starting/stepping/closing SUMO, inserting and placing the formation memb
 ``vehicle.moveToXY``, batched reads through subscriptions. The frame conversions (SUMO's
 front bumper and degrees clockwise from north against our CoG and radians counter-clockwise
 from +x), the constants and the result dataclasses are in sumo/types.py; the neighbour
-reads in sumo/neighbours.py and the socket connection in sumo/connect.py work on the
+reads in sumo/adapter/neighbours.py and the socket connection in sumo/adapter/connect.py work on the
 module object this adapter imports (``self.api``) and import no SUMO themselves. Outside
 these modules code sees only numpy arrays and the small dataclasses. Friction, member types and
-the release of a member are in sumo/vehicles.py (the same way). SUMO behaviours relied
+the release of a member are in sumo/adapter/vehicles.py (the same way). SUMO behaviours relied
 on here are documented in docs/sumo.md (each with the test that shows it).
 """
 from __future__ import annotations
@@ -21,9 +21,9 @@ from .lane_ends import LaneEnds
 from .ramp_reads import RampReads
 from .member_reads import MemberReads
 from .neighbours import NeighbourReads
-from .traffic import BASE_TYPES
+from ..traffic import BASE_TYPES
 from .vehicles import VehicleSetup
-from .types import (GUI_VIEW, GUI_ZOOM, KEEP_ROUTE, LANE_CHANGE_MODE_DEFAULT,  # noqa: F401
+from ..types import (GUI_VIEW, GUI_ZOOM, KEEP_ROUTE, LANE_CHANGE_MODE_DEFAULT,  # noqa: F401
                          MATCH_THRESHOLD, ORDINARY_CLASS, REMOVED_REASONS, ROUTE_AHEAD_M,
                          SPEED_MODE_DEFAULT,
                          START_TIMEOUT_S, MemberType, Neighbours, StepEvents, SumoError,
@@ -70,8 +70,8 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds, RampReads
         self._lane_geometry: dict[str, tuple[float, int, str]] = {}  # lane -> (width [m], lanes of its edge, edge)
         self._bodies: dict[str, tuple[float, float, str]] = {}  # vehicle -> (length, width [m], vType)
         self._overlap: dict[str, str] = {}  # member -> the neighbour lane its body reaches into
-        self._ends: dict[str, tuple[float, str]] = {}  # member -> its lane's end (sumo/lane_ends.py)
-        self._end_of: dict = {}  # (lane, vClass, next edge) -> lane end or None (sumo/lane_ends.py)
+        self._ends: dict[str, tuple[float, str]] = {}  # member -> its lane's end (sumo/adapter/lane_ends.py)
+        self._end_of: dict = {}  # (lane, vClass, next edge) -> lane end or None (sumo/adapter/lane_ends.py)
         self._window_lane: dict[str, str] = {}  # member -> lane its route window was last checked on
         self._front_ids: list[str] = []
         self._front = np.empty(0)
@@ -89,7 +89,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds, RampReads
         self._all_results = (v.getAllSubscriptionResults if fast is None
                              else fast.vehicle_getAllSubscriptionResults)
         self._started = False
-        self.native = None  # sumo/native_reads.py's module once libsumo started (or None)
+        self.native = None  # sumo/adapter/native_reads.py's module once libsumo started (or None)
         self.departed: dict[str, int] = {}  # flow id -> vehicles SUMO inserted (see count_departures)
         self.departures: list[tuple[str, float]] = []  # (vehicle id, SUMO time [s]) of every insertion
         self._proc = None  # the SUMO process of the traci backend
@@ -117,7 +117,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds, RampReads
         return self.version
 
     def _start_socket(self, cmd: list[str]) -> str:
-        """traci: SUMO as a process, connected within START_TIMEOUT_S (sumo/connect.py)."""
+        """traci: SUMO as a process, connected within START_TIMEOUT_S (sumo/adapter/connect.py)."""
         self.version, self._proc = start_socket(self.api, cmd)
         self._started = True
         return self.version
@@ -275,7 +275,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds, RampReads
         for i, (vid, a, b, c, vi) in enumerate(zip(ids, xf.tolist(), yf.tolist(), ang.tolist(),
                                                    np.maximum(v, 0.0).tolist())):
             if overlap or ends:
-                # a lane that does not lead on for the member (sumo/lane_ends.py)
+                # a lane that does not lead on for the member (sumo/adapter/lane_ends.py)
                 hint = self._cross_end(vid, vi, overlap.get(vid))
                 if hint is not None:
                     self._hint_lane(vid, hint)

@@ -13,9 +13,9 @@ a member crosses the end of such a lane it is first put (``moveTo``) at the star
 enters where it geometrically is: the internal lane, open to it, that ends across from the end
 of its lane (LuST: the ramp's ``_0_0`` into lane 0). A lane that simply ends (an acceleration
 lane, a dropped lane) has none: a member that only reaches into such a lane is not put on it
-(sumo/adapter.py ``place``) while it crosses its end.
+(sumo/adapter/__init__.py ``place``) while it crosses its end.
 
-A mixin of the SUMO adapter (sumo/adapter.py): it works on the adapter's ``api`` and member
+A mixin of the SUMO adapter (sumo/adapter/__init__.py): it works on the adapter's ``api`` and member
 bookkeeping and imports no SUMO itself. docs/sumo.md, "Lanes that end for a member".
 """
 from __future__ import annotations

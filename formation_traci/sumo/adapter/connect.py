@@ -1,11 +1,11 @@
 """Connecting to SUMO over a socket (the traci backend, sumo-gui, a SUMO to attach to).
 
-Functions of the SUMO adapter (sumo/adapter.py, the only module that imports
+Functions of the SUMO adapter (sumo/adapter/__init__.py, the only module that imports
 libsumo/traci): ``api`` is the traci module it imported.
 """
 from __future__ import annotations
 
-from .types import GUI_VIEW, GUI_ZOOM, START_TIMEOUT_S, SumoError
+from ..types import GUI_VIEW, GUI_ZOOM, START_TIMEOUT_S, SumoError
 
 
 def start_socket(api, cmd: list[str]):

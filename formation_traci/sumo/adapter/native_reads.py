@@ -1,9 +1,9 @@
-"""The C++ extension ``_sumo_reads`` (sumo/native/sumo_reads.cpp), built on first use: the
+"""The C++ extension ``_sumo_reads`` (sumo/adapter/native/sumo_reads.cpp), built on first use: the
 members' and neighbours' subscription rows as numpy tables and the members' moves through the
 libsumo C++ API inside the loaded ``libsumo/_libsumo.so`` (the same SUMO), without SWIG's
 conversion to Python objects and their extraction (benchmarks/RESULTS.md). :func:`load` returns the module or None (then the
 caller keeps the SWIG path; :data:`REASON` says why). This module imports neither libsumo nor
-traci: the caller (sumo/adapter.py) gives the path of ``_libsumo.so`` (``_libsumo.__file__``).
+traci: the caller (sumo/adapter/__init__.py) gives the path of ``_libsumo.so`` (``_libsumo.__file__``).
 
 * **Off**: ``FORMATION_TRACI_NATIVE=off``.
 * **Needs**: a C++17 compiler (``$CXX``, else ``g++`` / ``c++`` on PATH), ``Python.h``, the
@@ -134,7 +134,7 @@ def _compile(cmd: list[str], target: Path) -> None:
 
 
 def _build_and_import(libsumo_so: str):
-    from .road_cache import cache_dir
+    from ..road_cache import cache_dir
     cmd, key = _command(libsumo_so)
     name, base = f"{NAME}-{key}{_suffix()}", cache_dir()
     if base is not None:

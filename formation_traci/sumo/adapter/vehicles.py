@@ -2,7 +2,7 @@
 members' vehicle types, the release of a member to SUMO's own driver model, and (join) a
 vehicle SUMO drives until a member takes it over.
 
-A mixin of the SUMO adapter (sumo/adapter.py, the only module that imports
+A mixin of the SUMO adapter (sumo/adapter/__init__.py, the only module that imports
 libsumo/traci): it works on the adapter's ``api`` (the libsumo or traci module) and imports
 no SUMO itself.
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .types import (LANE_CHANGE_MODE_DEFAULT, ORDINARY_CLASS, SPEED_MODE_DEFAULT, SPEED_MODE_DRIVEN,
+from ..types import (LANE_CHANGE_MODE_DEFAULT, ORDINARY_CLASS, SPEED_MODE_DEFAULT, SPEED_MODE_DRIVEN,
                     MemberType, SumoError)
 
 

@@ -1,6 +1,7 @@
-"""The vehicles on an on-ramp's lanes, as the yield law (control/merge.py) takes them.
+"""The vehicles on given lanes (an on-ramp's, for the yield law of control/merge.py) and where
+every vehicle is (the measurement stretch's drain, sumo/sections.py).
 
-A mixin of the SUMO adapter (sumo/adapter.py): it works on the adapter's ``api`` and imports no
+A mixin of the SUMO adapter (sumo/adapter/__init__.py): it works on the adapter's ``api`` and imports no
 SUMO itself. Read only while a formation is near a join (sumo/merge_watch.py), a few lanes a
 step.
 """
@@ -31,3 +32,11 @@ class RampReads:
                 rows.append((dist - pos, veh.getSpeed(vid), veh.getLength(vid), veh.getTau(vid), pos))
         out = np.array(rows, dtype=float).T if rows else np.empty((5, 0))
         return ids, on, out
+
+    def vehicle_places(self, among=None) -> dict[str, tuple[str, float]]:
+        """Edge and lane position [m] of every vehicle SUMO has (or of those of ``among`` it
+        still has)."""
+        veh = self.api.vehicle
+        present = veh.getIDList()
+        ids = present if among is None else set(present) & set(among)
+        return {v: (veh.getRoadID(v), veh.getLanePosition(v)) for v in ids}
