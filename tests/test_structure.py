@@ -168,6 +168,38 @@ def violations() -> set[str]:
     return found
 
 
+MAX_PARAMETERS = 12
+
+
+def wide_functions(package: str = "formation_traci") -> list[str]:
+    """Functions of ``package`` with more than MAX_PARAMETERS parameters (positional-only,
+    positional and keyword-only but self and cls, *args and **kwargs each count one; as
+    structure_check.py)."""
+    found = []
+    for p in sorted((ROOT / package).rglob("*.py")):
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                a = node.args
+                k = len([x for x in a.posonlyargs + a.args + a.kwonlyargs if x.arg not in ("self", "cls")])
+                k += bool(a.vararg) + bool(a.kwarg)
+                if k > MAX_PARAMETERS:
+                    found.append(f"{p.relative_to(ROOT).as_posix()}:{node.name} ({k})")
+    return found
+
+
+def test_no_function_of_formation_traci_takes_more_than_12_parameters():
+    """Kernels and functions take a few records (named tuples of arrays, structrefs), never
+    long positional lists."""
+    assert not wide_functions(), wide_functions()
+
+
+def test_the_parameter_count_sees_a_wide_function(tmp_path, monkeypatch):
+    (tmp_path / "pkg").mkdir()
+    (tmp_path / "pkg" / "m.py").write_text("def f(a, b, c, d, e, f, g, h, i, j, k, l, m):\n    pass\n")
+    monkeypatch.setattr(__import__(__name__), "ROOT", tmp_path)
+    assert wide_functions("pkg") == ["pkg/m.py:f (13)"]
+
+
 def test_module_and_function_sizes():
     found = violations()
     assert not found - DEBT, f"over the limits: {sorted(found - DEBT)}"
