@@ -83,6 +83,7 @@ class MergeWatch:
         firsts = np.array([rows[0] for _, _, rows in groups], dtype=np.int64)  # contiguous rows each
         self._order = np.argsort(np.argsort(firsts))  # formation -> its rank by first row
         self._starts = np.sort(firsts)
+        self.formation_at = {int(r): f for f, r in enumerate(firsts)}  # first member row -> formation
         self._from = np.array([x.merge.s_start - params.horizon_s * V_WATCH for x in sites])
         self._to = np.array([x.merge.s_start + x.merge.length for x in sites])
 

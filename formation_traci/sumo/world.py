@@ -295,9 +295,8 @@ class SumoWorld(MemberHandover, MemberRows):
             part = sensed_of(sensed, rows)
         else:
             part = self.peers.sensed_for(sensed, rows, self.active & self.in_sumo)
-        f = next((i for i, g in enumerate(self.groups) if g.start == rows.start), None)
-        if f is not None:
-            part.a_limit = float(self.merge_caps[f])
+        if self.merges is not None:  # each formation's own cap (sense gives the first one's)
+            part.a_limit = float(self.merge_caps[self.merges.formation_at[rows.start]])
         return part
 
     def joined_neighbours(self, sensed: Sensed):

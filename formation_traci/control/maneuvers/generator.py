@@ -132,10 +132,10 @@ class ManeuverRoadReference(RoadReference):
         goal = self.planner.goal_ahead(t, self.s, self.v, sensed.active, lead)
         nb = sensed.nb
         if goal is None or nb is None or not len(nb.ids):
-            return sensed.a_limit
+            return super().request_limit(t, sensed)
         lim = self.limits
         room = float(room_accel(goal, self.s + self.d_front, self.v, self.half_w,
                                 self.body_length, sensed.active,
                                 Around(sensed.nb_rear, sensed.nb_d, sensed.nb_half_w, nb.length,
                                        sensed.nb_v), lim.time_gap, lim.min_gap, lead))
-        return min(room, sensed.a_limit)
+        return min(room, super().request_limit(t, sensed))
