@@ -25,6 +25,7 @@ LIGHT = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
 MEDIUM = ROOT / "scenarios" / "highway" / "straight_3lane_medium.toml"
 HEAVY = ROOT / "scenarios" / "highway" / "straight_wedge5_heavy.toml"
 THREE = ROOT / "scenarios" / "highway" / "three_formations.toml"
+FLOW = ROOT / "scenarios" / "highway" / "penetration_motorway.toml"
 
 
 def _cut_in(k, t, ad):
@@ -108,6 +109,10 @@ CASES = {
     "signals out of range": (
         LIGHT, {"run.duration": 8.0, "traffic.warmup": 20.0, "leader.speed": 31.0}, None,
         {"model_range"}, 30.5, None),
+    "a formation flow's formation due and waiting for room": (  # near capacity: most steps
+        # have a due formation without room (formation_shortfall at the end), the others run on
+        FLOW, {"run.duration": 20.0, "traffic.warmup": 60.0, "formation_flows.0.penetration": 0.3},
+        None, {"formation_shortfall", "cleared_at_insertion"}, None, None),
     "end of the route": (
         LIGHT, {"run.duration": 60.0, "traffic.warmup": 20.0, "road.start": 5550.0}, None,
         {"end_of_road"}, None, None),

@@ -216,6 +216,21 @@ def test_a_member_that_left(sim):
     assert mod.member_table([])[0].shape == (0, 5) and mod.neighbour_table([], None) is None
 
 
+def test_poses_are_the_getters_values(sim):
+    """poses(ids): every vehicle's getPosition, getAngle, getLength, getWidth, bit for bit (the
+    insertion room check's reads); an unknown vehicle is SUMO's error, as through SWIG."""
+    mod = sim
+    ids = list(_ls.vehicle_getIDList())
+    assert len(ids) >= 10
+    want = np.array([(*_ls.vehicle_getPosition(v), _ls.vehicle_getAngle(v), _ls.vehicle_getLength(v),
+                      _ls.vehicle_getWidth(v)) for v in ids], dtype=float).reshape(-1, 5)
+    assert same_array(mod.poses(ids), want)
+    assert len(set(want[:, 3])) > 1  # several bodies read
+    assert mod.poses([]).shape == (0, 5)
+    with pytest.raises(libsumo.TraCIException):
+        mod.poses(ids[:1] + ["nope"])
+
+
 def test_refused_moves_carry_swigs_message(sim):
     mod = sim
     _m4_leaves()

@@ -159,13 +159,22 @@ def depart_due(f: Formation, world, t: float, state: FleetState, blocked: set) -
     """Formation ``f`` is due at t [s]: its members enter the world (its generator's time
     starts now). One of a formation flow enters only where there is room, one per flow and
     step, in order (``blocked``: the flows whose due formation is still waiting)."""
-    if f.flow and (f.flow in blocked or not world.has_room(t, f.members, state)):
-        blocked.add(f.flow)
+    if not enters(f, world, t, state, blocked):
         return
-    if f.flow:
-        blocked.add(f.flow)
     world.spawn(t, np.arange(f.members.start, f.members.stop))
     f.status, f.depart = "running", t
+
+
+def enters(f: Formation, world, t: float, state: FleetState, blocked: set) -> bool:
+    """Does formation ``f``, due at t [s], enter now (:func:`depart_due`'s rule; nothing
+    changes but ``blocked``, which gets its flow)? One of a flow needs room and is the first
+    due of its flow this step."""
+    if f.flow and (f.flow in blocked or not world.has_room(t, f.members, state)):
+        blocked.add(f.flow)
+        return False
+    if f.flow:
+        blocked.add(f.flow)
+    return True
 
 
 def retire_formation(f: Formation, world, t: float, state: FleetState, rec, stop,

@@ -21,7 +21,7 @@ from ..control.reference_records import (GroupPlan, MemberRows, NeighbourRows, P
                                          ReferenceOut)
 from ..control.reference_road import RoadReference, end_of_road
 from .fleet_state import FleetState
-from .formation import depart_due, retire_formation
+from .formation import depart_due, enters, retire_formation
 
 WAITING, RUNNING, DONE = 0, 1, 2
 _CODE = {"waiting": WAITING, "running": RUNNING, "done": DONE}
@@ -97,6 +97,14 @@ class FormationGroup:
         self.status[i], self.depart[i] = _CODE[f.status], f.depart
         if f.status == "done" and self._held is not None:
             self._held.hold(f.members, f.held)
+
+    def any_enters(self, world, t: float, state: FleetState) -> bool:
+        """Does a formation due at t [s] enter now (sim/formation.py ``enters``; nothing
+        changes)? Those of a flow without room wait: a step where none enters is a usual one
+        for the others (sumo/fused_refs.py)."""
+        blocked: set = set()
+        return any(enters(self.forms[i], world, t, state, blocked)
+                   for i in np.flatnonzero((self.status == WAITING) & (t >= self.depart - 1e-9)))
 
     def references(self, world, k: int, t: float, sensed, state: FleetState):
         """The joined Reference of the step starting at t [s] (the loop's (raw, reference,

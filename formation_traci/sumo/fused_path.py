@@ -120,7 +120,7 @@ class FusedPath:
         every = act.tobytes() == self._all_in
         if (k >= self.n_steps or not w.inserted or len(w.pending) or w.released or w.adopting
                 or rec.any_out or (k + 1) % rec.steps_per_chunk == 0
-                or w.slot_index is not self._slot or not self.refs.usual(t)
+                or w.slot_index is not self._slot or not self.refs.usual(t, state)
                 or ((w.in_sumo.tobytes() != self._all_in) if every else (act & ~w.in_sumo).any())):
             return False
         ev = w.ev

@@ -50,7 +50,7 @@ class OneFormation:
         """The held state's arrays (no member of one formation is ever parked: any rows)."""
         return state.x, state.theta_star, state.speed_in, state.theta_star
 
-    def usual(self, t: float) -> bool:
+    def usual(self, t: float, state) -> bool:
         """Not at the end of its route, and the arrays given to the compiled step are the
         reference's still."""
         gen, pl = self.gen, self.pl
@@ -86,6 +86,7 @@ class GroupOfFormations:
 
     def __init__(self, group, world):
         g = self.group = group
+        self.world = world
         self.reach = g.reach
         self.running, self.parked, self.vc_rows = g.status == _RUNNING, None, 0
         self.plan, self.planner = g.plan, g.planner
@@ -93,15 +94,18 @@ class GroupOfFormations:
         self._kept = (g.a_vc, g.emergency_vc, g.has_prev, g.a_cap_prev, g.v_prev, g.emergency,
                       g.depart)
 
-    def usual(self, t: float) -> bool:
-        """No formation departs at t [s] (FormationGroup.references) or nears the end of its
+    def usual(self, t: float, state) -> bool:
+        """No formation enters at t [s] (FormationGroup.any_enters: one of a flow due but
+        without room waits, and the step is usual for the others) or nears the end of its
         route (FormationGroup.stop), the parked rows' held state exists (the first
         FormationGroup.settle keeps it), the arrays given to the compiled step are the
-        group's still; sets :attr:`running`, :attr:`parked` and :attr:`vc_rows`."""
+        group's still; sets :attr:`running`, :attr:`parked` and :attr:`vc_rows`. ``state``:
+        the members' state at t."""
         g = self.group
         run = g.status == _RUNNING
-        if (((g.status == _WAITING) & (t >= g.depart - 1e-9)).any()
-                or (run & (g.s + self.reach > g.length)).any()
+        if ((run & (g.s + self.reach > g.length)).any()
+                or (((g.status == _WAITING) & (t >= g.depart - 1e-9)).any()
+                    and g.any_enters(self.world, t, state))
                 or not all(a is b for a, b in zip(self._kept, (g.a_vc, g.emergency_vc, g.has_prev,
                                                                g.a_cap_prev, g.v_prev, g.emergency,
                                                                g.depart)))):

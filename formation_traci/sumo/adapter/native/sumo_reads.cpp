@@ -44,6 +44,7 @@ typedef void (*PrevFn)(const std::string&, double, double);
 typedef void (*SpeedFn)(const std::string&, double);
 typedef double (*DoubleFn)(const std::string&);
 typedef std::string (*StringFn)(const std::string&);
+typedef libsumo::TraCIPosition (*PosFn)(const std::string&, const bool);
 typedef void (*StepFn)(const double);
 static_assert(std::is_same_v<GetAllFn, decltype(&libsumo::Vehicle::getAllSubscriptionResults)>);
 static_assert(std::is_same_v<GetAllCtxFn, decltype(&libsumo::Vehicle::getAllContextSubscriptionResults)>);
@@ -53,6 +54,8 @@ static_assert(std::is_same_v<SpeedFn, decltype(&libsumo::Vehicle::setSpeed)>);
 static_assert(std::is_same_v<DoubleFn, decltype(&libsumo::Vehicle::getLength)>);
 static_assert(std::is_same_v<DoubleFn, decltype(&libsumo::Vehicle::getWidth)>);
 static_assert(std::is_same_v<StringFn, decltype(&libsumo::Vehicle::getTypeID)>);
+static_assert(std::is_same_v<PosFn, decltype(&libsumo::Vehicle::getPosition)>);
+static_assert(std::is_same_v<DoubleFn, decltype(&libsumo::Vehicle::getAngle)>);
 static_assert(std::is_same_v<StepFn, decltype(&libsumo::Simulation::step)>);
 
 #define STR_ARG "RKNSt7__cxx1112basic_stringIcSt11char_traitsIcESaIcEEE"
@@ -66,6 +69,8 @@ static const char* SYM_SPEED = "_ZN7libsumo7Vehicle8setSpeedE" STR_ARG "d";
 static const char* SYM_LENGTH = "_ZN7libsumo7Vehicle9getLengthE" STR_ARG;
 static const char* SYM_WIDTH = "_ZN7libsumo7Vehicle8getWidthE" STR_ARG;
 static const char* SYM_TYPE = "_ZN7libsumo7Vehicle9getTypeIDE" STR_ARG;
+static const char* SYM_POS = "_ZN7libsumo7Vehicle11getPositionE" STR_ARG "b";
+static const char* SYM_ANGLE = "_ZN7libsumo7Vehicle8getAngleE" STR_ARG;
 static const char* SYM_STEP = "_ZN7libsumo10Simulation4stepEd";
 
 static GetAllFn p_getAll = nullptr;
@@ -75,7 +80,8 @@ static const ContextSubscriptionResults* p_ctxStore = nullptr;
 static MoveFn p_move = nullptr;
 static PrevFn p_prev = nullptr;
 static SpeedFn p_speed = nullptr;
-static DoubleFn p_length = nullptr, p_width = nullptr;
+static DoubleFn p_length = nullptr, p_width = nullptr, p_angle = nullptr;
+static PosFn p_pos = nullptr;
 static StringFn p_type = nullptr;
 static StepFn p_step = nullptr;
 static bool g_use_store = true;
@@ -305,6 +311,32 @@ static PyObject* neighbour_table(PyObject*, PyObject* args) {
     GUARD_END
 }
 
+// ---- poses(ids) -> table (n, 5): front bumper x, y [m], SUMO angle [deg], length, width [m] --
+// the direct getters (getPosition, getAngle, getLength, getWidth) of each vehicle, in one call
+static PyObject* poses(PyObject*, PyObject* ids_o) {
+    Ref ids(PySequence_Fast(ids_o, "ids must be a sequence of str"));
+    if (!ids.p) return nullptr;
+    const Py_ssize_t n = PySequence_Fast_GET_SIZE(ids.p);
+    npy_intp dims[2] = {n, 5};
+    Ref table(PyArray_SimpleNew(2, dims, NPY_FLOAT64));
+    if (!table.p) return nullptr;
+    double* tb = (double*)PyArray_DATA((PyArrayObject*)table.p);
+    GUARD_BEGIN
+    std::string vid;
+    for (Py_ssize_t i = 0; i < n; ++i) {
+        if (!to_std(PySequence_Fast_GET_ITEM(ids.p, i), vid)) return nullptr;
+        const libsumo::TraCIPosition p = p_pos(vid, false);
+        double* row = tb + 5 * i;
+        row[0] = p.x;
+        row[1] = p.y;
+        row[2] = p_angle(vid);
+        row[3] = p_length(vid);
+        row[4] = p_width(vid);
+    }
+    return table.release();
+    GUARD_END
+}
+
 // ---- move_all(ids, x, y, angle, keep_route, threshold, v=None) -> [(id, message)] of refused moves
 // v: each member's speed at the end of the coming step [m/s], commanded with setSpeed after its
 // move (SUMO's speed of the member during the step is then ours, not one inferred from the move)
@@ -440,6 +472,8 @@ static PyObject* attach(PyObject*, PyObject* args) {
     p_length = (DoubleFn)need(SYM_LENGTH);
     p_width = (DoubleFn)need(SYM_WIDTH);
     p_type = (StringFn)need(SYM_TYPE);
+    p_pos = (PosFn)need(SYM_POS);
+    p_angle = (DoubleFn)need(SYM_ANGLE);
     p_store = (const SubscriptionResults*)dlsym(h, SYM_STORE);  // optional: else the getAll copies
     p_ctxStore = (const ContextSubscriptionResults*)dlsym(h, SYM_CTXSTORE);
     p_step = (StepFn)dlsym(h, SYM_STEP);  // optional
@@ -479,6 +513,7 @@ static PyMethodDef methods[] = {
     {"neighbour_table", neighbour_table, METH_VARARGS,
      "neighbour_table(owners, exclude) -> (ids, types, lanes, table (m,7), lane_index) | None"},
     {"move_all", move_all, METH_VARARGS, "move_all(ids, x, y, angle, keep_route, threshold, v=None) -> [(id, message)]"},
+    {"poses", poses, METH_O, "poses(ids) -> table (n, 5): front bumper x, y, angle [deg], length, width"},
     {"set_previous_speeds", set_previous_speeds, METH_VARARGS, "set_previous_speeds(ids, v, a)"},
     {"step", step, METH_NOARGS, "libsumo::Simulation::step(0.0)"},
     {"forget", forget, METH_O, "forget(ids): drop the cached bodies of these vehicles"},
