@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from ..core.kernels import kernel
 from .road_setup import rectangles_overlap
 from .plan import INSERT_CLEAR_TIME
 
@@ -81,10 +82,56 @@ def has_room(pos, heading, v, vehicles, front, bodies) -> bool:
     zones = [insertion_zone(pos[i], heading[i], v[i], vehicles[i], front[i]) for i in range(len(pos))]
     if not zones or not len(x):
         return True
-    for i, j in zip(*np.nonzero(_near(zones, np.asarray(x), np.asarray(y), np.asarray(length),
-                                      np.asarray(width)))):
-        zc, zone_len, zone_w = zones[i]
-        if rectangles_overlap(zc, heading[i], np.array([x[j], y[j]]), psi[j], zone_len, zone_w,
-                              length[j], width[j]):
+    zc = np.array([z[0] for z in zones], dtype=float).reshape(-1, 2)
+    zone_lw = np.array([(z[1], z[2]) for z in zones], dtype=float)
+    return not any_overlap(zc, np.asarray(heading, dtype=float), zone_lw,
+                           np.ascontiguousarray(np.array([x, y, psi, length, width], dtype=float)))
+
+
+@kernel
+def any_overlap(zc, zh, zone_lw, bodies) -> bool:
+    """Does some zone (centres ``zc`` (n, 2) [m], headings ``zh`` [rad], lengths and widths
+    ``zone_lw`` (n, 2) [m]) overlap some body (``bodies`` (5, m): x, y [m], heading [rad],
+    length, width [m])? :func:`_near`'s circle pre-test, then road_setup.py
+    ``rectangles_overlap``'s separating-axis test, pair by pair."""
+    for i in range(zc.shape[0]):
+        r_zone = math.hypot(zone_lw[i, 0], zone_lw[i, 1]) / 2.0
+        for j in range(bodies.shape[1]):
+            r_body = math.hypot(bodies[3, j], bodies[4, j]) / 2.0
+            dist = math.hypot(zc[i, 0] - bodies[0, j], zc[i, 1] - bodies[1, j])
+            if dist <= r_zone + r_body + NEAR_MARGIN_M and _overlap(
+                    (zc[i, 0], zc[i, 1], zh[i], zone_lw[i, 0], zone_lw[i, 1]),
+                    (bodies[0, j], bodies[1, j], bodies[2, j], bodies[3, j], bodies[4, j])):
+                return True
+    return False
+
+
+@kernel
+def _corners(r):
+    """The corners (4, 2) [m] of rectangle ``r`` = (x, y, heading, length, width)."""
+    c, s = math.cos(r[2]), math.sin(r[2])
+    ax0, ax1 = c * r[3] / 2, s * r[3] / 2
+    ay0, ay1 = -s * r[4] / 2, c * r[4] / 2
+    out = np.empty((4, 2))
+    out[0, 0], out[0, 1] = r[0] + ax0 + ay0, r[1] + ax1 + ay1
+    out[1, 0], out[1, 1] = r[0] + ax0 - ay0, r[1] + ax1 - ay1
+    out[2, 0], out[2, 1] = r[0] - ax0 - ay0, r[1] - ax1 - ay1
+    out[3, 0], out[3, 1] = r[0] - ax0 + ay0, r[1] - ax1 + ay1
+    return out
+
+
+@kernel
+def _overlap(r1, r2) -> bool:
+    """Separating-axis test of two rectangles (x, y, heading, length, width) [m, rad]."""
+    a, b = _corners(r1), _corners(r2)
+    for h in (r1[2], r1[2] + np.pi / 2, r2[2], r2[2] + np.pi / 2):
+        c, s = math.cos(h), math.sin(h)
+        pa_min, pa_max, pb_min, pb_max = np.inf, -np.inf, np.inf, -np.inf
+        for q in range(4):
+            pa = a[q, 0] * c + a[q, 1] * s
+            pb = b[q, 0] * c + b[q, 1] * s
+            pa_min, pa_max = min(pa_min, pa), max(pa_max, pa)
+            pb_min, pb_max = min(pb_min, pb), max(pb_max, pb)
+        if pa_max <= pb_min or pb_max <= pa_min:
             return False
     return True
