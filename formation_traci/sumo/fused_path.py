@@ -120,7 +120,7 @@ class FusedPath:
         every = act.tobytes() == self._all_in
         if (k >= self.n_steps or not w.inserted or len(w.pending) or w.released or w.adopting
                 or rec.any_out or (k + 1) % rec.steps_per_chunk == 0
-                or w.slot_index is not self._slot or not self.refs.usual(t, state)
+                or w.slot_index is not self._slot or not self.refs.usual(t)
                 or ((w.in_sumo.tobytes() != self._all_in) if every else (act & ~w.in_sumo).any())):
             return False
         ev = w.ev
@@ -139,6 +139,8 @@ class FusedPath:
             return False
         nb = w.adapter.neighbour_table(w.all_bg, native=True)
         if nb is not None and rec.background.rows_buffered + len(nb[0]) > rec.background.chunk_rows:
+            return False
+        if self.refs.enters(t, state):  # last: a due formation's room check reads SUMO
             return False
         self._rows, self._nb_rows, self._idx, self._every = rows, nb, idx, every
         clock.lap("sumo_read")

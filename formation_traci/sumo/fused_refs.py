@@ -50,7 +50,11 @@ class OneFormation:
         """The held state's arrays (no member of one formation is ever parked: any rows)."""
         return state.x, state.theta_star, state.speed_in, state.theta_star
 
-    def usual(self, t: float, state) -> bool:
+    def enters(self, t: float, state) -> bool:
+        """One formation running from t = 0: none enters."""
+        return False
+
+    def usual(self, t: float) -> bool:
         """Not at the end of its route, and the arrays given to the compiled step are the
         reference's still."""
         gen, pl = self.gen, self.pl
@@ -94,18 +98,14 @@ class GroupOfFormations:
         self._kept = (g.a_vc, g.emergency_vc, g.has_prev, g.a_cap_prev, g.v_prev, g.emergency,
                       g.depart)
 
-    def usual(self, t: float, state) -> bool:
-        """No formation enters at t [s] (FormationGroup.any_enters: one of a flow due but
-        without room waits, and the step is usual for the others) or nears the end of its
-        route (FormationGroup.stop), the parked rows' held state exists (the first
-        FormationGroup.settle keeps it), the arrays given to the compiled step are the
-        group's still; sets :attr:`running`, :attr:`parked` and :attr:`vc_rows`. ``state``:
-        the members' state at t."""
+    def usual(self, t: float) -> bool:
+        """No formation nears the end of its route at t [s] (FormationGroup.stop), the parked
+        rows' held state exists (the first FormationGroup.settle keeps it), the arrays given
+        to the compiled step are the group's still; sets :attr:`running`, :attr:`parked` and
+        :attr:`vc_rows` (:meth:`enters` asks the rest)."""
         g = self.group
         run = g.status == _RUNNING
         if ((run & (g.s + self.reach > g.length)).any()
-                or (((g.status == _WAITING) & (t >= g.depart - 1e-9)).any()
-                    and g.any_enters(self.world, t, state))
                 or not all(a is b for a, b in zip(self._kept, (g.a_vc, g.emergency_vc, g.has_prev,
                                                                g.a_cap_prev, g.v_prev, g.emergency,
                                                                g.depart)))):
@@ -113,6 +113,13 @@ class GroupOfFormations:
         self.running, self.vc_rows = run, int(run.sum())
         self.parked = np.repeat(~run, g.counts)
         return g.held_state is not None or not self.parked.any()
+
+    def enters(self, t: float, state) -> bool:
+        """Does a formation due at t [s] enter now (FormationGroup.any_enters; ``state``: the
+        members' state at t)? One of a flow that is due but finds no room waits, and the step
+        stays a usual one for the others."""
+        g = self.group
+        return bool(((g.status == _WAITING) & (t >= g.depart - 1e-9)).any()) and g.any_enters(self.world, t, state)
 
     def held(self, state):
         """The parked rows' held state (FormationGroup.settle's; the state itself when none)."""
