@@ -43,6 +43,16 @@ COLUMN = HEAD.format(lane=0) + "".join(
 WIDE = HEAD.format(lane=1) + "".join(
     f'[[members]]\nid = "{m}"\nslot = {{ along = 0.0, lanes = {k} }}\n'
     for m, k in (("right", -1), ("centre", 0), ("left", 1))) + TAIL
+# the same column with a second formation's column beside it in the lane to the left
+BLOCKED = COLUMN.replace("[traffic]", """[[formations]]
+id = "beside"
+lane = 1
+leader = { speed = 28.0 }
+members = [{ id = "p1", slot = { along = 0.0, lanes = 0 } },
+           { id = "p2", slot = { along = -12.0, lanes = 0 } },
+           { id = "p3", slot = { along = -24.0, lanes = 0 } }]
+
+[traffic]""")
 LANE_W = 3.5  # the onramp network's lane width [m]
 
 
@@ -64,6 +74,11 @@ def column(tmp_path_factory):
 @pytest.fixture(scope="module")
 def wide(tmp_path_factory):
     return _run(tmp_path_factory, "wide", WIDE)
+
+
+@pytest.fixture(scope="module")
+def blocked(tmp_path_factory):
+    return _run(tmp_path_factory, "blocked", BLOCKED)
 
 
 def test_a_column_in_the_merge_lane_shifts_left_before_the_ramp_vehicle_merges_within_comfort(column):
@@ -105,6 +120,23 @@ def test_a_formation_with_no_lane_left_of_it_yields_as_open_gap(wide):
     t0 = float(starts.t.min())
     assert (vc[vc.index < t0] == 0.0).all()
     assert vc.min() < -0.5 and vc.min() >= -1.5 - 1e-6
+
+
+def test_a_column_whose_left_lane_is_taken_yields_as_open_gap(blocked):
+    res, ev, tr, _ = blocked
+    assert res.status == "completed", res.reason
+    assert not (ev.kind == "maneuver_start").any()
+    starts = ev[ev.kind == "merge_yield_start"]
+    assert len(starts) >= 1 and set(starts.vehicle_id) == {"vc:f0"}
+    # the gap check found the other formation's members in the way
+    assert all(d.startswith("shift refused (no room: p") for d in starts.detail)
+    vc = tr[tr.vehicle_id == "vc:f0"].set_index("t").a_lon
+    assert (vc[vc.index < float(starts.t.min())] == 0.0).all()
+    assert vc.min() < -0.5 and vc.min() >= -1.5 - 1e-6
+    # neither column changed its lane
+    col = tr[tr.vehicle_id.isin(["a", "b", "c"])]
+    beside = tr[tr.vehicle_id.isin(["p1", "p2", "p3"])]
+    assert col.d.abs().max() < 0.3 and (beside.d - LANE_W).abs().max() < 0.3
 
 
 def test_shift_is_bad_input_where_a_road_or_road_slots_are_missing(tmp_path):
