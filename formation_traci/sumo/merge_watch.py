@@ -156,8 +156,8 @@ class MergeWatch:
     def _yields(self, t, w, vc_id, shift, decision, ids) -> tuple[bool, str]:
         """Does the formation yield as open_gap this step (its cap and events), and the
         prefix of merge_yield_start's detail; in shift mode, asks for the shift (module docstring)."""
-        if self.mode != "shift":
-            return self.mode == "open_gap", ""
+        if self.mode != "shift" or shift is None:  # (a formation without a generator that shifts: yields)
+            return self.mode != "none", ""
         if shift.shifting:
             for vid in sorted(w.yielding):
                 self._end(t, w, vc_id, vid, "the formation shifts away")
