@@ -2,8 +2,9 @@
 conflict with the members in the merge lane makes the whole formation change one lane to the left
 with the maneuver planner's gap check and comfort-limited transition (maneuver_start /
 maneuver_end named merge_shift); a formation that cannot move there yields as ``open_gap`` does
-(merge_yield_start naming the refusal, the virtual car's acceleration capped); shift is bad input
-where ``open_gap`` is."""
+(merge_yield_start naming the refusal, the virtual car's acceleration capped) and asks again every
+step, the yield ending when the shift starts; shift is bad input where ``open_gap`` is and without
+road slots."""
 import pandas as pd
 import pytest
 
@@ -53,6 +54,8 @@ members = [{ id = "p1", slot = { along = 0.0, lanes = 0 } },
            { id = "p3", slot = { along = -24.0, lanes = 0 } }]
 
 [traffic]""")
+# the column beside it faster, from behind: it passes the column while the column yields
+PASSING = BLOCKED.replace('lane = 1\nleader = { speed = 28.0 }', 'lane = 1\nstart = 440.0\nleader = { speed = 34.0 }')
 LANE_W = 3.5  # the onramp network's lane width [m]
 
 
@@ -79,6 +82,11 @@ def wide(tmp_path_factory):
 @pytest.fixture(scope="module")
 def blocked(tmp_path_factory):
     return _run(tmp_path_factory, "blocked", BLOCKED)
+
+
+@pytest.fixture(scope="module")
+def passing(tmp_path_factory):
+    return _run(tmp_path_factory, "passing", PASSING)
 
 
 def test_a_column_in_the_merge_lane_shifts_left_before_the_ramp_vehicle_merges_within_comfort(column):
@@ -137,6 +145,27 @@ def test_a_column_whose_left_lane_is_taken_yields_as_open_gap(blocked):
     col = tr[tr.vehicle_id.isin(["a", "b", "c"])]
     beside = tr[tr.vehicle_id.isin(["p1", "p2", "p3"])]
     assert col.d.abs().max() < 0.3 and (beside.d - LANE_W).abs().max() < 0.3
+
+
+def test_a_refused_shift_is_asked_again_and_starts_once_the_left_lane_has_room(passing):
+    res, ev, tr, _ = passing
+    assert res.status == "completed", res.reason
+    f0 = ev[ev.vehicle_id == "vc:f0"]
+    yields, starts = f0[f0.kind == "merge_yield_start"], f0[f0.kind == "maneuver_start"]
+    assert len(yields) == 1 and len(starts) == 1
+    assert yields.detail.iloc[0].startswith("shift refused (no room: p")
+    assert starts.detail.iloc[0].startswith("merge_shift: away from " + yields.other_id.iloc[0])
+    t_yield, t_shift = float(yields.t.iloc[0]), float(starts.t.iloc[0])
+    assert t_shift > t_yield + 1.0  # yielded meanwhile
+    # the yield ends at the next step: the shift is the answer now
+    ended = f0[(f0.kind == "merge_yield_end") & (f0.other_id == yields.other_id.iloc[0])]
+    assert list(ended.detail) == ["the formation shifts away"]
+    assert 0.0 < float(ended.t.iloc[0]) - t_shift <= 0.1
+    t_end = float(f0[f0.kind == "maneuver_end"].t.iloc[0])
+    members = tr[tr.vehicle_id.isin(["a", "b", "c"])]
+    assert (members[members.t >= t_end].d - LANE_W).abs().max() < 0.3
+    assert members.a_lon.abs().max() <= 2.0
+    assert not ev[ev.kind == "emergency_brake"].vehicle_id.isin(["a", "b", "c", "vc:f0"]).any()
 
 
 def test_shift_is_bad_input_where_a_road_or_road_slots_are_missing(tmp_path):
