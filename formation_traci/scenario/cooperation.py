@@ -9,10 +9,13 @@ from .base import PosFloat, Strict
 
 
 class CooperationSpec(Strict):
-    merge: Literal["open_gap", "none"] = Field(
+    merge: Literal["open_gap", "shift", "none"] = Field(
         "none", description="ramp traffic at on-ramps: 'open_gap' slows the formation, within comfort, "
         "so that a ramp vehicle meets its own safe time gap ahead of the merge lane's members "
-        "(control/merge.py); 'none' only observes the ramp vehicles")
+        "(control/merge.py); 'shift' moves the whole formation one lane to the left, away from the "
+        "merge lane, when a ramp vehicle is in conflict and the lane change's gap check allows it, "
+        "and opens a gap as 'open_gap' does when it does not (it stays in its new lane); 'none' only "
+        "observes the ramp vehicles")
     horizon_s: PosFloat = Field(10.0, le=60.0, description="ramp vehicles this far in time from their merge point are "
                                 "considered [s]")
     decel_mps2: PosFloat = Field(1.5, le=3.0, description="the largest deceleration the formation yields with [m/s^2]")

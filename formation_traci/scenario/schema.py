@@ -165,6 +165,15 @@ class Scenario(Strict):
     def _cooperation_on_a_road(self):
         if self.road is None and self.cooperation != CooperationSpec():  # the default is echoed in run.json
             raise ValueError("cooperation: needs a [road] (ramp traffic is SUMO's)")
+        if self.cooperation.merge == "shift":  # the maneuver planner's lane change moves the slots
+            members = list(self.members) + [m for f in self.formations for m in f.members] + [
+                m for f in self.formation_flows for m in f.formation.members]
+            if any(m.slot is None for m in members):
+                raise ValueError("cooperation.merge = \"shift\" needs road-frame slots ('slot') for every member "
+                                 "(the whole formation changes lanes)")
+            if self.controller.law == "sumo_cacc":
+                raise ValueError("cooperation.merge = \"shift\" is not supported with controller.law = "
+                                 "\"sumo_cacc\" (SUMO's CACC keeps its lane)")
         return self
 
     @model_validator(mode="after")

@@ -6,7 +6,14 @@ The joins come from the network (road/ramps.py); a join is watched for a formati
 front-most member is within ``horizon_s`` at ``V_WATCH`` of the join's start until its rear-most
 member has passed the end of the acceleration lane. Its vehicles are read then only (a few lanes
 a step). Modes (scenario ``[cooperation] merge``): ``open_gap`` applies the law's cap
-(control/merge.py), ``none`` only observes.
+(control/merge.py), ``none`` only observes, ``shift`` asks the formation's maneuver generator
+(control/maneuvers/generator.py MergeShift) for a lane change one lane to the left when a ramp
+vehicle is in conflict (the law's YIELD) and members are in the merge lane: the attempt is made
+at the step's plan, after this step's cap, so on that first step of a conflict the formation
+neither yields nor records a yield. While its shift is under way it does not yield (yields
+under way end: "the formation shifts away"); when the attempt was refused it yields as
+``open_gap`` does (the refusal's reason in merge_yield_start's detail) and asks again every step
+of the conflict.
 """
 from __future__ import annotations
 
@@ -73,8 +80,9 @@ class MergeWatch:
     ``groups``: per formation (id, its virtual car's id, its member rows); ``world``: the
     SUMO world (its adapter, recorder, members' SUMO ids and bodies)."""
 
-    def __init__(self, sites, mode: str, params, world, groups, dt: float):
+    def __init__(self, sites, mode: str, params, world, groups, dt: float, shifts=None):
         self.sites, self.mode, self.p, self.groups, self.dt = sites, mode, params, groups, dt
+        self.shifts = shifts if shifts is not None else [None] * len(groups)  # per formation (shift mode)
         self.adapter, self.rec, self.sumo_ids = world.adapter, world.rec, world.sumo_ids
         self.d_front = world.d_front
         self.length = np.array([mt.length for mt in world.mtypes])
@@ -137,11 +145,30 @@ class MergeWatch:
             self._decision = np.empty(len(ids), dtype=np.int64)
         decision = self._decision[:len(ids)]
         cap = yield_to_ramp(site.merge, ramp, lane, self.p, decision)
+        yields, why = self._yields(t, w, vc_id, self.shifts[f], decision, ids)
         for j, vid in enumerate(ids):
             self._observe(w, vid, lanes[j], rows[:, j], decision[j], site)
-            self._events(t, w, vc_id, vid, decision[j], cap)
+            if yields:
+                self._events(t, w, vc_id, vid, decision[j], cap, why)
         self._forget(t, w, vc_id, ids)
-        return cap if self.mode == "open_gap" else math.inf
+        return cap if yields else math.inf
+
+    def _yields(self, t, w, vc_id, shift, decision, ids) -> tuple[bool, str]:
+        """Does the formation yield as open_gap this step (its cap and events), and the
+        prefix of merge_yield_start's detail; in shift mode, asks for the shift (module docstring)."""
+        if self.mode != "shift" or shift is None:  # (a formation without a generator that shifts: yields)
+            return self.mode != "none", ""
+        if shift.shifting:
+            for vid in sorted(w.yielding):
+                self._end(t, w, vc_id, vid, "the formation shifts away")
+            return False, ""
+        if not (decision == YIELD).any():
+            shift.refused = None
+            return True, ""
+        shift.asked = ids[int(np.argmax(decision == YIELD))]  # the first in conflict, named in the event
+        if shift.refused is None:  # the first step of a conflict: the attempt's answer comes at plan
+            return False, ""
+        return True, f"shift refused ({shift.refused}); "
 
     def _observe(self, w, vid, lane, row, code, site) -> None:
         if code == OUTSIDE and vid not in w.seen:
@@ -155,12 +182,11 @@ class MergeWatch:
             if lane == site.added and row[4] >= site.merge.length - 10.0:
                 got.at_end = True
 
-    def _events(self, t, w, vc_id, vid, code, cap) -> None:
-        if self.mode != "open_gap":
-            return
+    def _events(self, t, w, vc_id, vid, code, cap, why: str = "") -> None:
         if code == YIELD and vid not in w.yielding:
             w.yielding.add(vid)
-            self.rec.add_event(t, "merge_yield_start", vc_id, vid, f"open_gap: acceleration cap {cap:.2f} m/s^2")
+            self.rec.add_event(t, "merge_yield_start", vc_id, vid,
+                               f"{why}open_gap: acceleration cap {cap:.2f} m/s^2")
         elif code in (OUTSIDE, BEHIND) and vid in w.yielding:
             self._end(t, w, vc_id, vid, "past the merge point" if code == OUTSIDE else "merges behind")
 

@@ -32,7 +32,8 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     built = [_formation_parts(view, p, cfg, fleet.gains[rows], world, meta)
              for view, (_, p, rows), cfg in zip(views, parts, cfgs)]
     if plan.road.joins and not baseline:
-        world.merges = _merge_watch(sc, plan, parts, world)
+        world.merges = _merge_watch(sc, plan, parts, world, [getattr(gen, "merge_shift", None)
+                                                             for gen, _, _ in built])
     meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
                         "governor": 0.0, "control_model": 0.0, "record": 0.0}
     load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, plan.road.line)
@@ -53,8 +54,9 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
                     timing=meta["timing_s"], road_load=load, fused=fused_path)
 
 
-def _merge_watch(sc: Scenario, plan: RoadPlan, parts, world: SumoWorld):
-    """The run's watch of ramp traffic at the route's joins (sumo/merge_watch.py)."""
+def _merge_watch(sc: Scenario, plan: RoadPlan, parts, world: SumoWorld, shifts):
+    """The run's watch of ramp traffic at the route's joins (sumo/merge_watch.py); ``shifts``:
+    each formation's control/maneuvers/generator.py MergeShift (None: it does not shift)."""
     from run_contract.columns import DEFAULT_FORMATION_ID
 
     from ..control.merge import merge_params
@@ -65,7 +67,7 @@ def _merge_watch(sc: Scenario, plan: RoadPlan, parts, world: SumoWorld):
                virtual_car_id(DEFAULT_FORMATION_ID if setup is None else setup.id, len(parts)),
                np.arange(rows.start, rows.stop)) for setup, _, rows in parts]
     return MergeWatch(merge_sites(plan.road), sc.cooperation.merge, merge_params(sc.cooperation),
-                      world, groups, float(sc.run.step))
+                      world, groups, float(sc.run.step), shifts)
 
 
 def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld, meta: dict):
@@ -101,7 +103,8 @@ def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld,
                         np.array([v.cog_to_front_bumper for v in plan.vehicles]))
     args = (world.line.G, world.line.length, layout, s0, v0, speed_profile, limits,
             sc.road.end_margin, StepTiming(run.step / n_ctrl, n_ctrl, ramp, release))
-    if not sc.maneuvers:
+    shift = sc.cooperation.merge == "shift"  # moves away from merge lanes with the planner's lane change
+    if not sc.maneuvers and not shift:
         return RoadReference(*args), [], state
     from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
     from ..control.maneuvers.planner import ManeuverPlanner
@@ -112,5 +115,5 @@ def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld,
                               lengths, widths, list(plan.ids or world.ids), road_room(plan.road),
                               (ld.time_gap, ld.min_gap),
                               np.array([v.cog_to_front_bumper for v in plan.vehicles]))
-    gen = ManeuverRoadReference(*args, planner=planner, length=lengths)
+    gen = ManeuverRoadReference(*args, planner=planner, length=lengths, merge_shift=shift)
     return gen, [PlanSlots(planner)], state

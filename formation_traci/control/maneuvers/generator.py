@@ -23,7 +23,7 @@ from ..governor import LATERAL_MARGIN, time_gap_accel
 from ..reference import Reference, WorldCommand
 from ..reference_road import RoadReference
 from .gap import Others
-from .planner import ManeuverPlanner, Situation
+from .planner import MERGE_SHIFT, ManeuverPlanner, PlannerEvent, Situation
 from .transition import plan_slots_into
 
 ROOM_DECEL = 1.0
@@ -91,12 +91,41 @@ def room_accel(goal, s_vc_front, v_vc, half_w, length, active, others: Around, t
     return max(float(np.min(a)), -ROOM_DECEL)
 
 
+class MergeShift:
+    """A formation's shift away from a merge lane (``[cooperation] merge = "shift"``,
+    docs/maneuvers.md "Ramp traffic"): the merge watch (sumo/merge_watch.py) asks for it at
+    the step's sense, :meth:`ManeuverRoadReference.plan` tries it the same step with the
+    planner's gap check (:meth:`ManeuverPlanner.merge_shift`)."""
+
+    LANES = 1
+    """The shift: one lane to the left (ramps join on the right)."""
+
+    def __init__(self, planner: ManeuverPlanner):
+        self.planner = planner
+        self.asked = ""  # the watch asks for a shift this step: the ramp vehicle in conflict ("": none)
+        self.refused: str | None = None  # why the last attempt was refused (None: none refused)
+
+    @property
+    def shifting(self) -> bool:
+        """Is the formation's shift under way?"""
+        running = self.planner.running
+        return running is not None and running[0] == MERGE_SHIFT
+
+    def attempt(self, sn: Situation) -> list[PlannerEvent]:
+        """Try the shift asked for (its maneuver_start event; none when refused)."""
+        vid, self.asked = self.asked, ""
+        ok, detail = self.planner.merge_shift(sn, self.LANES)
+        self.refused = None if ok else detail
+        return [PlannerEvent("maneuver_start", f"{MERGE_SHIFT}: away from {vid} at the merge, {detail}")] if ok else []
+
+
 class ManeuverRoadReference(RoadReference):
     """RoadReference whose slots follow the maneuver planner (see the module docstring)."""
 
-    def __init__(self, *args, planner: ManeuverPlanner, length: float, **kw):
+    def __init__(self, *args, planner: ManeuverPlanner, length: float, merge_shift: bool = False, **kw):
         super().__init__(*args, **kw)
         self.planner = planner
+        self.merge_shift = MergeShift(planner) if merge_shift else None  # [cooperation] merge = "shift"
         self.body_length = np.asarray(length, float)  # [m], one or one per member
 
     def plan(self, t: float, sensed) -> list[WorldCommand]:
@@ -108,8 +137,11 @@ class ManeuverRoadReference(RoadReference):
         if nb is not None and len(nb.ids):
             others = Others(tuple(nb.ids), sensed.nb_s, sensed.nb_d, nb.length, nb.width, nb.v)
         commands = []
-        for ev in self.planner.step(Situation(float(t), self.s, sensed.m_s, sensed.m_d,
-                                              sensed.v_m, sensed.active, others, self.v)):
+        sn = Situation(float(t), self.s, sensed.m_s, sensed.m_d, sensed.v_m, sensed.active, others, self.v)
+        events = self.planner.step(sn)
+        if self.merge_shift is not None and self.merge_shift.asked:
+            events += self.merge_shift.attempt(sn)
+        for ev in events:
             if ev.kind == "release":
                 commands.append(WorldCommand("release", ev.member, ev.name))
             elif ev.kind == "take_over":  # the world drops it from sensed.nb

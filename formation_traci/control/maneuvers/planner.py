@@ -47,6 +47,20 @@ class PlannerEvent:
     where: tuple = ()  # enter: (s [m], d [m], v [m/s]) where and how fast the member's vehicle enters
 
 
+MERGE_SHIFT = "merge_shift"
+"""The name of a whole-formation lane change away from a merge lane ([cooperation] merge =
+'shift': :meth:`ManeuverPlanner.merge_shift`), in its maneuver_start / maneuver_end events."""
+
+
+@dataclass(frozen=True, slots=True)
+class _LaneChange:
+    """A lane change of the whole formation asked for outside the schedule (as a ManeuverSpec)."""
+
+    kind: str
+    lanes: int
+    check_gaps: bool = True
+
+
 RoomFn = Callable[[float, float], tuple[float, float]]
 """room(s0, s1) -> (d_min, d_max): the road's lateral extent over [s0, s1] [m]."""
 
@@ -169,6 +183,20 @@ class ManeuverPlanner:
             break
         return events
 
+    def merge_shift(self, sn: Situation, lanes: int = 1) -> tuple[bool, str]:
+        """Move the whole formation ``lanes`` lanes (left positive) now, as a scheduled
+        lane change with ``check_gaps`` would start (room on the road, gap check, comfort-limited
+        transition; events maneuver_start / maneuver_end named MERGE_SHIFT, the caller records
+        the start): (started, detail or why not). Not while a maneuver runs or is due."""
+        if self.running is not None:
+            return False, f"the maneuver {self.running[0]!r} is under way"
+        if self.due_since is not None:
+            return False, "a scheduled maneuver is due"
+        pending = self.pending_goal
+        ok, detail = self._try_start(_LaneChange(MERGE_SHIFT, lanes), sn)
+        self.pending_goal = pending  # a refused shift leaves no goal behind
+        return ok, detail
+
     def _leave(self, spec, sn: Situation) -> list[PlannerEvent]:
         """A leave: the member is released at once (a following reshape may close its slot)."""
         i = self.ids.index(spec.member)
@@ -251,7 +279,7 @@ class ManeuverPlanner:
         arc length s_vc [m]: lanes are SUMO's lane centres on the edge where each slot is
         (road/lanes.py LaneCentres)."""
         held = self.plan[:, 2:4]
-        if spec.kind == "lane_change":
+        if spec.kind in ("lane_change", MERGE_SHIFT):
             shape = self.shape.copy()
             shape[:, 1] = self.lanes.shift(s_vc + shape[:, 0], shape[:, 1], spec.lanes)
             return shape, self.slot_of.copy()
