@@ -133,10 +133,13 @@ class FusedPath:
         if (tr.rows_buffered + n_act + self.refs.vc_rows > tr.chunk_rows
                 or cf.rows_buffered + n_act * self.out.periods.shape[0] > cf.chunk_rows):
             return False
-        rows = w.adapter.settled_members(w.sumo_ids if every else [w.sumo_ids[i] for i in idx])
-        if rows is None or not (rows[1] == w.members.settled if every
-                                else w.members.unchanged(idx, rows[1], rows[2])):
-            return False
+        ids = w.sumo_ids if every else [w.sumo_ids[i] for i in idx]
+        rows = w.adapter.settled_members(ids)
+        if rows is None:  # a member changed lanes: the adapter tracks it (the read the loop's
+            w.adapter.read_members(ids)  # step would make first; it finds nothing left to do)
+            rows = w.adapter.settled_members(ids)
+            if rows is None:  # a member SUMO no longer has, or in two lanes, or near a lane's end
+                return False
         nb = w.adapter.neighbour_table(w.all_bg, native=True)
         if nb is not None and rec.background.rows_buffered + len(nb[0]) > rec.background.chunk_rows:
             return False
@@ -173,8 +176,6 @@ class FusedPath:
             rec.incidents.lanes(t, d_all[:n], w.active)
         if nb_ids is not None:
             w.nb_guess.keep(nb_ids, s_all[n:])
-        if not self._every:  # MemberWatch.lane_changes of a step with members out of the run
-            w.members.forget_lanes()
         self._events(t, n_off, flags, worst, nb)
         tr.commit(len(idx) + refs.vc_rows)
         cf.commit(len(idx))
@@ -202,12 +203,14 @@ class FusedPath:
         return full, self._li, self._lane_index
 
     def _events(self, t, n_off, flags, worst, nb) -> None:
-        """The step's events in the loop's order: placement (sense), emergency braking and
+        """The step's events in the loop's order: placement and lane changes (sense), emergency braking and
         the neighbours' lane changes and cut-ins (observe, then the background rows), signals
         out of range and the members' incidents (record)."""
         w, rec, out = self.world, self.rec, self.out
         if n_off or w.members.off:
             w.members.placement(t, self.out.m_gap, n_off)
+        _, lanes, lane_idx = self._rows  # the members' lane changes (SumoWorld.sense's order)
+        w.members.lane_changes(t, self._idx, np.ones(len(self._idx), dtype=np.bool_), lanes, lane_idx)
         if flags & EMERGENCY or w.emergency.any_on:
             w.emergency(t, self.refs.emergency_info(self.ref_out.a_request, self.ref_out.a_cap_req))
         if nb is None:

@@ -53,8 +53,11 @@ class NeighbourReads:
         """Length [m], width [m] and vType of a vehicle (read on first sight, then cached)."""
         body = self._bodies.get(vid)
         if body is None:
-            v = self.api.vehicle
-            body = self._bodies[vid] = (v.getLength(vid), v.getWidth(vid), v.getTypeID(vid))
+            if self.native is not None:  # one cache with the C++ reads': the same first sight
+                body = self._bodies[vid] = self.native.body(vid)
+            else:
+                v = self.api.vehicle
+                body = self._bodies[vid] = (v.getLength(vid), v.getWidth(vid), v.getTypeID(vid))
         return body
 
     def subscribe_departed(self) -> None:

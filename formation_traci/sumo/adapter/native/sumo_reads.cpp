@@ -311,6 +311,17 @@ static PyObject* neighbour_table(PyObject*, PyObject* args) {
     GUARD_END
 }
 
+// ---- body(id) -> (length, width, vType): the cached body (read on first sight by either path) -
+static PyObject* body(PyObject*, PyObject* id_o) {
+    std::string vid;
+    if (!to_std(id_o, vid)) return nullptr;
+    Py_INCREF(id_o);
+    Ref id_str(id_o);
+    const Body* b = body_of(vid, id_str);
+    if (b == nullptr) return nullptr;
+    return Py_BuildValue("(ddO)", b->length, b->width, b->type);
+}
+
 // ---- poses(ids) -> table (n, 5): front bumper x, y [m], SUMO angle [deg], length, width [m] --
 // the direct getters (getPosition, getAngle, getLength, getWidth) of each vehicle, in one call
 static PyObject* poses(PyObject*, PyObject* ids_o) {
@@ -513,6 +524,7 @@ static PyMethodDef methods[] = {
     {"neighbour_table", neighbour_table, METH_VARARGS,
      "neighbour_table(owners, exclude) -> (ids, types, lanes, table (m,7), lane_index) | None"},
     {"move_all", move_all, METH_VARARGS, "move_all(ids, x, y, angle, keep_route, threshold, v=None) -> [(id, message)]"},
+    {"body", body, METH_O, "body(id) -> (length, width, vType), read once and cached (as neighbour_table's)"},
     {"poses", poses, METH_O, "poses(ids) -> table (n, 5): front bumper x, y, angle [deg], length, width"},
     {"set_previous_speeds", set_previous_speeds, METH_VARARGS, "set_previous_speeds(ids, v, a)"},
     {"step", step, METH_NOARGS, "libsumo::Simulation::step(0.0)"},
