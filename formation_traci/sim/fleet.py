@@ -357,10 +357,11 @@ class Fleet:
         return got
 
     @property
-    def package_laws(self) -> bool:
-        """Every law of the members is one of the package's own (no law added at run time:
-        sim/fleet_laws.py law_kernels)."""
-        return self._step is step_members
+    def kernels(self):
+        """(step kernel, signal kernel) of the fleet: :func:`step_members` and
+        :func:`member_signals`, or their compiled copies that also dispatch to a law
+        registered at run time (sim/fleet_laws.py law_kernels)."""
+        return self._step, self._signals
 
     def signals(self, state: FleetState, ref: Reference, out: np.ndarray | None = None):
         """The recorded member columns at the start of the step (SIGNAL_COLUMNS order)."""
