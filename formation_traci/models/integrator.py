@@ -7,7 +7,9 @@ integration of the package goes through :func:`rk4_row`: the members (sim/fleet.
 virtual car of eq (2.3) (control/virtual_car.py: the unicycle with the profiles' inputs at the
 stage times) and the open-loop linear model (sim/open_loop.py). A model with another state
 slot (a drivetrain lag, say) changes only its module and its parameter record; a model defined
-outside the package is integrated by :func:`rk4_for` (tests/test_model_slots.py).
+outside the package is integrated by :func:`rk4_for` (tests/test_law_seam.py), and a model
+variant's step kernel by :func:`model_integrator`'s (models/variants.py,
+tests/test_model_variant.py).
 """
 from __future__ import annotations
 

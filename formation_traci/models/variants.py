@@ -10,7 +10,7 @@ A variant is a module with
 * ``SLOTS``: the names of the slots it adds, columns ``FIRST``, ``FIRST + 1``, ... of a
   member's state row after the base's (``FIRST`` = models/bicycle.py ``N_STATES`` or
   models/kinematic.py ``N_STATES``); they start at 0;
-* ``pack(cfg) -> (n, len(PARAMS))``: its parameters from a sim/fleet.py FleetConfig
+* ``pack(cfg) -> (n, k)``: its k parameters from a sim/fleet.py FleetConfig
   (``cfg.variant_params``: {parameter: value}), columns ``N_PARAMS``, ``N_PARAMS + 1``, ...
   of the parameter rows ``P`` (models/params.py ``N_PARAMS``);
 * optionally ``SPEC``: a pydantic model of its parameters with their defaults, which the
