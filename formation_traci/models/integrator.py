@@ -7,7 +7,9 @@ integration of the package goes through :func:`rk4_row`: the members (sim/fleet.
 virtual car of eq (2.3) (control/virtual_car.py: the unicycle with the profiles' inputs at the
 stage times) and the open-loop linear model (sim/open_loop.py). A model with another state
 slot (a drivetrain lag, say) changes only its module and its parameter record; a model defined
-outside the package is integrated by :func:`rk4_for` (tests/test_model_slots.py).
+outside the package is integrated by :func:`rk4_for` (tests/test_law_seam.py), and a model
+variant's step kernel by :func:`model_integrator`'s (models/variants.py,
+tests/test_model_variant.py).
 """
 from __future__ import annotations
 
@@ -111,21 +113,33 @@ def integrate(kind: int, x, u, P, dt: float, max_step: float = MAX_PHYSICS_STEP)
     return integrate_rows(kind, x, u, P, float(dt), substeps(dt, max_step))
 
 
+def model_integrator(model, base_constraints: bool = False):
+    """(:func:`rhs_into`, :func:`rk4_row_from`), same arguments, for a model module defined
+    anywhere that has ``rhs_into(s, u0, u1, P, i, out)`` and optionally ``constrain(s, P, i)``
+    (``kind`` is ignored but for the constraints of a module without its own: those of model
+    ``kind`` with ``base_constraints``, else none): compiled for it (not cached on disk). A
+    model variant's step kernel (models/variants.py, sim/fleet_models.py) is compiled with
+    them in place of the package's."""
+    def _rhs(kind, s, u0, u1, P, i, out):
+        model_rhs(s, u0, u1, P, i, out)  # noqa: F821 (bound by rebind)
+
+    def _constrain(kind, s, P, i):
+        model_constrain(s, P, i)  # noqa: F821 (bound by rebind)
+
+    def _none(kind, s, P, i):
+        pass
+
+    own = getattr(model, "constrain", None)
+    if own is not None:
+        con = rebind(_constrain, model_constrain=own)
+    else:
+        con = constrain if base_constraints else rebind(_none)
+    rhs = rebind(_rhs, model_rhs=model.rhs_into)
+    return rhs, rebind(rk4_row_from, rhs_into=rhs, constrain=con)
+
+
 def rk4_for(model):
     """:func:`rk4_row` (same arguments, ``kind`` ignored) for a model module defined
     anywhere that has ``rhs_into(s, u0, u1, P, i, out)`` and optionally ``constrain(s, P,
     i)``: compiled for it (not cached on disk)."""
-    def _rhs(kind, s, u0, u1, P, i, out):
-        model_rhs(s, u0, u1, P, i, out)
-
-    def _constrain(kind, s, P, i):
-        model_constrain(s, P, i)
-
-    def _none(s, P, i):
-        pass
-
-    fixes = {"model_rhs": model.rhs_into, "model_constrain": getattr(model, "constrain", None)}
-    if fixes["model_constrain"] is None:
-        fixes["model_constrain"] = rebind(_none)
-    steps = rebind(rk4_row_from, rhs_into=rebind(_rhs, **fixes), constrain=rebind(_constrain, **fixes))
-    return rebind(rk4_row, rk4_row_from=steps)
+    return rebind(rk4_row, rk4_row_from=model_integrator(model)[1])

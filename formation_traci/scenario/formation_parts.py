@@ -6,6 +6,7 @@ from typing import Literal
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from ..control.laws import DEFAULT_LAW, SUMO_LAWS, law_names, law_spec
+from ..models.variants import model_module, model_names, model_spec
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict
 from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec, SumoCaccSpec
 from .maneuvers import SlotSpec
@@ -43,6 +44,63 @@ class VehicleSpec(Strict):
     surface: SURFACE_NAMES = Field("good_dry", description="Table 3.3 pavement")
     mu: PosFloat | None = Field(None, le=1.5, description="road adhesion [-]; overrides surface")
     params: VehicleOverrides = VehicleOverrides()
+    variant: str | None = Field(None, description="a model variant registered at run time "
+                                "(models/variants.py): the model with more state slots")
+    variant_params: dict[str, dict] = Field(default_factory=dict, description=(
+        "parameters of model variants, from their [vehicle.<variant>] tables, validated by each "
+        "variant's SPEC (models/variants.py)"))
+
+    @model_validator(mode="before")
+    @classmethod
+    def _variant_tables(cls, data):
+        """[vehicle.<variant>] of a model variant with a SPEC: validated by it."""
+        return _spec_tables(data, set(cls.model_fields), model_spec, "variant_params")
+
+    @field_validator("variant_params")
+    @classmethod
+    def _by_their_specs(cls, given):
+        return _by_specs(given, model_spec, "a model variant")
+
+    @model_validator(mode="after")
+    def _known_variant(self):
+        if self.variant is None:
+            return self
+        if self.variant not in model_names():
+            raise ValueError(f"variant: unknown model variant {self.variant!r}; registered: "
+                             f"{', '.join(model_names()) or 'none'}")
+        base = model_module(self.variant).BASE
+        if base != self.model:
+            raise ValueError(f"variant: {self.variant!r} extends the {base} model, not "
+                             f"vehicle.model = {self.model!r}")
+        return self
+
+
+def _spec_tables(data, fields: set, spec_of, into: str):
+    """A section's tables named after a registered module with a SPEC (``spec_of(name)``,
+    ``[controller.<law>]``, ``[vehicle.<variant>]``) moved into its field ``into``."""
+    if not isinstance(data, dict):
+        return data
+    tables = {k: data[k] for k in data if k not in fields and spec_of(k) is not None}
+    if not tables:
+        return data
+    out = {k: v for k, v in data.items() if k not in tables}
+    return {**out, into: {**(out.get(into) or {}), **tables}}
+
+
+def _by_specs(given: dict, spec_of, what: str) -> dict:
+    """Every table of ``given`` ({name: table}) validated by its module's SPEC; an error names
+    the table and the field."""
+    out = {}
+    for name, table in given.items():
+        spec = spec_of(name)
+        if spec is None:
+            raise ValueError(f"{name}: expected {what} with a SPEC")
+        try:
+            out[name] = spec.model_validate(table).model_dump()
+        except ValidationError as exc:
+            raise ValueError("; ".join(f"{name}.{'.'.join(map(str, e['loc']))}: {e['msg']}"
+                                       for e in exc.errors())) from None
+    return out
 
 
 class GainSpec(Strict):
@@ -87,28 +145,12 @@ class ControllerSpec(Strict):
     @classmethod
     def _runtime_law_tables(cls, data):
         """[controller.<law>] of a law registered at run time with a SPEC: validated by it."""
-        if not isinstance(data, dict):
-            return data
-        tables = {k: data[k] for k in data if k not in cls.model_fields and law_spec(k) is not None}
-        if not tables:
-            return data
-        out = {k: v for k, v in data.items() if k not in tables}
-        return {**out, "runtime_params": {**(out.get("runtime_params") or {}), **tables}}
+        return _spec_tables(data, set(cls.model_fields), law_spec, "runtime_params")
 
     @field_validator("runtime_params")
     @classmethod
     def _by_their_specs(cls, given):
-        out = {}
-        for name, table in given.items():
-            spec = law_spec(name)
-            if spec is None:
-                raise ValueError(f"{name}: expected a law registered at run time with a SPEC")
-            try:
-                out[name] = spec.model_validate(table).model_dump()
-            except ValidationError as exc:
-                raise ValueError("; ".join(f"{name}.{'.'.join(map(str, e['loc']))}: {e['msg']}"
-                                           for e in exc.errors())) from None
-        return out
+        return _by_specs(given, law_spec, "a law registered at run time")
 
     @field_validator("law")
     @classmethod

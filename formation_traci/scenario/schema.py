@@ -289,6 +289,8 @@ class Scenario(Strict):
         if self.open_loop is not None:
             if self.road is not None or self.vehicle.model != "dynamic":
                 raise ValueError("open_loop needs free space (no [road]) and vehicle.model = \"dynamic\"")
+            if self.vehicle.variant is not None:
+                raise ValueError("open_loop integrates the dynamic model itself: no vehicle.variant")
             ids = {m.id for m in self.members}
             bad = sorted((set(self.open_loop.speed_p_gain) | set(self.open_loop.yaw_input)) - ids)
             if bad:

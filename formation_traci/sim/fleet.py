@@ -31,6 +31,7 @@ from ..models.bicycle import S
 from ..models.state import DYNAMIC, KINEMATIC, motion_at
 from ..record.columns import SIGNAL_COLUMNS
 from .fleet_laws import fallback_switches, law_kernels, pack_laws
+from .fleet_models import model_kernel, with_variant_params, with_variant_slots
 from .fleet_rows import period_table_rows, signal_table_rows
 from .table_records import NO_SIGNAL_ROWS
 from .fleet_records import FleetParams, StateRecord, as_f64 as _f64, state_record
@@ -66,6 +67,8 @@ class FleetConfig:
     pred: tuple[int, ...] | None = None  # member ahead of each in the column (-1: none); None: none
     bumpers: tuple[tuple[float, float], ...] | None = None  # CoG to front, to rear bumper [m]
     law_params: tuple | None = None  # per member: {law name: {parameter: value}} (platoon laws)
+    variant: str | None = None  # a model variant of ``model`` (models/variants.py) or None
+    variant_params: dict | None = None  # the variant's {parameter: value} (its pack(cfg))
 
     @property
     def n(self) -> int:
@@ -84,7 +87,8 @@ def initial_state(cfg: FleetConfig, pos, heading, speed, yaw_rate, steer, target
         x[:, S.V], x[:, S.R], x[:, S.DELTA] = speed, yaw_rate, steer
         x[:, S.DELTA_C] = steer  # the steering actuator starts at rest
     theta0 = initial_theta_star(targets, pos, heading, cfg.k)
-    return FleetState(x, theta0, np.asarray(speed, dtype=float) * np.ones(n), np.zeros(n))
+    speed_in = np.asarray(speed, dtype=float) * np.ones(n)
+    return FleetState(with_variant_slots(cfg, x), theta0, speed_in, np.zeros(n))
 
 
 # ---------------------------------------------------------------------------- kernels
@@ -296,11 +300,13 @@ class Fleet:
             self.kind, self.P = KINEMATIC, np.zeros((n, N_PARAMS))
         else:
             raise ValueError(f"unknown model {cfg.model!r}")
+        self.P = with_variant_params(cfg, self.P)  # a variant's columns after the model's
         self.k = _f64(np.broadcast_to(np.asarray(cfg.k, dtype=float), (n,)))  # eq 2.7, theta*(0)
         self.law, self.L, runtime = pack_laws(cfg)
         self.base_law = self.law.copy()  # the scenario's laws (self.law: the ones in force)
         self.pred = np.array(cfg.pred if cfg.pred is not None else (-1,) * n, dtype=np.int64)
-        self._step, self._signals = law_kernels(runtime, step_members, member_signals)
+        self._step, self._signals = law_kernels(runtime, model_kernel(cfg.variant, step_members),
+                                                member_signals)
         sg, yg = (g if isinstance(g, (tuple, list)) else (g,) * n
                   for g in (cfg.speed_gains, cfg.yaw_gains))
         self.gains = _f64([[a.g_min, a.g_max, a.k_min, b.g_min, b.g_max, b.k_min]
@@ -357,10 +363,12 @@ class Fleet:
         return got
 
     @property
-    def package_laws(self) -> bool:
-        """Every law of the members is one of the package's own (no law added at run time:
-        sim/fleet_laws.py law_kernels)."""
-        return self._step is step_members
+    def kernels(self):
+        """(step kernel, signal kernel) of the fleet: :func:`step_members` and
+        :func:`member_signals`, or their compiled copies that also dispatch to a law
+        registered at run time (sim/fleet_laws.py law_kernels) or integrate a model variant
+        (sim/fleet_models.py model_kernel)."""
+        return self._step, self._signals
 
     def signals(self, state: FleetState, ref: Reference, out: np.ndarray | None = None):
         """The recorded member columns at the start of the step (SIGNAL_COLUMNS order)."""

@@ -34,18 +34,20 @@ _RUNTIME_KERNELS: dict = {}
 
 
 def law_kernels(law: str | None, step, signals):
-    """(step kernel, signal kernel): ``step`` and ``signals`` (sim/fleet.py, cached) when every
-    law is built in, else a compiled copy that also dispatches to ``law``, registered at run
-    time (control/laws)."""
+    """(step kernel, signal kernel): ``step`` and ``signals`` (sim/fleet.py, cached, or a
+    model variant's step: sim/fleet_models.py) when every law is built in, else compiled
+    copies that also dispatch to ``law``, registered at run time (control/laws), made once
+    per law and kernels."""
     if law is None:
         return step, signals
     mod = law_module(law)
-    got = _RUNTIME_KERNELS.get(law)
-    if got is None or got[0] is not mod:
+    key = (law, id(step), id(signals))
+    got = _RUNTIME_KERNELS.get(key)
+    if got is None or got[0] is not mod or got[1] is not step or got[2] is not signals:
         disp = rebind(runtime_dispatch, LAW=mod.input_at, builtin=law_input_at)
-        got = _RUNTIME_KERNELS[law] = (mod, rebind(step, law_input_at=disp),
+        got = _RUNTIME_KERNELS[key] = (mod, step, signals, rebind(step, law_input_at=disp),
                                        rebind(signals, law_input_at=disp))
-    return got[1], got[2]
+    return got[3], got[4]
 
 
 def fallback_switches(law: np.ndarray, base: np.ndarray, pred: np.ndarray, rows,

@@ -59,8 +59,10 @@ def join_configs(cfgs: list[FleetConfig]) -> FleetConfig:
     if len(cfgs) == 1:
         return cfgs[0]
     first = cfgs[0]
-    if any(c.model != first.model or c.physics_step != first.physics_step for c in cfgs):
-        raise ValueError("the formations of a run share vehicle.model and run.physics_step")
+    if any(c.model != first.model or c.physics_step != first.physics_step
+           or c.variant != first.variant or c.variant_params != first.variant_params for c in cfgs):
+        raise ValueError("the formations of a run share vehicle.model, vehicle.variant (and its "
+                         "parameters) and run.physics_step")
     n = [c.n for c in cfgs]
     offsets = np.cumsum([0] + n[:-1])
     pred = [p + o if p >= 0 else -1

@@ -17,6 +17,7 @@ from ..comm.link import CommChannel
 from ..scenario.formations import formation_views
 from ..scenario.schema import GainSpec, ProfileSpec, Scenario
 from .fleet import FleetConfig, FleetState, initial_state
+from .fleet_models import variant_params
 
 
 def road_mu(sc: Scenario) -> float:
@@ -133,6 +134,8 @@ def build_fleet(sc: Scenario) -> FleetConfig:
         bumpers=tuple((v.a + v.front_overhang, v.length - v.a - v.front_overhang)
                       for v in vehicles),
         law_params=(_law_params(ctl),) * len(sc.members),
+        variant=sc.vehicle.variant,
+        variant_params=_variant_params(sc.vehicle),
     )
 
 
@@ -145,6 +148,14 @@ def _law_params(ctl) -> dict:
     of the laws registered at run time (controller.<law>, validated by the law's SPEC)."""
     return {**{name: getattr(ctl, name).model_dump() for name in ("acc", "cacc_path", "cacc_ploeg")},
             **ctl.runtime_params}
+
+
+def _variant_params(vehicle) -> dict | None:
+    """{parameter: value} of the scenario's model variant (vehicle.variant, its
+    [vehicle.<variant>] table over its SPEC's defaults), None without one."""
+    if vehicle.variant is None:
+        return None
+    return variant_params(vehicle.variant, vehicle.variant_params.get(vehicle.variant))
 
 
 def column_predecessors(sc: Scenario) -> tuple[int, ...]:

@@ -15,7 +15,9 @@ recorder), so a run may take either path at any step and its files are the same
 Runs it serves: one formation from t = 0 on a road with a plain road reference (no
 maneuvers, no transforms such as a radio), members placed by moveToXY (not SUMO's CACC
 twin), libsumo without sumo-gui, no driving resistances, kernels compiled (with
-``NUMBA_DISABLE_JIT`` the loop's path runs).
+``NUMBA_DISABLE_JIT`` the loop's path runs). Any law: with one registered at run time the
+compiled step is a copy of fused_step calling the fleet's own step and signal kernels
+(sumo/fused_step.py ``fused_kernel``; compiled once per law and process, not cached on disk).
 """
 from __future__ import annotations
 
@@ -32,7 +34,7 @@ from ..sim.loop import check_finite
 from .events import PLACEMENT_TOLERANCE
 from .fused_records import RoadRun, SensedRows, StepAt, StepOut, fused_run
 from .fused_refs import GroupOfFormations, OneFormation
-from .fused_step import EMERGENCY, NOT_FINITE, OUT_OF_RANGE, SLOW, fused_step
+from .fused_step import EMERGENCY, NOT_FINITE, OUT_OF_RANGE, SLOW, fused_kernel
 
 SWITCH = "FORMATION_TRACI_FUSED"
 """Environment variable: ``off`` runs every step through the loop's own path (a diagnostic:
@@ -68,7 +70,7 @@ def fused_path(parts, rec, sc, group=None):
             or type(world) is not SumoWorld or world.baseline or world.adapter.gui
             or world.adapter.backend != "libsumo" or parts.road_load is not None
             or not (one or group is not None) or sc.maneuvers
-            or not fleet.package_laws or rec.incidents is None or not rec.incidents.pairs):
+            or rec.incidents is None or not rec.incidents.pairs):
         return None
     refs = OneFormation(forms[0].generator, world) if one else GroupOfFormations(group, world)
     return FusedPath(parts, rec, sc, refs)
@@ -98,6 +100,7 @@ class FusedPath:
         self.out = StepOut(np.full((n, len(SIGNAL_COLUMNS)), np.nan), np.empty((gen.n_ctrl, n, 3)),
                            np.empty(n), np.empty(n), np.empty((6, n)), np.empty((n, 2)),
                            np.empty((n, 2)), np.empty(n), np.empty(n, dtype=np.int64))
+        self._fused = fused_kernel(*fl.kernels)  # fused_step, or its copy for a runtime law
         self.run = fused_run(fl.params(gen.dt_c), self.road, refs.plan, refs.planner, self.ref_out,
                              rec.buffers, rec.incidents.arrays, self.out)
         self._slot = w.slot_index
@@ -167,7 +170,7 @@ class FusedPath:
                             w.packed_lanes.points, *nb_in, w.active)
         at = StepAt(t, s, v, tr.rows_buffered, cf.rows_buffered, rec.background.rows_buffered,
                     refs.running, refs.parked)
-        x, ts, sp, ul, s_all, d_all, n_off, worst, flags = fused_step(
+        x, ts, sp, ul, s_all, d_all, n_off, worst, flags = self._fused(
             self.run, state_record(state), StateRecord(*refs.held(state)), sensed, at)
         refs.after()
         self._flags = flags

@@ -67,7 +67,7 @@ import numpy as np
 
 from ..control.reference_group import group_reference_step
 from ..control.reference_records import MemberRows, NeighbourRows, StepReference
-from ..core.kernels import kernel, maximum
+from ..core.kernels import kernel, maximum, rebind
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
 from ..sim.fleet import kinematics_rows, member_signals, step_members
@@ -85,6 +85,24 @@ SLOW = 4
 """fused_step flag: a member stands while its speed reference does not (sim/incidents.py)."""
 EMERGENCY = 8
 """fused_step flag: the virtual car or a member is on emergency braking (sumo/events.py)."""
+
+_COPIES: dict = {}
+
+
+def fused_kernel(step, signals):
+    """:func:`fused_step` for a fleet whose step and signal kernels (sim/fleet.py
+    Fleet.kernels) are ``step`` and ``signals``: the cached kernel itself for the package's
+    own :func:`~..sim.fleet.step_members` and :func:`~..sim.fleet.member_signals`, else a
+    compiled copy calling those given (a law registered at run time: sim/fleet_laws.py
+    law_kernels), made once per pair (compiled on first call, not cached on disk)."""
+    if step is step_members and signals is member_signals:
+        return fused_step
+    key = (id(step), id(signals))
+    got = _COPIES.get(key)
+    if got is None or got[0] is not step or got[1] is not signals:
+        record = rebind(_record, member_signals=signals)
+        got = _COPIES[key] = (step, signals, rebind(fused_step, step_members=step, _record=record))
+    return got[2]
 
 
 @kernel
