@@ -26,6 +26,7 @@ MEDIUM = ROOT / "scenarios" / "highway" / "straight_3lane_medium.toml"
 HEAVY = ROOT / "scenarios" / "highway" / "straight_wedge5_heavy.toml"
 THREE = ROOT / "scenarios" / "highway" / "three_formations.toml"
 FLOW = ROOT / "scenarios" / "highway" / "penetration_motorway.toml"
+ONRAMP = ROOT / "scenarios" / "highway" / "onramp_merge.toml"
 
 
 def _cut_in(k, t, ad):
@@ -113,6 +114,10 @@ CASES = {
         # have a due formation without room (formation_shortfall at the end), the others run on
         FLOW, {"run.duration": 20.0, "traffic.warmup": 60.0, "formation_flows.0.penetration": 0.3},
         None, {"formation_shortfall", "cleared_at_insertion"}, None, None),
+    "ramp traffic, open_gap yields": (  # the steps near the join: the caps (and their
+        # events) from the members' sense before the compiled call
+        ONRAMP, {"run.duration": 45.0, "traffic.warmup": 150.0, "traffic.flows.1.veh_per_hour": 900.0,
+                 "cooperation.merge": "open_gap"}, None, {"merge_yield_start", "merge_yield_end"}, None, None),
     "end of the route": (
         LIGHT, {"run.duration": 60.0, "traffic.warmup": 20.0, "road.start": 5550.0}, None,
         {"end_of_road"}, None, None),

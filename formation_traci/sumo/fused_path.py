@@ -34,12 +34,15 @@ from ..sim.loop import check_finite
 from .events import PLACEMENT_TOLERANCE
 from .fused_records import RoadRun, SensedRows, StepAt, StepOut, fused_run
 from .fused_refs import GroupOfFormations, OneFormation
+from .sense import NeighbourReads, SumoRows, sense_step
 from .fused_step import EMERGENCY, NOT_FINITE, OUT_OF_RANGE, SLOW, fused_kernel
 
 SWITCH = "FORMATION_TRACI_FUSED"
 """Environment variable: ``off`` runs every step through the loop's own path (a diagnostic:
 the files are the same either way, tests/test_fused_step.py)."""
 
+_NO_READS = NeighbourReads(np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0))
+"""sense_step's neighbours when only the members are sensed."""
 _NO_NB = (np.empty((0, 7)), np.empty(0), np.empty((3, 0), dtype=np.int32), np.empty(0, dtype=np.int64))
 """fused_step's neighbour arguments for a step with no vehicle near the formation."""
 
@@ -110,6 +113,7 @@ class FusedPath:
         self._all_in = np.ones(n, dtype=np.bool_).tobytes()
         self._rows = self._nb_rows = None
         self._idx, self._every, self._flags = self._all, True, 0
+        self._merging, self._no_limit = False, np.full(k, np.inf)
         if len(FILLED_BY_CALLER) != 8 or len(COMFORT_COLUMNS) != 6:
             raise ValueError("fused_step writes the road and SUMO columns of record/columns.py")
 
@@ -129,8 +133,7 @@ class FusedPath:
         ev = w.ev
         if ev is not None and (ev.collisions or ev.teleports):
             return False
-        if w.merges is not None and w.merges.watching(w.m_s + w.d_front, act):
-            return False  # ramp traffic near: sumo/merge_watch.py runs in the loop's step
+        self._merging = w.merges is not None and w.merges.watching(w.m_s + w.d_front, act)
         idx = self._all if every else np.flatnonzero(act)
         n_act, tr, cf = len(idx), rec.traj, rec.comfort
         if (tr.rows_buffered + n_act + self.refs.vc_rows > tr.chunk_rows
@@ -164,12 +167,15 @@ class FusedPath:
         else:
             nb_ids, types, lane_ids, table, nb_li = nb
             nb_in = (table, w.nb_guess(nb_ids), rec.background_codes(nb_ids, types, lane_ids), nb_li)
+        a_limit = self._no_limit
+        if self._merging:  # ramp traffic near: the caps from the members' sense, in SumoWorld.sense's order
+            a_limit = self._merge_caps(t, state, members, li)
         s, v = self.refs.before()
         tr, cf, refs = rec.traj, rec.comfort, self.refs
         sensed = SensedRows(members, li, lane_index, w.m_s, w.packed_lanes.table,
                             w.packed_lanes.points, *nb_in, w.active)
         at = StepAt(t, s, v, tr.rows_buffered, cf.rows_buffered, rec.background.rows_buffered,
-                    refs.running, refs.parked)
+                    refs.running, refs.parked, a_limit)
         x, ts, sp, ul, s_all, d_all, n_off, worst, flags = self._fused(
             self.run, state_record(state), StateRecord(*refs.held(state)), sensed, at)
         refs.after()
@@ -184,6 +190,31 @@ class FusedPath:
         cf.commit(len(idx))
         clock.lap("fused_step")
         return FleetState(x, ts, sp, ul)
+
+    def _merge_caps(self, t, state, members, li):
+        """The formations' caps for ramp traffic (sumo/merge_watch.py MergeWatch.limits, its
+        events and observations) from the members' sense: the members' part of
+        :func:`~.sense.sense_step` as the compiled step computes it (each point is projected
+        on its own), before it; the placement and lane-change events first, as SumoWorld.sense
+        has them."""
+        w, fl = self.world, self.fleet
+        pos, vel, hd = fl.kinematics(state)
+        s, d, v, gap, n_off = sense_step(
+            w.line.G, pos, vel, w.m_s, hd, w.d_front,
+            SumoRows(members[:, 0:2].copy(), members[:, 2].copy(), members[:, 4].copy(),
+                     members[:, 3].copy(), li),
+            w.packed_lanes.table, w.packed_lanes.points, PLACEMENT_TOLERANCE, _NO_READS)[:5]
+        self._member_events(t, gap, n_off)
+        w.merge_caps = w.merges.limits(t, s, d, v, w.active & w.in_sumo)
+        return w.merge_caps
+
+    def _member_events(self, t, gap, n_off) -> None:
+        """The members' placement and lane-change events of the step (SumoWorld.sense's)."""
+        w = self.world
+        if n_off or w.members.off:
+            w.members.placement(t, gap, n_off)
+        _, lanes, lane_idx = self._rows
+        w.members.lane_changes(t, self._idx, np.ones(len(self._idx), dtype=np.bool_), lanes, lane_idx)
 
     def _members(self):
         """The members' SUMO rows for the compiled step (NaN rows, lane row -1 and lane index
@@ -210,10 +241,8 @@ class FusedPath:
         the neighbours' lane changes and cut-ins (observe, then the background rows), signals
         out of range and the members' incidents (record)."""
         w, rec, out = self.world, self.rec, self.out
-        if n_off or w.members.off:
-            w.members.placement(t, self.out.m_gap, n_off)
-        _, lanes, lane_idx = self._rows  # the members' lane changes (SumoWorld.sense's order)
-        w.members.lane_changes(t, self._idx, np.ones(len(self._idx), dtype=np.bool_), lanes, lane_idx)
+        if not self._merging:  # else before the compiled call (_merge_caps)
+            self._member_events(t, self.out.m_gap, n_off)
         if flags & EMERGENCY or w.emergency.any_on:
             w.emergency(t, self.refs.emergency_info(self.ref_out.a_request, self.ref_out.a_cap_req))
         if nb is None:

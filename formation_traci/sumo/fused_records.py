@@ -71,6 +71,7 @@ class StepAt(NamedTuple):
     bg_at: int  # of the background table's
     running: np.ndarray  # (k,) the formations running (the others' virtual cars stand)
     parked: np.ndarray  # (n,) the rows of the formations not running (held)
+    a_limit: np.ndarray  # (k,) the formations' caps on their requested acceleration [m/s^2] (inf: none)
 
 
 @structref.register

@@ -214,7 +214,7 @@ def _reference(road, plan, planner, ref, at, m_s, m_d, v_m, active, nbs, dt_c):
         owner[q] = i
         q += 1
     group_reference_step(plan, planner, ref, at.t - plan.depart, at.s, at.v, running,
-                         np.full(at.s.shape[0], np.inf), MemberRows(m_s, m_d, v_m, active),
+                         at.a_limit, MemberRows(m_s, m_d, v_m, active),
                          NeighbourRows(rear, d, half, speed, np.zeros(m + n, dtype=np.bool_),
                                        np.empty(0)), owner, dt_c)
     for f in range(k):
