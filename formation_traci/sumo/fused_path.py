@@ -4,20 +4,24 @@ The loop (sim/loop.py ``step_loop``) asks :class:`FusedPath` at the start of eve
 whether the step is a usual one (:meth:`FusedPath.ready`); if so the whole step, sensing to the
 members' new state and the recorded rows, is :func:`~.fused_step.fused_step`, and around it
 Python does only what libsumo needs called (the reads, the moves, SUMO's step, the speeds)
-and the events of the step, through the very watchers the loop's step uses. Any other step
-(a member enters or leaves, changes lanes or overlaps the next lane, SUMO reported a
-collision or teleport, a table's part ends inside the step, the formation nears the end of
-its route, a signal was out of range at the step before, the run's last step) is the loop's
-own: both work on the same objects (the world, the generator, the fleet state, the
-recorder), so a run may take either path at any step and its files are the same
-(tests/test_fused_step.py).
+and the events of the step, through the very watchers the loop's step uses. A member that
+changed lanes is tracked by the adapter first (the read the loop's step would make); a
+formation of a flow that is due but finds no room waits while the others' step is compiled;
+near a ramp's join the merge watch's caps come from the members' sense before the call. Any
+other step (a member enters or leaves SUMO, reaches into the next lane or nears a lane's
+end, SUMO reported a collision or teleport, a table's part ends inside the step, a formation
+enters or nears the end of its route, a signal was out of range at the step before, the
+run's last step) is the loop's own: both work on the same objects (the world, the
+generator, the fleet state, the recorder), so a run may take either path at any step and its
+files are the same (tests/test_fused_step.py).
 
-Runs it serves: one formation from t = 0 on a road with a plain road reference (no
-maneuvers, no transforms such as a radio), members placed by moveToXY (not SUMO's CACC
-twin), libsumo without sumo-gui, no driving resistances, kernels compiled (with
-``NUMBA_DISABLE_JIT`` the loop's path runs). Any law: with one registered at run time the
-compiled step is a copy of fused_step calling the fleet's own step and signal kernels
-(sumo/fused_step.py ``fused_kernel``; compiled once per law and process, not cached on disk).
+Runs it serves: one formation from t = 0, or a group of plain road formations (formation
+flows included), on a road with a plain road reference (no maneuvers, no transforms such as a
+radio, no shift at ramps), members placed by moveToXY (not SUMO's CACC twin), libsumo without
+sumo-gui, no driving resistances, kernels compiled (with ``NUMBA_DISABLE_JIT`` the loop's path
+runs). Any law and model variant: with one registered at run time the compiled step is a copy
+of fused_step calling the fleet's own step and signal kernels (sumo/fused_step.py
+``fused_kernel``; compiled once per law and process, not cached on disk).
 """
 from __future__ import annotations
 
