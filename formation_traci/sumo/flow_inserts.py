@@ -11,31 +11,74 @@ LOOK_BEHIND_M, LOOK_AHEAD_M = 150.0, 250.0
 """The stretch around a due formation's members whose vehicles may block its entry [m]."""
 
 
-def room_for(world, rows: slice, state) -> bool:
-    """Are the insertion zones (sumo/zone.py ``insertion_zone``) of the members ``rows``
-    at their state's poses free of SUMO's vehicles and of the members of the run that SUMO
-    does not have yet?"""
-    pos, _, heading = world.fleet.kinematics(state)
-    v_all = world.fleet.speed(state)
-    idx = np.arange(rows.start, rows.stop)
-    s = world.line.to_frenet(pos[idx])[0]
-    lo, hi = float(np.min(s)) - LOOK_BEHIND_M, float(np.max(s)) + LOOK_AHEAD_M
-    edges = [g.edge for g in world.plan.road.segments if g.s1 >= lo and g.s0 <= hi]
-    _, x, y, psi, length, width = world.adapter.vehicle_bodies(world.adapter.vehicles_on(edges))
-    own = np.flatnonzero(world.active & ~world.in_sumo)  # spawned, not inserted yet
-    own = own[(own < rows.start) | (own >= rows.stop)]
-    if len(own):
-        mt = [world.mtypes[i] for i in own]
-        shift = np.array([m.d_front - m.length / 2 for m in mt])  # CoG -> body centre [m]
-        x = np.append(x, pos[own, 0] + shift * np.cos(heading[own]))
-        y = np.append(y, pos[own, 1] + shift * np.sin(heading[own]))
-        psi = np.append(psi, heading[own])
-        length = np.append(length, [m.length for m in mt])
-        width = np.append(width, [m.width for m in mt])
-    ld = world.sc.leader
-    v = v_all[idx]
-    return has_room(pos[idx], heading[idx], v, [world.plan.vehicles[i] for i in idx],
-                    ld.min_gap + ld.time_gap * v, (x, y, psi, length, width))
+class RoomCheck:
+    """Is there room for a due formation (:meth:`__call__`)? The members' kinematics, each
+    edge's vehicles and each vehicle's pose are read once per step and state, however many
+    formations of flows are due in it (their checks share a step's reads: SUMO's vehicles do
+    not move between them)."""
+
+    def __init__(self, world):
+        self.world = world
+        segs = world.plan.road.segments
+        self._s0 = np.array([g.s0 for g in segs], dtype=float)
+        self._s1 = np.array([g.s1 for g in segs], dtype=float)
+        self._edges = [g.edge for g in segs]
+        self._key = None  # (t, the state) of the reads below
+        self._kin = self._on = self._poses = None
+
+    def _step(self, t: float, state) -> None:
+        key = (t, id(state))
+        if key != self._key:
+            fleet = self.world.fleet
+            pos, _, heading = fleet.kinematics(state)
+            self._key, self._kin = key, (pos, heading, fleet.speed(state))
+            self._on, self._poses = {}, {}
+
+    def _bodies(self, edges):
+        """x, y, heading, length, width of the vehicles on ``edges`` (sumo/adapter
+        vehicle_bodies' rows; each read once per step)."""
+        ad, on, poses = self.world.adapter, self._on, self._poses
+        ids = []
+        for e in edges:
+            got = on.get(e)
+            if got is None:
+                got = on[e] = ad.vehicles_on((e,))
+            ids.extend(got)
+        fresh = [vid for vid in dict.fromkeys(ids) if vid not in poses]
+        if fresh:
+            rows = ad.vehicle_bodies(fresh)
+            for j, vid in enumerate(fresh):
+                poses[vid] = (rows[1][j], rows[2][j], rows[3][j], rows[4][j], rows[5][j])
+        if not ids:
+            return (np.empty(0),) * 5
+        return tuple(np.array(c, dtype=float) for c in zip(*(poses[vid] for vid in ids)))
+
+    def __call__(self, t: float, rows: slice, state) -> bool:
+        """Are the insertion zones (sumo/zone.py ``insertion_zone``) of the members ``rows``
+        at their state's poses free of SUMO's vehicles and of the members of the run that SUMO
+        does not have yet?"""
+        world = self.world
+        self._step(t, state)
+        pos, heading, v_all = self._kin
+        idx = np.arange(rows.start, rows.stop)
+        s = world.line.to_frenet(pos[idx])[0]
+        lo, hi = float(np.min(s)) - LOOK_BEHIND_M, float(np.max(s)) + LOOK_AHEAD_M
+        near = np.flatnonzero((self._s1 >= lo) & (self._s0 <= hi))
+        x, y, psi, length, width = self._bodies([self._edges[i] for i in near])
+        own = np.flatnonzero(world.active & ~world.in_sumo)  # spawned, not inserted yet
+        own = own[(own < rows.start) | (own >= rows.stop)]
+        if len(own):
+            mt = [world.mtypes[i] for i in own]
+            shift = np.array([m.d_front - m.length / 2 for m in mt])  # CoG -> body centre [m]
+            x = np.append(x, pos[own, 0] + shift * np.cos(heading[own]))
+            y = np.append(y, pos[own, 1] + shift * np.sin(heading[own]))
+            psi = np.append(psi, heading[own])
+            length = np.append(length, [m.length for m in mt])
+            width = np.append(width, [m.width for m in mt])
+        ld = world.sc.leader
+        v = v_all[idx]
+        return has_room(pos[idx], heading[idx], v, [world.plan.vehicles[i] for i in idx],
+                        ld.min_gap + ld.time_gap * v, (x, y, psi, length, width))
 
 
 def counted_entry(plan, inserted: dict, rows) -> None:

@@ -29,7 +29,7 @@ from .messages import sumo_outputs_meta
 from .adapter import SumoAdapter
 from ..sim.formation import virtual_car_id
 from .adapter.neighbours import NOBODY
-from .flow_inserts import counted_entry, flow_counts, room_for
+from .flow_inserts import RoomCheck, counted_entry, flow_counts
 from .handover import MemberHandover
 from .member_rows import MemberRows
 from .peers import Peers
@@ -107,6 +107,7 @@ class SumoWorld(MemberHandover, MemberRows):
         self.d_front = np.array([mt.d_front for mt in self.mtypes])  # CoG to front bumper [m]
         # ramp traffic at the route's joins (sumo/merge_watch.py; set by road_run), each formation's cap [m/s^2]
         self.merges, self.merge_caps = None, np.full(len(self.groups), np.inf)
+        self._room = None  # sumo/flow_inserts.py RoomCheck, made at the first due formation of a flow
         self.peers = Peers(self.ids, self.sumo_ids, self.mtypes, self.groups) if len(self.groups) > 1 else None
         self.adapter = SumoAdapter(sc.sumo.backend, sc.sumo.gui)
         if sc.sumo.ssm != "off":  # converted as the run goes, cut with the other tables (record/ssm.py)
@@ -274,7 +275,9 @@ class SumoWorld(MemberHandover, MemberRows):
     def has_room(self, t: float, rows: slice, state) -> bool:
         """Room on the road for the members ``rows`` where their state puts them (a formation
         flow's formation enters only then: sumo/flow_inserts.py)."""
-        return room_for(self, rows, state)
+        if self._room is None:
+            self._room = RoomCheck(self)
+        return self._room(t, rows, state)
 
     def retire(self, t: float, rows, why: str) -> None:
         """Members ``rows`` leave the run and SUMO now (an event ``member_retired``)."""
