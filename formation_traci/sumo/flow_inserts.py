@@ -12,8 +12,8 @@ LOOK_BEHIND_M, LOOK_AHEAD_M = 150.0, 250.0
 
 
 class RoomCheck:
-    """Is there room for a due formation (:meth:`__call__`)? The members' kinematics, each
-    edge's vehicles and each vehicle's pose are read once per step and state, however many
+    """Is there room for a due formation (:meth:`__call__`)? The members' kinematics and each
+    edge's vehicles with their poses are read once per step and state, however many
     formations of flows are due in it (their checks share a step's reads: SUMO's vehicles do
     not move between them)."""
 
@@ -24,7 +24,7 @@ class RoomCheck:
         self._s1 = np.array([g.s1 for g in segs], dtype=float)
         self._edges = [g.edge for g in segs]
         self._key = None  # (t, the state) of the reads below
-        self._kin = self._on = self._poses = None
+        self._kin = self._on = None
 
     def _step(self, t: float, state) -> None:
         key = (t, id(state))
@@ -32,26 +32,21 @@ class RoomCheck:
             fleet = self.world.fleet
             pos, _, heading = fleet.kinematics(state)
             self._key, self._kin = key, (pos, heading, fleet.speed(state))
-            self._on, self._poses = {}, {}
+            self._on = {}
 
     def _bodies(self, edges):
         """x, y, heading, length, width of the vehicles on ``edges`` (sumo/adapter
-        vehicle_bodies' rows; each read once per step)."""
-        ad, on, poses = self.world.adapter, self._on, self._poses
-        ids = []
+        vehicle_bodies' rows; each edge read once per step)."""
+        ad, on = self.world.adapter, self._on
+        parts = []
         for e in edges:
             got = on.get(e)
             if got is None:
-                got = on[e] = ad.vehicles_on((e,))
-            ids.extend(got)
-        fresh = [vid for vid in dict.fromkeys(ids) if vid not in poses]
-        if fresh:
-            rows = ad.vehicle_bodies(fresh)
-            for j, vid in enumerate(fresh):
-                poses[vid] = (rows[1][j], rows[2][j], rows[3][j], rows[4][j], rows[5][j])
-        if not ids:
+                got = on[e] = ad.vehicle_bodies(ad.vehicles_on((e,)))[1:]
+            parts.append(got)
+        if not parts:
             return (np.empty(0),) * 5
-        return tuple(np.array(c, dtype=float) for c in zip(*(poses[vid] for vid in ids)))
+        return tuple(np.concatenate(c) for c in zip(*parts))
 
     def __call__(self, t: float, rows: slice, state) -> bool:
         """Are the insertion zones (sumo/zone.py ``insertion_zone``) of the members ``rows``
