@@ -84,6 +84,7 @@ class MergeWatch:
         self.sites, self.mode, self.p, self.groups, self.dt = sites, mode, params, groups, dt
         self.shifts = shifts if shifts is not None else [None] * len(groups)  # per formation (shift mode)
         self.adapter, self.rec, self.sumo_ids = world.adapter, world.rec, world.sumo_ids
+        self._seen, self._members = None, set()  # the members' SUMO ids (a join changes one)
         self.d_front = world.d_front
         self.length = np.array([mt.length for mt in world.mtypes])
         self.watch = [_Watch() for _ in groups]
@@ -103,7 +104,9 @@ class MergeWatch:
         near = self._near(front, active)
         if not near.any():
             return out
-        ends, members = np.vstack((front, front - self.length)), set(self.sumo_ids)
+        if self.sumo_ids != self._seen:
+            self._seen, self._members = list(self.sumo_ids), set(self.sumo_ids)
+        ends, members = np.vstack((front, front - self.length)), self._members
         for q, site in enumerate(self.sites):
             read = None
             for f in np.flatnonzero(near[q]):
