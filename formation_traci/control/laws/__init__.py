@@ -49,9 +49,13 @@ BUILTIN: dict[str, tuple[str, int]] = {
 PLATOON_LAWS = ("acc", "cacc_path", "cacc_ploeg")
 """Built-in laws that follow the member ahead in a column (FleetConfig.pred)."""
 
-SUMO_LAWS = ("sumo_cacc",)
-"""Laws SUMO's own car-following model runs (no kernel here; road runs only,
-sumo/driven.py): the column's head runs the virtual structure, SUMO drives the followers."""
+SUMO_LAWS: dict[str, str] = {
+    "sumo_cacc": "formation_traci.control.laws.sumo_cacc",
+}
+"""Laws SUMO's own car-following model runs (road runs only): name -> module, a light module
+without a kernel (control/laws/sumo_cacc.py): its parameter schema ``SPEC``, the members SUMO
+drives (``driven(pred)``), the law our fleet runs for the others (``HEAD_LAW``); the SUMO side
+is sumo/driven.py."""
 
 _RUNTIME: dict[str, ModuleType] = {}
 
@@ -86,6 +90,11 @@ def law_module(name: str) -> ModuleType:
     if name not in BUILTIN:
         raise KeyError(f"unknown control law {name!r}; known: {', '.join(law_names())}")
     return importlib.import_module(BUILTIN[name][0])
+
+
+def sumo_law(name: str) -> ModuleType:
+    """The module of the SUMO law ``name`` (:data:`SUMO_LAWS`)."""
+    return importlib.import_module(SUMO_LAWS[name])
 
 
 def law_code(name: str) -> int:
