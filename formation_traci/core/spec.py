@@ -14,3 +14,8 @@ Pair = Annotated[list[Finite], Field(min_length=2, max_length=2)]
 
 class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+
+def defaults(spec: type[BaseModel]) -> dict:
+    """{parameter: default} of a schema whose every field has a default."""
+    return {name: field.default for name, field in spec.model_fields.items()}

@@ -6,10 +6,12 @@ from typing import Literal
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from ..control.laws import DEFAULT_LAW, SUMO_LAWS, law_names, law_spec
+from ..control.laws.acc_spec import AccSpec
+from ..control.laws.cacc_path_spec import CaccPathSpec
+from ..control.laws.cacc_ploeg_spec import CaccPloegSpec
+from ..control.laws.sumo_cacc import SumoCaccSpec
 from ..models.variants import model_module, model_names, model_spec
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict
-from ..control.laws.sumo_cacc import SumoCaccSpec
-from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec
 from .maneuvers import SlotSpec
 
 

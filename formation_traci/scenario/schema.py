@@ -12,15 +12,14 @@ from pydantic import Field, field_validator, model_validator
 
 from run_contract.columns import DEFAULT_FORMATION_ID
 
+from ..control.laws import sumo_cacc
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict  # noqa: F401
 from .comm_spec import CommLinkSpec, CommSpec  # noqa: F401
 from .cooperation import CooperationSpec
 from .formation_parts import (GAIN_TABLES, SURFACE_NAMES, ControllerSpec, GainSpec,  # noqa: F401 (re-exported)
                               LeaderSpec, MemberSpec, VehicleOverrides, VehicleSpec)
 from .formation_spec import FormationFlowSpec, FormationSpec, FormationTemplate, formation_fits  # noqa: F401
-from ..control.laws import sumo_cacc
-from ..control.laws.sumo_cacc import SumoCaccSpec  # noqa: F401
-from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec  # noqa: F401
+from .formation_parts import AccSpec, CaccPathSpec, CaccPloegSpec, SumoCaccSpec  # noqa: F401 (re-exported)
 from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec  # noqa: F401 (re-exported)
 from .road_traffic import FlowSpec, RoadSpec, RouteEnds, RouteValue, TrafficSpec  # noqa: F401 (re-exported)
 

@@ -6,8 +6,11 @@ A law is a module with
 * ``pack(cfg) -> (n, len(PARAMS))``: those parameters from a sim/fleet.py FleetConfig (its
   ``law_params``: per member, {law name: {parameter: value}});
 * optionally ``SPEC``: a pydantic model of its parameters with their defaults, which the
-  scenario's ``[controller.<name>]`` table is validated against (a law registered at run time;
-  the built-in laws' tables are scenario/law_specs.py);
+  scenario's ``[controller.<name>]`` table is validated against (a built-in law with
+  parameters has them, ``SPEC`` and ``DEFAULTS``, in a sibling module without kernels,
+  ``<law>_spec.py``, that the law's module imports and the scenario schema reads without
+  compiling or importing numba: control/laws/acc_spec.py, cacc_path_spec.py,
+  cacc_ploeg_spec.py; its table is a field of scenario/formation_parts.py ControllerSpec);
 * ``input_at(fleet, state, i, target, v_cap_i, a_cap_i)``: a ``@kernel`` giving member i's
   model input for its desired point and the safety caps ``v_cap_i`` [m/s], ``a_cap_i``
   [m/s^2]. ``fleet`` (sim/fleet_records.py FleetParams) holds the members' parameters: the
