@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 
 import formation_traci.sim.loop as loop
-import formation_traci.sumo.run as sumo_run
+import formation_traci.run.road_parts as road_parts
 from formation_traci.scenario import load_scenario
 from formation_traci.runner import run_scenario
 from run_helpers import free_toml
@@ -68,7 +68,7 @@ def test_free_space_member_retires_and_spawns_again(tmp_path, monkeypatch):
 
 def test_sumo_member_leaves_the_road_and_is_inserted_again_later(tmp_path, monkeypatch):
     tr = OutAndBack(1)
-    _capture(monkeypatch, sumo_run, "road_run", tr)
+    _capture(monkeypatch, road_parts, "road_run", tr)
     path = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
     sc = load_scenario(path, **{"run.duration": 4.0, "traffic.warmup": 10.0})
     res = run_scenario(sc, tmp_path / "run", scenario_path=path, force=True, progress=False,

@@ -183,7 +183,7 @@ def _run_in(sc, out_dir, src, plan, baseline, step_hook, transforms, progress, s
             if sc.road is None:
                 build = lambda: with_comm(sc, free_space_run(sc, rec))  # noqa: E731
             else:
-                from ..sumo.run import road_run
+                from .road_parts import road_run
                 build = lambda: with_comm(sc, road_run(sc, plan, rec, out_dir, meta, baseline,  # noqa: E731
                                                        step_hook, stop.is_set), baseline)
             steps = step_loop(sc, _with_transforms(build, transforms), rec, meta)

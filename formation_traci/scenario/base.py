@@ -1,19 +1,13 @@
-"""Building blocks of the scenario schema: constrained numbers, the strict base model and
-piecewise signals (shared by scenario/schema.py and the tables in their own modules)."""
+"""Building blocks of the scenario schema: constrained numbers and the strict base model
+(core/spec.py, shared with the laws' schemas) and piecewise signals (shared by
+scenario/schema.py and the tables in their own modules)."""
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field, model_validator
 
-PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-Finite = Annotated[float, Field(allow_inf_nan=False)]
-Pair = Annotated[list[Finite], Field(min_length=2, max_length=2)]
-
-
-class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+from ..core.spec import Finite, NonNegFloat, Pair, PosFloat, Strict  # noqa: F401
 
 
 class ProfileSpec(Strict):

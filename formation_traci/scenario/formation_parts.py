@@ -6,9 +6,12 @@ from typing import Literal
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from ..control.laws import DEFAULT_LAW, SUMO_LAWS, law_names, law_spec
+from ..control.laws.acc_spec import AccSpec
+from ..control.laws.cacc_path_spec import CaccPathSpec
+from ..control.laws.cacc_ploeg_spec import CaccPloegSpec
+from ..control.laws.sumo_cacc import SumoCaccSpec
 from ..models.variants import model_module, model_names, model_spec
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict
-from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec, SumoCaccSpec
 from .maneuvers import SlotSpec
 
 
@@ -155,9 +158,9 @@ class ControllerSpec(Strict):
     @field_validator("law")
     @classmethod
     def _known_law(cls, v):
-        if v not in law_names() + SUMO_LAWS:
+        if v not in (*law_names(), *SUMO_LAWS):
             raise ValueError(f"unknown control law {v!r}; expected one of: "
-                             f"{', '.join(law_names() + SUMO_LAWS)}")
+                             f"{', '.join((*law_names(), *SUMO_LAWS))}")
         return v
 
 

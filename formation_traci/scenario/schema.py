@@ -12,13 +12,14 @@ from pydantic import Field, field_validator, model_validator
 
 from run_contract.columns import DEFAULT_FORMATION_ID
 
+from ..control.laws import sumo_cacc
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict  # noqa: F401
 from .comm_spec import CommLinkSpec, CommSpec  # noqa: F401
 from .cooperation import CooperationSpec
 from .formation_parts import (GAIN_TABLES, SURFACE_NAMES, ControllerSpec, GainSpec,  # noqa: F401 (re-exported)
                               LeaderSpec, MemberSpec, VehicleOverrides, VehicleSpec)
 from .formation_spec import FormationFlowSpec, FormationSpec, FormationTemplate, formation_fits  # noqa: F401
-from .law_specs import AccSpec, CaccPathSpec, CaccPloegSpec, SumoCaccSpec, sumo_cacc_rules  # noqa: F401
+from .formation_parts import AccSpec, CaccPathSpec, CaccPloegSpec, SumoCaccSpec  # noqa: F401 (re-exported)
 from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec  # noqa: F401 (re-exported)
 from .road_traffic import FlowSpec, RoadSpec, RouteEnds, RouteValue, TrafficSpec  # noqa: F401 (re-exported)
 
@@ -242,7 +243,7 @@ class Scenario(Strict):
         laws = [f.controller.law for f in self.formations] + [f.formation.controller.law for f in self.formation_flows]
         if "sumo_cacc" in laws or (self.controller.law == "sumo_cacc" and (self.formations or self.formation_flows)):
             raise ValueError("controller.law = \"sumo_cacc\" runs in a scenario of one formation only")
-        return sumo_cacc_rules(self)
+        return sumo_cacc.check_scenario(self)
 
     @model_validator(mode="after")
     def _energy_needs_forces(self):

@@ -4,7 +4,7 @@
     -> stop? -> controllers and models (sim/fleet.py) -> actuate -> world step
 
 Free space and SUMO differ only in the World and the reference generator they bring
-(:func:`free_space_run`, sumo/run.py ``road_run``). docs/architecture.md has the
+(:func:`free_space_run`, run/road_parts.py ``road_run``). docs/architecture.md has the
 picture and where a maneuver planner or a communication channel plugs in.
 """
 from __future__ import annotations

@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..control.formation import LeaderState, rigid_targets
-from ..control.laws import DEFAULT_LAW, SUMO_LAWS
+from ..control.laws import SUMO_LAWS, sumo_law
 from ..control.schedule import FOLLOW_SHARE, GAIN_PRESETS, GainSchedule, law_peak
 from ..control.virtual_car import FreeLeader, Profile
 from ..models.linear import stable_blend_speed
@@ -129,7 +129,7 @@ def build_fleet(sc: Scenario) -> FleetConfig:
         speed_gains=_member_gains(sc, "speed_gains"),
         yaw_gains=_member_gains(sc, "yaw_gains"),
         physics_step=sc.run.physics_step,
-        law=DEFAULT_LAW if ctl.law in SUMO_LAWS else ctl.law,  # SUMO's: sumo/driven.py
+        law=sumo_law(ctl.law).HEAD_LAW if ctl.law in SUMO_LAWS else ctl.law,  # SUMO's: its head's
         pred=column_predecessors(sc),
         bumpers=tuple((v.a + v.front_overhang, v.length - v.a - v.front_overhang)
                       for v in vehicles),

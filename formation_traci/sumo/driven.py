@@ -1,17 +1,15 @@
-"""SUMO's own CACC as the followers' law: ``controller.law = "sumo_cacc"`` (docs/platoon_laws.md,
-"SUMO's CACC twin").
+"""SUMO's own CACC as the followers' law, SUMO's side: ``controller.law = "sumo_cacc"``
+(docs/platoon_laws.md, "SUMO's CACC twin"; the law itself, its parameters and the members it
+drives: control/laws/sumo_cacc.py).
 
-What drives what. The column's head (a member without predecessor, FleetConfig.pred -1) is
-ours, exactly as under our platoon laws: the virtual structure on its slot of the virtual car
-(which follows ``leader.speed`` through the governor), placed with moveToXY, its true speed and
-acceleration told to SUMO after every step. Every follower is inserted at the pose and speed our
-column would start from (same lane, same spacing), of a vType with SUMO's ``CACC``
-car-following model (``controller.sumo_cacc``; written to ``sumo/sumo_cacc.add.xml``, copied per
-member preset with the member's chassis length and width), and from then on SUMO drives it: the
-safe-speed checks without the right of way at junctions (sumo/types.py SPEED_MODE_DRIVEN), no lane
-changes, no moveToXY. SUMO's CACC follows the vehicle ahead in its
-lane (MSCFModel_CACC.cpp: CACC when that vehicle's vType is CACC, else its ACC fallback; the
-head's vType is CACC too, so the first follower runs CACC on it).
+What drives what. The column's head (the law's HEAD_LAW, ours) is placed with moveToXY on its
+slot of the virtual car (which follows ``leader.speed`` through the governor), its true speed
+and acceleration told to SUMO after every step. Every follower (the law's ``driven``) is
+inserted at the pose and speed our column would start from (same lane, same spacing), of a vType
+with SUMO's ``CACC`` car-following model (``controller.sumo_cacc``; written to
+``sumo/sumo_cacc.add.xml``, copied per member preset with the member's chassis length and
+width), and from then on SUMO drives it: the safe-speed checks without the right of way at
+junctions (sumo/types.py SPEED_MODE_DRIVEN), no lane changes, no moveToXY.
 
 Recording. At every sense the followers' SUMO state (front bumper, angle, speed,
 acceleration) is read back and written into their rows of the fleet state (CoG frame), so the
@@ -32,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..control.laws import sumo_cacc
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
 from ..record.columns import SIGNAL_COLUMNS
@@ -40,8 +39,6 @@ from ..sim.fleet import Fleet
 from .types import sumo_to_cog
 from .world import SumoWorld
 
-SUMO_CACC = "sumo_cacc"
-"""``controller.law`` of this module (control/laws SUMO_LAWS)."""
 CACC_BASE_TYPE = "sumo_cacc"
 """The CACC vType of the additional file; every member type is a copy of it."""
 
@@ -70,7 +67,7 @@ _MODEL_ONLY = [SIGNAL_COLUMNS.index(c) for c in (
 def world_and_fleet(sc, cfg, baseline: bool):
     """(fleet, World class) of a road run: SUMO drives the followers under ``sumo_cacc``
     (a baseline twin has no formation: the ordinary ones)."""
-    if sc.controller.law != SUMO_CACC or baseline:
+    if sc.controller.law != sumo_cacc.NAME or baseline:
         return Fleet(cfg), SumoWorld
     return DrivenFleet(cfg), SumoDrivenWorld
 
@@ -81,7 +78,7 @@ class DrivenFleet(Fleet):
 
     def __init__(self, cfg):
         super().__init__(cfg)
-        self.driven = self.pred >= 0
+        self.driven = sumo_cacc.driven(self.pred)
         self.sumo = np.zeros((cfg.n, 3))  # v [m/s], a_lon [m/s^2], yaw rate [rad/s] as read
 
     def _patch(self, out: np.ndarray) -> None:

@@ -15,8 +15,6 @@ import re
 import sys
 from pathlib import Path
 
-import numpy as np
-
 _TIME = re.compile(r"time=(-?[0-9]+(?:\.[0-9]+)?)")
 _VEHICLE = re.compile(r"[Vv]ehicle '([^']+)'")
 KINDS = (("no connection to the next edge", "lane_end_stop"),
@@ -141,20 +139,3 @@ def sumo_outputs_meta(meta: dict, sc, rec, sumo_dir: Path, t0: float, member_d_f
     meta["sumo"]["clock"] = ("trajectories, background, events, ssm: formation time t = SUMO time - warmup, "
                              "centre of gravity; sumo/*.log, sumo/*.xml: SUMO time; sumo/fcd.parquet: "
                              f"{'formation' if sc.sumo.fcd_frame == 'formation' else 'SUMO'} frame")
-
-
-def watch_lanes(incidents, sc, fleet, plan, baseline: bool) -> None:
-    """sim/incidents.py lane departures of the road run's platoon-law columns (every member of
-    a column under a platoon law of ours or SUMO's CACC, the head included; runs without
-    maneuvers, which move slots): more than half the reference lane's width across from the
-    slot's lateral offset."""
-    if incidents is None or baseline or _has_maneuvers(sc):
-        return
-    platoon = (np.asarray(fleet.base_law) > 0) | (sc.controller.law == "sumo_cacc")
-    slot_d = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
-    incidents.watch_lanes(platoon & plan.is_road, slot_d, 0.5 * plan.road.lane_width)
-
-
-def _has_maneuvers(sc) -> bool:
-    """Does any formation of the scenario run maneuvers?"""
-    return bool(sc.maneuvers) or any(f.maneuvers for f in getattr(sc, "formations", []) or [])

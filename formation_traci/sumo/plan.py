@@ -27,10 +27,6 @@ from .adapter import MemberType
 from .options import check_options, place_outputs
 
 MEMBER_ROUTE = "formation_route"
-ADHESION_SHARE_COMFORT = 0.5
-"""The virtual car's acceleration and comfortable deceleration are at most this share of mu g."""
-ADHESION_SHARE_EMERGENCY = 0.8
-"""Its emergency deceleration is at most this share of mu g (the members must be able to follow)."""
 
 
 INSERT_CLEAR_TIME = 1.0

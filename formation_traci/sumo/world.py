@@ -105,7 +105,7 @@ class SumoWorld(MemberHandover, MemberRows):
             rec.incident_log.locate = self.locate
         self.mtypes = member_types(sc, plan)
         self.d_front = np.array([mt.d_front for mt in self.mtypes])  # CoG to front bumper [m]
-        # ramp traffic at the route's joins (sumo/merge_watch.py; set by road_run), each formation's cap [m/s^2]
+        # ramp traffic at the route's joins (sumo/merge_watch.py; set by run/road_parts.py), each formation's cap [m/s^2]
         self.merges, self.merge_caps = None, np.full(len(self.groups), np.inf)
         self._room = None  # sumo/flow_inserts.py RoomCheck, made at the first due formation of a flow
         self.peers = Peers(self.ids, self.sumo_ids, self.mtypes, self.groups) if len(self.groups) > 1 else None

@@ -31,7 +31,7 @@ ENV = "FORMATION_TRACI_CASE_START"
 PRELOAD = (
     "numpy", "numba", "numba.np.arrayobj", "numba.np.npyimpl", "pandas", "pyarrow.parquet",
     "pyarrow.dataset", "pyarrow.pandas_compat", "xml.sax.expatreader", "libsumo", "sumolib",
-    "formation_traci.sweep.case", "formation_traci.runner", "formation_traci.sumo.run",
+    "formation_traci.sweep.case", "formation_traci.runner", "formation_traci.run.road_parts",
     "formation_traci.sumo.road_cache", "formation_traci.sumo.fcd", "formation_traci.sumo.driven",
     "formation_traci.sim.warm", "analysis.api", "analysis.report.run_report",
     "analysis.metrics.propagation",

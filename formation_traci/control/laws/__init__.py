@@ -6,8 +6,11 @@ A law is a module with
 * ``pack(cfg) -> (n, len(PARAMS))``: those parameters from a sim/fleet.py FleetConfig (its
   ``law_params``: per member, {law name: {parameter: value}});
 * optionally ``SPEC``: a pydantic model of its parameters with their defaults, which the
-  scenario's ``[controller.<name>]`` table is validated against (a law registered at run time;
-  the built-in laws' tables are scenario/law_specs.py);
+  scenario's ``[controller.<name>]`` table is validated against (a built-in law with
+  parameters has them, ``SPEC`` and ``DEFAULTS``, in a sibling module without kernels,
+  ``<law>_spec.py``, that the law's module imports and the scenario schema reads without
+  compiling or importing numba: control/laws/acc_spec.py, cacc_path_spec.py,
+  cacc_ploeg_spec.py; its table is a field of scenario/formation_parts.py ControllerSpec);
 * ``input_at(fleet, state, i, target, v_cap_i, a_cap_i)``: a ``@kernel`` giving member i's
   model input for its desired point and the safety caps ``v_cap_i`` [m/s], ``a_cap_i``
   [m/s^2]. ``fleet`` (sim/fleet_records.py FleetParams) holds the members' parameters: the
@@ -49,9 +52,13 @@ BUILTIN: dict[str, tuple[str, int]] = {
 PLATOON_LAWS = ("acc", "cacc_path", "cacc_ploeg")
 """Built-in laws that follow the member ahead in a column (FleetConfig.pred)."""
 
-SUMO_LAWS = ("sumo_cacc",)
-"""Laws SUMO's own car-following model runs (no kernel here; road runs only,
-sumo/driven.py): the column's head runs the virtual structure, SUMO drives the followers."""
+SUMO_LAWS: dict[str, str] = {
+    "sumo_cacc": "formation_traci.control.laws.sumo_cacc",
+}
+"""Laws SUMO's own car-following model runs (road runs only): name -> module, a light module
+without a kernel (control/laws/sumo_cacc.py): its parameter schema ``SPEC``, the members SUMO
+drives (``driven(pred)``), the law our fleet runs for the others (``HEAD_LAW``); the SUMO side
+is sumo/driven.py."""
 
 _RUNTIME: dict[str, ModuleType] = {}
 
@@ -86,6 +93,11 @@ def law_module(name: str) -> ModuleType:
     if name not in BUILTIN:
         raise KeyError(f"unknown control law {name!r}; known: {', '.join(law_names())}")
     return importlib.import_module(BUILTIN[name][0])
+
+
+def sumo_law(name: str) -> ModuleType:
+    """The module of the SUMO law ``name`` (:data:`SUMO_LAWS`)."""
+    return importlib.import_module(SUMO_LAWS[name])
 
 
 def law_code(name: str) -> int:

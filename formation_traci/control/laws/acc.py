@@ -5,16 +5,16 @@ Control, 2nd ed., ch. 6; docs/platoon_laws.md):
 
 with the gap [m] and the predecessor's speed v_p [m/s] measured by the member's own sensor (its
 state row), h the time gap [s], r0 the standstill distance [m], lambda [1/s] the gap gain.
-Defaults are Plexe's: h = 1.2 s, lambda (gap_gain) = 0.1 1/s, r0 = 2 m.
+Defaults are Plexe's: h = 1.2 s, lambda (gap_gain) = 0.1 1/s, r0 = 2 m (control/laws/acc_spec.py).
 """
 from __future__ import annotations
 
 from ...core.kernels import kernel
 from ...models.state import motion_at
 from . import platoon
+from .acc_spec import DEFAULTS, SPEC  # noqa: F401 (the law's schema and defaults)
 
 PARAMS = (*platoon.COMMON, *platoon.ACC_PARAMS)
-DEFAULTS = platoon.ACC_DEFAULTS
 
 
 @kernel

@@ -10,7 +10,8 @@ with d the spacing [m], C1 [-] the leader weight, xi [-] the damping ratio, w_n 
 [rad/s] the bandwidth (f_n [Hz]). The predecessor's acceleration a_p is its last desired
 acceleration (over the radio, one control period old); the leader's speed v_0 and acceleration
 a_0 are the platoon reference's as the member received it (its virtual car: the [comm] copy).
-Defaults are Plexe's reference set: d = 5 m, C1 = 0.5, xi = 1, f_n = 0.2 Hz.
+Defaults are Plexe's reference set: d = 5 m, C1 = 0.5, xi = 1, f_n = 0.2 Hz
+(control/laws/cacc_path_spec.py).
 """
 from __future__ import annotations
 
@@ -19,9 +20,9 @@ import numpy as np
 from ...core.kernels import kernel, maximum
 from ...models.state import motion_at
 from . import platoon
+from .cacc_path_spec import DEFAULTS, SPEC  # noqa: F401 (the law's schema and defaults)
 
 PARAMS = (*platoon.COMMON, *platoon.ACC_PARAMS, "spacing_m", "c1", "xi", "omega_n_hz")
-DEFAULTS = {"spacing_m": 5.0, "c1": 0.5, "xi": 1.0, "omega_n_hz": 0.2}
 SPACING, C1, XI, F_N = range(platoon.OWN_AT, platoon.OWN_AT + 4)
 """The columns of d [m], C1 [-], xi [-] and f_n [Hz]."""
 

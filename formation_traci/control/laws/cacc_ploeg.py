@@ -7,16 +7,16 @@ the predecessor's desired acceleration over the radio, a dynamic controller
 integrated (explicit Euler, as Plexe) over the control period dt_c [s]. u is the member's own
 last a_r (``u_last[i]``), a its acceleration (taken as u: the lag-free model realises a_r), u_p
 the predecessor's last a_r (over the radio, one control period old). Defaults are Plexe's:
-h = 0.5 s, kp = 0.2 1/s^2, kd = 0.7 1/s, r0 = 2 m.
+h = 0.5 s, kp = 0.2 1/s^2, kd = 0.7 1/s, r0 = 2 m (control/laws/cacc_ploeg_spec.py).
 """
 from __future__ import annotations
 
 from ...core.kernels import kernel
 from ...models.state import motion_at
 from . import platoon
+from .cacc_ploeg_spec import DEFAULTS, SPEC  # noqa: F401 (the law's schema and defaults)
 
 PARAMS = (*platoon.COMMON, *platoon.ACC_PARAMS, "h_s", "kp", "kd", "standstill_m")
-DEFAULTS = {"h_s": 0.5, "kp": 0.2, "kd": 0.7, "standstill_m": 2.0}
 H_S, KP, KD, R0 = range(platoon.OWN_AT, platoon.OWN_AT + 4)
 """The columns of h [s], kp [1/s^2], kd [1/s] and r0 [m]."""
 

@@ -23,7 +23,7 @@ from ...models.state import KINEMATIC, motion_at
 from ..formation import V_EPS, Target, formation_at
 from ...models.bicycle import S
 from ..schedule import speed_law, yaw_law
-from . import virtual_structure
+from . import acc_spec, virtual_structure
 
 COMMON = ("k", "k_theta", "front_m", "rear_m")
 """The first columns of every platoon law's parameter rows."""
@@ -33,7 +33,7 @@ K, K_THETA, FRONT, REAR = range(N_COMMON)
 ACC_PARAMS = ("headway_s", "gap_gain", "standstill_m")
 """The ACC block that follows (controller.acc): the ACC law's own parameters and a CACC's
 fallback on radio loss (sim/fleet_laws.py)."""
-ACC_DEFAULTS = {"headway_s": 1.2, "gap_gain": 0.1, "standstill_m": 2.0}
+ACC_DEFAULTS = acc_spec.DEFAULTS
 ACC_AT = N_COMMON
 """First column of the ACC block."""
 HEADWAY, GAP_GAIN, STANDSTILL = range(ACC_AT, ACC_AT + len(ACC_PARAMS))

@@ -1,6 +1,9 @@
-"""The parts of a road run (sim/loop.py RunParts): SUMO's world, each formation's road
-reference generator (with the maneuver planner when the scenario has maneuvers) and the
-fleet of all members."""
+"""The parts of a road run (sim/loop.py RunParts), assembled here as sim/loop.py
+``free_space_run`` assembles a free-space run's: SUMO's world (sumo/world.py SumoWorld, or
+sumo/driven.py's under SUMO's CACC), each formation's road reference generator (the governor's
+limits, the jerk-limited planner, the maneuver planner when the scenario has maneuvers), the
+watch of ramp traffic at the route's joins, the lane watch of platoon columns and the fleet of
+all members, with each formation's departure and flow."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,8 +11,13 @@ from pathlib import Path
 import numpy as np
 
 from ..scenario.schema import Scenario
-from .plan import RoadPlan
-from .world import SumoWorld
+from ..sumo.plan import RoadPlan
+from ..sumo.world import SumoWorld
+
+ADHESION_SHARE_COMFORT = 0.5
+"""The virtual car's acceleration and comfortable deceleration are at most this share of mu g."""
+ADHESION_SHARE_EMERGENCY = 0.8
+"""Its emergency deceleration is at most this share of mu g (the members must be able to follow)."""
 
 
 def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
@@ -19,8 +27,7 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     from ..sim.loop import RunParts, one_formation
     from ..sim.road_load import road_load_part
     from ..sim.setup import build_fleet
-    from .driven import world_and_fleet
-    from .messages import watch_lanes
+    from ..sumo.driven import world_and_fleet
 
     parts = plan.formations or ((None, plan, slice(0, len(sc.members))),)
     views = [sc if setup is None else setup.view for setup, _, _ in parts]
@@ -29,16 +36,16 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
     world = world_class(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
     world.should_stop = should_stop
     watch_lanes(rec.incidents, sc, fleet, plan, baseline)  # lane departures of platoon columns
-    built = [_formation_parts(view, p, cfg, fleet.gains[rows], world, meta)
+    built = [formation_parts(view, p, cfg, fleet.gains[rows], world, meta)
              for view, (_, p, rows), cfg in zip(views, parts, cfgs)]
     if plan.road.joins and not baseline:
-        world.merges = _merge_watch(sc, plan, parts, world, [getattr(gen, "merge_shift", None)
+        world.merges = merge_watch(sc, plan, parts, world, [getattr(gen, "merge_shift", None)
                                                              for gen, _, _ in built])
     meta["timing_s"] = {"sumo_step": 0.0, "sumo_read": 0.0, "sumo_place": 0.0,
                         "governor": 0.0, "control_model": 0.0, "record": 0.0}
     load = None if baseline else road_load_part(sc, plan.vehicles, plan.road, plan.road.line)
     if not plan.formations:  # one formation from t = 0
-        from .fused_path import fused_path
+        from ..sumo.fused_path import fused_path
         gen, transforms, state = built[0]
         return one_formation(world, gen, fleet, state, transforms=transforms,
                              timing=meta["timing_s"], road_load=load, fused=fused_path)
@@ -49,19 +56,19 @@ def road_run(sc: Scenario, plan: RoadPlan, rec, out_dir: Path, meta: dict,
                                depart=setup.depart, parked=gen.parked,
                                held=state.copy() if waits else None,
                                status="waiting" if waits else "running", flow=setup.flow))
-    from .fused_path import fused_path
+    from ..sumo.fused_path import fused_path
     return RunParts(world, fleet, join_states([s for _, _, s in built]), forms,
                     timing=meta["timing_s"], road_load=load, fused=fused_path)
 
 
-def _merge_watch(sc: Scenario, plan: RoadPlan, parts, world: SumoWorld, shifts):
+def merge_watch(sc: Scenario, plan: RoadPlan, parts, world: SumoWorld, shifts):
     """The run's watch of ramp traffic at the route's joins (sumo/merge_watch.py); ``shifts``:
     each formation's control/maneuvers/generator.py MergeShift (None: it does not shift)."""
     from run_contract.columns import DEFAULT_FORMATION_ID
 
     from ..control.merge import merge_params
     from ..sim.formation import virtual_car_id
-    from .merge_watch import MergeWatch, merge_sites
+    from ..sumo.merge_watch import MergeWatch, merge_sites
 
     groups = [(DEFAULT_FORMATION_ID if setup is None else setup.id,
                virtual_car_id(DEFAULT_FORMATION_ID if setup is None else setup.id, len(parts)),
@@ -70,14 +77,14 @@ def _merge_watch(sc: Scenario, plan: RoadPlan, parts, world: SumoWorld, shifts):
                       world, groups, float(sc.run.step), shifts)
 
 
-def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld, meta: dict):
+def formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld, meta: dict):
     """(reference generator, transforms, initial state) of the formation ``sc`` sees, whose
     members are ``plan``'s (``gains``: their rows of sim/fleet.py Fleet.gains)."""
     from ..control.reference_road import GovernorLimits, RoadReference, SlotLayout, StepTiming
     from ..sim.fleet import initial_state
     from ..sim.column_gaps import column_gap_warnings
     from ..sim.setup import follow_limit, profile, road_mu, top_speed
-    from .plan import ADHESION_SHARE_COMFORT, ADHESION_SHARE_EMERGENCY, initial_targets
+    from ..sumo.plan import initial_targets
 
     run, ld, line = sc.run, sc.leader, plan.road.line
     n_ctrl = int(round(run.step / run.control_step))
@@ -108,7 +115,7 @@ def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld,
         return RoadReference(*args), [], state
     from ..control.maneuvers.generator import ManeuverRoadReference, PlanSlots
     from ..control.maneuvers.planner import ManeuverPlanner
-    from .road_setup import road_room
+    from ..sumo.road_setup import road_room
     lengths = np.array([v.length for v in plan.vehicles])
     widths = np.array([v.width for v in plan.vehicles])
     planner = ManeuverPlanner(sc.maneuvers, plan.slots, plan.road.lanes, sc.maneuver_limits,
@@ -117,3 +124,20 @@ def _formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld,
                               np.array([v.cog_to_front_bumper for v in plan.vehicles]))
     gen = ManeuverRoadReference(*args, planner=planner, length=lengths, merge_shift=shift)
     return gen, [PlanSlots(planner)], state
+
+
+def watch_lanes(incidents, sc, fleet, plan, baseline: bool) -> None:
+    """sim/incidents.py lane departures of the road run's platoon-law columns (every member of
+    a column under a platoon law of ours or SUMO's CACC, the head included; runs without
+    maneuvers, which move slots): more than half the reference lane's width across from the
+    slot's lateral offset."""
+    if incidents is None or baseline or _has_maneuvers(sc):
+        return
+    platoon = (np.asarray(fleet.base_law) > 0) | (sc.controller.law == "sumo_cacc")
+    slot_d = np.where(plan.is_road, plan.slots[:, 1], plan.rigid[:, 1])
+    incidents.watch_lanes(platoon & plan.is_road, slot_d, 0.5 * plan.road.lane_width)
+
+
+def _has_maneuvers(sc) -> bool:
+    """Does any formation of the scenario run maneuvers?"""
+    return bool(sc.maneuvers) or any(f.maneuvers for f in getattr(sc, "formations", []) or [])

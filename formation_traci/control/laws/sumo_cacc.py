@@ -1,37 +1,36 @@
-"""The platoon laws' tables of ``[controller]`` (docs/platoon_laws.md): our laws' parameters
-(control/laws) and ``controller.sumo_cacc``, the vType of SUMO's own CACC car-following model
-that drives the followers when ``controller.law = "sumo_cacc"`` (sumo/driven.py)."""
+"""SUMO's own CACC as the followers' law: ``controller.law = "sumo_cacc"`` (docs/platoon_laws.md,
+"SUMO's CACC twin"), the law's definition: its parameters (:class:`SumoCaccSpec`, the
+scenario's ``controller.sumo_cacc``, with SUMO's defaults, and the SUMO vType attribute each
+one sets), the members it drives (:func:`driven`), the law our fleet runs for the others
+(:data:`HEAD_LAW`) and what a scenario under it must meet (:func:`check_scenario`).
+
+What drives what. The column's head (a member without predecessor, FleetConfig.pred -1) is
+ours, exactly as under our platoon laws: the virtual structure on its slot of the virtual car.
+Every follower is a SUMO vehicle of a vType with SUMO's ``CACC`` car-following model and these
+parameters, driven by SUMO from its insertion on; SUMO's CACC follows the vehicle ahead in its
+lane (MSCFModel_CACC.cpp: CACC when that vehicle's vType is CACC, else its ACC fallback; the
+head's vType is CACC too, so the first follower runs CACC on it). There is no kernel here: the
+SUMO side (the vType file, the followers handed to SUMO, their state read back and recorded)
+is sumo/driven.py. This module imports no kernels: the scenario schema reads it.
+"""
 from __future__ import annotations
 
+import numpy as np
 from pydantic import Field, model_validator
 
-from .base import NonNegFloat, PosFloat, Strict
+from ...core.spec import NonNegFloat, PosFloat, Strict
+from . import DEFAULT_LAW
+
+NAME = "sumo_cacc"
+"""``controller.law`` of this law (control/laws/__init__.py SUMO_LAWS)."""
+HEAD_LAW = DEFAULT_LAW
+"""The law our fleet runs for the members SUMO does not drive (the column's head)."""
 
 
-class AccSpec(Strict):
-    """controller.acc: constant time gap on ego sensing (control/laws/acc.py; Plexe's defaults)."""
-
-    headway_s: PosFloat = Field(1.2, description="time gap h [s]")
-    gap_gain: PosFloat = Field(0.1, description="gap gain lambda [1/s]")
-    standstill_m: NonNegFloat = Field(2.0, description="standstill gap r0 [m]")
-
-
-class CaccPathSpec(Strict):
-    """controller.cacc_path: PATH/Rajamani constant spacing (control/laws/cacc_path.py)."""
-
-    spacing_m: PosFloat = Field(5.0, description="constant gap d [m]")
-    c1: float = Field(0.5, ge=0.0, le=1.0, description="leader weight C1 [-]")
-    xi: float = Field(1.0, ge=1.0, description="damping ratio xi [-] (>= 1)")
-    omega_n_hz: PosFloat = Field(0.2, description="bandwidth f_n [Hz] (w_n = 2 pi f_n)")
-
-
-class CaccPloegSpec(Strict):
-    """controller.cacc_ploeg: Ploeg's constant-time-gap CACC (control/laws/cacc_ploeg.py)."""
-
-    h_s: PosFloat = Field(0.5, description="time gap h [s]")
-    kp: PosFloat = Field(0.2, description="gap gain kp [1/s^2]")
-    kd: PosFloat = Field(0.7, description="gap-rate gain kd [1/s]")
-    standstill_m: NonNegFloat = Field(2.0, description="standstill gap r0 [m]")
+def driven(pred: np.ndarray) -> np.ndarray:
+    """The members SUMO drives (bool, per member): the followers, every member with a
+    predecessor in its column (``pred``: FleetConfig.pred, -1: none)."""
+    return pred >= 0
 
 
 SUMO_CACC_ATTRIBUTES = {
@@ -85,11 +84,11 @@ class SumoCaccSpec(Strict):
         return {SUMO_CACC_ATTRIBUTES[k]: repr(float(v)) for k, v in self.model_dump().items()}
 
 
-def sumo_cacc_rules(sc):
+def check_scenario(sc):
     """``controller.law = "sumo_cacc"`` needs SUMO (a [road]) and a column SUMO can drive on
     its own: no maneuvers (they move slots SUMO's vehicles do not follow), no [comm] (SUMO's
     CACC has no radio model here). Returns ``sc`` (a Scenario model validator)."""
-    if sc.controller.law != "sumo_cacc":
+    if sc.controller.law != NAME:
         return sc
     if sc.road is None:
         raise ValueError("controller.law = \"sumo_cacc\" needs a [road] table: SUMO's CACC "
@@ -101,3 +100,7 @@ def sumo_cacc_rules(sc):
         raise ValueError("controller.law = \"sumo_cacc\": remove [comm] (SUMO's CACC reads its "
                          "leader directly, it has no radio model here)")
     return sc
+
+
+SPEC = SumoCaccSpec
+"""The law's parameter schema with its defaults (``controller.sumo_cacc``)."""
