@@ -37,7 +37,8 @@ def test_lust_on_ramp_joins_beside_the_mainlines_right_lane():
     (join,) = ramp_joins(net, route)  # the off-ramps (-31558, -31828, -31760) are no joins
     assert route[join.edge_index] == "-31622#4-AddedOnRampEdge"
     assert join.added_lane == "-31622#4-AddedOnRampEdge_0"
-    assert join.merge_lane == "-31622#4-AddedOnRampEdge_1"  # runs on as -31622#4's lane 0
+    # the road frame runs it on as -31622#4's lane 0; SUMO connects it to lane 1 (tests/test_merge_lust.py)
+    assert join.merge_lane == "-31622#4-AddedOnRampEdge_1"
     assert join.length_m == pytest.approx(95.07, abs=0.01)
     assert "-30426_0" in dict(join.feeders)
 
