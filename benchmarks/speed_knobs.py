@@ -5,7 +5,7 @@ saves, and what it changes in the results.
     python benchmarks/speed_knobs.py --duration 60 --warmup 30
 
 Each variant is one run of the case in a fresh process (one libsumo per process), one after the
-other, the same seed. Per variant: the loop's real-time factor (simulated seconds over the loop's
+other, the same seed, after a short run that compiles the kernels. Per variant: the loop's real-time factor (simulated seconds over the loop's
 wall seconds, run.json timing_s), SUMO's step and our layer's time per step [ms], the members on
 the road (mean over the recorded steps), and what the results show: the members' mean speed
 [m/s], the RMS of their lateral and longitudinal formation error [m], the emergency brakes
@@ -82,7 +82,10 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     root = Path(tempfile.mkdtemp(prefix="bench_knobs_"))
     rows = []
-    try:
+    try:  # a first short run compiles the kernels (not counted)
+        subprocess.run([sys.executable, "-c", CHILD, str(CASE), str(root / "warm"),
+                        json.dumps({"run.duration": 1.0, "traffic.warmup": 1.0})],
+                       capture_output=True, text=True, env=os.environ.copy())
         for name, over in VARIANTS:
             over = {**over, "run.duration": args.duration, "traffic.warmup": args.warmup}
             out = root / f"v{len(rows)}"

@@ -83,6 +83,8 @@ class TrafficSpec(Strict):
     flows: list[FlowSpec] = Field(default_factory=list)
     sections: SectionsSpec = Field(default_factory=SectionsSpec)
     warmup: NonNegFloat = Field(0.0, description="SUMO time simulated before the formation is inserted [s]")
-    record_radius: PosFloat | None = Field(300.0, description="record background vehicles within this distance of a member [m]; omit for all")
+    record_radius: PosFloat | None = Field(300.0, description="the formation senses (one context subscription per formation) and records the "
+                                        "background vehicles within this distance of its members [m]: a smaller radius also "
+                                        "hides vehicles from the governor and the maneuvers; omit for all")
     measure_at: NonNegFloat | None = Field(1000.0, description="arc length along the main route where flow and "
                                            "density are measured [m] (clamped to the route); None: not measured")
