@@ -43,8 +43,8 @@ def forks(monkeypatch):
     real = forked.ForkedCase
 
     class Counted(real):
-        def __init__(self, *args):
-            super().__init__(*args)
+        def __init__(self, *args, **kw):
+            super().__init__(*args, **kw)
             pids.append(self.pid)
 
     monkeypatch.setattr(forked, "ForkedCase", Counted)
@@ -148,3 +148,35 @@ def test_a_server_that_cannot_start_a_case_leaves_the_cases_to_new_interpreters(
     res = run_sweep(path, tmp_path / "out", workers=1, progress=False)
     assert (res.summary["status"] == "completed").all(), res.summary["reason"].tolist()
     assert not forked.usable() and forked._failed == ["EOFError: the server died"]
+
+
+def _quick(code: int) -> None:
+    """A forked process that ends at once with exit code ``code``."""
+    raise SystemExit(code)
+
+
+def test_an_exit_code_is_read_once_while_another_case_starts(monkeypatch):
+    """The forkserver sends a child's exit status once, over a pipe. multiprocessing's
+    Process.start polls every other child: a thread reading a case's status while another
+    thread starts the next case must not have both read it, which left one at the pipe's end
+    and made multiprocessing report 255 for a case that had ended with 0. The read is slowed
+    down to widen the window the race needs."""
+    import threading
+    import time
+    from multiprocessing import forkserver as fs
+    from multiprocessing.connection import wait
+
+    first = forked.ForkedCase("", "", target=_quick, args=(0,))
+    wait([first._proc.sentinel], 30)  # it has ended: its status is in the pipe
+    real = fs.read_signed
+    monkeypatch.setattr(fs, "read_signed", lambda fd: time.sleep(0.3) or real(fd))
+    got = {}
+    reader = threading.Thread(target=lambda: got.setdefault("poll", first.poll()))
+    reader.start()
+    time.sleep(0.05)  # the reader is inside its read
+    second = forked.ForkedCase("", "", target=_quick, args=(3,))  # start() polls `first` too
+    reader.join()
+    monkeypatch.setattr(fs, "read_signed", real)
+    assert got["poll"] == 0
+    assert first.poll() == 0
+    assert second.wait(timeout=30) == 3

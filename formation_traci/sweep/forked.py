@@ -93,23 +93,37 @@ def give_up(exc: BaseException) -> None:
     _failed.append(f"{type(exc).__name__}: {exc}")
 
 
+_STATUS_LOCK = threading.Lock()
+"""Held while a forked process's exit status is read or a process starts. The forkserver
+sends a child's status once, over a pipe: two threads reading it at the same time (a
+supervising thread's wait and multiprocessing's ``Process.start``, which polls every other
+child) leave one of them at the pipe's end, and multiprocessing then takes the child's exit
+code for 255."""
+
+
 class ForkedCase:
     """A case process forked from the server, with the part of ``subprocess.Popen``'s
-    interface the supervisor uses: ``pid``, ``poll()``, ``wait(timeout)``, ``send_signal``."""
+    interface the supervisor uses: ``pid``, ``poll()``, ``wait(timeout)``, ``send_signal``.
+    ``target`` and ``args``: what the process runs (default :func:`case_entry` with the
+    case's spec, its log, the sweep's environment and directory)."""
 
-    def __init__(self, spec_json: str, log_path: str):
+    def __init__(self, spec_json: str, log_path: str, target=None, args=None):
         ctx = _server()
-        self._proc = ctx.Process(target=case_entry, name="formation-traci-case",
-                                 args=(spec_json, log_path, dict(os.environ), os.getcwd()))
-        self._proc.start()
+        self._proc = ctx.Process(target=target or case_entry, name="formation-traci-case",
+                                 args=args if args is not None
+                                 else (spec_json, log_path, dict(os.environ), os.getcwd()))
+        with _STATUS_LOCK:  # start() polls the other children
+            self._proc.start()
         self.pid = self._proc.pid
 
     def poll(self) -> int | None:
-        return self._proc.exitcode
+        with _STATUS_LOCK:
+            return self._proc.exitcode
 
     def wait(self, timeout: float | None = None) -> int:
-        self._proc.join(timeout)
-        code = self._proc.exitcode
+        from multiprocessing.connection import wait as readable
+        readable([self._proc.sentinel], timeout)  # the status is there (or the server is gone)
+        code = self.poll()
         if code is None:
             raise subprocess.TimeoutExpired("case process", timeout)
         return code
