@@ -118,6 +118,8 @@ class FusedPath:
         self._rows = self._nb_rows = None
         self._idx, self._every, self._flags = self._all, True, 0
         self._merging, self._no_limit = False, np.full(k, np.inf)
+        self._all_present = np.ones(n, dtype=np.bool_)  # every member read (lane_changes' present)
+        self._all_present.flags.writeable = False
         if len(FILLED_BY_CALLER) != 8 or len(COMFORT_COLUMNS) != 6:
             raise ValueError("fused_step writes the road and SUMO columns of record/columns.py")
 
@@ -218,7 +220,8 @@ class FusedPath:
         if n_off or w.members.off:
             w.members.placement(t, gap, n_off)
         _, lanes, lane_idx = self._rows
-        w.members.lane_changes(t, self._idx, np.ones(len(self._idx), dtype=np.bool_), lanes, lane_idx)
+        present = self._all_present if self._every else np.ones(len(self._idx), dtype=np.bool_)
+        w.members.lane_changes(t, self._idx, present, lanes, lane_idx)
 
     def _members(self):
         """The members' SUMO rows for the compiled step (NaN rows, lane row -1 and lane index

@@ -9,9 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..control.reference_records import GroupPlan, PlannerState
+from ..sim.formation_group import RUNNING
 
-_WAITING, _RUNNING = 0, 1
-"""sim/formation_group.py's codes of a waiting and a running formation."""
 
 
 def _bodies(ref_d_front, world) -> np.ndarray:
@@ -92,7 +91,7 @@ class GroupOfFormations:
         g = self.group = group
         self.world = world
         self.reach = g.reach
-        self.running, self.parked, self.vc_rows = g.status == _RUNNING, None, 0
+        self.running, self.parked, self.vc_rows = g.status == RUNNING, None, 0
         self.plan, self.planner = g.plan, g.planner
         self.bodies, self.peers = _bodies(g.d_front, world), True
         self._kept = (g.a_vc, g.emergency_vc, g.has_prev, g.a_cap_prev, g.v_prev, g.emergency,
@@ -104,7 +103,7 @@ class GroupOfFormations:
         to the compiled step are the group's still; sets :attr:`running`, :attr:`parked` and
         :attr:`vc_rows` (:meth:`enters` asks the rest)."""
         g = self.group
-        run = g.status == _RUNNING
+        run = g.status == RUNNING
         if ((run & (g.s + self.reach > g.length)).any()
                 or not all(a is b for a, b in zip(self._kept, (g.a_vc, g.emergency_vc, g.has_prev,
                                                                g.a_cap_prev, g.v_prev, g.emergency,
@@ -118,8 +117,7 @@ class GroupOfFormations:
         """Does a formation due at t [s] enter now (FormationGroup.any_enters; ``state``: the
         members' state at t)? One of a flow that is due but finds no room waits, and the step
         stays a usual one for the others."""
-        g = self.group
-        return bool(((g.status == _WAITING) & (t >= g.depart - 1e-9)).any()) and g.any_enters(self.world, t, state)
+        return self.group.any_enters(self.world, t, state)
 
     def held(self, state):
         """The parked rows' held state (FormationGroup.settle's; the state itself when none)."""
