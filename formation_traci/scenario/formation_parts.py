@@ -6,10 +6,6 @@ from typing import Literal
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from ..control.laws import DEFAULT_LAW, SUMO_LAWS, law_names, law_spec
-from ..control.laws.acc_spec import AccSpec
-from ..control.laws.cacc_path_spec import CaccPathSpec
-from ..control.laws.cacc_ploeg_spec import CaccPloegSpec
-from ..control.laws.sumo_cacc import SumoCaccSpec
 from ..models.variants import model_module, model_names, model_spec
 from .base import Finite, NonNegFloat, Pair, PosFloat, ProfileSpec, Signal, Strict
 from .maneuvers import SlotSpec
@@ -126,10 +122,6 @@ class ControllerSpec(Strict):
                      "'virtual_structure' is the seed's (2.4-2.11 with 3.32-3.38); 'acc', "
                      "'cacc_path', 'cacc_ploeg' follow the member ahead; 'sumo_cacc': SUMO's own "
                      "CACC drives the followers (road runs; docs/platoon_laws.md)")
-    acc: AccSpec = AccSpec()
-    cacc_path: CaccPathSpec = CaccPathSpec()
-    cacc_ploeg: CaccPloegSpec = CaccPloegSpec()
-    sumo_cacc: SumoCaccSpec = SumoCaccSpec()
     fallback_acc: bool = Field(
         True, description="a cacc_path / cacc_ploeg member whose [comm] beacons time out runs ACC "
         "(controller.acc) until they return; false: it keeps its CACC law on what the channel "
@@ -140,20 +132,30 @@ class ControllerSpec(Strict):
         "table_3_4", description="linear-velocity schedule (3.34); 'table_3_6' for the truck")
     yaw_gains: GAIN_TABLES | GainSpec = Field("table_3_8", description="angular-velocity schedule (3.34)")
 
-    runtime_params: dict[str, dict] = Field(default_factory=dict, description=(
-        "parameters of laws registered at run time, from their [controller.<law>] tables, "
-        "validated by each law's SPEC (control/laws/__init__.py)"))
+    law_params: dict[str, dict] = Field(default_factory=dict, description=(
+        "the laws' parameters given in their [controller.<law>] tables (controller.acc, "
+        "controller.cacc_path, controller.cacc_ploeg, controller.sumo_cacc, a law registered "
+        "at run time), each validated by its law's SPEC (control/laws/__init__.py); "
+        "docs/scenarios.md lists the built-in laws' fields"))
 
     @model_validator(mode="before")
     @classmethod
-    def _runtime_law_tables(cls, data):
-        """[controller.<law>] of a law registered at run time with a SPEC: validated by it."""
-        return _spec_tables(data, set(cls.model_fields), law_spec, "runtime_params")
+    def _law_tables(cls, data):
+        """[controller.<law>] of a law with a SPEC: validated by it."""
+        return _spec_tables(data, set(cls.model_fields), law_spec, "law_params")
 
-    @field_validator("runtime_params")
+    @field_validator("law_params")
     @classmethod
     def _by_their_specs(cls, given):
-        return _by_specs(given, law_spec, "a law registered at run time")
+        return _by_specs(given, law_spec, "a control law")
+
+    def params(self, law: str):
+        """Law ``law``'s parameters: its ``[controller.<law>]`` table over its SPEC's defaults
+        (an instance of the SPEC)."""
+        spec = law_spec(law)
+        if spec is None:
+            raise KeyError(f"control law {law!r} has no parameter schema")
+        return spec.model_validate(self.law_params.get(law, {}))
 
     @field_validator("law")
     @classmethod

@@ -50,6 +50,29 @@ def _field_path(loc: tuple) -> str:
     return ".".join(parts) or "(document)"
 
 
+SPEC_TABLES = ("law_params", "variant_params")
+"""Fields holding the tables a registered module's SPEC validates ([controller.<law>],
+[vehicle.<variant>]: scenario/formation_parts.py): their problems are named by the table's own
+path, ``controller.<law>.<field>``."""
+
+
+def _problems(err: dict) -> list[tuple[str, str]]:
+    """(field path, what is wrong) of one pydantic error."""
+    path = _field_path(err["loc"])
+    head, _, last = path.rpartition(".")
+    if last in SPEC_TABLES and err["type"] == "value_error":
+        out = []
+        for part in err["msg"].removeprefix("Value error, ").split("; "):
+            where, sep, what = part.partition(": ")
+            out.append((f"{head}.{where}", what) if sep else (path, part))
+        return out
+    if err["type"] == "extra_forbidden":
+        from .fields import nearest_field
+        near = nearest_field(Scenario, path)
+        return [(path, _describe(err) + (f"; nearest field: {near}" if near else ""))]
+    return [(path, _describe(err))]
+
+
 def _describe(err: dict) -> str:
     msg = err["msg"]
     if err["type"] == "extra_forbidden":
@@ -103,14 +126,10 @@ def parse_scenario(doc: dict, source: str | Path = "<scenario>", **overrides: An
     except ValidationError as exc:
         problems, seen = [], set()
         for err in exc.errors():
-            item = (_field_path(err["loc"]), _describe(err))
-            if err["type"] == "extra_forbidden":
-                from .fields import nearest_field
-                near = nearest_field(Scenario, item[0])
-                item = (item[0], item[1] + (f"; nearest field: {near}" if near else ""))
-            if item not in seen:
-                seen.add(item)
-                problems.append(item)
+            for item in _problems(err):
+                if item not in seen:
+                    seen.add(item)
+                    problems.append(item)
         raise ScenarioError(source, problems) from None
     problems = cost_problems(sc) + kind_problems(sc) + id_clashes(sc)  # ids with the formation flows expanded
     if problems:

@@ -19,7 +19,6 @@ from .cooperation import CooperationSpec
 from .formation_parts import (GAIN_TABLES, SURFACE_NAMES, ControllerSpec, GainSpec,  # noqa: F401 (re-exported)
                               LeaderSpec, MemberSpec, VehicleOverrides, VehicleSpec)
 from .formation_spec import FormationFlowSpec, FormationSpec, FormationTemplate, formation_fits  # noqa: F401
-from .formation_parts import AccSpec, CaccPathSpec, CaccPloegSpec, SumoCaccSpec  # noqa: F401 (re-exported)
 from .maneuvers import ManeuverLimits, ManeuverSpec, SlotSpec  # noqa: F401 (re-exported)
 from .road_traffic import FlowSpec, RoadSpec, RouteEnds, RouteValue, TrafficSpec  # noqa: F401 (re-exported)
 

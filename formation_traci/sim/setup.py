@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..control.formation import LeaderState, rigid_targets
-from ..control.laws import SUMO_LAWS, sumo_law
+from ..control.laws import PLATOON_LAWS, SUMO_LAWS, sumo_law
 from ..control.schedule import FOLLOW_SHARE, GAIN_PRESETS, GainSchedule, law_peak
 from ..control.virtual_car import FreeLeader, Profile
 from ..models.linear import stable_blend_speed
@@ -144,10 +144,10 @@ LANE_TOLERANCE_M = 1.0
 
 
 def _law_params(ctl) -> dict:
-    """{law: {parameter: value}} of the platoon laws' scenario tables (controller.acc, ...) and
-    of the laws registered at run time (controller.<law>, validated by the law's SPEC)."""
-    return {**{name: getattr(ctl, name).model_dump() for name in ("acc", "cacc_path", "cacc_ploeg")},
-            **ctl.runtime_params}
+    """{law: {parameter: value}} of the platoon laws (their defaults where the scenario has no
+    controller.acc, ... table) and of the other laws the scenario gives a table."""
+    return {**{name: ctl.params(name).model_dump() for name in PLATOON_LAWS},
+            **{name: p for name, p in ctl.law_params.items() if name not in PLATOON_LAWS}}
 
 
 def _variant_params(vehicle) -> dict | None:

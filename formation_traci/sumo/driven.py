@@ -121,7 +121,7 @@ class SumoDrivenWorld(SumoWorld):
     def __init__(self, sc, plan, fleet: DrivenFleet, rec, out_dir: Path, meta: dict,
                  baseline: bool = False, step_hook=None):
         super().__init__(sc, plan, fleet, rec, out_dir, meta, baseline, step_hook)
-        spec = sc.controller.sumo_cacc
+        spec = sc.controller.params("sumo_cacc")
         self.moved = ~fleet.driven
         self.mtypes = [replace(mt, id=f"{mt.id}_cacc", base=CACC_BASE_TYPE, min_gap=spec.min_gap_m,
                                accel=spec.accel_mps2, decel=spec.decel_mps2,
@@ -136,7 +136,7 @@ class SumoDrivenWorld(SumoWorld):
     def start(self) -> None:
         self.sumo_dir.mkdir(exist_ok=True)
         path = self.sumo_dir / "sumo_cacc.add.xml"
-        write_cacc_type(path, self.sc.controller.sumo_cacc.vtype_attributes())
+        write_cacc_type(path, self.sc.controller.params("sumo_cacc").vtype_attributes())
         self.adds = [str(path)]
         super().start()
 

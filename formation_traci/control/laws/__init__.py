@@ -6,11 +6,12 @@ A law is a module with
 * ``pack(cfg) -> (n, len(PARAMS))``: those parameters from a sim/fleet.py FleetConfig (its
   ``law_params``: per member, {law name: {parameter: value}});
 * optionally ``SPEC``: a pydantic model of its parameters with their defaults, which the
-  scenario's ``[controller.<name>]`` table is validated against (a built-in law with
-  parameters has them, ``SPEC`` and ``DEFAULTS``, in a sibling module without kernels,
-  ``<law>_spec.py``, that the law's module imports and the scenario schema reads without
-  compiling or importing numba: control/laws/acc_spec.py, cacc_path_spec.py,
-  cacc_ploeg_spec.py; its table is a field of scenario/formation_parts.py ControllerSpec);
+  scenario's ``[controller.<name>]`` table is validated against (scenario/formation_parts.py
+  ControllerSpec ``params(name)``, the same for every law). A built-in law with parameters has
+  them, ``SPEC`` and ``DEFAULTS``, in a sibling module without kernels, ``<law>_spec.py``, that
+  the law's module imports and the scenario schema reads without compiling or importing numba
+  (control/laws/acc_spec.py, cacc_path_spec.py, cacc_ploeg_spec.py), named in its
+  :data:`BUILTIN` line;
 * ``input_at(fleet, state, i, target, v_cap_i, a_cap_i)``: a ``@kernel`` giving member i's
   model input for its desired point and the safety caps ``v_cap_i`` [m/s], ``a_cap_i``
   [m/s^2]. ``fleet`` (sim/fleet_records.py FleetParams) holds the members' parameters: the
@@ -41,19 +42,21 @@ from types import ModuleType
 DEFAULT_LAW = "virtual_structure"
 """The seed's law: the virtual structure, eqs 2.4-2.11, with the loops 3.32-3.38."""
 
-BUILTIN: dict[str, tuple[str, int]] = {
-    "virtual_structure": ("formation_traci.control.laws.virtual_structure", 0),
-    "acc": ("formation_traci.control.laws.acc", 1),
-    "cacc_path": ("formation_traci.control.laws.cacc_path", 2),
-    "cacc_ploeg": ("formation_traci.control.laws.cacc_ploeg", 3),
+_LAWS = "formation_traci.control.laws."
+BUILTIN: dict[str, tuple[str, int, str]] = {
+    "virtual_structure": (_LAWS + "virtual_structure", 0, ""),
+    "acc": (_LAWS + "acc", 1, _LAWS + "acc_spec"),
+    "cacc_path": (_LAWS + "cacc_path", 2, _LAWS + "cacc_path_spec"),
+    "cacc_ploeg": (_LAWS + "cacc_ploeg", 3, _LAWS + "cacc_ploeg_spec"),
 }
-"""Built-in laws: name -> (module, code of control/laws/dispatch.py)."""
+"""Built-in laws: name -> (module, code of control/laws/dispatch.py, the module without
+kernels holding its parameter ``SPEC``, "" for none)."""
 
 PLATOON_LAWS = ("acc", "cacc_path", "cacc_ploeg")
 """Built-in laws that follow the member ahead in a column (FleetConfig.pred)."""
 
 SUMO_LAWS: dict[str, str] = {
-    "sumo_cacc": "formation_traci.control.laws.sumo_cacc",
+    "sumo_cacc": _LAWS + "sumo_cacc",
 }
 """Laws SUMO's own car-following model runs (road runs only): name -> module, a light module
 without a kernel (control/laws/sumo_cacc.py): its parameter schema ``SPEC``, the members SUMO
@@ -80,8 +83,14 @@ def register_law(name: str, module: ModuleType) -> None:
 
 
 def law_spec(name: str):
-    """The parameter schema (a pydantic model with its defaults) of law ``name`` registered at
-    run time, read from the scenario's ``[controller.<name>]``; None when it has none."""
+    """The parameter schema (a pydantic model with its defaults) of law ``name``, built in, of
+    SUMO or registered at run time, read from the scenario's ``[controller.<name>]``; None when
+    it has none (or ``name`` is no law)."""
+    if name in BUILTIN:
+        spec_module = BUILTIN[name][2]
+        return importlib.import_module(spec_module).SPEC if spec_module else None
+    if name in SUMO_LAWS:
+        return importlib.import_module(SUMO_LAWS[name]).SPEC
     module = _RUNTIME.get(name)
     return getattr(module, "SPEC", None) if module is not None else None
 
