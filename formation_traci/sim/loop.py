@@ -57,7 +57,8 @@ class RunParts:
     formations: list[Formation]
     timing: dict | None = None  # run.json timing_s, or None: not timed
     road_load: object = None  # sim/road_load.py: (state, sensed, ref) -> (drag ratio, grade)
-    fused: object = None  # (parts, rec, sc) -> the run's compiled usual step or None (sumo/fused_path.py)
+    fused: object = None  # (parts, rec, sc, group) -> the run's compiled usual step or None
+    # (sumo/fused_path.py on a road, sim/free_path.py in free space)
 
 
 def one_formation(world, generator, fleet: Fleet, state: FleetState, transforms=(), **kw) -> RunParts:
@@ -89,8 +90,9 @@ def free_space_run(sc: Scenario, rec=None) -> RunParts:
         cfgs.append(cfg)
         at += cfg.n
     vehicles = [v for _, fsc in views for v in member_vehicles(fsc)]
+    from .free_path import free_path  # the usual step as one compiled call
     return RunParts(FreeSpace(at, rec), Fleet(join_configs(cfgs)), join_states(states), forms,
-                    road_load=road_load_part(sc, vehicles))
+                    road_load=road_load_part(sc, vehicles), fused=free_path)
 
 
 def _references(forms, world, k, t, sensed, fleet, state, rec):
