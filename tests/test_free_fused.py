@@ -132,13 +132,13 @@ def test_the_loop_runs_every_step_without_compiled_kernels_with_a_radio_or_switc
     rec = _Rec()
     parts = free_space_run(sc)
     monkeypatch.setattr(config, "DISABLE_JIT", True)
-    assert free_path.free_path(parts, rec, sc) is None
+    assert free_path.free_path(parts, rec, sc, None) is None
     monkeypatch.setattr(config, "DISABLE_JIT", False)
     monkeypatch.setenv(free_path.SWITCH, "off")
-    assert free_path.free_path(parts, rec, sc) is None
+    assert free_path.free_path(parts, rec, sc, None) is None
     monkeypatch.delenv(free_path.SWITCH)
     parts.formations[0].transforms.append(lambda ref: ref)
-    assert free_path.free_path(parts, rec, sc) is None
+    assert free_path.free_path(parts, rec, sc, None) is None
 
 
 class _Rec:

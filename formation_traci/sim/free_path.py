@@ -48,9 +48,10 @@ def switched_off() -> bool:
     return os.environ.get(SWITCH, "").lower() in ("0", "off", "no")
 
 
-def free_path(parts, rec, sc, group=None):
+def free_path(parts, rec, sc, check_finite):
     """The run's :class:`FreePath`, or None when the run is not one it serves (module
-    docstring); called by the loop once the run's parts are complete."""
+    docstring); called by the loop once the run's parts are complete (``check_finite``:
+    sim/loop.py's, raised at a step whose new state is not finite)."""
     from numba import config
 
     world, forms = parts.world, parts.formations
@@ -68,7 +69,7 @@ def free_path(parts, rec, sc, group=None):
         at = f.members.stop
     if at != parts.fleet.cfg.n:
         return None
-    return FreePath(parts, rec, sc)
+    return FreePath(parts, rec, sc, check_finite)
 
 
 class FreePath:
@@ -77,12 +78,14 @@ class FreePath:
     the step's events; before the loop hands the step on), :meth:`finish` (after it: the
     control periods' rows committed, the virtual cars moved on)."""
 
-    def __init__(self, parts, rec, sc):
+    def __init__(self, parts, rec, sc, check_finite):
         self.world, self.fleet, self.rec = parts.world, parts.fleet, rec
+        self.check_finite = check_finite
         self.gens = [f.generator for f in parts.formations]
         fl, g0 = parts.fleet, self.gens[0]
         self.n = n = fl.cfg.n
         self.n_ctrl = g0.n_ctrl
+        self.step_s = float(sc.run.step)
         self.n_steps = int(round(sc.run.duration / sc.run.step))
         self.ids = list(fl.cfg.ids)
         k = len(self.gens)
@@ -145,8 +148,7 @@ class FreePath:
         for f, g in enumerate(self.gens):  # FreeReference.commit
             g.pose = tuple(nxt[f].tolist())
         if self._flags & NOT_FINITE:
-            from .loop import check_finite
-            check_finite(state, self.ids, t_next)
+            self.check_finite(state, self.ids, t_next)
         clock.lap("control_model")
 
 

@@ -24,6 +24,7 @@ from ..scenario.formations import formation_views
 from ..scenario.schema import Scenario
 from .fleet import Fleet, FleetState
 from .formation_group import group_of
+from .free_path import free_path
 from .formation import (Formation, depart_due, join_configs, join_references, join_states,
                         formations_meta, merge_extra, retire_formation, virtual_car_id)
 from .road_load import road_load_part
@@ -90,9 +91,13 @@ def free_space_run(sc: Scenario, rec=None) -> RunParts:
         cfgs.append(cfg)
         at += cfg.n
     vehicles = [v for _, fsc in views for v in member_vehicles(fsc)]
-    from .free_path import free_path  # the usual step as one compiled call
     return RunParts(FreeSpace(at, rec), Fleet(join_configs(cfgs)), join_states(states), forms,
-                    road_load=road_load_part(sc, vehicles), fused=free_path)
+                    road_load=road_load_part(sc, vehicles), fused=_free_path)
+
+
+def _free_path(parts, rec, sc, group=None):
+    """The free-space run's usual step as one compiled call (sim/free_path.py), or None."""
+    return free_path(parts, rec, sc, check_finite)
 
 
 def _references(forms, world, k, t, sensed, fleet, state, rec):
