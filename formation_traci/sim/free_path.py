@@ -31,8 +31,8 @@ from ..models.params import N_PARAMS
 from ..record.columns import SIGNAL_COLUMNS
 from .fleet_records import FleetParams, StateRecord, as_f64, state_record
 from .fleet_state import FleetState
-from .free_step import (NOT_FINITE, OUT_OF_RANGE, SLOW, FreeAt, FreeOut, FreePlan, FreeRun,
-                        free_kernel, free_step)
+from .free_step import (NOT_FINITE, OUT_OF_RANGE, SLOW, FreeAt, FreeOut, FreePlan, free_kernel,
+                        free_run, free_step)
 from .incidents import IncidentArrays
 from .table_records import TableBuffers
 from .world import FreeSpace
@@ -101,7 +101,7 @@ class FreePath:
                            np.empty((self.n_ctrl, n, 8)), np.empty((k, 3)), np.empty((k, 3)),
                            np.empty((k, 8)))
         self._free = free_kernel(*fl.kernels)  # free_step, or its copy for a runtime law
-        self.run = FreeRun(fl.params(g0.dt_c), self.plan, rec.buffers, rec.incidents.arrays, self.out)
+        self.run = free_run(fl.params(g0.dt_c), self.plan, rec.buffers, rec.incidents.arrays, self.out)
         self._all_in = np.ones(n, dtype=np.bool_).tobytes()
         self._flags = 0
 
@@ -166,5 +166,5 @@ def warm_kernels() -> None:
     inc = IncidentArrays(zi, z, z, z, np.zeros((0, 0)), np.zeros(2))
     out = FreeOut(np.zeros((0, len(SIGNAL_COLUMNS))), np.zeros((0, 0, 3)), np.zeros((0, 0, 8)),
                   np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 8)))
-    free_step(FreeRun(fleet, plan, tables, inc, out),
+    free_step(free_run(fleet, plan, tables, inc, out),
               StateRecord(np.zeros((0, 1)), z, z, z), FreeAt(0.0, 0, 0))

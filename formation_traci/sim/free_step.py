@@ -18,12 +18,12 @@ names, the records' output arrays); the virtual cars' rows, the events and the c
 tables stay in Python (sim/free_path.py), which also decides which steps are usual. The
 results are those of the loop's step, bit for bit (tests/test_free_fused.py).
 
-The records (named tuples of arrays; n members, k formations, n_ctrl control periods):
+The records (named tuples of arrays, one structref of them; n members, k formations, n_ctrl control periods):
 
-run     :class:`FreeRun`, built once per run: ``fleet`` (sim/fleet_records.py FleetParams),
-        ``plan`` (:class:`FreePlan`), ``tables`` (sim/table_records.py TableBuffers,
-        sim/recorder.py Recorder.buffers), ``inc`` (sim/incidents.py IncidentArrays), ``out``
-        (:class:`FreeOut`);
+run     :class:`FreeRun` (a numba structref, made once per run by :func:`free_run`):
+        ``fleet`` (sim/fleet_records.py FleetParams), ``plan`` (:class:`FreePlan`), ``tables``
+        (sim/table_records.py TableBuffers, sim/recorder.py Recorder.buffers), ``inc``
+        (sim/incidents.py IncidentArrays), ``out`` (:class:`FreeOut`);
 state   sim/fleet_records.py StateRecord: the members' state at t;
 at      :class:`FreeAt`: t [s] and the step's first rows of the tables' buffers.
 """
@@ -33,6 +33,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from numba import types
+from numba.experimental import structref
 
 from ..control.reference_free import free_vc_rows
 from ..control.reference_records import StepReference
@@ -78,14 +80,30 @@ class FreeOut(NamedTuple):
     truth: np.ndarray  # (k, 8) the virtual cars' recorded rows (control/reference.py Reference.truth)
 
 
-class FreeRun(NamedTuple):
-    """The records that stay the same over a run."""
+@structref.register
+class FreeRunType(types.StructRef):
+    """numba's type of a :class:`FreeRun`."""
 
-    fleet: object  # sim/fleet_records.py FleetParams
-    plan: FreePlan
-    tables: object  # sim/table_records.py TableBuffers
-    inc: object  # sim/incidents.py IncidentArrays
-    out: FreeOut
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class FreeRun(structref.StructRefProxy):
+    """The records that stay the same over a run, in one object the compiled code holds by
+    reference (passed to a compiled call as one pointer: a named tuple is unpacked field by
+    field at every call). Fields: ``fleet`` (sim/fleet_records.py FleetParams), ``plan``
+    (:class:`FreePlan`), ``tables`` (sim/table_records.py TableBuffers), ``inc``
+    (sim/incidents.py IncidentArrays), ``out`` (:class:`FreeOut`). Made by :func:`free_run`."""
+
+
+structref.define_proxy(FreeRun, FreeRunType, ["fleet", "plan", "tables", "inc", "out"])
+
+
+@kernel
+def free_run(fleet, plan, tables, inc, out):
+    """The :class:`FreeRun` of these records (compiled and cached: no compilation at a run's
+    start)."""
+    return FreeRun(fleet, plan, tables, inc, out)
 
 
 class FreeAt(NamedTuple):
