@@ -13,7 +13,8 @@ recorder), so a run may take either path at any step and its files are the same
 
 Runs it serves: free space (sim/world.py FreeSpace) with one or several formations, each with
 a control/reference_free.py FreeReference from t = 0, no transforms (no radio), no maneuvers,
-no driving resistances, kernels compiled (with ``NUMBA_DISABLE_JIT`` the loop's path runs),
+no road load computed each step (resistances with the drag interaction: sim/road_load.py;
+resistances without it are served), kernels compiled (with ``NUMBA_DISABLE_JIT`` the loop's path runs),
 and ``FORMATION_TRACI_FUSED`` not ``off``. Any law and model variant: with one registered at
 run time the compiled step is a copy of free_step calling the fleet's own step and signal
 kernels (sim/free_step.py ``free_kernel``; compiled once per law and process, not cached on
