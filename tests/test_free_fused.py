@@ -72,6 +72,10 @@ CASES = {
         # the members' rows are flagged (model_range) and the steps after are the loop's
         THESIS / "case_2_3_3_varying.toml", {"run.duration": 30.0}, 22.5, None, {"model_range"}),
     "independent members": (THESIS / "dynamic_case3.toml", {"run.duration": 10.0}, None, None, set()),
+    "resistances without the drag interaction": (  # fixed road load: no per-step part
+        THESIS / "dynamic_case4_turning.toml",
+        {"run.duration": 10.0, "energy.resistances": True, "energy.drag_interaction": False},
+        None, None, set()),
     "two formations, a law registered at run time": (TWO, {}, None, 30, set()),
 }
 
