@@ -16,6 +16,7 @@ from formation_traci.control.laws import register_law
 from formation_traci.models.variants import register_model
 from formation_traci.runner import run_scenario
 from formation_traci.scenario import ScenarioError, load_scenario
+from formation_traci.sim import free_path
 from formation_traci.sim.fleet import Fleet
 from formation_traci.sumo import fused_path
 
@@ -52,9 +53,10 @@ TOY = f'variant = "{toy_slot.NAME}"\n'
 
 def _run(tmp_path, monkeypatch, text, out, **fill):
     """The run's members' rows, the members' state after each step (t [s] -> state rows),
-    through the loop's step and the compiled one, and the steps the compiled one took."""
+    through the loop's step and the compiled ones (road, free space), and the steps the
+    compiled ones took."""
     states, taken = {}, []
-    step, fused = Fleet.step, fused_path.FusedPath.step
+    step, fused, free = Fleet.step, fused_path.FusedPath.step, free_path.FreePath.step
 
     def loop_step(self, state, ref, *a, **kw):
         new = step(self, state, ref, *a, **kw)
@@ -67,8 +69,15 @@ def _run(tmp_path, monkeypatch, text, out, **fill):
         states[round(t + self.step_s, 9)] = new.x.copy()
         return new
 
+    def free_step(self, k, t, *a):
+        new = free(self, k, t, *a)
+        taken.append(k)
+        states[round(t + self.step_s, 9)] = new.x.copy()
+        return new
+
     monkeypatch.setattr(Fleet, "step", loop_step)
     monkeypatch.setattr(fused_path.FusedPath, "step", fused_step)
+    monkeypatch.setattr(free_path.FreePath, "step", free_step)
     p = tmp_path / f"{out}.toml"
     p.write_text(text.format(**fill))
     res = run_scenario(load_scenario(p), tmp_path / out, scenario_path=p, progress=False)

@@ -24,6 +24,7 @@ from ..scenario.formations import formation_views
 from ..scenario.schema import Scenario
 from .fleet import Fleet, FleetState
 from .formation_group import group_of
+from .free_path import free_path
 from .formation import (Formation, depart_due, join_configs, join_references, join_states,
                         formations_meta, merge_extra, retire_formation, virtual_car_id)
 from .road_load import road_load_part
@@ -57,7 +58,8 @@ class RunParts:
     formations: list[Formation]
     timing: dict | None = None  # run.json timing_s, or None: not timed
     road_load: object = None  # sim/road_load.py: (state, sensed, ref) -> (drag ratio, grade)
-    fused: object = None  # (parts, rec, sc) -> the run's compiled usual step or None (sumo/fused_path.py)
+    fused: object = None  # (parts, rec, sc, group) -> the run's compiled usual step or None
+    # (sumo/fused_path.py on a road, sim/free_path.py in free space)
 
 
 def one_formation(world, generator, fleet: Fleet, state: FleetState, transforms=(), **kw) -> RunParts:
@@ -90,7 +92,12 @@ def free_space_run(sc: Scenario, rec=None) -> RunParts:
         at += cfg.n
     vehicles = [v for _, fsc in views for v in member_vehicles(fsc)]
     return RunParts(FreeSpace(at, rec), Fleet(join_configs(cfgs)), join_states(states), forms,
-                    road_load=road_load_part(sc, vehicles))
+                    road_load=road_load_part(sc, vehicles), fused=_free_path)
+
+
+def _free_path(parts, rec, sc, group=None):
+    """The free-space run's usual step as one compiled call (sim/free_path.py), or None."""
+    return free_path(parts, rec, sc, check_finite)
 
 
 def _references(forms, world, k, t, sensed, fleet, state, rec):
