@@ -139,7 +139,10 @@ def test_the_formation_yields_to_the_ramp_vehicle_in_conflict_and_passes_the_joi
     assert not (ev.kind == "maneuver_start").any()
 
 
-def test_a_column_that_finds_no_ramp_vehicle_in_conflict_passes_the_join_clean_with_shift(tmp_path_factory):
+def test_a_column_with_shift_never_shifts_at_this_join_and_passes_it_clean(tmp_path_factory):
+    """Seed 2: the ramp vehicle in conflict with the column is yielded to as with open_gap."""
     res, meta, ev = _run(tmp_path_factory, "column", "shift", 2)
     _assert_clean(res, meta, "shift")
-    assert not ev.kind.isin(["merge_yield_start", "maneuver_start"]).any()
+    assert not (ev.kind == "maneuver_start").any()
+    starts = ev[ev.kind == "merge_yield_start"]
+    assert all(d.startswith("no shift (") for d in starts.detail), starts.detail.tolist()
