@@ -1,6 +1,6 @@
 """A ramp car that merges ahead of the formation and then brakes (the bundled on-ramp
 network, three abreast, 1,200 veh/h/lane, 600 veh/h on the ramp, seed 1: the merge study's
-case): ``ramp.28`` moves into the right member's lane at 38.45 s, 33 m ahead at nearly the
+case, its first 42 s): ``ramp.28`` moves into the right member's lane at 38.45 s, 33 m ahead at nearly the
 member's speed (24.8 against 25.0 m/s), and brakes at 4.5 m/s^2 for half a second.
 
 Before, with ``open_gap``, the right member went into an emergency brake at 38.20 s (its speed
@@ -26,10 +26,10 @@ def run(tmp_path_factory):
     from pathlib import Path
 
     src = (Path(__file__).resolve().parents[1] / ROOT_SCENARIO).read_text()
-    text = (src.replace("duration = 90.0", "duration = 60.0")
+    text = (src.replace("duration = 90.0", "duration = 42.0")  # the cut-in and its brakes by 40 s
                .replace("veh_per_hour = 700", "veh_per_hour = 600")
             + '\n[cooperation]\nmerge = "open_gap"\n')
-    assert "duration = 60.0" in text and "veh_per_hour = 600" in text
+    assert "duration = 42.0" in text and "veh_per_hour = 600" in text
     d = tmp_path_factory.mktemp("cutin")
     p = d / "s.toml"
     p.write_text(text)
