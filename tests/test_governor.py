@@ -106,6 +106,35 @@ def test_a_faster_car_cutting_in_close_asks_only_comfortable_braking():
         max(20.0 + (3.0 - g0 - T * 20.0) / T, 0.0))
 
 
+def test_a_cut_in_a_little_slower_than_the_member_asks_only_comfortable_braking():
+    """The bundled on-ramp, 600 veh/h, seed 1: a ramp car merges 33 m ahead of a member at
+    25.0 m/s, at 24.8 m/s. Matching its speed within the free gap needs
+    b = (25.0^2 - 24.8^2) / (2 (33 - 2)) = 0.16 m/s^2, yet the speed cap
+    24.8 + (33 - 2 - 1.5 * 24.8) / 1.5 = 20.67 m/s, folded into the request as
+    (cap - v) / 1 s, asked -4.3 m/s^2: an emergency brake (below -3 m/s^2) for a car at
+    nearly the member's own speed. The cap is now not below the leader's speed and the law not
+    below -B_COMFORT, as for a faster car; a leader that needs more than B_COMFORT to match
+    keeps the full cap and law."""
+    T, g0, v, v_lead, gap = 1.5, 2.0, 25.0, 24.8, 33.0
+    b = (v * v - v_lead * v_lead) / (2 * (gap - g0))
+    assert b < B_COMFORT
+    old_cap = v_lead + (gap - g0 - T * v_lead) / T
+    assert (old_cap - v) / 1.0 < -3.0  # what the old cap asked
+    cap = member_speed_cap(np.array([gap]), np.array([v_lead]), T, g0, np.array([v]))[0]
+    assert cap == pytest.approx(v_lead)
+    law = K_GAP * (gap - g0 - T * v) + K_REL * (v_lead - v)
+    assert time_gap_accel(np.array([gap]), np.array([v]), np.array([v_lead]), T, g0)[0] == pytest.approx(
+        max(law, -B_COMFORT))
+    # 2.4 m/s slower at 30 m: matching needs (625 - 510.76) / 56 = 2.04 m/s^2 > B_COMFORT
+    slow, near = 22.6, 30.0
+    b = (v * v - slow * slow) / (2 * (near - g0))
+    assert b > B_COMFORT
+    assert member_speed_cap(np.array([near]), np.array([slow]), T, g0, np.array([v]))[0] == pytest.approx(
+        slow + (near - g0 - T * slow) / T)
+    assert time_gap_accel(np.array([near]), np.array([v]), np.array([slow]), T, g0)[0] == pytest.approx(
+        min(K_GAP * (near - g0 - T * v) + K_REL * (slow - v), -b))
+
+
 def test_leader_accel_free_road_law_limits_and_no_reversing():
     assert leader_accel(25.0, 30.0, 0.0, np.array([np.inf]), 2.0, 8.0) == pytest.approx(min(K_SPEED * 5.0, 2.0))
     assert leader_accel(25.0, 30.0, 0.0, np.array([-3.0, 1.0]), 2.0, 8.0) == pytest.approx(-3.0)

@@ -107,3 +107,26 @@ def test_the_cap_is_the_most_demanding_of_several_ramp_vehicles():
     d, cap = _decide(ramp, lane)
     one = [_decide(_ramp(dist=x, v=27.0), lane)[1] for x in (30.0, 40.0)]
     assert list(d) == [YIELD, YIELD] and cap == min(one) and one[0] != one[1]
+
+
+def test_with_the_formations_time_gap_the_yield_opens_that_gap_at_the_merge_point():
+    """A ramp vehicle that merges ahead is then the formation's leader: the gap opened for it is
+    min_gap + max(tau_r, the formation's time gap) v_F, so that the formation follows it at its
+    own time gap (1.5 s) rather than the ramp driver's (1 s), from which the merged vehicle's
+    braking was an emergency for the member behind it (bundled on-ramp, 600 veh/h, seed 1)."""
+    p = merge_params(CooperationSpec(), 1.5)
+    v_f, v_r = 28.0, 27.0
+    lane = MergeLane(s_front=1450.0, v_front=v_f, s_rear=1390.0)
+    ramp = _ramp(dist=20.0, v=v_r)  # mapped front bumper at 1480 m
+    out = np.empty(1, dtype=np.int64)
+    cap = yield_to_ramp(SITE, ramp, lane, p, out)
+    t = (1650.0 - 1480.0) / v_r
+    gap = (1480.0 - 4.5 + v_r * t) - (1450.0 + v_f * t + 0.5 * cap * t * t)
+    assert out[0] == YIELD and gap == pytest.approx(P.min_gap_m + 1.5 * v_f, abs=1e-9)
+    # a ramp driver keeping a longer gap than the formation keeps its own
+    out2 = np.empty(1, dtype=np.int64)
+    cap2 = yield_to_ramp(SITE, _ramp(dist=0.0, v=v_r, tau=2.0), lane, p, out2)  # at 1500 m
+    t = (1650.0 - 1500.0) / v_r
+    gap2 = (1500.0 - 4.5 + v_r * t) - (1450.0 + v_f * t + 0.5 * cap2 * t * t)
+    assert out2[0] == YIELD
+    assert gap2 == pytest.approx(P.min_gap_m + 2.0 * v_f, abs=1e-9)

@@ -29,6 +29,7 @@ def test_the_bundled_onramp_has_one_acceleration_lane_beside_the_right_lane():
     ramp = net.getLane("ramp_0").getLength()  # 400 m drawn from x = 1100 m, 25.5 m to the side
     assert feeders["ramp_0"] == pytest.approx(ramp + feeders[next(k for k in feeders if k.startswith(":"))])
     assert 400.0 < feeders["ramp_0"] < 410.0
+    assert not join.left_merges  # mw_accel_2 runs on into mw_down as a lane of its own
 
 
 def test_lust_on_ramp_joins_beside_the_mainlines_right_lane():
@@ -41,6 +42,7 @@ def test_lust_on_ramp_joins_beside_the_mainlines_right_lane():
     assert join.merge_lane == "-31622#4-AddedOnRampEdge_1"
     assert join.length_m == pytest.approx(95.07, abs=0.01)
     assert "-30426_0" in dict(join.feeders)
+    assert join.left_merges  # lanes 1 and 2 both run into -31622#4_1: a shift left gains nothing
 
 
 @pytest.mark.parametrize("name, route", [("straight3", None), ("offramp", None), ("lanedrop", None)])

@@ -90,16 +90,23 @@ def time_gap_accel(gap, v, v_lead, time_gap, min_gap):
 
 
 @kernel(error_model="python")
+def _need(gap, v, v_lead, min_gap):
+    """The constant deceleration [m/s^2] that matches the leader's speed within the free gap
+    gap - min_gap [m] (at most 0 behind a leader at least as fast)."""
+    return (v * v - v_lead * v_lead) / (2.0 * max(gap - min_gap, 0.1))
+
+
+@kernel(error_model="python")
 def _closing_bound(law, gap, v, v_lead, min_gap):
     """The bounds of :func:`time_gap_accel` on a gap law's acceleration ``law`` [m/s^2]: at
-    most -b_need when matching a slower leader's speed within gap - min_gap needs more than
-    B_COMFORT; at least -B_COMFORT behind a leader at least as fast."""
-    if v_lead >= v:  # the gap opens by itself: never more than comfortable braking
-        return max(law, -B_COMFORT)
-    b_need = (v * v - v_lead * v_lead) / (2.0 * max(gap - min_gap, 0.1))
+    most -b_need when matching the leader's speed within gap - min_gap needs more than
+    B_COMFORT; otherwise (a leader at least as fast, or one so little slower that comfortable
+    braking matches its speed in time: a cut-in at nearly the member's speed) at least
+    -B_COMFORT, the gap error removed comfortably."""
+    b_need = _need(gap, v, v_lead, min_gap)
     if b_need > B_COMFORT:
-        law = min(law, -b_need)
-    return law
+        return min(law, -b_need)
+    return max(law, -B_COMFORT)
 
 
 @kernel(error_model="python")
@@ -161,11 +168,13 @@ def member_speed_cap(gap, v_lead, time_gap, min_gap, v):
     [m] ahead.
 
     The member may close in on the vehicle until the gap is min_gap + time_gap v_lead, with
-    the gap error removed over ``time_gap``; inf where nobody is ahead. A vehicle at least as
-    fast as the member (the gap opens by itself) never caps below the member's own speed: a
-    close cut-in by a faster car would otherwise ask a near stop (cap ~0 for a zero gap),
-    which the jerk-limited planner turns into braking at the friction limit; its acceleration
-    cap (:func:`time_gap_accel`) opens the gap comfortably instead.
+    the gap error removed over ``time_gap``; inf where nobody is ahead. A vehicle whose speed
+    comfortable braking matches in time (at least as fast as the member, or a little slower:
+    :func:`_cap_floor`) never caps below min(v, v_lead): a close cut-in by a faster car would
+    otherwise ask a near stop (cap ~0 for a zero gap), which the jerk-limited planner turns
+    into braking at the friction limit, and one 33 m ahead at 0.2 m/s less than the member
+    asks 4.3 m/s^2 (an emergency brake); its acceleration cap (:func:`time_gap_accel`) opens
+    the gap comfortably instead.
     """
     gap, v_lead, v = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (gap, v_lead, v)))
     out = np.empty(gap.shape)
@@ -179,8 +188,17 @@ def _speed_cap(gap, v_lead, time_gap, min_gap, v):
     if not np.isfinite(gap):
         return np.inf
     cap = max(v_lead + (gap - min_gap - time_gap * v_lead) / time_gap, 0.0)
-    if v_lead >= v:
-        cap = max(cap, v)
+    return _cap_floor(cap, gap, v, v_lead, min_gap)
+
+
+@kernel(error_model="python")
+def _cap_floor(cap, gap, v, v_lead, min_gap):
+    """A speed cap [m/s] never below min(v, v_lead) when matching the leader's speed needs at
+    most B_COMFORT of braking (:func:`_closing_bound`): such a vehicle, faster or a little
+    slower, asks no more than comfortable braking of the acceleration cap, and the speed cap
+    must not ask more (folded into the request as (cap - v) / tau_speed_cap it would)."""
+    if _need(gap, v, v_lead, min_gap) <= B_COMFORT:
+        return max(cap, min(v, v_lead))
     return cap
 
 
@@ -207,12 +225,10 @@ def mate_caps(gap, v_lead, v, spacing, time_gap, min_gap, decel_emergency):
     formation's ``spacing`` [m] (the bumper gap of their slots), not at the traffic's
     min_gap + time_gap v (a released member 15 m ahead in a 20 m column is no
     emergency). Speed cap v_lead + (gap - spacing) / time_gap (the gap error removed over
-    ``time_gap``; never below ``v`` behind a faster mate), acceleration cap
+    ``time_gap``; :func:`_cap_floor` as for traffic), acceleration cap
     K_GAP (gap - spacing) + K_REL (v_lead - v) with the bounds of :func:`time_gap_accel`, not
     below -decel_emergency."""
-    cap = max(v_lead + (gap - spacing) / time_gap, 0.0)
-    if v_lead >= v:
-        cap = max(cap, v)
+    cap = _cap_floor(max(v_lead + (gap - spacing) / time_gap, 0.0), gap, v, v_lead, min_gap)
     law = _closing_bound(K_GAP * (gap - spacing) + K_REL * (v_lead - v), gap, v, v_lead, min_gap)
     return cap, max(law, -decel_emergency)
 

@@ -14,8 +14,10 @@ rear-most rear bumper at ``s_R``. The ramp vehicle of length ``L_r`` and time ga
 
 * **clear behind** when its front trails ``s_R`` by at least ``g_R = min_gap + tau_r v_r`` (its
   own safe time gap): nothing to do;
-* **clear ahead** when its rear leads ``s_F`` by at least ``g_F = min_gap + tau_r v_F``: the
-  front member follows it as it follows a leader in its lane (the governor's time-gap law,
+* **clear ahead** when its rear leads ``s_F`` by at least ``g_F = min_gap + max(tau_r, tau_F) v_F``
+  (``tau_F``: the formation's own time gap, ``follow_gap_s``, so that once it has merged the
+  formation follows it at its usual gap, not at the ramp driver's shorter one, from which a
+  brake of the merged vehicle is an emergency for the member behind it): the front member follows it as it follows a leader in its lane (the governor's time-gap law,
   ``K_GAP (lead - g_F) + K_REL (v_r - v_F)``, not below ``-a_comfort``), so the gap stays open
   until it has merged; a yield to it goes on;
 * otherwise **in conflict**. The formation opens the gap ahead of its front member when a
@@ -60,12 +62,14 @@ class MergeParams(NamedTuple):
     min_gap_m: float  # standstill gap added to the ramp vehicle's time gap [m]
     merge_at: float  # where along the acceleration lane ramp vehicles merge [-], 0..1
     min_time_s: float = 1.0  # the shortest time to the merge the deceleration is spread over [s]
+    follow_gap_s: float = 0.0  # the formation's own time gap behind a vehicle ahead [s]
 
 
-def merge_params(spec) -> MergeParams:
-    """The law's parameters from the scenario's ``[cooperation]`` (scenario/cooperation.py)."""
+def merge_params(spec, follow_gap_s: float = 0.0) -> MergeParams:
+    """The law's parameters from the scenario's ``[cooperation]`` (scenario/cooperation.py) and
+    the formation's time gap [s] (``[leader] time_gap``)."""
     return MergeParams(float(spec.horizon_s), float(spec.decel_mps2), float(spec.min_gap_m),
-                       float(spec.merge_at))
+                       float(spec.merge_at), follow_gap_s=float(follow_gap_s))
 
 
 class MergeSite(NamedTuple):
@@ -108,7 +112,7 @@ def yield_to_ramp(site, ramp, lane, p, decision):
         if t > p.horizon_s:
             continue
         decision[j] = CLEAR
-        g_front = p.min_gap_m + ramp.tau[j] * lane.v_front
+        g_front = p.min_gap_m + max(ramp.tau[j], p.follow_gap_s) * lane.v_front
         g_rear = p.min_gap_m + ramp.tau[j] * ramp.v[j]
         lead = s_r - ramp.length[j] - lane.s_front
         if s_r <= lane.s_rear - g_rear:

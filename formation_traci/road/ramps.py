@@ -41,6 +41,8 @@ class RampJoin:
     merge_width_m: float  # its width [m]
     length_m: float  # the acceleration lane's length, over several edges if it spans them [m]
     feeders: tuple[tuple[str, float], ...]  # (lane id, its start's distance to the join [m])
+    left_merges: bool = False  # the through lane left of the merge lane runs into a lane it also
+    # runs into (SUMO's connections): the two merge at the join's end, a shift left gains nothing
 
 
 def _origin(lane) -> str:
@@ -98,6 +100,18 @@ def _accel_length(net, edges: Sequence[str], k: int, lane) -> float:
     return total
 
 
+def _left_merges(merge, through: list, nxt) -> bool:
+    """Do the merge lane and the through lane left of it run into one lane of the next route
+    edge ``nxt`` (SUMO's connections; LuST's on-ramps: the acceleration lane runs on and the two
+    lanes beside it become one)?"""
+    left = {t.getIndex(): t for t in through}.get(merge.getIndex() + 1)
+    if left is None or nxt is None:
+        return False
+    into = [{c.getToLane().getID() for c in ln.getOutgoing() if c.getToLane().getEdge() is nxt}
+            for ln in (merge, left)]
+    return bool(into[0] & into[1])
+
+
 def _merge_lane(lane, through: list):
     """The through lane beside ``lane`` on the road's side (the next index up, else down)."""
     by_index = {t.getIndex(): t for t in through}
@@ -130,5 +144,6 @@ def ramp_joins(net, edges: Sequence[str], horizon_m: float = HORIZON_M) -> list[
                 if merge is not None:
                     out.append(RampJoin(k, lane.getID(), merge.getID(), merge.getIndex(), merge.getWidth(),
                                         _accel_length(net, edges, k, lane),
-                                        _feeders(lane, route, horizon_m)))
+                                        _feeders(lane, route, horizon_m),
+                                        _left_merges(merge, through, nxt)))
     return out

@@ -73,7 +73,7 @@ def merge_watch(sc: Scenario, plan: RoadPlan, parts, world: SumoWorld, shifts):
     groups = [(DEFAULT_FORMATION_ID if setup is None else setup.id,
                virtual_car_id(DEFAULT_FORMATION_ID if setup is None else setup.id, len(parts)),
                np.arange(rows.start, rows.stop)) for setup, _, rows in parts]
-    return MergeWatch(merge_sites(plan.road), sc.cooperation.merge, merge_params(sc.cooperation),
+    return MergeWatch(merge_sites(plan.road), sc.cooperation.merge, merge_params(sc.cooperation, sc.leader.time_gap),
                       world, groups, float(sc.run.step), shifts)
 
 

@@ -13,7 +13,10 @@ at the step's plan, after this step's cap, so on that first step of a conflict t
 neither yields nor records a yield. While its shift is under way it does not yield (yields
 under way end: "the formation shifts away"); when the attempt was refused it yields as
 ``open_gap`` does (the refusal's reason in merge_yield_start's detail) and asks again every step
-of the conflict.
+of the conflict. At a join where the lane left of the merge lane runs into the same lane as the
+merge lane (road/ramps.py ``left_merges``: LuST's on-ramps) a shift would move the formation
+into a lane that merges with the merge lane: there ``shift`` yields as ``open_gap`` from the
+first step (merge_yield_start's detail says why).
 """
 from __future__ import annotations
 
@@ -29,6 +32,10 @@ V_WATCH = 40.0
 watch it [m/s] (above motorway speeds: a join is watched early rather than late)."""
 STOOD_MPS = 1.0
 """A ramp vehicle below this speed waits [m/s]."""
+NO_SHIFT = object()
+"""``shift`` at a join whose lane left of the merge lane merges with it (road/ramps.py
+RampJoin.left_merges): the formation yields as ``open_gap``."""
+NO_SHIFT_WHY = "the lane to the left merges with the merge lane at the join's end"
 
 
 @dataclass(frozen=True)
@@ -40,6 +47,7 @@ class Site:
     half_lane: float  # half the merge lane's width [m]
     lanes: dict  # the ramp's lanes and the acceleration lane -> distance from start to the join [m]
     added: str  # the acceleration lane ("" for a direct join)
+    left_merges: bool = False  # the lane left of the merge lane merges with it at the join's end
 
 
 def merge_sites(road) -> list[Site]:
@@ -52,7 +60,7 @@ def merge_sites(road) -> list[Site]:
         if j.added_lane:
             lanes[j.added_lane] = 0.0
         out.append(Site(MergeSite(s0[edge], j.length_m), float(road.lane_d[edge][j.merge_index]),
-                        j.merge_width_m / 2.0, lanes, j.added_lane))
+                        j.merge_width_m / 2.0, lanes, j.added_lane, j.left_merges))
     return out
 
 
@@ -148,7 +156,8 @@ class MergeWatch:
             self._decision = np.empty(len(ids), dtype=np.int64)
         decision = self._decision[:len(ids)]
         cap = yield_to_ramp(site.merge, ramp, lane, self.p, decision)
-        yields, why = self._yields(t, w, vc_id, self.shifts[f], decision, ids)
+        yields, why = self._yields(t, w, vc_id, self.shifts[f] if not site.left_merges else NO_SHIFT,
+                                   decision, ids)
         for j, vid in enumerate(ids):
             self._observe(w, vid, lanes[j], rows[:, j], decision[j], site)
             if yields:
@@ -161,6 +170,8 @@ class MergeWatch:
         prefix of merge_yield_start's detail; in shift mode, asks for the shift (module docstring)."""
         if self.mode != "shift" or shift is None:  # (a formation without a generator that shifts: yields)
             return self.mode != "none", ""
+        if shift is NO_SHIFT:
+            return True, f"no shift ({NO_SHIFT_WHY}); "
         if shift.shifting:
             for vid in sorted(w.yielding):
                 self._end(t, w, vc_id, vid, "the formation shifts away")
