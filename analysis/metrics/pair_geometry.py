@@ -5,10 +5,12 @@ width [m]). Part of the traffic interaction measures (:mod:`analysis.metrics.tra
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-__all__ = ["TTC2D_THRESHOLD_S", "TTC2D_HORIZON_S", "same_time_pairs", "clearance", "ttc_2d",
-           "pair_measures"]
+__all__ = ["TTC2D_THRESHOLD_S", "TTC2D_HORIZON_S", "Moving", "same_time_pairs", "clearance",
+           "ttc_2d", "pair_measures"]
 
 TTC2D_THRESHOLD_S = 3.0
 """2-D time to collision below which an encounter is a conflict [s]; the TTC threshold of
@@ -16,6 +18,19 @@ SUMO's SSM device used by the runs (``--device.ssm.thresholds``)."""
 
 TTC2D_HORIZON_S = 10.0
 """Constant-velocity extrapolation horizon of the 2-D time to collision [s]."""
+
+
+class Moving(NamedTuple):
+    """Oriented rectangles moving at constant velocity (each field array_like, broadcast
+    together)."""
+
+    x: object  # centre x [m]
+    y: object  # centre y [m]
+    heading: object  # [rad, CCW from +x]
+    length: object  # [m]
+    width: object  # [m]
+    vx: object  # velocity x [m/s]
+    vy: object  # velocity y [m/s]
 
 
 def same_time_pairs(key_a, key_b) -> tuple[np.ndarray, np.ndarray]:
@@ -174,8 +189,7 @@ def clearance(xa, ya, ha, la, wa, xb, yb, hb, lb, wb) -> np.ndarray:
     return _Frames(xa, ya, ha, la, wa, xb, yb, hb, lb, wb).clearance()
 
 
-def ttc_2d(xa, ya, ha, la, wa, vxa, vya, xb, yb, hb, lb, wb, vxb, vyb,
-           horizon: float = TTC2D_HORIZON_S) -> np.ndarray:
+def ttc_2d(a: Moving, b: Moving, horizon: float = TTC2D_HORIZON_S) -> np.ndarray:
     """2-D time to collision of two rectangles moving at constant velocity.
 
     Both outlines keep their heading and translate with their current velocity; the
@@ -185,34 +199,10 @@ def ttc_2d(xa, ya, ha, la, wa, vxa, vya, xb, yb, hb, lb, wb, vxb, vyb,
 
     Parameters
     ----------
-    xa : array_like
-        Centre x of rectangle A [m].
-    ya : array_like
-        Centre y of A [m].
-    ha : array_like
-        Heading of A [rad].
-    la : array_like
-        Length of A [m].
-    wa : array_like
-        Width of A [m].
-    vxa : array_like
-        Velocity x of A [m/s].
-    vya : array_like
-        Velocity y of A [m/s].
-    xb : array_like
-        Centre x of rectangle B [m].
-    yb : array_like
-        Centre y of B [m].
-    hb : array_like
-        Heading of B [rad].
-    lb : array_like
-        Length of B [m].
-    wb : array_like
-        Width of B [m].
-    vxb : array_like
-        Velocity x of B [m/s].
-    vyb : array_like
-        Velocity y of B [m/s].
+    a : Moving
+        Rectangle A (centre [m], heading [rad], length and width [m], velocity [m/s]).
+    b : Moving
+        Rectangle B.
     horizon : float
         Longest time looked ahead [s].
 
@@ -224,46 +214,22 @@ def ttc_2d(xa, ya, ha, la, wa, vxa, vya, xb, yb, hb, lb, wb, vxb, vyb,
 
     Examples
     --------
-    >>> float(ttc_2d(0, 0, 0, 4, 2, 30, 0, 24, 0, 0, 4, 2, 25, 0)[0])  # 20 m at 5 m/s
+    >>> float(ttc_2d(Moving(0, 0, 0, 4, 2, 30, 0), Moving(24, 0, 0, 4, 2, 25, 0))[0])  # 20 m at 5 m/s
     4.0
     """
-    return _Frames(xa, ya, ha, la, wa, xb, yb, hb, lb, wb).ttc(vxa, vya, vxb, vyb, horizon)
+    return _frames(a, b).ttc(a.vx, a.vy, b.vx, b.vy, horizon)
 
 
-def pair_measures(xa, ya, ha, la, wa, vxa, vya, xb, yb, hb, lb, wb, vxb, vyb,
+def pair_measures(a: Moving, b: Moving,
                   horizon: float = TTC2D_HORIZON_S) -> tuple[np.ndarray, np.ndarray]:
     """:func:`clearance` and :func:`ttc_2d` of the same pairs, sharing the geometry.
 
     Parameters
     ----------
-    xa : array_like
-        Centre x of rectangle A [m].
-    ya : array_like
-        Centre y of A [m].
-    ha : array_like
-        Heading of A [rad].
-    la : array_like
-        Length of A [m].
-    wa : array_like
-        Width of A [m].
-    vxa : array_like
-        Velocity x of A [m/s].
-    vya : array_like
-        Velocity y of A [m/s].
-    xb : array_like
-        Centre x of rectangle B [m].
-    yb : array_like
-        Centre y of B [m].
-    hb : array_like
-        Heading of B [rad].
-    lb : array_like
-        Length of B [m].
-    wb : array_like
-        Width of B [m].
-    vxb : array_like
-        Velocity x of B [m/s].
-    vyb : array_like
-        Velocity y of B [m/s].
+    a : Moving
+        Rectangle A.
+    b : Moving
+        Rectangle B.
     horizon : float
         Longest time looked ahead [s].
 
@@ -273,7 +239,11 @@ def pair_measures(xa, ya, ha, la, wa, vxa, vya, xb, yb, hb, lb, wb, vxb, vyb,
         Clearance [m] and 2-D time to collision [s] (``inf``: no contact within
         ``horizon``), shape of the broadcast inputs (at least 1-D).
     """
-    f = _Frames(xa, ya, ha, la, wa, xb, yb, hb, lb, wb)
-    return f.clearance(), f.ttc(vxa, vya, vxb, vyb, horizon)
+    f = _frames(a, b)
+    return f.clearance(), f.ttc(a.vx, a.vy, b.vx, b.vy, horizon)
+
+
+def _frames(a: Moving, b: Moving) -> "_Frames":
+    return _Frames(a.x, a.y, a.heading, a.length, a.width, b.x, b.y, b.heading, b.length, b.width)
 
 

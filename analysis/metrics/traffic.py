@@ -23,7 +23,7 @@ import numpy as np
 from analysis.metrics.footprint import (MEMBER_FOOTPRINTS, Footprint, body_centre, member_footprint,
                                         member_footprints, rectangle_corners)
 from analysis.metrics.pair_geometry import (TTC2D_HORIZON_S, TTC2D_THRESHOLD_S, clearance,
-                                            pair_measures, same_time_pairs, ttc_2d)
+                                            Moving, pair_measures, same_time_pairs, ttc_2d)
 from analysis.metrics.ssm import (SSM_DRAC_HIGH_MPS2, SSM_GROUP_COLUMNS, SSM_TTC_CRITICAL_S,
                                   SSM_TTC_WARNING_S, event_counts, merge_ssm_duplicates,
                                   ssm_summary)
@@ -50,6 +50,7 @@ __all__ = [
     "rectangle_corners",
     "same_time_pairs",
     "clearance",
+    "Moving",
     "ttc_2d",
     "pair_measures",
     "lateral_gap",

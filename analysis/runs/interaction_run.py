@@ -159,11 +159,9 @@ def _interaction(M: pd.DataFrame, P: pd.DataFrame, st: AnalysisSettings,
     B = {c: P[c].to_numpy(float) for c in (*cols, "vx", "vy")}
     for k0 in range(0, ia.size, PAIR_CHUNK):
         a, b = ia[k0:k0 + PAIR_CHUNK], ib[k0:k0 + PAIR_CHUNK]
-        ga = [A[c][a] for c in cols]
-        gb = [B[c][b] for c in cols]
-        clr[k0:k0 + a.size], ttc[k0:k0 + a.size] = tr.pair_measures(
-            *ga, A["vx"][a], A["vy"][a], *gb, B["vx"][b], B["vy"][b],
-            horizon=st.ttc2d_horizon_s)
+        ma = tr.Moving(*(A[c][a] for c in (*cols, "vx", "vy")))
+        mb = tr.Moving(*(B[c][b] for c in (*cols, "vx", "vy")))
+        clr[k0:k0 + a.size], ttc[k0:k0 + a.size] = tr.pair_measures(ma, mb, horizon=st.ttc2d_horizon_s)
     p_member = P["is_member"].to_numpy(bool)[ib]
     per: dict[str, np.ndarray] = {
         "clearance_m": _reduce_min(ia, clr, n),

@@ -102,13 +102,12 @@ def test_clearance_matches_brute_force_on_random_pairs():
 def test_ttc2d_rear_end_is_gap_over_closing_speed():
     # follower A at 30 m/s, leader B 30 m ahead (centres) at 25 m/s; cars 4.6 / 4.5 m long
     gap = 30 - CAR_L / 2 - 4.5 / 2
-    got = tr.ttc_2d(0, 0, 0, CAR_L, CAR_W, 30, 0, 30, 0, 0, 4.5, CAR_W, 25, 0)[0]
+    got = tr.ttc_2d(tr.Moving(0, 0, 0, CAR_L, CAR_W, 30, 0), tr.Moving(30, 0, 0, 4.5, CAR_W, 25, 0))[0]
     assert got == pytest.approx(gap / 5.0)
     # a heading different from +x changes nothing
     h = 1.1
     c, s = math.cos(h), math.sin(h)
-    got = tr.ttc_2d(0, 0, h, CAR_L, CAR_W, 30 * c, 30 * s, 30 * c, 30 * s, h, 4.5, CAR_W,
-                    25 * c, 25 * s)[0]
+    got = tr.ttc_2d(tr.Moving(0, 0, h, CAR_L, CAR_W, 30 * c, 30 * s), tr.Moving(30 * c, 30 * s, h, 4.5, CAR_W, 25 * c, 25 * s))[0]
     assert got == pytest.approx(gap / 5.0)
 
 
@@ -117,24 +116,23 @@ def test_ttc2d_lateral_merge_touches_with_the_leading_corner():
     th, v, dy = -0.1, 20.0, 3.5
     lowest = dy - CAR_L / 2 * math.sin(-th) - CAR_W / 2 * math.cos(th)  # B's front-right corner
     expected = (lowest - CAR_W / 2) / (v * math.sin(-th))
-    got = tr.ttc_2d(0, 0, 0, CAR_L, CAR_W, v * math.cos(th), 0, 0, dy, th, CAR_L, CAR_W,
-                    v * math.cos(th), v * math.sin(th))[0]
+    got = tr.ttc_2d(tr.Moving(0, 0, 0, CAR_L, CAR_W, v * math.cos(th), 0), tr.Moving(0, dy, th, CAR_L, CAR_W, v * math.cos(th), v * math.sin(th)))[0]
     assert got == pytest.approx(expected)
 
 
 def test_ttc2d_no_contact_cases():
     inf = math.inf
     # moving apart, same speed, beyond the horizon
-    assert tr.ttc_2d(0, 0, 0, 4, 2, 25, 0, 30, 0, 0, 4, 2, 30, 0)[0] == inf
-    assert tr.ttc_2d(0, 0, 0, 4, 2, 25, 0, 30, 0, 0, 4, 2, 25, 0)[0] == inf
-    assert tr.ttc_2d(0, 0, 0, 4, 2, 26, 0, 30, 0, 0, 4, 2, 25, 0, horizon=10.0)[0] == inf
+    assert tr.ttc_2d(tr.Moving(0, 0, 0, 4, 2, 25, 0), tr.Moving(30, 0, 0, 4, 2, 30, 0))[0] == inf
+    assert tr.ttc_2d(tr.Moving(0, 0, 0, 4, 2, 25, 0), tr.Moving(30, 0, 0, 4, 2, 25, 0))[0] == inf
+    assert tr.ttc_2d(tr.Moving(0, 0, 0, 4, 2, 26, 0), tr.Moving(30, 0, 0, 4, 2, 25, 0), horizon=10.0)[0] == inf
     # crossing paths that miss: B crosses A's path 2.5 s before A gets there
-    assert tr.ttc_2d(0, 0, 0, 4, 2, 20, 0, 100, 50, -math.pi / 2, 4, 2, 0, -20)[0] == inf
+    assert tr.ttc_2d(tr.Moving(0, 0, 0, 4, 2, 20, 0), tr.Moving(100, 50, -math.pi / 2, 4, 2, 0, -20))[0] == inf
     # ... and the same crossing timed to hit: B reaches y = 0 when A reaches x = 50
-    t_hit = tr.ttc_2d(0, 0, 0, 4, 2, 20, 0, 50, 50, -math.pi / 2, 4, 2, 0, -20)[0]
+    t_hit = tr.ttc_2d(tr.Moving(0, 0, 0, 4, 2, 20, 0), tr.Moving(50, 50, -math.pi / 2, 4, 2, 0, -20))[0]
     assert 0 < t_hit < 2.5
     # already overlapping
-    assert tr.ttc_2d(0, 0, 0, 4, 2, 20, 0, 1, 0.5, 0, 4, 2, 20, 0)[0] == 0.0
+    assert tr.ttc_2d(tr.Moving(0, 0, 0, 4, 2, 20, 0), tr.Moving(1, 0.5, 0, 4, 2, 20, 0))[0] == 0.0
 
 
 def test_pair_measures_equal_the_single_functions():
@@ -143,10 +141,10 @@ def test_pair_measures_equal_the_single_functions():
             np.full(50, 4.6), np.full(50, 1.8), rng.uniform(15, 30, 50), np.zeros(50)]
     brg = [rng.uniform(-20, 20, 50), rng.uniform(-5, 5, 50), rng.uniform(-0.3, 0.3, 50),
            np.full(50, 12.0), np.full(50, 2.5), rng.uniform(15, 30, 50), np.zeros(50)]
-    clr, ttc = tr.pair_measures(*args, *brg)
+    clr, ttc = tr.pair_measures(tr.Moving(*args), tr.Moving(*brg))
     geo_a, geo_b = args[:5], brg[:5]
     np.testing.assert_array_equal(clr, tr.clearance(*geo_a, *geo_b))
-    np.testing.assert_array_equal(ttc, tr.ttc_2d(*args, *brg))
+    np.testing.assert_array_equal(ttc, tr.ttc_2d(tr.Moving(*args), tr.Moving(*brg)))
 
 
 # --- road-coordinate gaps and headway ------------------------------------------------------
