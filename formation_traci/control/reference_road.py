@@ -184,6 +184,7 @@ class StepTiming:
     n_ctrl: int  # control periods per step
     ramp: bool = True  # leader.accel_within_step == "ramp" (docs/model.md)
     release: bool = True  # leader.emergency_release
+    jerk_max: float = 0.8  # leader.jerk_max: the planner's jerk outside emergencies [m/s^3]
 
 
 class RoadReference:
@@ -214,7 +215,8 @@ class RoadReference:
         self.dt_c, self.n_ctrl = float(dt_c), int(n_ctrl)
         self._next = None
         self.longitudinal = LongitudinalPlanner(len(self.frame), PlannerParams(
-            decel_comfort=limits.decel_max, jerk_release=PlannerParams.jerk_release if release else 0.0))
+            jerk_max=float(timing.jerk_max), decel_comfort=limits.decel_max,
+            jerk_release=PlannerParams.jerk_release if release else 0.0))
         self._v_prev = np.zeros(len(self.frame))  # members' speed at the previous step [m/s]
         self._has_prev = False
         self.ramp = bool(ramp)  # leader.accel_within_step == "ramp" (docs/model.md)

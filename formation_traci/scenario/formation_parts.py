@@ -179,6 +179,11 @@ class LeaderSpec(Strict):
     accel_max: PosFloat = Field(1.5, description="largest acceleration of the virtual car [m/s^2] (road)")
     decel_max: PosFloat = Field(3.0, description="comfortable deceleration of the virtual car [m/s^2] (road)")
     decel_emergency: PosFloat = Field(7.0, description="deceleration allowed to avoid a collision [m/s^2] (road)")
+    jerk_max: PosFloat = Field(0.8, le=2.5, description=(
+        "road: largest jerk of the longitudinal references outside emergencies [m/s^3] (the "
+        "planner's bound, docs/model.md 'Smooth longitudinal references'); at most 2.5, ISO "
+        "15622's comfort bound. Larger values follow a braking leader sooner (fewer emergency "
+        "brakes in dense merges: docs/maneuvers.md) at the cost of a higher jerk p95"))
     bound_by_members: bool = Field(
         True, description="road: the virtual car's acceleration and its braking outside emergencies "
         "at most 90 % of the weakest member's speed law (a truck's Table 3.6 gains: 0.46 m/s^2); "
