@@ -9,7 +9,8 @@
   (``emergency_brake`` events, sumo/events.py EmergencyWatch);
 * ``stranded``: a member in the run below :data:`STRANDED_SPEED` for more than
   :data:`STRANDED_TIME` while its speed reference (eq 2.6) is above :data:`STRANDED_V_REF`:
-  it stands while the formation wants it to drive;
+  it stands while the formation wants it to drive (:func:`slow_members`, which the compiled
+  step of a road run calls too);
 * ``sumo_emergency_brakes``: SUMO's "emergency braking" warning about a member, whoever drives
   it (sumo/messages.py): a member SUMO's own car-following model drives (``controller.law =
   "sumo_cacc"``) braked harder than its vType's ``decel``; a member we place is told its

@@ -1,4 +1,9 @@
-"""Recording of a run: trajectories, events and background vehicles as chunked Parquet."""
+"""Recording of a run: trajectories, events and background vehicles as chunked Parquet.
+
+The rows beside the members' signal rows (sim/fleet_rows.py) are written by the kernels of
+sim/record_rows.py: the virtual cars' rows, the road and SUMO columns, the background rows and
+the limits' test, the same kernels the compiled step of a road run calls (sumo/fused_step.py).
+"""
 from __future__ import annotations
 
 from pathlib import Path
