@@ -95,7 +95,7 @@ class Recorder(TableCuts):
         :meth:`add_periods`, :meth:`add_background`)."""
         self._extra_block = self.traj.block(FILLED_BY_CALLER[2:])
         if FILLED_BY_CALLER[2:] != _ROAD_COLUMNS:
-            raise ValueError("sim/record_rows.py road_rows writes s, d, lane_index, sumo_gap, slot, leader_age_s")
+            raise ValueError("sim/record_rows.py road_rows writes the columns of _ROAD_COLUMNS")
         self._nan_row = np.full(n, np.nan)  # a road column the world does not supply
         self._all = np.ones(n, dtype=np.bool_)
         ix = self._sig_index
@@ -263,7 +263,8 @@ class Recorder(TableCuts):
         n, nan = len(self.codes), self._nan_row
         vals = [extra.get(name, nan) for name in _ROAD_COLUMNS]
         for q, v in enumerate(vals):
-            if type(v) is not np.ndarray or v.dtype != np.float64 or v.shape != (n,) or not v.flags.c_contiguous:
+            if (type(v) is not np.ndarray or v.dtype != np.float64 or v.shape != (n,)
+                    or not v.flags.c_contiguous):  # a scalar, integers, a view: as a float64 row
                 vals[q] = np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)))
         return road_rows(self._extra_block, at, *vals, active)
 
