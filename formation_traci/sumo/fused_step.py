@@ -190,16 +190,16 @@ def _reference(road, plan, planner, ref, at, m_s, m_d, v_m, active, nbs, dt_c):
     ``at.t - plan.depart`` [s], the ``at.running`` ones moving, no released member among the
     neighbours ``nbs``: their rears, offsets, half widths [m] and speeds [m/s]; with
     ``road.peers`` SUMO's vehicles joined by every member in the run: sumo/peers.py
-    peer_table, Peers.table's); returns EMERGENCY when a running virtual car or a member in the run is on
-    emergency braking, else 0."""
+    peer_table, Peers.table's); returns EMERGENCY when a running virtual car or a member in
+    the run is on emergency braking, else 0."""
     nb_rear, nb_d, nb_half_w, nb_v = nbs
     bodies, running = road.bodies, at.running
-    k = at.s.shape[0]
+    k, n = at.s.shape[0], m_s.shape[0]
     members = MemberRows(m_s, m_d, v_m, active)
     rear, d, half, speed, flags, owner = peer_table(  # with peers: the members in the run too
         NeighbourRows(nb_rear, nb_d, nb_half_w, nb_v, np.zeros(nb_rear.shape[0], dtype=np.bool_),
                       np.empty(0)),
-        members if road.peers else MemberRows(m_s, m_d, v_m, np.zeros(m_s.shape[0], dtype=np.bool_)),
+        members if road.peers else MemberRows(m_s, m_d, v_m, np.zeros(n, dtype=np.bool_)),
         bodies[1], bodies[2], bodies[3])
     group_reference_step(plan, planner, ref, at.t - plan.depart, at.s, at.v, running,
                          at.a_limit, members, NeighbourRows(rear, d, half, speed, flags, np.empty(0)),
