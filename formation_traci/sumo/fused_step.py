@@ -239,8 +239,8 @@ def _placed(kind, x, speed_in, x1, sp1, road, out):
     """The new state (x1, sp1) as SumoWorld.actuate places it: into ``out.place`` (6, n)
     sumo/types.py sumo_placement's rows (SUMO's front bumper x, y [m] and angle [deg], the
     speed [m/s], the mean acceleration over the step ``road.step`` [s] [m/s^2] and the speed
-    SUMO is told); its CoG ``out.pos``, ``out.vel``, ``out.heading``. Returns NOT_FINITE when the new state is not
-    finite (sim/loop.py check_finite), else 0."""
+    SUMO is told); its CoG ``out.pos``, ``out.vel``, ``out.heading``. Returns NOT_FINITE
+    when the new state is not finite (sim/loop.py check_finite), else 0."""
     pos, vel, heading = out.pos, out.vel, out.heading
     n = x.shape[0]
     flags = 0
