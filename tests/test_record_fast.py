@@ -287,16 +287,19 @@ def test_runs_write_the_files_the_straightforward_recording_writes(tmp_path, mon
 
 
 def test_extras_after_a_step_without_road_columns_are_still_recorded(tmp_path):
-    """A step lacking the road columns (free space) sends later steps down the column-by-column
-    path at once; a later step that has them still records their values."""
+    """A step lacking the road columns (free space) records NaN in them; a later step that has
+    them records their values (sim/record_rows.py road_rows, through Recorder._road_rows)."""
     rec = Recorder(tmp_path / "extras", IDS, with_sumo=True)
     names = recorder_module.FILLED_BY_CALLER[2:]
-    out = np.zeros((len(names), len(IDS)))
-    rec._extras({"leader_age_s": np.full(len(IDS), 0.5)}, out)
+    every = np.ones(len(IDS), dtype=bool)
+    assert rec._road_rows({"leader_age_s": np.full(len(IDS), 0.5)}, 0, every) == len(IDS)
     want = np.full((len(names), len(IDS)), np.nan)
     want[names.index("leader_age_s")] = 0.5
-    np.testing.assert_array_equal(out, want)
+    np.testing.assert_array_equal(rec._extra_block[:, :len(IDS)], want)
     full = {name: np.arange(len(IDS), dtype=float) + i for i, name in enumerate(names)}
-    rec._extras(full, out)
-    np.testing.assert_array_equal(out, np.array([full[name] for name in names]))
+    full["slot"] = np.arange(len(IDS))  # integers and scalars are taken as float64 rows
+    full["leader_age_s"] = 0.25
+    rec._road_rows(full, 0, every)
+    full["slot"], full["leader_age_s"] = full["slot"].astype(float), np.full(len(IDS), 0.25)
+    np.testing.assert_array_equal(rec._extra_block[:, :len(IDS)], np.array([full[name] for name in names]))
     assert rec.flush() == []

@@ -177,6 +177,6 @@ def test_a_member_reaching_into_an_ending_acceleration_lane_is_not_put_on_it(tmp
     it passes that lane's end SUMO moved it along a lane with no connection into mw_down and
     warned 'no connection to the next edge'. It is not put on a lane that ends there."""
     said = _drive_past_the_acceleration_lane_end(
-        tmp_path, lambda ad, x, y: ad.place(["m"], np.array([x]), np.array([y]), np.array([0.0]),
-                                            np.array([25.0])))
+        tmp_path, lambda ad, x, y: ad.place(["m"], np.array([x + 2.3]), np.array([y]), np.array([90.0]),
+                                            np.array([25.0]), np.array([[x, y]])))
     assert "'m'" not in said, said

@@ -33,6 +33,7 @@ from ..record.columns import SIGNAL_COLUMNS
 from .fleet_laws import fallback_switches, law_kernels, pack_laws
 from .fleet_models import model_kernel, with_variant_params, with_variant_slots
 from .fleet_rows import period_table_rows, signal_table_rows
+from .record_rows import beyond_limits
 from .table_records import NO_SIGNAL_ROWS
 from .fleet_records import FleetParams, StateRecord, as_f64 as _f64, state_record
 from .fleet_state import FleetState
@@ -243,13 +244,8 @@ def member_signals(fleet, state, ref, cols, out, t, rows):
         for q in range(N_SIGNALS):
             if cols[q] >= 0:
                 out[i, cols[q]] = vals[q]
-    if rows.at < 0:
-        return False
-    m = out.shape[1]
-    for i in range(n):
-        for q in range(m):
-            if abs(out[i, q]) > rows.limits[q]:
-                return False  # out of range: the caller records the rows (and the event)
+    if rows.at < 0 or beyond_limits(out, rows.limits):
+        return False  # out of range: the caller records the rows (and the event)
     signal_table_rows(out, t, rows.traj, rows.traj_ids, rows.at, rows.comfort, rows.comfort_ids,
                       rows.c_at, rows.comfort_cols, np.ones(n, dtype=np.bool_))
     return True

@@ -9,7 +9,8 @@
   (``emergency_brake`` events, sumo/events.py EmergencyWatch);
 * ``stranded``: a member in the run below :data:`STRANDED_SPEED` for more than
   :data:`STRANDED_TIME` while its speed reference (eq 2.6) is above :data:`STRANDED_V_REF`:
-  it stands while the formation wants it to drive;
+  it stands while the formation wants it to drive (:func:`slow_members`, which the compiled
+  step of a road run calls too);
 * ``sumo_emergency_brakes``: SUMO's "emergency braking" warning about a member, whoever drives
   it (sumo/messages.py): a member SUMO's own car-following model drives (``controller.law =
   "sumo_cacc"``) braked harder than its vType's ``decel``; a member we place is told its
@@ -129,6 +130,19 @@ def member_clearances(sig, x_col, y_col, h_col, shift, length, width, active, ou
     return worst
 
 
+@kernel
+def slow_members(sig, v_col, v_ref_col, thresholds, active, out):
+    """Which members with ``active`` stand while their speed reference does not: speed (signal
+    column ``v_col`` of ``sig``) below ``thresholds[0]`` [m/s] while v_ref (``v_ref_col``) is
+    above ``thresholds[1]`` [m/s] (:data:`STRANDED_SPEED`, :data:`STRANDED_V_REF`), into ``out``
+    (n,); returns whether any does."""
+    anyone = False
+    for i in range(sig.shape[0]):
+        out[i] = active[i] and sig[i, v_col] < thresholds[0] and sig[i, v_ref_col] > thresholds[1]
+        anyone |= out[i]
+    return anyone
+
+
 class IncidentArrays(NamedTuple):
     """What the compiled step reads of the incidents' watch (sumo/fused_step.py)."""
 
@@ -138,6 +152,7 @@ class IncidentArrays(NamedTuple):
     width: np.ndarray  # (n,) [m]
     clear: np.ndarray  # (n, n) clearance between members [m] (written)
     stranded: np.ndarray  # STRANDED_SPEED [m/s], STRANDED_V_REF [m/s]
+    slow: np.ndarray  # (n,) the members slow_members finds (written)
 
 
 class Incidents:
@@ -157,6 +172,8 @@ class Incidents:
         self.clear = np.full((n, n), np.inf)
         self.contact = np.zeros((n, n), dtype=bool)
         self.slow_since = np.full(n, np.nan)  # since when each member stands while its v_ref does not [s]
+        self.slow = np.zeros(n, dtype=np.bool_)  # who does at the last check (slow_members)
+        self._thresholds = np.array([STRANDED_SPEED, STRANDED_V_REF])
         self.is_stranded = np.zeros(n, dtype=bool)
         self._sumo_prev: set = set()  # (collider, victim) SUMO reported at the last report
         self._standing = False  # any member in slow_since
@@ -170,8 +187,7 @@ class Incidents:
     def arrays(self) -> IncidentArrays:
         """The arrays the compiled step works on (the same ones over a run)."""
         return IncidentArrays(np.array([_X, _Y, _H, _V, _VREF], dtype=np.int64), self.shift,
-                              self.length, self.width, self.clear,
-                              np.array([STRANDED_SPEED, STRANDED_V_REF]))
+                              self.length, self.width, self.clear, self._thresholds, self.slow)
 
     def step(self, t: float, sig: np.ndarray, active: np.ndarray) -> None:
         worst = math.inf
@@ -185,10 +201,10 @@ class Incidents:
         [m]: contacts and stranded members."""
         if self.pairs and (worst < 0.0 or self.contact.any()):
             self._contacts(t)
-        v, v_ref = sig[:, _V], sig[:, _VREF]
-        slow = active & (v < STRANDED_SPEED) & (v_ref > STRANDED_V_REF)
-        if slow.any() or self.is_stranded.any():
-            self._stranded(t, slow, v, v_ref)
+        slow = self.slow
+        if (slow_members(sig, _V, _VREF, self._thresholds, np.ascontiguousarray(active, dtype=np.bool_), slow)
+                or self.is_stranded.any()):
+            self._stranded(t, slow, sig[:, _V], sig[:, _VREF])
         elif self._standing:
             self.slow_since[:] = np.nan
             self._standing = False

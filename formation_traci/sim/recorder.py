@@ -1,7 +1,11 @@
-"""Recording of a run: trajectories, events and background vehicles as chunked Parquet."""
+"""Recording of a run: trajectories, events and background vehicles as chunked Parquet.
+
+The rows beside the members' signal rows (sim/fleet_rows.py) are written by the kernels of
+sim/record_rows.py: the virtual cars' rows, the road and SUMO columns, the background rows and
+the limits' test, the same kernels the compiled step of a road run calls (sumo/fused_step.py).
+"""
 from __future__ import annotations
 
-from operator import itemgetter
 from pathlib import Path
 
 import numpy as np
@@ -9,9 +13,9 @@ import numpy as np
 from run_contract.columns import (BACKGROUND_COLUMNS, COMFORT_COLUMNS, DEFAULT_FORMATION_ID, EVENT_COLUMNS,
                                   TRAJECTORY_COLUMNS, VIRTUAL_CAR_ID)
 
-from ..core.states import LeaderState
 from ..record.columns import FILLED_BY_CALLER, SIGNAL_COLUMNS
 from ..record.writer import ChunkedTable
+from .record_rows import background_rows, beyond_limits, road_rows, vc_row, vc_rows
 from .table_cuts import TableCuts
 from .table_records import SignalRows, TableBuffers
 from .incident_log import INCIDENT_EVENT_KINDS, IncidentLog
@@ -30,6 +34,9 @@ MAX_SPEED = 60.0
 """Speeds above this are outside anything the parameters were meant for [m/s]."""
 
 _VC_COLUMNS = ("t", "x", "y", "heading", "v", "yaw_rate", "a_lon", "a_lat", "s", "d")
+_ROAD_COLUMNS = ("s", "d", "lane_index", "sumo_gap", "slot", "leader_age_s")
+"""The road and SUMO columns, sim/record_rows.py road_rows' order (FILLED_BY_CALLER after t
+and vehicle_id)."""
 
 
 class Recorder(TableCuts):
@@ -63,8 +70,7 @@ class Recorder(TableCuts):
         self._sig_index = {name: j for j, name in enumerate(SIGNAL_COLUMNS)}
         self._floats = [c.name for c in TRAJECTORY_COLUMNS if c.dtype == "float64"]
         self._float_block = self.traj.block(self._floats)
-        self._vc_vec = np.full(len(self._floats), np.nan)
-        self._vc_at = np.array([self._floats.index(c) for c in _VC_COLUMNS])
+        self._vc_at = np.array([self._floats.index(c) for c in _VC_COLUMNS], dtype=np.int64)
         self.codes = np.arange(n, dtype=np.int32)
         self.vc_code = n
         self.vc_codes = np.arange(n, n + len(vc_ids), dtype=np.int32)  # one per formation
@@ -88,15 +94,16 @@ class Recorder(TableCuts):
         """Views and constants of the one-write-per-block paths (:meth:`add_step`,
         :meth:`add_periods`, :meth:`add_background`)."""
         self._extra_block = self.traj.block(FILLED_BY_CALLER[2:])
-        self._get_extras = itemgetter(*FILLED_BY_CALLER[2:])
-        self._extra_names = frozenset(FILLED_BY_CALLER[2:])
+        if FILLED_BY_CALLER[2:] != _ROAD_COLUMNS:
+            raise ValueError("sim/record_rows.py road_rows writes the columns of _ROAD_COLUMNS")
+        self._nan_row = np.full(n, np.nan)  # a road column the world does not supply
+        self._all = np.ones(n, dtype=np.bool_)
         ix = self._sig_index
         self._v_at, self._acc = ix["v"], slice(ix["a_lon"], ix["a_lat"] + 1)  # a_lon, a_lat follow
         if self._acc.stop - self._acc.start != 2:
             raise ValueError("a_lon and a_lat must be consecutive signal columns")
         self._all_in = np.ones(n, dtype=bool).tobytes()  # a mask with every member in the run
-        self._abs = np.empty((n, len(SIGNAL_COLUMNS)))
-        self._bad = np.empty((n, len(SIGNAL_COLUMNS)), dtype=bool)
+        self._sig_shape = (n, len(SIGNAL_COLUMNS))
         self._traj_ids = self.traj.column("vehicle_id")
         limits = dict(slip_front=MAX_SLIP, slip_rear=MAX_SLIP, friction_usage=MAX_FRICTION_USAGE,
                       v=MAX_SPEED)
@@ -145,18 +152,17 @@ class Recorder(TableCuts):
         SUMO columns (s, d, lane_index, sumo_gap; (n,) arrays), ``mask`` the members still in
         the run."""
         self.flag_range(t, sig, mask)
-        codes = self.codes
+        codes, active = self.codes, self._all
         if mask is not None and not mask.all():
+            active = np.ascontiguousarray(mask, dtype=np.bool_)
             sig, codes = sig[mask], codes[mask]
-            extra = {k: v[mask] for k, v in extra.items()}
         n = len(codes)
         tr = self.traj
         sl = tr.rows(n)
         self._sig_block[:, sl] = sig.T
         tr.column("t")[sl] = t
         tr.column("vehicle_id")[sl] = codes
-        for name in FILLED_BY_CALLER[2:]:
-            tr.column(name)[sl] = extra.get(name, np.nan)
+        self._road_rows(extra, sl.start, active)
         tr.commit(n)
 
     def flag_range(self, t, sig: np.ndarray, mask=None) -> None:
@@ -227,13 +233,11 @@ class Recorder(TableCuts):
         car) write in that order, with one write per block of columns; ``written``: member_signals wrote the members' signal rows already (at
         :meth:`signal_rows`). Those three calls do it when a member is out of the run, a
         signal is (or was) out of range (events) or a part ends inside the step."""
-        n, tr, cf, bad = len(self.codes), self.traj, self.comfort, self._bad
+        n, tr, cf = len(self.codes), self.traj, self.comfort
         at, c_at = tr.rows_buffered, cf.rows_buffered
         e, blk = at + n, self._float_block
         if not written:
-            if sig.shape == bad.shape:
-                np.greater(np.abs(sig, out=self._abs), self._sig_limits, out=bad)
-            if (sig.shape != bad.shape or b"\x01" in bad.tobytes()
+            if (sig.shape != self._sig_shape or beyond_limits(sig, self._sig_limits)
                     or self.signal_rows(mask) is None):
                 self.add_signal_rows(t, sig, extra, mask)
                 self.add_comfort_rows(t, sig, mask)
@@ -246,34 +250,23 @@ class Recorder(TableCuts):
             self._cf_vals[0, c_at:c_at + n] = sig[:, self._v_at]
             self._cf_vals[1:, c_at:c_at + n] = sig[:, self._acc].T
             self._cf_ids[c_at:c_at + n] = self.codes
-        self._extras(extra, self._extra_block[:, at:e])
-        if truth.ndim == 1 and truth[0] != truth[0]:  # its formation is not on the road (parked)
-            tr.commit(n)
-        elif truth.ndim == 1:
-            x, y, theta, v, omega, v_dot, _, s = truth.tolist()
-            blk[:, e] = self._vc_row(t, x, y, theta, v, omega, v_dot, s)
-            self._traj_ids[e] = self.vc_code
-            tr.commit(n + 1)
-        else:  # several formations: one row per virtual car on the road (NaN: parked)
-            on = np.flatnonzero(truth[:, 0] == truth[:, 0])
-            for j, (x, y, theta, v, omega, v_dot, _, s) in enumerate(truth[on].tolist()):
-                blk[:, e + j] = self._vc_row(t, x, y, theta, v, omega, v_dot, s)
-            self._traj_ids[e:e + len(on)] = self.vc_codes[on]
-            tr.commit(n + len(on))
+        self._road_rows(extra, at, self._all)
+        # one row per virtual car on the road (a NaN row: its formation is parked)
+        tr.commit(n + vc_rows(blk, self._traj_ids, e, self._vc_at, self.vc_codes, float(t),
+                              _rows(truth)))
         cf.commit(n)
 
-    def _extras(self, extra: dict, out: np.ndarray) -> None:
-        """The road and SUMO columns (FILLED_BY_CALLER[2:]) of ``extra`` into out (rows in
-        that order; NaN for a column ``extra`` lacks: free space, or a road step before the
-        members are in SUMO)."""
-        if self._extra_names <= extra.keys():
-            try:
-                out[:] = self._get_extras(extra)
-                return
-            except ValueError:  # a column that is not an (n,) array
-                pass
-        for name, row in zip(FILLED_BY_CALLER[2:], out):
-            row[:] = extra.get(name, np.nan)
+    def _road_rows(self, extra: dict, at: int, active: np.ndarray) -> int:
+        """The road and SUMO columns (FILLED_BY_CALLER[2:]) of ``extra``'s (n,) arrays (NaN for a
+        column ``extra`` lacks: free space, or a road step before the members are in SUMO) of
+        the members with ``active``, from table row ``at`` (sim/record_rows.py road_rows)."""
+        n, nan = len(self.codes), self._nan_row
+        vals = [extra.get(name, nan) for name in _ROAD_COLUMNS]
+        for q, v in enumerate(vals):
+            if (type(v) is not np.ndarray or v.dtype != np.float64 or v.shape != (n,)
+                    or not v.flags.c_contiguous):  # a scalar, integers, a view: as a float64 row
+                vals[q] = np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)))
+        return road_rows(self._extra_block, at, *vals, active)
 
     def period_rows(self, m: int, mask) -> tuple | None:
         """Where sim/fleet.py step_members writes control periods 1 .. m - 1 of the step
@@ -311,25 +304,24 @@ class Recorder(TableCuts):
     def add_vcs(self, t, truth: np.ndarray) -> None:
         """One row per virtual car of ``truth`` ((8,) or (k, 8), Reference.truth) that is on the
         road (a NaN row: a formation waiting to depart or retired, sim/loop.py parked)."""
-        for code, vc in zip(self.vc_codes.tolist(), np.atleast_2d(truth).tolist()):
-            if vc[0] == vc[0]:
-                self.add_vc(t, LeaderState(*vc[:7]), vc[7], code=code)
+        truth, tr = _rows(truth), self.traj
+        for f in range(min(len(truth), len(self.vc_codes))):
+            if truth[f, 0] == truth[f, 0]:
+                sl = tr.rows(1)
+                vc_row(self._float_block, sl.start, self._vc_at, float(t), truth[f])
+                self._traj_ids[sl.start] = self.vc_codes[f]
+                tr.commit(1)
 
     def add_vc(self, t, vc, s=np.nan, code: int | None = None):
-        """One row for a virtual car (``code``: its vehicle_id code, default the first
-        formation's); the member-only columns stay NaN."""
-        vec = self._vc_row(t, vc.x, vc.y, vc.theta, vc.v, vc.omega, vc.v_dot, s)
+        """One row for a virtual car (``vc``: its LeaderState, ``s`` its arc length [m];
+        ``code``: its vehicle_id code, default the first formation's); the member-only columns
+        stay NaN (sim/record_rows.py vc_row)."""
         tr = self.traj
         sl = tr.rows(1)
-        self._float_block[:, sl.start] = vec
-        tr.column("vehicle_id")[sl.start] = self.vc_code if code is None else code
+        vc_row(self._float_block, sl.start, self._vc_at, float(t),
+               np.array([vc.x, vc.y, vc.theta, vc.v, vc.omega, vc.v_dot, np.nan, s], dtype=np.float64))
+        self._traj_ids[sl.start] = self.vc_code if code is None else code
         tr.commit(1)
-
-    def _vc_row(self, t, x, y, theta, v, omega, v_dot, s) -> np.ndarray:
-        """The virtual car's row of float columns (Python floats in [m, rad, m/s, ...])."""
-        vec = self._vc_vec
-        vec[self._vc_at] = (t, x, y, theta, v, omega, v_dot, v * omega, s, 0.0 if s == s else np.nan)
-        return vec
 
     def add_event(self, t, kind, vehicle_id, other_id="", detail="", value=None):
         """One row of events.parquet; an incident kind (sim/incident_log.py) is also logged
@@ -355,13 +347,8 @@ class Recorder(TableCuts):
             self._append_background(t, nb, s, d)
             return
         codes = self.background_codes(nb.ids, nb.types, nb.lane_ids)
-        fl, ints, e = self._bg_floats, self._bg_ints, at + n
-        fl[0, at:e] = t
-        fl[1:8, at:e] = (nb.x, nb.y, nb.heading, nb.v, nb.a, nb.length, nb.width)
-        fl[8, at:e] = s
-        fl[9, at:e] = d
-        ints[0:3, at:e] = codes
-        ints[3, at:e] = nb.lane_index
+        background_rows(self._bg_floats, self._bg_ints, at, float(t), (nb.x, nb.y, nb.heading),
+                        (nb.v, nb.a, nb.length, nb.width), (s, d), codes, nb.lane_index)
         bg.commit(n)
 
     def background_codes(self, ids, types, lane_ids) -> np.ndarray:
@@ -382,3 +369,8 @@ class Recorder(TableCuts):
             "x": nb.x, "y": nb.y, "heading": nb.heading, "v": nb.v, "a": nb.a,
             "length": nb.length, "width": nb.width, "lane": bg.codes(nb.lane_ids),
             "lane_index": nb.lane_index.astype(np.int32), "s": s, "d": d}, len(nb.ids))
+
+
+def _rows(truth: np.ndarray) -> np.ndarray:
+    """Reference.truth ((8,) or (k, 8)) as a contiguous float64 (k, 8) array."""
+    return np.ascontiguousarray(truth.reshape(-1, 8) if truth.ndim == 1 else truth, dtype=np.float64)

@@ -2,19 +2,23 @@
 
 :func:`fused_step` runs, for every member of every formation, what the loop (sim/loop.py
 ``step_loop``) runs in a step where nothing out of the ordinary happens, in the loop's order
-and through the very kernels the loop calls one by one:
+and through the very kernels the loop calls one by one (the recorder, the incidents, the
+peers and the world's actuate call the same row kernels on numpy arrays):
 
     sense      sim/fleet.py kinematics_rows, sumo/sense.py sense_step
     reference  control/reference_group.py group_reference_step (road_reference_step per
                formation: governor, planner, the virtual car's rows)
-    observe    the neighbours' background rows
+               (with several formations the members as the others' traffic: sumo/peers.py
+               peer_table)
+    observe    the neighbours' background rows (sim/record_rows.py background_rows)
     record     sim/fleet.py member_signals (the members' trajectory and comfort rows), the
-               road and SUMO columns, one virtual-car row per formation,
-               sim/incidents.py member_clearances
+               road and SUMO columns and one virtual-car row per formation
+               (sim/record_rows.py road_rows, vc_rows), the recorder's limits
+               (beyond_limits), sim/incidents.py member_clearances and slow_members
     control    sim/fleet.py step_members (every control period, the comfort rows of periods
                1 .. n_ctrl - 1)
-    actuate    the new state's poses in SUMO's frame (sumo/types.py cog_to_sumo_rows), the
-               members' speeds and mean accelerations over the step
+    actuate    the new state as SUMO is told it (sumo/types.py sumo_placement: poses in
+               SUMO's frame, the members' speeds and mean accelerations over the step)
 
 Everything a step writes goes into arrays the caller owns (the tables' buffers at the rows
 it names, the planners' state in place); events, string columns and SUMO's calls stay in
@@ -67,15 +71,17 @@ import numpy as np
 
 from ..control.reference_group import group_reference_step
 from ..control.reference_records import MemberRows, NeighbourRows, StepReference
-from ..core.kernels import kernel, maximum, rebind
+from ..core.kernels import kernel, rebind
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
 from ..sim.fleet import kinematics_rows, member_signals, step_members
 from ..sim.fleet_rows import period_table_rows, signal_table_rows
-from ..sim.incidents import member_clearances
+from ..sim.incidents import member_clearances, slow_members
+from ..sim.record_rows import background_rows, beyond_limits, road_rows, vc_rows
 from ..sim.table_records import SignalRows
+from .peers import peer_table
 from .sense import NeighbourReads, SumoRows, sense_step
-from .types import cog_to_sumo_rows
+from .types import sumo_placement
 
 OUT_OF_RANGE = 1
 """fused_step flag: a recorded signal is beyond the recorder's limits (a model_range event)."""
@@ -136,7 +142,9 @@ def fused_step(run, state, held, sensed, at):
     m = nb.shape[0]
     for i in range(n):
         out.lead_obs[i] = ref.lead_idx[i] if ref.lead_idx[i] < m else -1
-    _background_rows(tables, sensed, at.bg_at, t, nb_x, nb_y, nb_psi, s_all[n:], d_all[n:])
+    background_rows(tables.bg_floats, tables.bg_ints, at.bg_at, t, (nb_x, nb_y, nb_psi),
+                    (nb_v, nb[:, 4].copy(), nb_length, nb_width), (s_all[n:], d_all[n:]),
+                    sensed.bg_codes, sensed.nb_lane_index)
     targets = StepReference(road.G, plan.frame, ref.vc, plan.slots, np.full(n, np.inf),
                             ref.a_cap, ref.a_cap_from)
     rec_flags, n_act, worst = _record(fleet, road, targets, tables, inc, out, state, sensed, at,
@@ -182,41 +190,20 @@ def _reference(road, plan, planner, ref, at, m_s, m_d, v_m, active, nbs, dt_c):
     ``at.t - plan.depart`` [s], the ``at.running`` ones moving, no released member among the
     neighbours ``nbs``: their rears, offsets, half widths [m] and speeds [m/s]; with
     ``road.peers`` SUMO's vehicles joined by every member in the run: sumo/peers.py
-    Peers.table); returns EMERGENCY when a running virtual car or a member in the run is on
-    emergency braking, else 0."""
+    peer_table, Peers.table's); returns EMERGENCY when a running virtual car or a member in
+    the run is on emergency braking, else 0."""
     nb_rear, nb_d, nb_half_w, nb_v = nbs
     bodies, running = road.bodies, at.running
-    k = at.s.shape[0]
-    m = nb_rear.shape[0]
-    n = 0
-    if road.peers:
-        for i in range(m_s.shape[0]):
-            if active[i]:
-                n += 1
-    rear = np.empty(m + n)
-    d = np.empty(m + n)
-    half = np.empty(m + n)
-    speed = np.empty(m + n)
-    owner = np.full(m + n, -1, dtype=np.int64)
-    for j in range(m):
-        rear[j] = nb_rear[j]
-        d[j] = nb_d[j]
-        half[j] = nb_half_w[j]
-        speed[j] = nb_v[j]
-    q = m
-    for i in range(m_s.shape[0] if road.peers else 0):  # Peers.update's rear (front bumper
-        if not active[i]:  # less the length), Peers.table's rows of the members in the run
-            continue
-        rear[q] = m_s[i] + bodies[3, i] - bodies[1, i]
-        d[q] = m_d[i]
-        half[q] = bodies[2, i] / 2
-        speed[q] = v_m[i]
-        owner[q] = i
-        q += 1
+    k, n = at.s.shape[0], m_s.shape[0]
+    members = MemberRows(m_s, m_d, v_m, active)
+    rear, d, half, speed, flags, owner = peer_table(  # with peers: the members in the run too
+        NeighbourRows(nb_rear, nb_d, nb_half_w, nb_v, np.zeros(nb_rear.shape[0], dtype=np.bool_),
+                      np.empty(0)),
+        members if road.peers else MemberRows(m_s, m_d, v_m, np.zeros(n, dtype=np.bool_)),
+        bodies[1], bodies[2], bodies[3])
     group_reference_step(plan, planner, ref, at.t - plan.depart, at.s, at.v, running,
-                         at.a_limit, MemberRows(m_s, m_d, v_m, active),
-                         NeighbourRows(rear, d, half, speed, np.zeros(m + n, dtype=np.bool_),
-                                       np.empty(0)), owner, dt_c)
+                         at.a_limit, members, NeighbourRows(rear, d, half, speed, flags, np.empty(0)),
+                         owner, dt_c)
     for f in range(k):
         if running[f] and planner.emergency_vc[f]:
             return EMERGENCY
@@ -228,71 +215,33 @@ def _reference(road, plan, planner, ref, at, m_s, m_d, v_m, active, nbs, dt_c):
 
 
 @kernel
-def _background_rows(tables, sensed, at, t, x, y, psi, s, d):
-    """The neighbours' rows of the background table from row ``at`` (Recorder.add_background):
-    their poses ``x``, ``y`` [m], ``psi`` [rad], arc lengths ``s`` and offsets ``d`` [m], the
-    rest from ``sensed`` (its rows ``nb``, string codes ``bg_codes`` and lane indices)."""
-    fl, ints, nb, codes = tables.bg_floats, tables.bg_ints, sensed.nb, sensed.bg_codes
-    for j in range(x.shape[0]):
-        r = at + j
-        fl[0, r] = t
-        fl[1, r] = x[j]
-        fl[2, r] = y[j]
-        fl[3, r] = psi[j]
-        fl[4, r] = nb[j, 3]
-        fl[5, r] = nb[j, 4]
-        fl[6, r] = nb[j, 5]
-        fl[7, r] = nb[j, 6]
-        fl[8, r] = s[j]
-        fl[9, r] = d[j]
-        for q in range(3):
-            ints[q, r] = codes[q, j]
-        ints[3, r] = sensed.nb_lane_index[j]
-
-
-@kernel
 def _road_columns(out, tables, road, inc, truth, sensed, at, s_all, d_all):
     """After the members' rows (those in the run, ``sensed.active``): their road and SUMO
-    columns at rows ``at.at`` .. of the trajectory table (Recorder.add_step's ``extra``), each
-    running formation's virtual-car row after them; returns OUT_OF_RANGE (a signal beyond the
-    recorder's ``tables.limits``: member_signals' test) | SLOW (a member stands while its
-    speed reference does not: sim/incidents.py)."""
+    columns at rows ``at.at`` .. of the trajectory table, each running formation's virtual-car
+    row after them (sim/record_rows.py road_rows, vc_rows: Recorder.add_step's); returns
+    OUT_OF_RANGE (a signal beyond the recorder's ``tables.limits``: record_rows.py
+    beyond_limits) | SLOW (a member in the run stands while its speed reference does not:
+    sim/incidents.py slow_members)."""
     flags = 0
-    sig, limits, extras, cols, stranded = out.sig, tables.limits, tables.extras, inc.cols, inc.stranded
-    n = sig.shape[0]
-    r = at.at
-    for i in range(n):
-        for q in range(sig.shape[1]):
-            if abs(sig[i, q]) > limits[q]:
-                flags |= OUT_OF_RANGE
-        if sig[i, cols[3]] < stranded[0] and sig[i, cols[4]] > stranded[1]:
-            flags |= SLOW
-        if not sensed.active[i]:
-            continue
-        extras[0, r] = s_all[i]
-        extras[1, r] = d_all[i]
-        extras[2, r] = sensed.lane_index[i]
-        extras[3, r] = out.m_gap[i]
-        extras[4, r] = road.slot_index[i]
-        extras[5, r] = 0.0
-        r += 1
-    e = r
-    for f in range(truth.shape[0]):
-        if truth[f, 0] == truth[f, 0]:
-            _vc_row(tables.traj, e, tables.vc_cols, at.t, truth[f])
-            tables.traj_ids[e] = tables.vc_codes[f]
-            e += 1
+    sig, active, n = out.sig, sensed.active, out.sig.shape[0]
+    if beyond_limits(sig, tables.limits):
+        flags |= OUT_OF_RANGE
+    if slow_members(sig, inc.cols[3], inc.cols[4], inc.stranded, active, inc.slow):
+        flags |= SLOW
+    e = at.at + road_rows(tables.extras, at.at, s_all[:n], d_all[:n], sensed.lane_index, out.m_gap,
+                          road.slot_index, np.zeros(n), active)  # leader_age_s: no radio
+    vc_rows(tables.traj, tables.traj_ids, e, tables.vc_cols, tables.vc_codes, at.t, truth)
     return flags
 
 
 @kernel
 def _placed(kind, x, speed_in, x1, sp1, road, out):
     """The new state (x1, sp1) as SumoWorld.actuate places it: into ``out.place`` (6, n)
-    SUMO's front bumper x, y [m] and angle [deg], the speed [m/s], the mean acceleration over
-    the step ``road.step`` [s] [m/s^2] and the speed SUMO is told (np.maximum(v, 0)); its CoG
-    ``out.pos``, ``out.vel``, ``out.heading``. Returns NOT_FINITE when the new state is not
-    finite (sim/loop.py check_finite), else 0."""
-    place, pos, vel, heading, step = out.place, out.pos, out.vel, out.heading, road.step
+    sumo/types.py sumo_placement's rows (SUMO's front bumper x, y [m] and angle [deg], the
+    speed [m/s], the mean acceleration over the step ``road.step`` [s] [m/s^2] and the speed
+    SUMO is told); its CoG ``out.pos``, ``out.vel``, ``out.heading``. Returns NOT_FINITE
+    when the new state is not finite (sim/loop.py check_finite), else 0."""
+    pos, vel, heading = out.pos, out.vel, out.heading
     n = x.shape[0]
     flags = 0
     for i in range(n):
@@ -300,37 +249,15 @@ def _placed(kind, x, speed_in, x1, sp1, road, out):
             if not math.isfinite(x1[i, q]):
                 flags = NOT_FINITE
     p1, v1, h1 = kinematics_rows(x1, sp1, kind)
-    xf, yf, ang = cog_to_sumo_rows(p1[:, 0].copy(), p1[:, 1].copy(), h1, road.d_front)
+    before, after = np.empty(n), np.empty(n)  # sim/fleet.py Fleet.speed
     for i in range(n):
-        before = x[i, S.V] if kind != KINEMATIC else speed_in[i]
-        after = x1[i, S.V] if kind != KINEMATIC else sp1[i]
-        place[0, i] = xf[i]
-        place[1, i] = yf[i]
-        place[2, i] = ang[i]
-        place[3, i] = after
-        place[4, i] = (after - before) / step
-        place[5, i] = maximum(after, 0.0)  # np.maximum(v, 0.0): sumo/adapter/__init__.py set_true_speeds
+        before[i] = x[i, S.V] if kind != KINEMATIC else speed_in[i]
+        after[i] = x1[i, S.V] if kind != KINEMATIC else sp1[i]
+    sumo_placement(p1, h1, before, after, road.d_front, road.step, out.place)
+    for i in range(n):
         pos[i, 0] = p1[i, 0]
         pos[i, 1] = p1[i, 1]
         vel[i, 0] = v1[i, 0]
         vel[i, 1] = v1[i, 1]
         heading[i] = h1[i]
     return flags
-
-
-@kernel
-def _vc_row(traj, e, cols, t, truth):
-    """Row ``e`` of the trajectory float block ``traj``: a virtual car (``truth``: x, y,
-    theta, v, omega, v_dot, omega_dot, s; control/reference.py Reference.truth) at t [s],
-    every member-only column NaN (sim/recorder.py Recorder._vc_row; ``cols``: the rows of t,
-    x, y, heading, v, yaw_rate, a_lon, a_lat, s, d)."""
-    for q in range(traj.shape[0]):
-        traj[q, e] = np.nan
-    s = truth[7]
-    traj[cols[0], e] = t
-    for q in range(5):
-        traj[cols[1 + q], e] = truth[q]
-    traj[cols[6], e] = truth[5]
-    traj[cols[7], e] = truth[3] * truth[4]
-    traj[cols[8], e] = s
-    traj[cols[9], e] = 0.0 if s == s else np.nan

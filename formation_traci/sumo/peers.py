@@ -5,8 +5,10 @@ governor, gap and lane checks must still see the members of the other formations
 step :class:`Peers` keeps every member as a neighbour row (body centre, heading, speed,
 acceleration, body, lane, road coordinates: the same fields SUMO's vehicles have in
 :class:`~.world.Sensed`), and :meth:`Peers.sensed_for` gives a formation what the world
-sensed with the other formations' members in SUMO appended to its neighbours. With one
-formation nothing of this runs.
+sensed with the other formations' members in SUMO appended to its neighbours. The rows the
+formations' governors take (rear, offset, half width, speed, and each row's member) are
+:func:`peer_table`'s, a kernel the compiled step of a road run (sumo/fused_step.py) calls too.
+With one formation nothing of this runs.
 """
 from __future__ import annotations
 
@@ -14,9 +16,49 @@ from itertools import compress
 
 import numpy as np
 
+from ..control.reference_records import MemberRows, NeighbourRows
+from ..core.kernels import kernel
 from ..sim.world import sensed_of
 from .types import Neighbours
 from ..sim.world import Sensed
+
+_NO_MATES = np.empty(0)
+
+
+@kernel
+def peer_table(nb, members, length, width, d_front):
+    """SUMO's vehicles ``nb`` (control/reference_records.py NeighbourRows; its ``mate_rear``
+    is not read) joined by the members with ``members.active`` (MemberRows: their arc length,
+    offset [m] and speed [m/s]; ``length``, ``width`` and CoG to front bumper ``d_front`` of
+    their SUMO types [m]): rear bumper's arc length, offset, half width [m], speed [m/s], the
+    released members' flags (members: False) and each row's member (-1: a SUMO vehicle),
+    SUMO's rows first, then the members in order."""
+    m = nb.rear.shape[0]
+    active = members.active
+    k = m
+    for i in range(active.shape[0]):
+        if active[i]:
+            k += 1
+    rear, d, half, speed = np.empty(k), np.empty(k), np.empty(k), np.empty(k)
+    flags = np.zeros(k, dtype=np.bool_)
+    owner = np.full(k, -1, dtype=np.int64)
+    for j in range(m):
+        rear[j] = nb.rear[j]
+        d[j] = nb.d[j]
+        half[j] = nb.half_w[j]
+        speed[j] = nb.v[j]
+        flags[j] = nb.in_formation[j]
+    q = m
+    for i in range(active.shape[0]):
+        if not active[i]:
+            continue
+        rear[q] = members.s[i] + d_front[i] - length[i]  # front bumper less the length
+        d[q] = members.d[i]
+        half[q] = width[i] / 2
+        speed[q] = members.v[i]
+        owner[q] = i
+        q += 1
+    return rear, d, half, speed, flags, owner
 
 
 class Peers:
@@ -46,7 +88,7 @@ class Peers:
         shift = self.d_front - self.length / 2  # CoG -> body centre, along the heading [m]
         c, s = np.cos(heading), np.sin(heading)
         self.rows = (pos[:, 0] + shift * c, pos[:, 1] + shift * s, heading, v, a,
-                     m_s + shift, m_d, m_s + self.d_front - self.length)
+                     m_s + shift, m_d, m_s)
 
     def sensed_for(self, sensed: Sensed, sl: slice, present: np.ndarray) -> Sensed:
         """What formation ``sl`` senses: :func:`~.world.sensed_of`, its neighbours joined by
@@ -90,20 +132,26 @@ class Peers:
         if self._step_of is sensed:
             return self._table
         nb = sensed.nb
+        present = np.ascontiguousarray(present, dtype=np.bool_)
         idx = np.flatnonzero(present)
-        x, y, psi, v, a, s, d, rear = (q[idx] for q in self.rows)
+        x, y, psi, v, a, s, m_d, m_s = self.rows
         n_nb = len(nb.ids)
         flagged = len(sensed.nb_in_formation) == n_nb
-        in_f = (np.append(sensed.nb_in_formation, np.zeros(len(idx), dtype=np.bool_)) if flagged
-                else np.zeros(n_nb + len(idx), dtype=np.bool_))
-        arrays = (np.append(nb.x, x), np.append(nb.y, y), np.append(nb.heading, psi), np.append(nb.v, v),
-                  np.append(nb.a, a), np.append(nb.length, self.length[idx]),
+        rear, d, half_w, speed, in_f, owner = peer_table(
+            NeighbourRows(_f64(sensed.nb_rear), _f64(sensed.nb_d), _f64(sensed.nb_half_w), _f64(nb.v),
+                          (sensed.nb_in_formation if flagged else np.zeros(n_nb, dtype=np.bool_)), _NO_MATES),
+            MemberRows(_f64(m_s), _f64(m_d), _f64(v), present), self.length, self.width, self.d_front)
+        arrays = (np.append(nb.x, x[idx]), np.append(nb.y, y[idx]), np.append(nb.heading, psi[idx]), speed,
+                  np.append(nb.a, a[idx]), np.append(nb.length, self.length[idx]),
                   np.append(nb.width, self.width[idx]), np.append(nb.lane_index, self.lane_index[idx]),
-                  np.append(sensed.nb_s, s), np.append(sensed.nb_d, d), np.append(sensed.nb_rear, rear),
-                  np.append(sensed.nb_half_w, self.width[idx] / 2), in_f)
+                  np.append(sensed.nb_s, s[idx]), d, rear, half_w, in_f)
         joined = Neighbours(list(nb.ids) + [self.sumo_ids[i] for i in idx],
                             list(nb.types) + [self.types[i] for i in idx], *arrays[:7],
                             list(nb.lane_ids) + [self.lane_ids[i] for i in idx], arrays[7])
-        owner = np.concatenate([np.full(n_nb, -1, dtype=np.int64), idx])
         self._step_of, self._table = sensed, (joined, arrays, owner, flagged)
         return self._table
+
+
+def _f64(a) -> np.ndarray:
+    """a as a contiguous float64 array (no copy when it already is one)."""
+    return np.ascontiguousarray(a, dtype=np.float64)

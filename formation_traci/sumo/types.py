@@ -5,7 +5,8 @@ conversions and the small dataclasses of its results.
 SUMO's vehicle position is the front bumper and its angle is degrees clockwise from north;
 ours is the centre of gravity (CoG) and radians counter-clockwise from +x. The conversions
 are here, once: :func:`cog_to_sumo` / :func:`sumo_to_cog` on arrays, and the compiled
-:func:`cog_to_sumo_rows` of the per-step moves (the same arithmetic, bit for bit; the per-step
+:func:`cog_to_sumo_rows` of the per-step moves, within :func:`sumo_placement`, the new state as
+SUMO is told it (the same arithmetic, bit for bit; the per-step
 reads convert inside sumo/sense.py's ``sense_step``, with :func:`sumo_to_cog_rows`'s
 arithmetic, tests/test_fast_paths.py).
 """
@@ -16,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.kernels import kernel
+from ..core.kernels import kernel, maximum
 
 KEEP_ROUTE = 1
 """moveToXY keepRoute bits: 1 = map only onto edges of the member's route (never off the road,
@@ -93,6 +94,24 @@ def cog_to_sumo_rows(x, y, psi, d_front):
     for i in range(n):
         xf[i], yf[i], ang[i] = cog_to_sumo_one(x[i], y[i], psi[i], d_front[i])
     return xf, yf, ang
+
+
+@kernel
+def sumo_placement(pos, heading, v_before, v_after, d_front, step, place):
+    """The members' new state as SUMO is told it (sumo/world.py SumoWorld.actuate, the compiled
+    step's actuate), into ``place`` (6, n): SUMO's front bumper x, y [m] and angle [deg] of
+    the CoG ``pos`` (n, 2) [m] and ``heading`` (n,) [rad] (:func:`cog_to_sumo_rows`), the speed
+    ``v_after`` [m/s], the mean acceleration over the step of ``step`` [s] from ``v_before``
+    [m/s^2] and the speed SUMO is told, ``v_after`` not below 0 [m/s] (moveToXY's setSpeed
+    and setPreviousSpeed)."""
+    xf, yf, ang = cog_to_sumo_rows(pos[:, 0].copy(), pos[:, 1].copy(), heading, d_front)
+    for i in range(pos.shape[0]):
+        place[0, i] = xf[i]
+        place[1, i] = yf[i]
+        place[2, i] = ang[i]
+        place[3, i] = v_after[i]
+        place[4, i] = (v_after[i] - v_before[i]) / step
+        place[5, i] = maximum(v_after[i], 0.0)
 
 
 @kernel

@@ -3,7 +3,8 @@
 sense: read back where SUMO put the members (removed, placement mismatch, lane changes)
 and the vehicles near them; observe: traffic events and background rows; actuate: insert
 the members spawned since the last step (every member of the run before its first step),
-place the others with moveToXY; retire: members out of SUMO at once; step: SUMO's step, then tell
+place the others with moveToXY (their pose, speeds and accelerations as SUMO takes them:
+sumo/types.py sumo_placement); retire: members out of SUMO at once; step: SUMO's step, then tell
 SUMO the members' true speed and acceleration. A baseline twin (``baseline`` "same" or
 "absent") runs the same traffic without the formation: no member enters SUMO, every vehicle is
 recorded; the "same" twin has, in each member's place, a vehicle of its type that SUMO drives.
@@ -34,7 +35,7 @@ from .handover import MemberHandover
 from .member_rows import MemberRows
 from .peers import Peers
 from .sense import NeighbourGuess, NeighbourReads, PackedLanes, SumoRows, sense_step
-from .types import Neighbours
+from .types import Neighbours, sumo_placement
 from .plan import MEMBER_ROUTE, MEMBER_VCLASS, RoadPlan, member_types, sumo_args
 from .traffic import flow_vehicles_per_hour, populate_places, write_routes
 from .warm_state import WarmSetup, merge_outputs, start_warm
@@ -105,6 +106,7 @@ class SumoWorld(MemberHandover, MemberRows):
             rec.incident_log.locate = self.locate
         self.mtypes = member_types(sc, plan)
         self.d_front = np.array([mt.d_front for mt in self.mtypes])  # CoG to front bumper [m]
+        self.placement = np.empty((6, n))  # actuate's sumo/types.py sumo_placement rows
         # ramp traffic at the route's joins (sumo/merge_watch.py; set by run/road_parts.py), each formation's cap [m/s^2]
         self.merges, self.merge_caps = None, np.full(len(self.groups), np.inf)
         self._room = None  # sumo/flow_inserts.py RoomCheck, made at the first due formation of a flow
@@ -329,8 +331,10 @@ class SumoWorld(MemberHandover, MemberRows):
     # ------------------------------------------------------------------ actuate / step
     def actuate(self, t_next: float, state, v_before) -> None:
         pos, vel, heading = self._kinematics(state)
-        v_after = self.fleet.speed(state)
-        self.a_mean = (v_after - v_before) / self.sc.run.step
+        place = self.placement  # SUMO's pose, speeds and mean accelerations of the new state
+        sumo_placement(pos, heading, np.ascontiguousarray(v_before, dtype=np.float64), self.fleet.speed(state),
+                       self.d_front, float(self.sc.run.step), place)
+        v_after, self.a_mean, self.v_told = place[3].copy(), place[4].copy(), place[5].copy()
         self.v_after = v_after
         if self.true_v is not None:  # the members' true speeds for the FCD (sumo/fcd.py)
             self.true_v[int(round(t_next / self.sc.run.step))] = np.where(self.active, v_after, np.nan)
@@ -341,10 +345,11 @@ class SumoWorld(MemberHandover, MemberRows):
         if self.baseline or not len(act_idx):
             return  # a twin: the formation stays out of SUMO
         if len(act_idx) == len(ids):  # every member in the run: no copies
-            refused = dict(ad.place(self.sumo_ids, pos[:, 0], pos[:, 1], heading, v_after))
+            refused = dict(ad.place(self.sumo_ids, place[0], place[1], place[2], place[5], pos))
         else:
-            refused = dict(ad.place([self.sumo_ids[i] for i in act_idx], pos[act_idx, 0],
-                                    pos[act_idx, 1], heading[act_idx], v_after[act_idx]))
+            at = place[:, act_idx]
+            refused = dict(ad.place([self.sumo_ids[i] for i in act_idx], at[0], at[1], at[2], at[5],
+                                    pos[act_idx]))
         self.refusals(t_next, act_idx, refused, self.active, ad)
 
     def insert_members(self, t_next, rows, pos, heading, v_after) -> None:
@@ -378,10 +383,10 @@ class SumoWorld(MemberHandover, MemberRows):
             return
         here_now = self.active & self.in_sumo & self.moved
         if here_now.all():
-            ad.set_true_speeds(self.sumo_ids, self.v_after, self.a_mean)
+            ad.set_true_speeds(self.sumo_ids, self.v_told, self.a_mean)
         else:
             act_idx = np.flatnonzero(here_now)
-            ad.set_true_speeds([self.sumo_ids[i] for i in act_idx], self.v_after[act_idx],
+            ad.set_true_speeds([self.sumo_ids[i] for i in act_idx], self.v_told[act_idx],
                                self.a_mean[act_idx])
         if not self.all_bg and self.active.any():
             self.subscribe_contexts()

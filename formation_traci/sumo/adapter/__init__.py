@@ -27,17 +27,12 @@ from ..types import (GUI_VIEW, GUI_ZOOM, KEEP_ROUTE, LANE_CHANGE_MODE_DEFAULT,  
                          MATCH_THRESHOLD, ORDINARY_CLASS, REMOVED_REASONS, ROUTE_AHEAD_M,
                          SPEED_MODE_DEFAULT,
                          START_TIMEOUT_S, MemberType, Neighbours, StepEvents, SumoError,
-                         cog_to_sumo, cog_to_sumo_rows, sumo_binary, sumo_to_cog)
+                         cog_to_sumo, sumo_binary, sumo_to_cog)
 
 
 
 _QUIET = StepEvents((), (), ())
 """What a step without collisions, teleports or arrivals reports (shared, read-only tuples)."""
-
-
-def _f64(a) -> np.ndarray:
-    """a as a contiguous float64 array (no copy when it already is one)."""
-    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def _api(backend: str):
@@ -73,8 +68,6 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds, RampReads
         self._ends: dict[str, tuple[float, str]] = {}  # member -> its lane's end (sumo/adapter/lane_ends.py)
         self._end_of: dict = {}  # (lane, vClass, next edge) -> lane end or None (sumo/adapter/lane_ends.py)
         self._window_lane: dict[str, str] = {}  # member -> lane its route window was last checked on
-        self._front_ids: list[str] = []
-        self._front = np.empty(0)
         self._member_get = None  # itemgetter of the members' subscription variables
         self._all_here = np.ones(0, dtype=bool)  # read_members' 'present' when SUMO has them all
         self._settled = None  # (ids, lanes, half widths, half lane widths) of _track_lanes
@@ -260,9 +253,11 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds, RampReads
         except self.api.TraCIException as exc:
             raise SumoError(_refusal(vid, (x, y), exc)) from exc
 
-    def place(self, ids: list[str], x, y, psi, v) -> list[tuple[str, str]]:
-        """Pin members to CoG poses for the coming step, with speed ``v`` [m/s] at its end.
-        Returns (id, message) of moves SUMO refused.
+    def place(self, ids: list[str], xf, yf, angle, v, pos) -> list[tuple[str, str]]:
+        """Pin members to SUMO's front bumper ``xf``, ``yf`` [m] and ``angle`` [deg] for the
+        coming step, with speed ``v`` [m/s, not below 0] at its end (sumo/types.py
+        sumo_placement's rows; CoG ``pos`` (n, 2) [m] for the messages). Returns (id, message)
+        of moves SUMO refused.
 
         A member whose body overlaps a neighbour lane (as last read, :meth:`read_members`) is
         first put on that lane (``moveTo``) so that the ``moveToXY`` is a lane change: SUMO
@@ -270,10 +265,9 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds, RampReads
         other lane see it (docs/sumo.md). Each move is followed by ``setSpeed`` with the
         member's speed (docs/sumo.md, "SUMO's speed of a member").
         """
-        xf, yf, ang = cog_to_sumo_rows(_f64(x), _f64(y), _f64(psi), self._d_front(ids))
         move, set_speed, overlap, ends, refused = self._move_xy, self._set_speed, self._overlap, self._ends, []
-        for i, (vid, a, b, c, vi) in enumerate(zip(ids, xf.tolist(), yf.tolist(), ang.tolist(),
-                                                   np.maximum(v, 0.0).tolist())):
+        for i, (vid, a, b, c, vi) in enumerate(zip(ids, xf.tolist(), yf.tolist(), angle.tolist(),
+                                                   v.tolist())):
             if overlap or ends:
                 # a lane that does not lead on for the member (sumo/adapter/lane_ends.py)
                 hint = self._cross_end(vid, vi, overlap.get(vid))
@@ -283,7 +277,7 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds, RampReads
                 move(vid, "", -1, a, b, c, KEEP_ROUTE, MATCH_THRESHOLD)
                 set_speed(vid, vi)
             except self.api.TraCIException as exc:
-                refused.append((vid, _refusal(vid, (x[i], y[i]), exc)))
+                refused.append((vid, _refusal(vid, pos[i], exc)))
         return refused
 
     def _hint_lane(self, vid: str, other: str) -> None:
@@ -293,13 +287,6 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds, RampReads
             self.api.vehicle.moveTo(vid, other, max(pos, 0.0))
         except self.api.TraCIException:
             pass  # only a hint for SUMO's lane bookkeeping
-
-    def _d_front(self, ids: list[str]) -> np.ndarray:
-        """CoG to front bumper of members ``ids`` [m] (kept while the list stays the same)."""
-        if ids != self._front_ids:
-            self._front_ids = list(ids)
-            self._front = np.array([self.members[vid].d_front for vid in ids], dtype=float)
-        return self._front
 
     def step(self) -> StepEvents:
         """One SUMO step; returns the collisions, teleports and arrivals it reported."""
@@ -322,10 +309,11 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds, RampReads
                           list(arrived))
 
     def set_true_speeds(self, ids: list[str], v, a) -> None:
-        """Tell SUMO each member's true speed [m/s] and acceleration [m/s^2] (it would infer
-        a half-step-late mean speed clamped to the lane limit from the distance moved)."""
+        """Tell SUMO each member's true speed [m/s, not below 0: sumo/types.py sumo_placement]
+        and acceleration [m/s^2] (it would infer a half-step-late mean speed clamped to the lane
+        limit from the distance moved)."""
         set_speed = self._set_previous_speed
-        for vid, vi, ai in zip(ids, np.maximum(v, 0.0).tolist(), a.tolist()):
+        for vid, vi, ai in zip(ids, v.tolist(), a.tolist()):
             try:
                 set_speed(vid, vi, ai)
             except self.api.TraCIException:
