@@ -22,7 +22,6 @@ disk).
 """
 from __future__ import annotations
 
-import os
 
 import numpy as np
 
@@ -32,22 +31,11 @@ from ..models.params import N_PARAMS
 from ..record.columns import SIGNAL_COLUMNS
 from .fleet_records import FleetParams, StateRecord, as_f64, state_record
 from .fleet_state import FleetState
-from .free_step import (NOT_FINITE, OUT_OF_RANGE, SLOW, FreeAt, FreeOut, FreePlan, free_kernel,
-                        free_run, free_step)
+from .free_step import FreeAt, FreeOut, FreePlan, free_kernel, free_run, free_step
 from .incidents import IncidentArrays
+from .step_flags import NOT_FINITE, OUT_OF_RANGE, SLOW, SWITCH, switched_off  # noqa: F401 (SWITCH re-exported)
 from .table_records import TableBuffers
 from .world import FreeSpace
-
-SWITCH = "FORMATION_TRACI_FUSED"
-"""Environment variable: ``off`` runs every step through the loop's own path (a diagnostic:
-the files are the same either way). The road's compiled step reads the same one
-(sumo/fused_path.py SWITCH)."""
-
-
-def switched_off() -> bool:
-    """``FORMATION_TRACI_FUSED`` says every step runs the loop's way."""
-    return os.environ.get(SWITCH, "").lower() in ("0", "off", "no")
-
 
 def free_path(parts, rec, sc, check_finite):
     """The run's :class:`FreePath`, or None when the run is not one it serves (module
@@ -164,7 +152,7 @@ def warm_kernels() -> None:
     ids = np.zeros(0, dtype=np.int32)
     tables = TableBuffers(z, np.zeros((0, 0)), ids, np.zeros((0, 0)), ids, zi, np.zeros((0, 0)),
                           zi, ids, np.empty((0, 0)), np.empty((0, 0), dtype=np.int32))
-    inc = IncidentArrays(zi, z, z, z, np.zeros((0, 0)), np.zeros(2))
+    inc = IncidentArrays(zi, z, z, z, np.zeros((0, 0)), np.zeros(2), np.zeros(0, dtype=np.bool_))
     out = FreeOut(np.zeros((0, len(SIGNAL_COLUMNS))), np.zeros((0, 0, 3)), np.zeros((0, 0, 8)),
                   np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 8)))
     free_step(free_run(fleet, plan, tables, inc, out),

@@ -41,15 +41,11 @@ from ..control.reference_records import StepReference
 from ..core.kernels import kernel, rebind
 from .fleet import member_signals, step_members
 from .fleet_rows import period_table_rows, signal_table_rows
-from .incidents import member_clearances
+from .incidents import member_clearances, slow_members
+from .record_rows import beyond_limits
+from .step_flags import NOT_FINITE, OUT_OF_RANGE, SLOW
 from .table_records import SignalRows
 
-OUT_OF_RANGE = 1
-"""free_step flag: a recorded signal is beyond the recorder's limits (a model_range event)."""
-NOT_FINITE = 2
-"""free_step flag: the members' new state is not finite (sim/loop.py ModelRangeError)."""
-SLOW = 4
-"""free_step flag: a member stands while its speed reference does not (sim/incidents.py)."""
 
 
 class FreePlan(NamedTuple):
@@ -195,17 +191,16 @@ def _record(fleet, plan, targets, tables, inc, out, state, at):
                               tables.comfort_ids, at.c_at, tables.comfort_cols))
     n = signal_table_rows(sig, t, tables.traj, tables.traj_ids, at.at, tables.comfort,
                           tables.comfort_ids, at.c_at, tables.comfort_cols, plan.active)
-    extras, limits, c, stranded = tables.extras, tables.limits, inc.cols, inc.stranded
-    flags = 0
-    for i in range(n):
+    extras, c = tables.extras, inc.cols
+    for i in range(n):  # no road columns in free space; the radio's leader_age_s 0
         for q in range(extras.shape[0] - 1):
             extras[q, at.at + i] = np.nan
         extras[extras.shape[0] - 1, at.at + i] = 0.0
-        for q in range(sig.shape[1]):
-            if abs(sig[i, q]) > limits[q]:
-                flags |= OUT_OF_RANGE
-        if sig[i, c[3]] < stranded[0] and sig[i, c[4]] > stranded[1]:
-            flags |= SLOW
+    flags = 0
+    if beyond_limits(sig, tables.limits):
+        flags |= OUT_OF_RANGE
+    if slow_members(sig, c[3], c[4], inc.stranded, plan.active, inc.slow):
+        flags |= SLOW
     worst = np.inf
     if plan.pairs:
         worst = member_clearances(sig, c[0], c[1], c[2], inc.shift, inc.length, inc.width,

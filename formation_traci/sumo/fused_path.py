@@ -25,7 +25,6 @@ of fused_step calling the fleet's own step and signal kernels (sumo/fused_step.p
 """
 from __future__ import annotations
 
-import os
 
 import numpy as np
 
@@ -39,11 +38,9 @@ from .events import PLACEMENT_TOLERANCE
 from .fused_records import RoadRun, SensedRows, StepAt, StepOut, fused_run
 from .fused_refs import GroupOfFormations, OneFormation
 from .sense import NeighbourReads, SumoRows, sense_step
-from .fused_step import EMERGENCY, NOT_FINITE, OUT_OF_RANGE, SLOW, fused_kernel
+from ..sim.step_flags import EMERGENCY, NOT_FINITE, OUT_OF_RANGE, SLOW, SWITCH, switched_off  # noqa: F401 (SWITCH re-exported)
+from .fused_step import fused_kernel
 
-SWITCH = "FORMATION_TRACI_FUSED"
-"""Environment variable: ``off`` runs every step through the loop's own path (a diagnostic:
-the files are the same either way, tests/test_fused_step.py)."""
 
 _NO_READS = NeighbourReads(np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), np.empty(0))
 """sense_step's neighbours when only the members are sensed."""
@@ -73,7 +70,7 @@ def fused_path(parts, rec, sc, group=None):
     world, fleet, forms = parts.world, parts.fleet, parts.formations
     one = (len(forms) == 1 and type(forms[0].generator) is RoadReference and not forms[0].transforms
            and not forms[0].depart)
-    if (config.DISABLE_JIT or os.environ.get(SWITCH, "").lower() in ("0", "off", "no")
+    if (config.DISABLE_JIT or switched_off()
             or type(world) is not SumoWorld or world.baseline or world.adapter.gui
             or world.adapter.backend != "libsumo" or parts.road_load is not None
             or not (one or group is not None) or sc.maneuvers

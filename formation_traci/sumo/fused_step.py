@@ -78,19 +78,12 @@ from ..sim.fleet import kinematics_rows, member_signals, step_members
 from ..sim.fleet_rows import period_table_rows, signal_table_rows
 from ..sim.incidents import member_clearances, slow_members
 from ..sim.record_rows import background_rows, beyond_limits, road_rows, vc_rows
+from ..sim.step_flags import EMERGENCY, NOT_FINITE, OUT_OF_RANGE, SLOW
 from ..sim.table_records import SignalRows
 from .peers import peer_table
 from .sense import NeighbourReads, SumoRows, sense_step
 from .types import sumo_placement
 
-OUT_OF_RANGE = 1
-"""fused_step flag: a recorded signal is beyond the recorder's limits (a model_range event)."""
-NOT_FINITE = 2
-"""fused_step flag: the members' new state is not finite (sim/loop.py ModelRangeError)."""
-SLOW = 4
-"""fused_step flag: a member stands while its speed reference does not (sim/incidents.py)."""
-EMERGENCY = 8
-"""fused_step flag: the virtual car or a member is on emergency braking (sumo/events.py)."""
 
 _COPIES: dict = {}
 
