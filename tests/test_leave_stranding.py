@@ -76,17 +76,23 @@ def test_braking_beyond_comfort_is_released_fast_after_the_emergency():
 
 def test_a_released_member_inside_the_column_is_kept_at_the_slots_spacing_not_the_time_gap():
     """The LuST hand-over: 15.4 m (20 m slots less a 4.6 m body) to the released member at 24.74
-    m/s, the member behind at 24.97 m/s. As traffic (time gap 1.5 s, min gap 2 m) the gap law
-    asks K_GAP (15.4 - 2 - 1.5 x 24.97) + K_REL (24.74 - 24.97) = -4.86 m/s^2 (an emergency
-    beyond decel_max 3) and the speed cap 24.74 + (15.4 - 2 - 37.11) / 1.5 = 8.93 m/s; as a
-    mate at its slot's spacing, K_REL (-0.23) = -0.161 m/s^2 and a cap of 24.74 m/s. 5 m
-    closer than the spacing: the cap 5 / 1.5 m/s lower."""
+    m/s, the member behind at 24.97 m/s. Matching its speed needs (24.97^2 - 24.74^2) / (2 x
+    13.4) = 0.43 m/s^2, so as traffic it is a cut-in comfortable braking handles (docs/model.md,
+    "Vehicles cutting in"): the gap law K_GAP (15.4 - 2 - 1.5 x 24.97) + K_REL (24.74 - 24.97)
+    = -4.86 m/s^2 is bounded at -1.5 and the speed cap 24.74 + (15.4 - 2 - 37.11) / 1.5 = 8.93
+    m/s at 24.74; as a mate at its slot's spacing, K_REL (-0.23) = -0.161 m/s^2 and a cap of
+    24.74 m/s. Closing 3 m/s faster (22 m/s ahead), matching needs 5.2 m/s^2: the traffic law
+    asks it all, the mate's cap is the slots' spacing removed over the time gap."""
     v_cap, a_cap = member_caps(15.4, 24.74, 24.97, 1.5, 2.0, 7.0)
-    assert a_cap == pytest.approx(K_GAP * (15.4 - 2.0 - 1.5 * 24.97) + K_REL * (24.74 - 24.97))
-    assert a_cap < -3.0 and v_cap == pytest.approx(24.74 + (15.4 - 2.0 - 1.5 * 24.74) / 1.5)
+    law = K_GAP * (15.4 - 2.0 - 1.5 * 24.97) + K_REL * (24.74 - 24.97)
+    assert law < -3.0 and a_cap == pytest.approx(-1.5) and v_cap == pytest.approx(24.74)
     v_cap, a_cap = mate_caps(15.4, 24.74, 24.97, 15.4, 1.5, 2.0, 7.0)
     assert (v_cap, a_cap) == (pytest.approx(24.74), pytest.approx(K_REL * (24.74 - 24.97)))
-    assert mate_caps(10.4, 24.74, 24.97, 15.4, 1.5, 2.0, 7.0)[0] == pytest.approx(24.74 - 5.0 / 1.5)
+    b = (24.97 ** 2 - 22.0 ** 2) / (2 * 13.4)
+    v_cap, a_cap = member_caps(15.4, 22.0, 24.97, 1.5, 2.0, 7.0)
+    assert a_cap == pytest.approx(min(K_GAP * (15.4 - 2.0 - 1.5 * 24.97) + K_REL * (22.0 - 24.97), -b))
+    assert v_cap == pytest.approx(22.0 + (15.4 - 2.0 - 1.5 * 22.0) / 1.5)
+    assert mate_caps(10.4, 22.0, 24.97, 15.4, 1.5, 2.0, 7.0)[0] == pytest.approx(22.0 - 5.0 / 1.5)
     # a mate closing fast in 5 m: (25^2 - 20^2) / (2 (5 - 2)) = 37.5 m/s^2, bounded at -7
     assert mate_caps(5.0, 20.0, 25.0, 15.4, 1.5, 2.0, 7.0)[1] == -7.0
     # a faster mate: the gap opens by itself, no cap below v, braking at most B_COMFORT 1.5

@@ -130,3 +130,19 @@ def test_with_the_formations_time_gap_the_yield_opens_that_gap_at_the_merge_poin
     gap2 = (1500.0 - 4.5 + v_r * t) - (1450.0 + v_f * t + 0.5 * cap2 * t * t)
     assert out2[0] == YIELD
     assert gap2 == pytest.approx(P.min_gap_m + 2.0 * v_f, abs=1e-9)
+
+
+def test_when_the_formations_gap_costs_more_than_comfort_the_yield_opens_the_drivers_own():
+    """The ramp vehicle 5.5 m ahead of the column's front, 1 m/s slower, 7.04 s from the merge
+    point: opening the formation's 1.5 s gap (44.5 m) needs 1.86 m/s^2, more than the 1.5 of
+    comfort; the driver's own 1 s gap (30.5 m) needs 1.29: the formation yields to that one
+    (before the fallback the vehicle was left to merge behind)."""
+    p = merge_params(CooperationSpec(), 1.5)
+    v_f, v_r = 28.0, 27.0
+    lane = MergeLane(s_front=1450.0, v_front=v_f, s_rear=1390.0)
+    t = (1650.0 - 1460.0) / v_r
+    assert 2 * (P.min_gap_m + 1.5 * v_f - 5.5 + t) / t ** 2 > P.a_comfort_mps2
+    out = np.empty(1, dtype=np.int64)
+    cap = yield_to_ramp(SITE, _ramp(dist=40.0, v=v_r), lane, p, out)
+    gap = (1460.0 - 4.5 + v_r * t) - (1450.0 + v_f * t + 0.5 * cap * t * t)
+    assert out[0] == YIELD and gap == pytest.approx(P.min_gap_m + 1.0 * v_f, abs=1e-9)

@@ -17,7 +17,8 @@ rear-most rear bumper at ``s_R``. The ramp vehicle of length ``L_r`` and time ga
 * **clear ahead** when its rear leads ``s_F`` by at least ``g_F = min_gap + max(tau_r, tau_F) v_F``
   (``tau_F``: the formation's own time gap, ``follow_gap_s``, so that once it has merged the
   formation follows it at its usual gap, not at the ramp driver's shorter one, from which a
-  brake of the merged vehicle is an emergency for the member behind it): the front member follows it as it follows a leader in its lane (the governor's time-gap law,
+  brake of the merged vehicle is an emergency for the member behind it): the front member
+  follows it as it follows a leader in its lane (the governor's time-gap law,
   ``K_GAP (lead - g_F) + K_REL (v_r - v_F)``, not below ``-a_comfort``), so the gap stays open
   until it has merged; a yield to it goes on;
 * otherwise **in conflict**. The formation opens the gap ahead of its front member when a
@@ -26,7 +27,9 @@ rear-most rear bumper at ``s_R``. The ramp vehicle of length ``L_r`` and time ga
       (s_r - L_r - s_F) + (v_r - v_F) T + a T^2 / 2 >= g_F
       a_req = 2 (g_F - (s_r - L_r - s_F) - (v_r - v_F) T) / T^2
 
-  and ``a_req <= a_comfort``: it *yields*, its acceleration capped at ``-a_req`` (recomputed
+  and ``a_req <= a_comfort``: it *yields*, its acceleration capped at ``-a_req`` (when the
+  formation's own gap ``g_F`` would need more, ``a_req`` is that of the ramp driver's own gap,
+  ``min_gap + tau_r v_F``: the formation never yields less than to that gap; recomputed
   every step, so the cap relaxes as the gap opens). A conflict that needs more than
   ``a_comfort`` is left to the ramp vehicle (it merges behind), unless the formation already
   yields to it and it needs at most twice that: then the cap stays, at most ``a_comfort`` (no
@@ -123,8 +126,12 @@ def yield_to_ramp(site, ramp, lane, p, decision):
             if ramp.yielding[j]:
                 decision[j] = YIELD
             continue
+        limit = 2.0 * p.a_comfort_mps2 if ramp.yielding[j] else p.a_comfort_mps2
         a_req = 2.0 * (g_front - lead - (ramp.v[j] - lane.v_front) * t) / (t * t)
-        if a_req <= p.a_comfort_mps2 or (ramp.yielding[j] and a_req <= 2.0 * p.a_comfort_mps2):
+        if a_req > limit:  # the formation's gap costs too much: at least the driver's own
+            g_own = p.min_gap_m + ramp.tau[j] * lane.v_front
+            a_req = 2.0 * (g_own - lead - (ramp.v[j] - lane.v_front) * t) / (t * t)
+        if a_req <= limit:
             decision[j] = YIELD
             cap = min(cap, -min(max(a_req, 0.0), p.a_comfort_mps2))
         else:
