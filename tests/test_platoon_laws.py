@@ -180,7 +180,12 @@ def test_radio_loss_falls_back_to_acc_and_recovers(tmp_path):
     each CACC member switches to ACC at the controller.acc gap (1.2 s) once its newest state is
     older than 0.5 s (event law_fallback, t in (5.5, 5.6]) and back when beacons return
     (law_recovered, t in [8, 8.1]); ACC opens the gaps, no gap closes below the 15.9 m Ploeg gap
-    by more than 1 m, and nothing collides. The head runs the virtual structure: it never switches."""
+    by more than 1 m, and nothing collides. The head runs the virtual structure: it never switches.
+    The channel's caps on the timed-out followers (comm/link.py, the governor's member caps at
+    the traffic time gap) ask only comfortable braking of a predecessor at nearly their own
+    speed (docs/model.md, "Vehicles cutting in"): the followers brake at most as hard as the
+    head's own profile asks (3.13 m/s^2); before, the speed cap braked every follower at
+    5.6 m/s^2."""
     text = (PLATOON / "sinusoid_cacc_ploeg.toml").read_text().replace(
         "duration = 30.0", "duration = 14.0")
     p = tmp_path / "loss.toml"
@@ -199,7 +204,9 @@ def test_radio_loss_falls_back_to_acc_and_recovers(tmp_path):
     t = x.index.to_numpy()
     k0, k1 = np.searchsorted(t, 5.6), np.searchsorted(t, 8.0)
     # on ACC every gap opens towards 2 m + 1.2 s v = 35 m (slowly: lambda = 0.1 1/s)
-    assert (gaps[:, k1] > gaps[:, k0] + 0.005).all() and gaps[0, k1] > gaps[0, k0] + 2.0
+    assert (gaps[:, k1] > gaps[:, k0]).all() and gaps[0, k1] > gaps[0, k0] + 2.0
+    a_min = df[df.vehicle_id != "vc"].groupby("vehicle_id").a_lon.min()
+    assert (a_min[IDS[1:]] >= a_min[IDS[0]] - 0.01).all(), a_min.to_dict()
     assert not (ev.kind == "collision").any()
 
 
