@@ -38,8 +38,8 @@ from numba.experimental import structref
 
 from ..control.reference_free import free_vc_rows
 from ..control.reference_records import StepReference
-from ..core.kernels import kernel, rebind
-from .fleet import member_signals, step_members
+from ..core.kernels import kernel
+from .fleet import member_signals, step_members, with_fleet_kernels
 from .fleet_rows import period_table_rows, signal_table_rows
 from .incidents import member_clearances, slow_members
 from .record_rows import beyond_limits
@@ -110,23 +110,13 @@ class FreeAt(NamedTuple):
     c_at: int  # of the comfort table's
 
 
-_COPIES: dict = {}
-
-
 def free_kernel(step, signals):
     """:func:`free_step` for a fleet whose step and signal kernels (sim/fleet.py
     Fleet.kernels) are ``step`` and ``signals``: the cached kernel itself for the package's
     own :func:`~.fleet.step_members` and :func:`~.fleet.member_signals`, else a compiled copy
     calling those given (a law registered at run time, a model variant), made once per pair
     (compiled on first call, not cached on disk)."""
-    if step is step_members and signals is member_signals:
-        return free_step
-    key = (id(step), id(signals))
-    got = _COPIES.get(key)
-    if got is None or got[0] is not step or got[1] is not signals:
-        record = rebind(_record, member_signals=signals)
-        got = _COPIES[key] = (step, signals, rebind(free_step, step_members=step, _record=record))
-    return got[2]
+    return with_fleet_kernels(free_step, _record, (step, signals))
 
 
 @kernel

@@ -71,10 +71,10 @@ import numpy as np
 
 from ..control.reference_group import group_reference_step
 from ..control.reference_records import MemberRows, NeighbourRows, StepReference
-from ..core.kernels import kernel, rebind
+from ..core.kernels import kernel
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
-from ..sim.fleet import kinematics_rows, member_signals, step_members
+from ..sim.fleet import kinematics_rows, member_signals, step_members, with_fleet_kernels
 from ..sim.fleet_rows import period_table_rows, signal_table_rows
 from ..sim.incidents import member_clearances, slow_members
 from ..sim.record_rows import background_rows, beyond_limits, road_rows, vc_rows
@@ -85,23 +85,13 @@ from .sense import NeighbourReads, SumoRows, sense_step
 from .types import sumo_placement
 
 
-_COPIES: dict = {}
-
-
 def fused_kernel(step, signals):
     """:func:`fused_step` for a fleet whose step and signal kernels (sim/fleet.py
     Fleet.kernels) are ``step`` and ``signals``: the cached kernel itself for the package's
     own :func:`~..sim.fleet.step_members` and :func:`~..sim.fleet.member_signals`, else a
     compiled copy calling those given (a law registered at run time: sim/fleet_laws.py
     law_kernels), made once per pair (compiled on first call, not cached on disk)."""
-    if step is step_members and signals is member_signals:
-        return fused_step
-    key = (id(step), id(signals))
-    got = _COPIES.get(key)
-    if got is None or got[0] is not step or got[1] is not signals:
-        record = rebind(_record, member_signals=signals)
-        got = _COPIES[key] = (step, signals, rebind(fused_step, step_members=step, _record=record))
-    return got[2]
+    return with_fleet_kernels(fused_step, _record, (step, signals))
 
 
 @kernel
