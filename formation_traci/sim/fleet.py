@@ -23,7 +23,7 @@ from ..control.reference import Reference, cap_at
 from ..control.schedule import GainSchedule
 from ..control.reference_records import StepReference
 from ..control.targets import desired_point_at, follows_lane, target_at
-from ..core.kernels import kernel, maximum, rebind, substeps
+from ..core.kernels import kernel, maximum, substeps
 from ..models import bicycle, kinematic
 from ..models.integrator import HELD, rhs_into, rk4_row_from
 from ..models.params import _DRAG, _GRADE, BicycleParams, N_PARAMS, pack_params
@@ -395,23 +395,3 @@ class Fleet:
         """Speed of every member [m/s] (the unicycle's applied speed input)."""
         return state.x[:, S.V].copy() if self.kind == DYNAMIC else state.speed_in.copy()
 
-
-_STEP_COPIES: dict = {}
-
-
-def with_fleet_kernels(whole, record, kernels):
-    """A compiled step ``whole`` (sim/free_step.py free_step, sumo/fused_step.py fused_step)
-    that calls :func:`step_members` itself and :func:`member_signals` through its kernel
-    ``record``, for a fleet whose (step, signal) kernels are ``kernels`` (:meth:`Fleet.kernels`):
-    ``whole`` itself for the package's own, else a compiled copy calling those given (a law
-    registered at run time, a model variant), made once per triple (compiled on first call, not
-    cached on disk)."""
-    step, signals = kernels
-    if step is step_members and signals is member_signals:
-        return whole
-    key = (id(whole), id(step), id(signals))
-    got = _STEP_COPIES.get(key)
-    if got is None or got[0] is not step or got[1] is not signals:
-        copy = rebind(whole, step_members=step, _record=rebind(record, member_signals=signals))
-        got = _STEP_COPIES[key] = (step, signals, copy)
-    return got[2]

@@ -39,7 +39,8 @@ from numba.experimental import structref
 from ..control.reference_free import free_vc_rows
 from ..control.reference_records import StepReference
 from ..core.kernels import kernel
-from .fleet import member_signals, step_members, with_fleet_kernels
+from .fleet import member_signals, step_members
+from .step_copies import with_fleet_kernels
 from .fleet_rows import period_table_rows, signal_table_rows
 from .incidents import member_clearances, slow_members
 from .record_rows import beyond_limits

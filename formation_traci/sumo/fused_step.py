@@ -74,7 +74,8 @@ from ..control.reference_records import MemberRows, NeighbourRows, StepReference
 from ..core.kernels import kernel
 from ..models.bicycle import S
 from ..models.state import KINEMATIC
-from ..sim.fleet import kinematics_rows, member_signals, step_members, with_fleet_kernels
+from ..sim.fleet import kinematics_rows, member_signals, step_members
+from ..sim.step_copies import with_fleet_kernels
 from ..sim.fleet_rows import period_table_rows, signal_table_rows
 from ..sim.incidents import member_clearances, slow_members
 from ..sim.record_rows import background_rows, beyond_limits, road_rows, vc_rows
