@@ -74,3 +74,21 @@ def wait_for(cond, timeout=120.0, every=0.05) -> bool:
             return True
         time.sleep(every)
     return False
+
+
+RUN_KEYS = ("incidents", "incident_summary", "event_counts", "tables", "stopped_early", "t_end")
+"""run.json entries two runs of one scenario must share (the compiled step against the loop's)."""
+
+
+def same_run_files(a: Path, b: Path) -> set[str]:
+    """Assert that the runs in ``a`` and ``b`` have the same run.json entries (:data:`RUN_KEYS`)
+    and the same part files byte for byte; returns the parts' relative paths."""
+    ma, mb = (json.loads((d / "run.json").read_text()) for d in (a, b))
+    for key in RUN_KEYS:
+        assert ma.get(key) == mb.get(key), key
+    parts = {p.relative_to(a).as_posix() for p in a.rglob("*.parquet") if p.is_file()}
+    assert parts == {p.relative_to(b).as_posix() for p in b.rglob("*.parquet") if p.is_file()}
+    for part in sorted(parts):
+        assert (a / part).read_bytes() == (b / part).read_bytes(), part
+    return parts
+

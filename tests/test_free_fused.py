@@ -7,7 +7,6 @@ that silently never ran would pass the comparison) and, where a case is about ev
 run had them."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pandas as pd
@@ -19,6 +18,7 @@ from formation_traci.runner import run_scenario
 from formation_traci.scenario import load_scenario
 from formation_traci.sim import free_path, recorder as recorder_module
 from formation_traci.sim.loop import free_space_run
+from run_helpers import same_run_files
 
 ROOT = Path(__file__).resolve().parents[1]
 THESIS = ROOT / "scenarios" / "thesis"
@@ -116,15 +116,9 @@ def test_compiled_free_steps_write_the_files_of_the_loops_own_steps(tmp_path, mo
     if case[4]:
         assert n_fused < fused.steps_done - 1  # the events' steps were the loop's
     assert (fused.status, fused.reason, fused.steps_done) == (loop.status, loop.reason, loop.steps_done)
-    ma, mb = (json.loads((d / "run.json").read_text()) for d in (a, b))
-    for key in ("incidents", "incident_summary", "event_counts", "tables", "stopped_early", "t_end"):
-        assert ma.get(key) == mb.get(key), key
-    parts = {p.relative_to(a).as_posix() for p in a.rglob("*.parquet") if p.is_file()}
-    assert parts == {p.relative_to(b).as_posix() for p in b.rglob("*.parquet") if p.is_file()}
+    parts = same_run_files(a, b)
     if case[3] is not None:
         assert len(parts) > 3  # the tables were cut
-    for part in sorted(parts):
-        assert (a / part).read_bytes() == (b / part).read_bytes(), part
 
 
 def test_the_loop_runs_every_step_without_compiled_kernels_with_a_radio_or_switched_off(monkeypatch):

@@ -7,7 +7,6 @@ silently never ran would pass the comparison) and that the run had the events th
 about (a case that no longer provokes them would test nothing)."""
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -19,6 +18,7 @@ from formation_traci.scenario import load_scenario
 from formation_traci.sim import recorder as recorder_module
 from formation_traci.sumo import fused_path
 from formation_traci.sumo.plan import MEMBER_VCLASS
+from run_helpers import same_run_files
 
 ROOT = Path(__file__).resolve().parents[1]
 LIGHT = ROOT / "scenarios" / "highway" / "straight_3lane_light.toml"
@@ -160,10 +160,4 @@ def test_fused_steps_write_the_files_of_the_loops_own_steps(tmp_path, monkeypatc
     ev = pd.read_parquet(a / "events.parquet")
     assert case[3] <= set(ev.kind), f"the case provoked {sorted(set(ev.kind))}"
     assert (fused.status, fused.reason, fused.steps_done) == (loop.status, loop.reason, loop.steps_done)
-    ma, mb = (json.loads((d / "run.json").read_text()) for d in (a, b))
-    for key in ("incidents", "incident_summary", "event_counts", "tables", "stopped_early", "t_end"):
-        assert ma.get(key) == mb.get(key), key
-    parts = {p.relative_to(a).as_posix() for p in a.rglob("*.parquet") if p.is_file()}
-    assert parts == {p.relative_to(b).as_posix() for p in b.rglob("*.parquet") if p.is_file()}
-    for part in sorted(parts):
-        assert (a / part).read_bytes() == (b / part).read_bytes(), part
+    same_run_files(a, b)
