@@ -32,9 +32,6 @@ V_WATCH = 40.0
 watch it [m/s] (above motorway speeds: a join is watched early rather than late)."""
 STOOD_MPS = 1.0
 """A ramp vehicle below this speed waits [m/s]."""
-NO_SHIFT = object()
-"""``shift`` at a join whose lane left of the merge lane merges with it (road/ramps.py
-RampJoin.left_merges): the formation yields as ``open_gap``."""
 NO_SHIFT_WHY = "the lane to the left merges with the merge lane at the join's end"
 
 
@@ -156,8 +153,7 @@ class MergeWatch:
             self._decision = np.empty(len(ids), dtype=np.int64)
         decision = self._decision[:len(ids)]
         cap = yield_to_ramp(site.merge, ramp, lane, self.p, decision)
-        yields, why = self._yields(t, w, vc_id, self.shifts[f] if not site.left_merges else NO_SHIFT,
-                                   decision, ids)
+        yields, why = self._yields(t, w, vc_id, self.shifts[f], decision, ids, site.left_merges)
         for j, vid in enumerate(ids):
             self._observe(w, vid, lanes[j], rows[:, j], decision[j], site)
             if yields:
@@ -165,12 +161,12 @@ class MergeWatch:
         self._forget(t, w, vc_id, ids)
         return cap if yields else math.inf
 
-    def _yields(self, t, w, vc_id, shift, decision, ids) -> tuple[bool, str]:
+    def _yields(self, t, w, vc_id, shift, decision, ids, left_merges=False) -> tuple[bool, str]:
         """Does the formation yield as open_gap this step (its cap and events), and the
         prefix of merge_yield_start's detail; in shift mode, asks for the shift (module docstring)."""
         if self.mode != "shift" or shift is None:  # (a formation without a generator that shifts: yields)
             return self.mode != "none", ""
-        if shift is NO_SHIFT:
+        if left_merges:  # a shift would move into the lane the merge lane merges with
             return True, f"no shift ({NO_SHIFT_WHY}); "
         if shift.shifting:
             for vid in sorted(w.yielding):
