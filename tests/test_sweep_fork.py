@@ -6,6 +6,7 @@ time it starts, and stops on the supervisor's signals like one started with Pope
 """
 import json
 import os
+from datetime import datetime
 from pathlib import Path
 
 import pandas as pd
@@ -123,15 +124,24 @@ def test_a_variable_read_at_import_that_changed_starts_a_new_interpreter(monkeyp
 
 
 def test_a_forked_case_past_its_timeout_is_stopped_and_recorded(tmp_path, forks):
-    path = sweep_file(tmp_path, THESIS, 'seeds = [1]\ntimeout_s = 8.0\n[grid]\n'
-                                        '"run.duration" = [0.5, 200000.0]\n')
+    # the dynamic model at 1 ms physics steps: the timed-out case simulates some 1,500 s in its
+    # 8 s, not hours, so that its analysis after the SIGTERM (which grows with the simulated
+    # time) ends well inside the grace on a busy machine
+    path = sweep_file(tmp_path, THESIS, 'seeds = [1]\ntimeout_s = 8.0\n[overrides]\n'
+                                        '"vehicle.model" = "dynamic"\n"run.physics_step" = 0.001\n'
+                                        '[grid]\n"run.duration" = [0.5, 200000.0]\n')
     assert forked.usable(), forked.unusable_reason()
     res = run_sweep(path, tmp_path / "out", workers=2, progress=False)
     st = res.summary.set_index("case_id")
     assert st.loc["c0000-duration0.5-s1", "status"] == "completed"
     slow = st.loc["c0001-duration200000.0-s1"]
     assert slow["status"] == "failed" and "timeout" in slow["reason"]
-    assert 8.0 <= slow["wall_s"] < 8.0 + launch.GRACE_S  # SIGTERM reached it: it stopped in time
+    assert 8.0 <= slow["wall_s"] < 8.0 + launch.GRACE_S  # stopped and analysed before the kill
+    # SIGTERM reached it: the run stopped stepping at once and recorded its stop
+    run = json.loads((tmp_path / "out" / "cases" / slow.name / "run.json").read_text())
+    assert run["status"] == "interrupted" and run["reason"] == "SIGTERM received"
+    stepped_s = (datetime.fromisoformat(run["finished"]) - datetime.fromisoformat(run["started"])).total_seconds()
+    assert stepped_s <= 8.0 + 3.0  # whole seconds: from the case's start to its stop
     assert 0.0 < slow["t_end_s"] < 200000.0  # the run stopped at a step and was recorded
     assert sorted(res.summary["pid"].astype(int)) == sorted(forks)  # both cases were forked
 
