@@ -342,3 +342,22 @@ def test_resistances_need_the_dynamic_model(tmp_path):
     path.write_text(FREE.replace("[energy]", '[vehicle]\nmodel = "kinematic"\n[energy]'))
     with pytest.raises(ScenarioError, match="energy.resistances needs"):
         load_scenario(path)
+
+
+
+def test_free_space_formations_drag_among_their_own_members_along_their_own_heading():
+    """Two formations in free space (sim/road_load.py FreeSpaceLoad): each member's ratio is
+    its formation's own (members among themselves along its virtual car's heading), whatever
+    the other formation does, even one driving right behind it. Before, a run with two
+    formations and the drag interaction failed (its virtual cars' headings read as one)."""
+    from formation_traci.sim.road_load import FreeSpaceLoad
+
+    pitch = 1.5 * CAR_L  # centre to centre: half a length between bumpers
+    # formation A: a 2-car column heading north (pi/2) on x = 0; formation B, also heading
+    # north: two cars abreast, 3.5 m apart, the one on x = 0 half a length behind A's last car
+    pos = np.array([[0.0, 0.0], [0.0, -pitch], [0.0, -2.0 * pitch], [3.5, -2.0 * pitch]])
+    k = FreeSpaceLoad(PASSENGER_CAR, [slice(0, 2), slice(2, 4)]).ratios(pos, [math.pi / 2] * 2)
+    np.testing.assert_allclose(k[:2], _column(2, 0.5), rtol=1e-12)  # A: a 2-car column
+    np.testing.assert_array_equal(k[2:], 1.0)  # B: abreast, not sheltered by A's column
+    one = FreeSpaceLoad(PASSENGER_CAR).ratios(pos, [math.pi / 2])  # the four as one formation
+    assert one[2] == pytest.approx(_column(3, 0.5)[2], rel=1e-12)  # then it drafts A's last car

@@ -77,6 +77,12 @@ CASES = {
         {"run.duration": 10.0, "energy.resistances": True, "energy.drag_interaction": False},
         None, None, set()),
     "two formations, a law registered at run time": (TWO, {}, None, 30, set()),
+    "resistances with the drag interaction": (  # the drag ratios set each step
+        THESIS / "dynamic_case4_turning.toml",
+        {"run.duration": 10.0, "energy.resistances": True, "energy.drag_interaction": True},
+        None, None, set()),
+    "two formations, resistances with the drag interaction": (
+        TWO, {"energy.resistances": True, "energy.drag_interaction": True}, None, None, set()),
 }
 
 

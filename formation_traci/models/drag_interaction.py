@@ -22,6 +22,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
 
 
@@ -103,6 +105,6 @@ def drag_ratios(s, d, length, width, n_members: int, law: DragInteraction = PLAT
 def along_heading(x, y, heading: float):
     """Positions (x, y) [m] as (along, across) a direction of travel ``heading`` [rad], for
     free-space runs where no road frame exists."""
-    c, s = np.cos(heading), np.sin(heading)
+    c, s = math.cos(heading), math.sin(heading)  # the C library's: numpy's may be SVML
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     return c * x + s * y, -s * x + c * y

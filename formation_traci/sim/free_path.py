@@ -13,12 +13,12 @@ recorder), so a run may take either path at any step and its files are the same
 
 Runs it serves: free space (sim/world.py FreeSpace) with one or several formations, each with
 a control/reference_free.py FreeReference from t = 0, no transforms (no radio), no maneuvers,
-no road load computed each step (resistances with the drag interaction: sim/road_load.py;
-resistances without it are served), kernels compiled (with ``NUMBA_DISABLE_JIT`` the loop's path runs),
+kernels compiled (with ``NUMBA_DISABLE_JIT`` the loop's path runs),
 and ``FORMATION_TRACI_FUSED`` not ``off``. Any law and model variant: with one registered at
 run time the compiled step is a copy of free_step calling the fleet's own step and signal
 kernels (sim/free_step.py ``free_kernel``; compiled once per law and process, not cached on
-disk).
+disk). With resistances and the drag interaction, the members' drag ratios of the step
+(sim/road_load.py FreeSpaceLoad, the loop's own) are set before the compiled call.
 """
 from __future__ import annotations
 
@@ -33,6 +33,7 @@ from .fleet_records import FleetParams, StateRecord, as_f64, state_record
 from .fleet_state import FleetState
 from .free_step import FreeAt, FreeOut, FreePlan, free_kernel, free_run, free_step
 from .incidents import IncidentArrays
+from .road_load import FreeSpaceLoad
 from .step_flags import NOT_FINITE, OUT_OF_RANGE, SLOW, SWITCH, switched_off  # noqa: F401 (SWITCH re-exported)
 from .table_records import TableBuffers
 from .world import FreeSpace
@@ -45,7 +46,8 @@ def free_path(parts, rec, sc, check_finite):
 
     world, forms = parts.world, parts.formations
     if (config.DISABLE_JIT or switched_off() or type(world) is not FreeSpace
-            or not world.records_members or parts.road_load is not None or sc.maneuvers
+            or not world.records_members or sc.maneuvers
+            or not (parts.road_load is None or isinstance(parts.road_load, FreeSpaceLoad))
             or rec.incidents is None or rec.incidents.lane_watch is not None):
         return None
     at = 0
@@ -89,6 +91,7 @@ class FreePath:
         self.out = FreeOut(np.full((n, len(SIGNAL_COLUMNS)), np.nan), np.empty((self.n_ctrl, n, 3)),
                            np.empty((self.n_ctrl, n, 8)), np.empty((k, 3)), np.empty((k, 3)),
                            np.empty((k, 8)))
+        self.load = parts.road_load  # FreeSpaceLoad or None
         self._free = free_kernel(*fl.kernels)  # free_step, or its copy for a runtime law
         self.run = free_run(fl.params(g0.dt_c), self.plan, rec.buffers, rec.incidents.arrays, self.out)
         self._all_in = np.ones(n, dtype=np.bool_).tobytes()
@@ -111,6 +114,8 @@ class FreePath:
         pose = out.pose
         for f, g in enumerate(self.gens):
             pose[f] = g.pose
+        if self.load is not None:  # the drag ratios of the step, as the loop sets them
+            self.fleet.set_road_load(self.load.ratios(state.x[:, :2], [g.pose[2] for g in self.gens]))
         tr, cf = rec.traj, rec.comfort
         x, ts, sp, ul, worst, flags = self._free(
             self.run, state_record(state), FreeAt(float(t), tr.rows_buffered, cf.rows_buffered))

@@ -92,7 +92,8 @@ def free_space_run(sc: Scenario, rec=None) -> RunParts:
         at += cfg.n
     vehicles = [v for _, fsc in views for v in member_vehicles(fsc)]
     return RunParts(FreeSpace(at, rec), Fleet(join_configs(cfgs)), join_states(states), forms,
-                    road_load=road_load_part(sc, vehicles), fused=_free_path)
+                    road_load=road_load_part(sc, vehicles, rows=[f.members for f in forms]),
+                    fused=_free_path)
 
 
 def _free_path(parts, rec, sc, group=None):

@@ -25,15 +25,30 @@ def interaction_on(sc: Scenario) -> bool:
 
 
 class FreeSpaceLoad:
-    """Drag ratios of the members among themselves in free space, resolved along the
-    virtual car's heading; no grade."""
+    """Drag ratios in free space: each formation's members among themselves, resolved along
+    its virtual car's heading (free space has no common direction of travel: one formation
+    does not shelter another); no grade."""
 
-    def __init__(self, veh):
+    def __init__(self, veh, rows=None):
         self.veh = veh  # one VehicleParams, or one per member
+        self.rows = rows  # each formation's rows (slices), in the formations' order; None: one
 
     def __call__(self, state, sensed, ref):
-        """(drag ratio (n,), None) for positions state.x[:, :2] [m] and ref.truth's heading."""
-        return free_space_ratios(self.veh, state.x[:, :2], float(ref.truth[2])), None
+        """(drag ratio (n,), None) for positions state.x[:, :2] [m] and ref.truth's heading(s)."""
+        truth = ref.truth
+        headings = [float(truth[2])] if truth.ndim == 1 else [float(h) for h in truth[:, 2]]
+        return self.ratios(state.x[:, :2], headings), None
+
+    def ratios(self, pos: np.ndarray, headings) -> np.ndarray:
+        """Drag ratio [-] of each member at positions (n, 2) [m], the formations' virtual
+        cars heading ``headings`` [rad] (one per formation)."""
+        if self.rows is None or len(self.rows) == 1:
+            return free_space_ratios(self.veh, pos, headings[0])
+        out, every = np.empty(len(pos)), np.arange(len(pos))
+        for rows, heading in zip(self.rows, headings):
+            mine = every[rows]
+            out[mine] = free_space_ratios(self.veh, pos[mine], heading, mine)
+        return out
 
 
 class RoadLoad:
@@ -55,32 +70,38 @@ class RoadLoad:
         return ratio, grade
 
 
-def road_load_part(sc: Scenario, veh, road=None, line=None):
+def road_load_part(sc: Scenario, veh, road=None, line=None, rows=None):
     """The run's ``road_load`` part for the members' chassis ``veh`` (one VehicleParams, or
     one per member): None without resistances (nothing to compute), else
     :class:`RoadLoad` on a road (``road``: sumo/road_setup.py Road, ``line``: its reference
-    line) or :class:`FreeSpaceLoad` (None when the drag interaction is off: ratio 1)."""
+    line) or :class:`FreeSpaceLoad` (``rows``: each formation's rows; None when the drag
+    interaction is off: ratio 1)."""
     if not sc.energy.resistances:
         return None
     if road is not None:
         return RoadLoad(sc, veh, road, line)
-    return FreeSpaceLoad(veh) if interaction_on(sc) else None
+    return FreeSpaceLoad(veh, rows) if interaction_on(sc) else None
 
 
-def _bodies(veh, n: int):
+def _bodies(veh, n: int, order=None):
     """Length, width and CoG-to-front-bumper [m] of n members, (n,) each; ``veh`` is one
-    VehicleParams for all or one per member (a mixed formation)."""
-    vehs = [veh] * n if isinstance(veh, VehicleParams) else list(veh)
+    VehicleParams for all or one per member of the fleet (a mixed formation; ``order``:
+    which of them, in this order)."""
+    if isinstance(veh, VehicleParams):
+        vehs = [veh] * n
+    else:
+        vehs = list(veh) if order is None else [veh[i] for i in order]
     return tuple(np.array([getattr(v, q) for v in vehs], dtype=float)
                  for q in ("length", "width", "cog_to_front_bumper"))
 
 
-def free_space_ratios(veh, pos: np.ndarray, heading: float) -> np.ndarray:
+def free_space_ratios(veh, pos: np.ndarray, heading: float, rows=None) -> np.ndarray:
     """Drag ratio [-] of each member in free space (members only), positions (n, 2) [m]
-    resolved along the virtual car's heading [rad]; ``veh``: one chassis or one per member."""
+    resolved along the virtual car's heading [rad]; ``veh``: one chassis or one per member
+    (``rows``: the fleet rows of ``pos``, when ``veh`` is one per member of the fleet)."""
     s, d = along_heading(pos[:, 0], pos[:, 1], heading)
     n = len(s)
-    length, width, _ = _bodies(veh, n)
+    length, width, _ = _bodies(veh, n, rows)
     return drag_ratios(s, d, length, width, n, PLATOON_DRAG)
 
 
