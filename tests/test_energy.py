@@ -361,3 +361,32 @@ def test_free_space_formations_drag_among_their_own_members_along_their_own_head
     np.testing.assert_array_equal(k[2:], 1.0)  # B: abreast, not sheltered by A's column
     one = FreeSpaceLoad(PASSENGER_CAR).ratios(pos, [math.pi / 2])  # the four as one formation
     assert one[2] == pytest.approx(_column(3, 0.5)[2], rel=1e-12)  # then it drafts A's last car
+
+
+_RATIOS_SNIPPET = """
+import sys
+import numpy as np
+from formation_traci.models.drag_interaction import drag_ratios
+rng = np.random.default_rng(7)
+n = 400
+s, d = rng.uniform(0.0, 400.0, n), rng.uniform(-4.0, 4.0, n)
+length, width = rng.uniform(4.0, 16.0, n), rng.uniform(1.7, 2.6, n)
+sys.stdout.write(drag_ratios(s, d, length, width, 60).tobytes().hex())
+"""
+
+
+def test_drag_ratios_do_not_depend_on_the_cpus_vector_width():
+    """The same drag ratios, bit for bit, with numpy's loops at their widest on this CPU and at
+    SSE4.2 width (NPY_DISABLE_CPU_FEATURES=X86_V3): numpy's exp loop on AVX-512 CPUs differs
+    from the C library's in the last bit for some 5 % of its arguments, and the ratio feeds
+    the members' dynamics (before, column_energy's trajectories differed between the two)."""
+    import os
+    import subprocess
+    import sys
+
+    def ratios(**env) -> str:
+        return subprocess.run([sys.executable, "-c", _RATIOS_SNIPPET], env={**os.environ, **env},
+                              capture_output=True, text=True, check=True).stdout
+
+    wide, narrow = ratios(), ratios(NPY_DISABLE_CPU_FEATURES="X86_V3")
+    assert len(wide) == 60 * 16 and wide == narrow

@@ -26,6 +26,8 @@ import math
 
 import numpy as np
 
+from ..core.kernels import kernel
+
 
 @dataclass(frozen=True, slots=True)
 class DragInteraction:
@@ -43,23 +45,30 @@ PLATOON_DRAG = DragInteraction(wake_amplitude=0.53, wake_decay=1.2, push_amplitu
 """Fit to Zabat et al. (SAE 940421) and Cerutti et al. (2021), see docs/energy.md."""
 
 
-def wake_reduction(x, law: DragInteraction = PLATOON_DRAG):
+@kernel
+def _reduction(x, amplitude, decay, max_gap):
+    """A_exp(-x / decay) for a gap 0 <= x <= max_gap [lengths], else 0 (the C library's exp:
+    numpy's loop is SIMD code whose last bits depend on the CPU)."""
+    if x >= 0.0 and x <= max_gap:
+        return amplitude * math.exp(-x / decay)
+    return 0.0
+
+
+def wake_reduction(x: float, law: DragInteraction = PLATOON_DRAG) -> float:
     """Drag reduction [-] of a follower fully behind a vehicle, gap x [lengths of the leader]."""
-    x = np.asarray(x, dtype=float)
-    ok = (x >= 0.0) & (x <= law.max_gap)
-    return np.where(ok, law.wake_amplitude * np.exp(-np.maximum(x, 0.0) / law.wake_decay), 0.0)
+    return _reduction(float(x), law.wake_amplitude, law.wake_decay, law.max_gap)
 
 
-def push_reduction(x, law: DragInteraction = PLATOON_DRAG):
+def push_reduction(x: float, law: DragInteraction = PLATOON_DRAG) -> float:
     """Drag reduction [-] of a vehicle with a follower fully behind it, gap x [own lengths]."""
-    x = np.asarray(x, dtype=float)
-    ok = (x >= 0.0) & (x <= law.max_gap)
-    return np.where(ok, law.push_amplitude * np.exp(-np.maximum(x, 0.0) / law.push_decay), 0.0)
+    return _reduction(float(x), law.push_amplitude, law.push_decay, law.max_gap)
 
 
+@kernel
 def lateral_overlap(dy, w_self, w_other):
-    """Share of our width [-] covered by the other body at lateral offset dy [m] (widths [m])."""
-    cover = np.clip(0.5 * (w_self + w_other) - np.abs(dy), 0.0, w_self)
+    """Share [-] of our width w_self [m] covered by a body of width w_other [m] whose centre
+    is dy [m] to the side of ours."""
+    cover = min(max(0.5 * (w_self + w_other) - abs(dy), 0.0), w_self)
     return cover / w_self
 
 
@@ -86,20 +95,37 @@ def drag_ratios(s, d, length, width, n_members: int, law: DragInteraction = PLAT
     ndarray, shape (n_members,)
         c_d multiplier of every member, in (0, 1]; 1 for a member not present.
     """
-    s, d, length, width = (np.asarray(a, dtype=float) for a in (s, d, length, width))
-    n_all = s.shape[0]
-    present = np.ones(n_all, dtype=bool) if present is None else np.asarray(present, dtype=bool)
-    i = slice(0, n_members)
-    # gap from member i's front to vehicle j's rear (j ahead), and from j's front to i's rear
-    g_ahead = (s[None, :] - 0.5 * length[None, :]) - (s[i, None] + 0.5 * length[i, None])
-    g_behind = (s[i, None] - 0.5 * length[i, None]) - (s[None, :] + 0.5 * length[None, :])
-    o = lateral_overlap(d[None, :] - d[i, None], width[i, None], width[None, :])
-    others = present[None, :] & ~np.eye(n_members, n_all, dtype=bool)
-    o = np.where(others, o, 0.0)
-    dw = o * wake_reduction(np.where(g_ahead >= 0.0, g_ahead / length[None, :], -1.0), law)
-    dp = o * push_reduction(np.where(g_behind >= 0.0, g_behind / length[i, None], -1.0), law)
-    k = (1.0 - dw.max(axis=1, initial=0.0)) * (1.0 - dp.max(axis=1, initial=0.0))
-    return np.where(present[i], k, 1.0)
+    s, d, length, width = (np.ascontiguousarray(a, dtype=np.float64) for a in (s, d, length, width))
+    present = (np.ones(s.shape[0], dtype=np.bool_) if present is None
+               else np.ascontiguousarray(present, dtype=np.bool_))
+    law_row = np.array([law.wake_amplitude, law.wake_decay, law.push_amplitude, law.push_decay,
+                        law.max_gap])
+    out = np.empty(int(n_members))
+    _ratios_into(s, d, length, width, present, law_row, out)
+    return out
+
+
+@kernel
+def _ratios_into(s, d, length, width, present, law, out):
+    """:func:`drag_ratios` of the first len(out) vehicles into ``out``; ``law``: (A_w, lambda_w,
+    A_p, lambda_p, max_gap)."""
+    for i in range(out.shape[0]):
+        if not present[i]:
+            out[i] = 1.0
+            continue
+        wake = push = 0.0  # the strongest vehicle ahead and behind
+        front, rear = s[i] + 0.5 * length[i], s[i] - 0.5 * length[i]
+        for j in range(s.shape[0]):
+            if j == i or not present[j]:
+                continue
+            o = lateral_overlap(d[j] - d[i], width[i], width[j])
+            g_ahead = (s[j] - 0.5 * length[j]) - front  # our front to its rear
+            g_behind = rear - (s[j] + 0.5 * length[j])  # its front to our rear
+            if g_ahead >= 0.0:
+                wake = max(wake, o * _reduction(g_ahead / length[j], law[0], law[1], law[4]))
+            if g_behind >= 0.0:
+                push = max(push, o * _reduction(g_behind / length[i], law[2], law[3], law[4]))
+        out[i] = (1.0 - wake) * (1.0 - push)
 
 
 def along_heading(x, y, heading: float):
