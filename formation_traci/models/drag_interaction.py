@@ -98,11 +98,35 @@ def drag_ratios(s, d, length, width, n_members: int, law: DragInteraction = PLAT
     s, d, length, width = (np.ascontiguousarray(a, dtype=np.float64) for a in (s, d, length, width))
     present = (np.ones(s.shape[0], dtype=np.bool_) if present is None
                else np.ascontiguousarray(present, dtype=np.bool_))
-    law_row = np.array([law.wake_amplitude, law.wake_decay, law.push_amplitude, law.push_decay,
-                        law.max_gap])
     out = np.empty(int(n_members))
-    _ratios_into(s, d, length, width, present, law_row, out)
+    _ratios_into(s, d, length, width, present, law_row(law), out)
     return out
+
+
+@kernel
+def road_ratios_into(m_s, m_d, present, bodies, nb, law, out):
+    """Drag ratio [-] of each member on a road among SUMO's vehicles, into ``out`` (n,): the
+    members' centres of gravity (m_s, m_d) [m] along and across the road, ``present`` the
+    members still in SUMO, ``bodies`` (3, n) their length, width and CoG to front bumper [m],
+    ``nb`` the other vehicles' (body centre s, d, length, width) [m], ``law`` (A_w, lambda_w,
+    A_p, lambda_p, max_gap)."""
+    nb_s, nb_d, nb_length, nb_width = nb
+    n, m = m_s.shape[0], nb_s.shape[0]
+    s, d = np.empty(n + m), np.empty(n + m)
+    length, width = np.empty(n + m), np.empty(n + m)
+    here = np.ones(n + m, dtype=np.bool_)
+    for i in range(n):
+        s[i] = m_s[i] + (bodies[2, i] - 0.5 * bodies[0, i])  # CoG -> body centre
+        d[i], length[i], width[i], here[i] = m_d[i], bodies[0, i], bodies[1, i], present[i]
+    for j in range(m):
+        s[n + j], d[n + j], length[n + j], width[n + j] = nb_s[j], nb_d[j], nb_length[j], nb_width[j]
+    _ratios_into(s, d, length, width, here, law, out)
+
+
+def law_row(law: DragInteraction = PLATOON_DRAG) -> np.ndarray:
+    """The law's parameters as the kernels take them: (A_w, lambda_w, A_p, lambda_p, max_gap)."""
+    return np.array([law.wake_amplitude, law.wake_decay, law.push_amplitude, law.push_decay,
+                     law.max_gap])
 
 
 @kernel

@@ -14,7 +14,8 @@ import math
 
 import numpy as np
 
-from ..models.drag_interaction import PLATOON_DRAG, along_heading, drag_ratios
+from ..models.drag_interaction import (PLATOON_DRAG, along_heading, drag_ratios, law_row,
+                                       road_ratios_into)
 from ..models.params import VehicleParams
 from ..scenario.schema import Scenario
 
@@ -108,16 +109,20 @@ def free_space_ratios(veh, pos: np.ndarray, heading: float, rows=None) -> np.nda
 def road_ratios(veh, m_s, m_d, active, nb_s, nb_d, nb_length, nb_width) -> np.ndarray:
     """Drag ratio [-] of each member on a road among SUMO's vehicles: members' centres of
     gravity (m_s, m_d) [m] (``active``: still in SUMO), other vehicles' centres, lengths, widths
-    [m]; ``veh``: one chassis or one per member."""
+    [m]; ``veh``: one chassis or one per member (the compiled road step calls the same kernel,
+    models/drag_interaction.py road_ratios_into)."""
     n = len(m_s)
-    m_len, m_wid, d_front = _bodies(veh, n)
-    centre = np.asarray(m_s, float) + (d_front - 0.5 * m_len)  # CoG -> body centre
-    s = np.concatenate([centre, np.asarray(nb_s, float)])
-    d = np.concatenate([np.asarray(m_d, float), np.asarray(nb_d, float)])
-    length = np.concatenate([m_len, np.asarray(nb_length, float)])
-    width = np.concatenate([m_wid, np.asarray(nb_width, float)])
-    present = np.concatenate([np.asarray(active, bool), np.ones(len(s) - n, bool)])
-    return drag_ratios(s, d, length, width, n, PLATOON_DRAG, present)
+    out = np.empty(n)
+    f64 = [np.ascontiguousarray(a, dtype=np.float64) for a in (m_s, m_d, nb_s, nb_d, nb_length, nb_width)]
+    road_ratios_into(f64[0], f64[1], np.ascontiguousarray(active, dtype=np.bool_),
+                     chassis(veh, n), tuple(f64[2:]), law_row(PLATOON_DRAG), out)
+    return out
+
+
+def chassis(veh, n: int) -> np.ndarray:
+    """(3, n): the members' length, width and CoG to front bumper [m] (``veh``: one chassis or
+    one per member)."""
+    return np.stack(_bodies(veh, n))
 
 
 GRADE_BASE = 1.0
