@@ -118,6 +118,9 @@ CASES = {
         # events) from the members' sense before the compiled call
         ONRAMP, {"run.duration": 45.0, "traffic.warmup": 150.0, "traffic.flows.1.veh_per_hour": 900.0,
                  "cooperation.merge": "open_gap"}, None, {"merge_yield_start", "merge_yield_end"}, None, None),
+    "resistances with the drag interaction, among SUMO's cars": (  # the drag ratios in the step
+        LIGHT.parent / "column_energy.toml", {"run.duration": 10.0, "traffic.warmup": 20.0}, None,
+        set(), None, None),
     "end of the route": (
         LIGHT, {"run.duration": 60.0, "traffic.warmup": 20.0, "road.start": 5550.0}, None,
         {"end_of_road"}, None, None),

@@ -18,7 +18,8 @@ files are the same (tests/test_fused_step.py).
 Runs it serves: one formation from t = 0, or a group of plain road formations (formation
 flows included), on a road with a plain road reference (no maneuvers, no transforms such as a
 radio, no shift at ramps), members placed by moveToXY (not SUMO's CACC twin), libsumo without
-sumo-gui, no driving resistances, kernels compiled (with ``NUMBA_DISABLE_JIT`` the loop's path
+sumo-gui, no road grade (a network with elevation: the loop computes it; resistances and the
+drag interaction are served), kernels compiled (with ``NUMBA_DISABLE_JIT`` the loop's path
 runs). Any law and model variant: with one registered at run time the compiled step is a copy
 of fused_step calling the fleet's own step and signal kernels (sumo/fused_step.py
 ``fused_kernel``; compiled once per law and process, not cached on disk).
@@ -33,7 +34,9 @@ from ..record.columns import COMFORT_COLUMNS, FILLED_BY_CALLER, SIGNAL_COLUMNS
 from ..control.reference_records import ReferenceOut
 from ..sim.fleet_records import StateRecord, state_record
 from ..sim.fleet_state import FleetState
+from ..models.drag_interaction import PLATOON_DRAG, law_row
 from ..sim.loop import check_finite
+from ..sim.road_load import RoadLoad, chassis
 from .events import PLACEMENT_TOLERANCE
 from .fused_records import RoadRun, SensedRows, StepAt, StepOut, fused_run
 from .fused_refs import GroupOfFormations, OneFormation
@@ -72,12 +75,25 @@ def fused_path(parts, rec, sc, group=None):
            and not forms[0].depart)
     if (config.DISABLE_JIT or switched_off()
             or type(world) is not SumoWorld or world.baseline or world.adapter.gui
-            or world.adapter.backend != "libsumo" or parts.road_load is not None
+            or world.adapter.backend != "libsumo" or not _load_served(parts.road_load)
             or not (one or group is not None) or sc.maneuvers
             or rec.incidents is None or not rec.incidents.pairs):
         return None
     refs = OneFormation(forms[0].generator, world) if one else GroupOfFormations(group, world)
     return FusedPath(parts, rec, sc, refs)
+
+
+def _load_served(load) -> bool:
+    """The compiled step computes the road load itself: none, or a road without elevation
+    (the drag ratios only; the grade's profile is the loop's)."""
+    return load is None or (isinstance(load, RoadLoad) and load.elevation is None)
+
+
+def _drag(load, n: int):
+    """RoadRun's drag_bodies and drag_law for the run's road load ``load``."""
+    if load is None or not load.drag:
+        return np.zeros((3, n)), np.zeros(0)
+    return chassis(load.veh, n), law_row(PLATOON_DRAG)
 
 
 class FusedPath:
@@ -97,7 +113,7 @@ class FusedPath:
         self.ids = list(fl.cfg.ids)
         k = len(parts.formations)
         self.road = RoadRun(w.line.G, PLACEMENT_TOLERANCE, w.d_front, self.step_s, refs.bodies,
-                            refs.peers, w.slot_index, fl.cols)
+                            refs.peers, w.slot_index, fl.cols, *_drag(parts.road_load, n))
         self.ref_out = ReferenceOut(
             np.empty((gen.n_ctrl, n, 8)), np.empty(n), np.empty(k), np.empty(k), np.empty(k),
             np.empty(n), np.empty(n, dtype=np.int64), np.empty(n), np.empty(n), np.empty((k, 8)))

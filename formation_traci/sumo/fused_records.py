@@ -25,6 +25,10 @@ class RoadRun(NamedTuple):
     peers: bool  # several formations: each sees the others' members as traffic
     slot_index: np.ndarray  # (n,) the members' slot indices (the trajectory's slot column)
     cols: np.ndarray  # (N_SIGNALS,) signal column of each kernel signal (sim/fleet.py)
+    drag_bodies: np.ndarray  # (3, n) the members' chassis length, width, CoG to front bumper
+    # [m] for their drag ratios (sim/road_load.py RoadLoad)
+    drag_law: np.ndarray  # (5,) the drag interaction's law (models/drag_interaction.py
+    # law_row); (0,): no drag ratios computed (no resistances, or without the interaction)
 
 
 class StepOut(NamedTuple):

@@ -10,6 +10,9 @@ peers and the world's actuate call the same row kernels on numpy arrays):
                formation: governor, planner, the virtual car's rows)
                (with several formations the members as the others' traffic: sumo/peers.py
                peer_table)
+    road load  the members' drag ratios among SUMO's vehicles, with resistances and the drag
+               interaction (models/drag_interaction.py road_ratios_into, as sim/road_load.py
+               RoadLoad)
     observe    the neighbours' background rows (sim/record_rows.py background_rows)
     record     sim/fleet.py member_signals (the members' trajectory and comfort rows), the
                road and SUMO columns and one virtual-car row per formation
@@ -73,6 +76,8 @@ from ..control.reference_group import group_reference_step
 from ..control.reference_records import MemberRows, NeighbourRows, StepReference
 from ..core.kernels import kernel
 from ..models.bicycle import S
+from ..models.drag_interaction import road_ratios_into
+from ..models.params import PARAM_NAMES
 from ..models.state import KINEMATIC
 from ..sim.fleet import kinematics_rows, member_signals, step_members
 from ..sim.step_copies import with_fleet_kernels
@@ -84,6 +89,10 @@ from ..sim.table_records import SignalRows
 from .peers import peer_table
 from .sense import NeighbourReads, SumoRows, sense_step
 from .types import sumo_placement
+
+
+_DRAG = PARAM_NAMES.index("drag_ratio")
+"""The drag ratio's column of the members' parameters (models/params.py)."""
 
 
 def fused_kernel(step, signals):
@@ -123,6 +132,12 @@ def fused_step(run, state, held, sensed, at):
         out.m_gap[i] = g[i]
     flags = _reference(road, plan, planner, ref, at, s_all[:n], d_all[:n], v_sense,
                        sensed.active, (rear, d_all[n:], nb_half_w, nb_v), fleet.dt_c)
+    if road.drag_law.shape[0]:  # the members' drag ratios of the step (sim/road_load.py RoadLoad)
+        ratio = np.empty(n)
+        road_ratios_into(s_all[:n], d_all[:n], sensed.active, road.drag_bodies,
+                         (s_all[n:], d_all[n:], nb_length, nb_width), road.drag_law, ratio)
+        for i in range(n):
+            fleet.P[i, _DRAG] = ratio[i]
     m = nb.shape[0]
     for i in range(n):
         out.lead_obs[i] = ref.lead_idx[i] if ref.lead_idx[i] < m else -1
