@@ -283,11 +283,15 @@ slot = { along = 0.0, lanes = 0 }
 """
 
 
-def test_grade_from_network_elevation(tmp_path):
+def test_grade_from_network_elevation(tmp_path, monkeypatch):
     """A SUMO network whose second edge climbs 50 m over 1 km (z in the nodes): on the flat
     the traction is the flat road load, on the 5 % climb it adds m g sin(atan 0.05) and rolls
-    on m g cos (within 0.1 %)."""
+    on m g cos (within 0.1 %). The compiled road step computes the grade itself: the run's
+    files are those of the loop's own steps, byte for byte, with most steps compiled."""
     import subprocess
+
+    from formation_traci.sumo import fused_path
+    from run_helpers import same_run_files
 
     from sumo_nets.build import find_sumo_binary
 
@@ -297,7 +301,16 @@ def test_grade_from_network_elevation(tmp_path):
                     "--edge-files", "hill.edg.xml", "-o", "hill.net.xml"], cwd=tmp_path,
                    check=True, capture_output=True)
     (tmp_path / "hill.toml").write_text(HILL)
+    taken = []
+    step = fused_path.FusedPath.step
+    monkeypatch.setattr(fused_path.FusedPath, "step", lambda self, *a: taken.append(a[0]) or step(self, *a))
     data, en = _run(tmp_path, tmp_path / "hill.toml")
+    assert len(taken) > 0.8 * (data.trajectories.vehicle_id == "car").sum()  # a row a step
+    monkeypatch.setenv(fused_path.SWITCH, "off")
+    res = run_scenario(load_scenario(tmp_path / "hill.toml"), tmp_path / "loop",
+                       scenario_path=tmp_path / "hill.toml", progress=False)
+    assert res.status == "completed"
+    same_run_files(tmp_path / "run", tmp_path / "loop")
     g = data.trajectories[data.trajectories.vehicle_id == "car"]
     car = PASSENGER_CAR
     f_rl, aero, th = 0.01 * (1 + 25.0 / 40.8), 0.5 * 1.225 * car.c_d * car.frontal_area * 625.0, math.atan(0.05)

@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+from ..core.kernels import kernel
+
 from ..models.drag_interaction import (PLATOON_DRAG, along_heading, drag_ratios, law_row,
                                        road_ratios_into)
 from ..models.params import VehicleParams
@@ -149,9 +151,43 @@ def elevation_profile(net, edges, lane_index: int, line) -> tuple[np.ndarray, np
 
 def grade_at(profile: tuple[np.ndarray, np.ndarray], s) -> np.ndarray:
     """Road grade [rad] (positive uphill) at arc lengths s [m]: atan of the central difference
-    of the piecewise-linear elevation over +-GRADE_BASE."""
-    ps, pz = profile
+    of the piecewise-linear elevation over +-GRADE_BASE (:func:`grades_into`, the kernel the
+    compiled road step calls)."""
     s = np.asarray(s, dtype=float)
-    dz = np.interp(s + GRADE_BASE, ps, pz) - np.interp(s - GRADE_BASE, ps, pz)
-    q = dz / (2.0 * GRADE_BASE)  # the C library's atan: numpy's arctan loop is SVML on AVX-512 CPUs
-    return np.array([math.atan(v) for v in q.ravel().tolist()]).reshape(q.shape)
+    out = np.empty(s.size)
+    grades_into(profile[0], profile[1], np.ascontiguousarray(s.ravel()), out)
+    return out.reshape(s.shape)
+
+
+@kernel
+def grades_into(ps, pz, s, out):
+    """Road grade [rad] at arc lengths s (n,) [m] into ``out``, from the elevation profile
+    (ps [m], pz [m]) (:func:`elevation_profile`); the C library's atan."""
+    for i in range(s.shape[0]):
+        dz = interp_one(s[i] + GRADE_BASE, ps, pz) - interp_one(s[i] - GRADE_BASE, ps, pz)
+        out[i] = math.atan(dz / (2.0 * GRADE_BASE))
+
+
+@kernel
+def interp_one(x, xp, fp):
+    """``np.interp(x, xp, fp)`` for one x and increasing xp, as numpy's C loop computes it
+    (bit for bit: the same cases, the same expressions)."""
+    n = xp.shape[0]
+    if n == 1:  # numpy's case of one point: its value everywhere, NaN included
+        return fp[0]
+    if math.isnan(x):
+        return x
+    if x > xp[n - 1]:
+        return fp[n - 1]
+    if x < xp[0]:
+        return fp[0]
+    j = np.searchsorted(xp, x, side="right") - 1  # xp[j] <= x < xp[j + 1]
+    if j >= n - 1 or xp[j] == x:
+        return fp[j]
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    y = slope * (x - xp[j]) + fp[j]
+    if math.isnan(y):  # numpy: if we get nan in one direction, try the other
+        y = slope * (x - xp[j + 1]) + fp[j + 1]
+        if math.isnan(y) and fp[j] == fp[j + 1]:
+            y = fp[j]
+    return y

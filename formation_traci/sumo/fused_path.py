@@ -18,9 +18,9 @@ files are the same (tests/test_fused_step.py).
 Runs it serves: one formation from t = 0, or a group of plain road formations (formation
 flows included), on a road with a plain road reference (no maneuvers, no transforms such as a
 radio, no shift at ramps), members placed by moveToXY (not SUMO's CACC twin), libsumo without
-sumo-gui, no road grade (a network with elevation: the loop computes it; resistances and the
-drag interaction are served), kernels compiled (with ``NUMBA_DISABLE_JIT`` the loop's path
-runs). Any law and model variant: with one registered at run time the compiled step is a copy
+sumo-gui, kernels compiled (with ``NUMBA_DISABLE_JIT`` the loop's path
+runs). With resistances the step computes the members' drag ratios and the road's grade
+under them itself, with the loop's kernels (sim/road_load.py RoadLoad). Any law and model variant: with one registered at run time the compiled step is a copy
 of fused_step calling the fleet's own step and signal kernels (sumo/fused_step.py
 ``fused_kernel``; compiled once per law and process, not cached on disk).
 """
@@ -84,16 +84,18 @@ def fused_path(parts, rec, sc, group=None):
 
 
 def _load_served(load) -> bool:
-    """The compiled step computes the road load itself: none, or a road without elevation
-    (the drag ratios only; the grade's profile is the loop's)."""
-    return load is None or (isinstance(load, RoadLoad) and load.elevation is None)
+    """The compiled step computes the road load itself (sim/road_load.py RoadLoad) or there is
+    none to compute."""
+    return load is None or isinstance(load, RoadLoad)
 
 
-def _drag(load, n: int):
-    """RoadRun's drag_bodies and drag_law for the run's road load ``load``."""
-    if load is None or not load.drag:
-        return np.zeros((3, n)), np.zeros(0)
-    return chassis(load.veh, n), law_row(PLATOON_DRAG)
+def _load(load, n: int):
+    """RoadRun's drag_bodies, drag_law, grade_s and grade_z for the run's road load ``load``."""
+    drag = (chassis(load.veh, n), law_row(PLATOON_DRAG)) if load is not None and load.drag \
+        else (np.zeros((3, n)), np.zeros(0))
+    grade = load.elevation if load is not None and load.elevation is not None \
+        else (np.zeros(0), np.zeros(0))
+    return (*drag, *(np.ascontiguousarray(a, dtype=np.float64) for a in grade))
 
 
 class FusedPath:
@@ -113,7 +115,7 @@ class FusedPath:
         self.ids = list(fl.cfg.ids)
         k = len(parts.formations)
         self.road = RoadRun(w.line.G, PLACEMENT_TOLERANCE, w.d_front, self.step_s, refs.bodies,
-                            refs.peers, w.slot_index, fl.cols, *_drag(parts.road_load, n))
+                            refs.peers, w.slot_index, fl.cols, *_load(parts.road_load, n))
         self.ref_out = ReferenceOut(
             np.empty((gen.n_ctrl, n, 8)), np.empty(n), np.empty(k), np.empty(k), np.empty(k),
             np.empty(n), np.empty(n, dtype=np.int64), np.empty(n), np.empty(n), np.empty((k, 8)))

@@ -29,6 +29,9 @@ class RoadRun(NamedTuple):
     # [m] for their drag ratios (sim/road_load.py RoadLoad)
     drag_law: np.ndarray  # (5,) the drag interaction's law (models/drag_interaction.py
     # law_row); (0,): no drag ratios computed (no resistances, or without the interaction)
+    grade_s: np.ndarray  # (p,) the reference lane's elevation profile: arc length [m] ...
+    grade_z: np.ndarray  # (p,) ... and elevation [m] (sim/road_load.py elevation_profile);
+    # (0,): no grade computed (no resistances, or a network without elevation)
 
 
 class StepOut(NamedTuple):

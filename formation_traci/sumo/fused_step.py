@@ -10,9 +10,10 @@ peers and the world's actuate call the same row kernels on numpy arrays):
                formation: governor, planner, the virtual car's rows)
                (with several formations the members as the others' traffic: sumo/peers.py
                peer_table)
-    road load  the members' drag ratios among SUMO's vehicles, with resistances and the drag
-               interaction (models/drag_interaction.py road_ratios_into, as sim/road_load.py
-               RoadLoad)
+    road load  with resistances, the members' drag ratios among SUMO's vehicles (with the
+               drag interaction: models/drag_interaction.py road_ratios_into) and the grade
+               under them (a network with elevation: sim/road_load.py grades_into), as
+               sim/road_load.py RoadLoad
     observe    the neighbours' background rows (sim/record_rows.py background_rows)
     record     sim/fleet.py member_signals (the members' trajectory and comfort rows), the
                road and SUMO columns and one virtual-car row per formation
@@ -83,6 +84,7 @@ from ..sim.fleet import kinematics_rows, member_signals, step_members
 from ..sim.step_copies import with_fleet_kernels
 from ..sim.fleet_rows import period_table_rows, signal_table_rows
 from ..sim.incidents import member_clearances, slow_members
+from ..sim.road_load import grades_into
 from ..sim.record_rows import background_rows, beyond_limits, road_rows, vc_rows
 from ..sim.step_flags import EMERGENCY, NOT_FINITE, OUT_OF_RANGE, SLOW
 from ..sim.table_records import SignalRows
@@ -91,8 +93,8 @@ from .sense import NeighbourReads, SumoRows, sense_step
 from .types import sumo_placement
 
 
-_DRAG = PARAM_NAMES.index("drag_ratio")
-"""The drag ratio's column of the members' parameters (models/params.py)."""
+_DRAG, _GRADE = PARAM_NAMES.index("drag_ratio"), PARAM_NAMES.index("grade")
+"""The drag ratio's and the grade's columns of the members' parameters (models/params.py)."""
 
 
 def fused_kernel(step, signals):
@@ -138,6 +140,11 @@ def fused_step(run, state, held, sensed, at):
                          (s_all[n:], d_all[n:], nb_length, nb_width), road.drag_law, ratio)
         for i in range(n):
             fleet.P[i, _DRAG] = ratio[i]
+    if road.grade_s.shape[0]:  # the road's grade under each member
+        grade = np.empty(n)
+        grades_into(road.grade_s, road.grade_z, s_all[:n], grade)
+        for i in range(n):
+            fleet.P[i, _GRADE] = grade[i]
     m = nb.shape[0]
     for i in range(n):
         out.lead_obs[i] = ref.lead_idx[i] if ref.lead_idx[i] < m else -1
