@@ -181,7 +181,14 @@ def interp_one(x, xp, fp):
         return fp[n - 1]
     if x < xp[0]:
         return fp[0]
-    j = np.searchsorted(xp, x, side="right") - 1  # xp[j] <= x < xp[j + 1]
+    lo, hi = 0, n  # the last j with xp[j] <= x (a hand-written search: numba's searchsorted
+    while lo < hi:  # lives in a module whose load imports scipy)
+        mid = (lo + hi) // 2
+        if xp[mid] <= x:
+            lo = mid + 1
+        else:
+            hi = mid
+    j = lo - 1  # xp[j] <= x < xp[j + 1]
     if j >= n - 1 or xp[j] == x:
         return fp[j]
     slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
