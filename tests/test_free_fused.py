@@ -134,7 +134,8 @@ def test_compiled_free_steps_write_the_files_of_the_loops_own_steps(tmp_path, mo
     n_fused = len(taken)
     loop, b = _run(tmp_path, "loop", case, monkeypatch, False)
     assert len(taken) == n_fused  # the switch turned the compiled path off
-    assert fused.status == "completed", fused.reason
+    incident = "member_collision" in case[4]  # a run never hides one: its status says so
+    assert fused.status == ("completed_with_incidents" if incident else "completed"), fused.reason
     assert n_fused > FEWER.get(name, MOST) * fused.steps_done, f"only {n_fused} of {fused.steps_done} steps compiled"
     ev = pd.read_parquet(a / "events.parquet")
     assert case[4] <= set(ev.kind), f"the case provoked {sorted(set(ev.kind))}"
