@@ -190,3 +190,21 @@ def test_an_exit_code_is_read_once_while_another_case_starts(monkeypatch):
     assert got["poll"] == 0
     assert first.poll() == 0
     assert second.wait(timeout=30) == 3
+
+
+def test_a_case_killed_in_its_analysis_keeps_what_its_run_recorded(tmp_path, forks, monkeypatch):
+    """The kinematic free-space case simulates hours in its 8 s; after the SIGTERM it stops
+    at once and records its run, then its analysis (some 10 s) outlasts a 2 s grace and the
+    case is killed. Its summary row keeps the run's end from run.json (before: t_end_s NaN)
+    and its reason says the run is recorded and the analysis did not finish."""
+    monkeypatch.setattr(launch, "GRACE_S", 2.0)
+    path = sweep_file(tmp_path, THESIS, 'seeds = [1]\ntimeout_s = 8.0\n[grid]\n'
+                                        '"run.duration" = [200000.0]\n')
+    res = run_sweep(path, tmp_path / "out", workers=1, progress=False)
+    row = res.summary.iloc[0]
+    run = json.loads((tmp_path / "out" / "cases" / row["case_id"] / "run.json").read_text())
+    assert run["status"] == "interrupted" and run["t_end"] > 600.0  # stopped and recorded
+    assert not (tmp_path / "out" / "cases" / row["case_id"] / "metrics.json").exists()  # killed
+    assert row["status"] == "failed" and "SIGKILL" in row["reason"] and "timeout" in row["reason"]
+    assert row["t_end_s"] == run["t_end"]
+    assert "is recorded (run.json); its analysis did not finish" in row["reason"]

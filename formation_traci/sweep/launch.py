@@ -156,6 +156,22 @@ def _read_row(case_dir: Path, case_id: str) -> dict | None:
     return row if isinstance(row, dict) and row.get("case_id") == case_id else None
 
 
+def _recorded_stop(case_dir: Path) -> dict:
+    """What the run.json of a case process that ended without its row says of the run (a run
+    that stopped and was recorded, then was killed in its analysis): its ``t_end_s`` and a
+    note for the reason; nothing when there is no finished run.json."""
+    try:
+        meta = json.loads((case_dir / "run.json").read_text(encoding="utf-8"))
+        status, t_end = meta["status"], float(meta["t_end"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}
+    if status == "running":  # killed while it stepped: the last step recorded is not its end
+        return {}
+    return {"t_end_s": t_end,
+            "note": f"its run ended {status} at t = {t_end:g} s and is recorded (run.json); "
+                    "its analysis did not finish"}
+
+
 def launch_case(case_spec: dict | CaseSpec, should_stop: Callable[[], bool] | None = None,
                 timeout_s: float | None = None) -> dict[str, Any] | None:
     """Run one case in a fresh process and return its summary row.
@@ -210,8 +226,12 @@ def launch_case(case_spec: dict | CaseSpec, should_stop: Callable[[], bool] | No
     except Exception as exc:
         row = empty_row(case, "failed", f"could not run the case process: {type(exc).__name__}: {exc}")
     else:
-        row = (_read_row(case_dir, spec.case.id) if rc == 0 else None) \
-            or empty_row(case, "failed", _exit_reason(rc, log_path))
+        row = _read_row(case_dir, spec.case.id) if rc == 0 else None
+        if row is None:  # no row: the process failed or was killed, its run maybe recorded
+            recorded = _recorded_stop(case_dir)
+            reason = _exit_reason(rc, log_path)
+            row = empty_row(case, "failed", f"{reason}; {recorded['note']}" if recorded else reason)
+            row["t_end_s"] = recorded.get("t_end_s")
         if timed_out:
             row.update(status="failed", reason=f"timeout: still running after {timeout_s:g} s; "
                                                f"{row['reason'] or 'stopped'}")
