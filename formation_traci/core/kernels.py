@@ -129,6 +129,20 @@ def clip(x, lo, hi):
 
 
 @kernel
+def bisect_right(a, x):
+    """Python's ``bisect.bisect_right`` on the increasing 1-D array ``a``: the number of
+    entries <= x (numba's np.searchsorted lives in a module whose load imports scipy)."""
+    lo, hi = 0, a.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if x < a[mid]:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@kernel
 def wrap_angle(a):
     """Wrap an angle to (-pi, pi] [rad]."""
     return np.pi - np.mod(np.pi - a, 2.0 * np.pi)

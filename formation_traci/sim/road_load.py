@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from ..core.kernels import kernel
+from ..core.kernels import bisect_right, kernel
 
 from ..models.drag_interaction import (PLATOON_DRAG, along_heading, drag_ratios, law_row,
                                        road_ratios_into)
@@ -61,16 +61,37 @@ class RoadLoad:
     def __init__(self, sc: Scenario, veh, road, line):
         self.veh, self.drag = veh, interaction_on(sc)
         self.elevation = elevation_profile(road.net_file, road.route, sc.road.lane, line)
+        self._chassis = None  # chassis(veh, n), made at the first call
 
     def __call__(self, state, sensed, ref):
         nb, n_nb = sensed.nb, len(sensed.nb_s)
         ratio = 1.0
         if self.drag:
-            ratio = road_ratios(self.veh, sensed.m_s, sensed.m_d, sensed.active, sensed.nb_s,
-                                sensed.nb_d, nb.length if n_nb else sensed.nb_s,
-                                nb.width if n_nb else sensed.nb_s)
+            ratio = ratios_among(self.chassis(len(sensed.m_s)), sensed.m_s, sensed.m_d,
+                                 sensed.active, (sensed.nb_s, sensed.nb_d,
+                                                 nb.length if n_nb else sensed.nb_s,
+                                                 nb.width if n_nb else sensed.nb_s))
         grade = None if self.elevation is None else grade_at(self.elevation, sensed.m_s)
         return ratio, grade
+
+    def chassis(self, n: int) -> np.ndarray:
+        """(3, n): the members' length, width and CoG to front bumper [m] (:func:`chassis`)."""
+        if self._chassis is None:
+            self._chassis = chassis(self.veh, n)
+        return self._chassis
+
+    def kernel_inputs(self, n: int) -> tuple[np.ndarray, ...]:
+        """What the compiled road step takes to compute this load itself (sumo/fused_records.py
+        RoadRun): the members' chassis and the drag law's row ((3, n), (5,); (3, n) zeros and
+        (0,) without the interaction), the elevation profile's s and z [m] ((0,) each without
+        elevation)."""
+        drag = (self.chassis(n), _PLATOON_ROW) if self.drag else (np.zeros((3, n)), np.zeros(0))
+        grade = (np.zeros(0), np.zeros(0)) if self.elevation is None else self.elevation
+        return (*drag, *(np.ascontiguousarray(a, dtype=np.float64) for a in grade))
+
+
+_PLATOON_ROW = law_row(PLATOON_DRAG)
+"""The drag law as the kernels take it (the same array every call)."""
 
 
 def road_load_part(sc: Scenario, veh, road=None, line=None, rows=None):
@@ -111,13 +132,18 @@ def free_space_ratios(veh, pos: np.ndarray, heading: float, rows=None) -> np.nda
 def road_ratios(veh, m_s, m_d, active, nb_s, nb_d, nb_length, nb_width) -> np.ndarray:
     """Drag ratio [-] of each member on a road among SUMO's vehicles: members' centres of
     gravity (m_s, m_d) [m] (``active``: still in SUMO), other vehicles' centres, lengths, widths
-    [m]; ``veh``: one chassis or one per member (the compiled road step calls the same kernel,
-    models/drag_interaction.py road_ratios_into)."""
-    n = len(m_s)
-    out = np.empty(n)
-    f64 = [np.ascontiguousarray(a, dtype=np.float64) for a in (m_s, m_d, nb_s, nb_d, nb_length, nb_width)]
-    road_ratios_into(f64[0], f64[1], np.ascontiguousarray(active, dtype=np.bool_),
-                     chassis(veh, n), tuple(f64[2:]), law_row(PLATOON_DRAG), out)
+    [m]; ``veh``: one chassis or one per member."""
+    return ratios_among(chassis(veh, len(m_s)), m_s, m_d, active, (nb_s, nb_d, nb_length, nb_width))
+
+
+def ratios_among(bodies: np.ndarray, m_s, m_d, active, nb) -> np.ndarray:
+    """:func:`road_ratios` for the members' ``bodies`` (:func:`chassis`), ``nb`` the other
+    vehicles' (s, d, length, width) [m]: the kernel the compiled road step calls too
+    (models/drag_interaction.py road_ratios_into)."""
+    out = np.empty(len(m_s))
+    f64 = [np.ascontiguousarray(a, dtype=np.float64) for a in (m_s, m_d, *nb)]
+    road_ratios_into(f64[0], f64[1], np.ascontiguousarray(active, dtype=np.bool_), bodies,
+                     tuple(f64[2:]), _PLATOON_ROW, out)
     return out
 
 
@@ -181,14 +207,7 @@ def interp_one(x, xp, fp):
         return fp[n - 1]
     if x < xp[0]:
         return fp[0]
-    lo, hi = 0, n  # the last j with xp[j] <= x (a hand-written search: numba's searchsorted
-    while lo < hi:  # lives in a module whose load imports scipy)
-        mid = (lo + hi) // 2
-        if xp[mid] <= x:
-            lo = mid + 1
-        else:
-            hi = mid
-    j = lo - 1  # xp[j] <= x < xp[j + 1]
+    j = bisect_right(xp, x) - 1  # xp[j] <= x < xp[j + 1]
     if j >= n - 1 or xp[j] == x:
         return fp[j]
     slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])

@@ -34,9 +34,8 @@ from ..record.columns import COMFORT_COLUMNS, FILLED_BY_CALLER, SIGNAL_COLUMNS
 from ..control.reference_records import ReferenceOut
 from ..sim.fleet_records import StateRecord, state_record
 from ..sim.fleet_state import FleetState
-from ..models.drag_interaction import PLATOON_DRAG, law_row
 from ..sim.loop import check_finite
-from ..sim.road_load import RoadLoad, chassis
+from ..sim.road_load import RoadLoad
 from .events import PLACEMENT_TOLERANCE
 from .fused_records import RoadRun, SensedRows, StepAt, StepOut, fused_run
 from .fused_refs import GroupOfFormations, OneFormation
@@ -89,13 +88,11 @@ def _load_served(load) -> bool:
     return load is None or isinstance(load, RoadLoad)
 
 
-def _load(load, n: int):
-    """RoadRun's drag_bodies, drag_law, grade_s and grade_z for the run's road load ``load``."""
-    drag = (chassis(load.veh, n), law_row(PLATOON_DRAG)) if load is not None and load.drag \
-        else (np.zeros((3, n)), np.zeros(0))
-    grade = load.elevation if load is not None and load.elevation is not None \
-        else (np.zeros(0), np.zeros(0))
-    return (*drag, *(np.ascontiguousarray(a, dtype=np.float64) for a in grade))
+def _load_inputs(load, n: int) -> tuple[np.ndarray, ...]:
+    """RoadRun's road-load fields: the run's RoadLoad's, or none to compute."""
+    if load is None:
+        return np.zeros((3, n)), np.zeros(0), np.zeros(0), np.zeros(0)
+    return load.kernel_inputs(n)
 
 
 class FusedPath:
@@ -115,7 +112,7 @@ class FusedPath:
         self.ids = list(fl.cfg.ids)
         k = len(parts.formations)
         self.road = RoadRun(w.line.G, PLACEMENT_TOLERANCE, w.d_front, self.step_s, refs.bodies,
-                            refs.peers, w.slot_index, fl.cols, *_load(parts.road_load, n))
+                            refs.peers, w.slot_index, fl.cols, *_load_inputs(parts.road_load, n))
         self.ref_out = ReferenceOut(
             np.empty((gen.n_ctrl, n, 8)), np.empty(n), np.empty(k), np.empty(k), np.empty(k),
             np.empty(n), np.empty(n, dtype=np.int64), np.empty(n), np.empty(n), np.empty((k, 8)))

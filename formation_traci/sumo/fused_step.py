@@ -134,17 +134,7 @@ def fused_step(run, state, held, sensed, at):
         out.m_gap[i] = g[i]
     flags = _reference(road, plan, planner, ref, at, s_all[:n], d_all[:n], v_sense,
                        sensed.active, (rear, d_all[n:], nb_half_w, nb_v), fleet.dt_c)
-    if road.drag_law.shape[0]:  # the members' drag ratios of the step (sim/road_load.py RoadLoad)
-        ratio = np.empty(n)
-        road_ratios_into(s_all[:n], d_all[:n], sensed.active, road.drag_bodies,
-                         (s_all[n:], d_all[n:], nb_length, nb_width), road.drag_law, ratio)
-        for i in range(n):
-            fleet.P[i, _DRAG] = ratio[i]
-    if road.grade_s.shape[0]:  # the road's grade under each member
-        grade = np.empty(n)
-        grades_into(road.grade_s, road.grade_z, s_all[:n], grade)
-        for i in range(n):
-            fleet.P[i, _GRADE] = grade[i]
+    _road_load(road, fleet.P, s_all, d_all, sensed.active, nb_length, nb_width)
     m = nb.shape[0]
     for i in range(n):
         out.lead_obs[i] = ref.lead_idx[i] if ref.lead_idx[i] < m else -1
@@ -169,6 +159,26 @@ def fused_step(run, state, held, sensed, at):
             ul1[i] = held.u_last[i]
     flags |= _placed(fleet.kind, x, speed_in, x1, sp1, road, out)
     return x1, ts1, sp1, ul1, s_all, d_all, n_off, worst, flags
+
+
+@kernel
+def _road_load(road, P, s_all, d_all, active, nb_length, nb_width):
+    """The members' drag ratios among the neighbours and the road's grade under them into
+    their parameters ``P`` (what sim/road_load.py RoadLoad gives the loop's Fleet.set_road_load),
+    where the run computes them (``road.drag_law``, ``road.grade_s`` not empty); ``s_all``,
+    ``d_all``: the members' then the neighbours' arc lengths and offsets [m]."""
+    n = active.shape[0]
+    if road.drag_law.shape[0]:
+        ratio = np.empty(n)
+        road_ratios_into(s_all[:n], d_all[:n], active, road.drag_bodies,
+                         (s_all[n:], d_all[n:], nb_length, nb_width), road.drag_law, ratio)
+        for i in range(n):
+            P[i, _DRAG] = ratio[i]
+    if road.grade_s.shape[0]:
+        grade = np.empty(n)
+        grades_into(road.grade_s, road.grade_z, s_all[:n], grade)
+        for i in range(n):
+            P[i, _GRADE] = grade[i]
 
 
 @kernel

@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..core.kernels import kernel, py_hypot
+from ..core.kernels import bisect_right, kernel, py_hypot
 from ..road.fast_line import to_frenet_many
 from .types import cog_to_sumo_one, sumo_to_cog_one
 
@@ -90,15 +90,7 @@ def lane_point(table, points, li, pos, lat):
         g = 0.0
     if last < g:
         g = last
-    lo = 0  # bisect_right(cum, g) by bisection
-    hi = n
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if g < points[first + mid, 2]:
-            hi = mid
-        else:
-            lo = mid + 1
-    k = lo - 1
+    k = bisect_right(points[first:first + n, 2], g) - 1
     if k < 0:
         k = 0
     if k > n - 2:
