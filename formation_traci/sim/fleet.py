@@ -394,4 +394,3 @@ class Fleet:
     def speed(self, state: FleetState) -> np.ndarray:
         """Speed of every member [m/s] (the unicycle's applied speed input)."""
         return state.x[:, S.V].copy() if self.kind == DYNAMIC else state.speed_in.copy()
-
