@@ -6,6 +6,11 @@ column in the merge lane):
     formation-traci sweep scenarios/studies/merge_column.toml --out runs/merge_column --workers 1
     python docs/merge_study.py runs/merge runs/merge_column
 
+and the ten-seed studies of the speed loss at 900 veh/h (scenarios/studies/merge_seeds.toml,
+merge_column_seeds.toml, no twins):
+
+    python docs/merge_study.py --figure merge_seeds.png runs/merge_seeds runs/merge_column_seeds
+
 Per formation shape, ramp demand and cooperation mode, over the study's seeds: the ramp
 vehicles' mean speed loss (each seen ramp vehicle's first speed less its lowest while the
 formation was near the join, run.json ``merges``), the same paired by seed against ``none``
@@ -49,7 +54,10 @@ def interval(x: pd.Series) -> tuple[float, float, float, int]:
 def cases(sweep: Path) -> pd.DataFrame:
     """One sweep's finished cases with its shape, demand and mode, and the paired difference."""
     df = pd.read_parquet(sweep / "summary.parquet")
-    base = Path(json.loads((sweep / "sweep.json").read_text())["base"]).stem
+    meta = json.loads((sweep / "sweep.json").read_text())
+    base = Path(meta["base"]).stem
+    if "traffic.flows.1.veh_per_hour" not in df:  # one ramp demand, set in the study's [overrides]
+        df["traffic.flows.1.veh_per_hour"] = float(meta["sweep"]["overrides"]["traffic.flows.1.veh_per_hour"])
     df = df[df["status"].isin(["completed", "completed_with_incidents"])].copy()
     df = df.rename(columns={"traffic.flows.1.veh_per_hour": "ramp_veh_h", "cooperation.merge": "merge"})
     df["shape"] = SHAPES.get(base, base)
@@ -85,12 +93,12 @@ def markdown(t: pd.DataFrame) -> str:
         if not np.isfinite(lo) or np.isclose(lo, hi):
             return fmt.format(m)
         return f"{fmt.format(m)} [{fmt.format(lo)}, {fmt.format(hi)}]"
-    out = ["| formation | ramp | merge | ramp vehicles | ramp speed loss [m/s] | minus none (paired) [m/s] "
+    out = ["| formation | ramp | merge | seeds | ramp vehicles | ramp speed loss [m/s] | minus none (paired) [m/s] "
            "| merged before the lane end | emergency brakes | member collisions |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "|---|---|---|---|---|---|---|---|---|---|"]
     for _, r in t.iterrows():
         diff = "-" if r["merge"] == "none" else cell(r, "loss_vs_none")
-        out.append(f"| {r['shape']} | {int(r['ramp_veh_h'])} veh/h | {r['merge']} | {r['ramp_vehicles']} "
+        out.append(f"| {r['shape']} | {int(r['ramp_veh_h'])} veh/h | {r['merge']} | {r['seeds']} | {r['ramp_vehicles']} "
                    f"| {cell(r, 'ramp_speed_loss_mps')} | {diff} | {cell(r, 'merged_share')} "
                    f"| {cell(r, 'emergency_brakes')} | {cell(r, 'member_collisions')} |")
     return "\n".join(out)
@@ -118,6 +126,9 @@ def figure(t: pd.DataFrame, out: Path) -> None:
 
 
 def main(argv: list[str]) -> int:
+    name = "merge_study.png"
+    if argv[:1] == ["--figure"]:  # another figure's file name under docs/img
+        name, argv = argv[1], argv[2:]
     t = table([Path(a) for a in argv])
     pd.set_option("display.width", 200)
     cols = ["shape", "ramp_veh_h", "merge", "ramp_vehicles", "seeds"] + [
@@ -125,7 +136,7 @@ def main(argv: list[str]) -> int:
     print(t[cols].round(2).to_string(index=False))
     print()
     print(markdown(t))
-    figure(t, Path(__file__).parent / "img" / "merge_study.png")
+    figure(t, Path(__file__).parent / "img" / name)
     return 0
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from analysis.metrics.comfort import emergency_mask, jerk_window_mean
 from formation_traci.control.longitudinal import LongitudinalPlanner, PlannerParams, plan_accel
@@ -98,3 +99,62 @@ def test_a_lifted_cap_is_eased_out_at_the_jerk_limit_not_dropped():
     # it really rose at the jerk bound: from -0.5 to 1.5 in 2 / jerk_max seconds
     k_law = int(np.argmax(asked[:, 0] >= law[0]))
     assert abs((k_law - 100) * DT - 2.0 / P.jerk_max) <= 2 * DT
+
+
+def test_firm_braking_sets_in_at_jerk_brake_and_everything_else_at_jerk_max():
+    """From rest, a request of -2.5 m/s^2 (below -brake_firm = -2.0: a vehicle ahead braking
+    firmly) is followed at jerk_brake (2.0 m/s^3: 0.1 m/s^2 per 50 ms step, the lag asking
+    0.24); a request of -1.9 at jerk_max (0.04 per step); braking that eases towards a firm
+    request, acceleration that rises, at jerk_max too."""
+    pp = PlannerParams()
+    assert (pp.jerk_max, pp.jerk_brake, pp.brake_firm) == (0.8, 2.0, 2.0)
+
+    def step(a_prev, req, p=pp):
+        return plan_accel(a_prev, req, DT, p.tau, p.jerk_max, p.jerk_emergency, p.decel_comfort,
+                          p.jerk_release, p.jerk_brake, p.brake_firm)[0]
+
+    assert DT == 0.05
+    assert step(0.0, -2.5) == pytest.approx(-2.0 * DT, abs=1e-15)
+    assert step(0.0, -1.9) == pytest.approx(-0.8 * DT, abs=1e-15)
+    assert step(-2.9, -2.0) == pytest.approx(-2.9 + 0.8 * DT, abs=1e-15)  # easing: jerk_max
+    assert step(-1.0, 1.0) == pytest.approx(-1.0 + 0.8 * DT, abs=1e-15)
+    one = PlannerParams(jerk_brake=0.8)  # one bound throughout: the former planner
+    assert step(0.0, -2.5, one) == pytest.approx(-0.8 * DT, abs=1e-15)
+
+    def steps_to(p, a_to=-2.4, req=-2.5):
+        a, n = 0.0, 0
+        while a > a_to:
+            a, n = step(a, req, p), n + 1
+        return n
+
+    # the jerk bound j holds while the lag asks more, |req - a| (1 - exp(-DT/tau)) > j DT; then the
+    # lag alone shrinks |req - a| by exp(-DT/tau) per step down to 0.1
+    lag = 1.0 - math.exp(-DT / pp.tau)
+    for p, j in ((pp, 2.0), (one, 0.8)):
+        gap = j * DT / lag
+        expected = (2.5 - gap) / (j * DT) + math.log(gap / 0.1) / (DT / pp.tau)
+        assert abs(steps_to(p) - expected) <= 2.0, j
+    assert steps_to(pp) * DT < 2.0 < 3.0 < steps_to(one) * DT  # -2.4 m/s^2 within 2 s, not 3.3 s
+
+
+def test_braking_the_set_speed_asks_keeps_jerk_max_and_only_traffics_sets_in_at_jerk_brake():
+    """plan_step's virtual car: a request of -2.5 m/s^2 that is the speed profile's own
+    (a_request == a_profile: a lower set speed, no vehicle) sets in at jerk_max; the same
+    request from a vehicle ahead (a_request < a_profile) at jerk_brake. The members' caps are
+    traffic's: at jerk_brake."""
+    from formation_traci.control.longitudinal import plan_step
+    pp = P.packed()
+    inf1 = np.full(1, np.inf)
+
+    def vc(a_profile):
+        out, em = np.empty(1), np.zeros(1, dtype=np.bool_)
+        a, _ = plan_step(0.0, -2.5, a_profile, inf1.copy(), inf1.copy(), np.array([-2.5]),
+                         np.array([20.0]), np.zeros(1), DT, pp, out, em)
+        return a, out[0]
+
+    own, cap = vc(-2.5)
+    assert own == pytest.approx(-P.jerk_max * DT, abs=1e-15)
+    traffic, _ = vc(0.3)
+    assert traffic == pytest.approx(-P.jerk_brake * DT, abs=1e-15)
+    # the member's acceleration cap of -2.5 appears at its own acceleration (0)
+    assert cap == pytest.approx(-P.jerk_brake * DT, abs=1e-15)

@@ -219,8 +219,8 @@ def test_every_bundled_maneuver_scenario_runs_clean(tmp_path_factory, name):
         assert t1 >= t0
         during = comfort[(comfort.t >= t0) & (comfort.t <= t1)]
         assert np.max(np.abs(during.a_lat.to_numpy()), initial=0.0) < MEDIUM_COMFORT
-    # issue 19's smooth longitudinal references hold in maneuver runs too: members' jerk p95
-    # <= 1 m/s^3 and the 1-s averaged jerk <= 2.5 m/s^3 outside recorded emergency brakes
+    # the smooth longitudinal references hold in maneuver runs too: members' jerk p95
+    # <= JERK_P95_MAX and the 1-s averaged jerk <= 2.5 m/s^3 outside recorded emergency brakes
     from test_sumo_runs import _smooth_longitudinal
     _smooth_longitudinal(traj[traj.vehicle_id.isin(ids)], ev)
 

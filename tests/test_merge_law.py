@@ -146,3 +146,27 @@ def test_when_the_formations_gap_costs_more_than_comfort_the_yield_opens_the_dri
     cap = yield_to_ramp(SITE, _ramp(dist=40.0, v=v_r), lane, p, out)
     gap = (1460.0 - 4.5 + v_r * t) - (1450.0 + v_f * t + 0.5 * cap * t * t)
     assert out[0] == YIELD and gap == pytest.approx(P.min_gap_m + 1.0 * v_f, abs=1e-9)
+
+
+def test_a_vehicle_standing_at_the_lane_end_is_followed_once_the_formation_reaches_it_within_the_horizon():
+    """A truck (12 m) creeping at 0.8 m/s 30 m before the acceleration lane's end (stop-and-go on
+    the bundled on-ramp at 900 veh/h): by its own speed it reaches the lane's end after 37 s,
+    beyond the 10 s horizon, so it was never watched; it pushed into the merge lane 14 m ahead of
+    a member at 7.4 m/s, which braked at 3.3 m/s^2 (an emergency brake). The formation's front
+    reaches its rear first: (lead / (v_F - v_r)) = 3.1 s, within the horizon, so it is followed
+    like a leader, at most at the comfort deceleration."""
+    v_f, v_r = 8.4, 0.8
+    lane = MergeLane(s_front=1732.8, v_front=v_f, s_rear=1728.3)
+    ramp = _ramp(dist=-(1770.0 - SITE.s_start), v=v_r, length=12.0)  # front at 1770 m, rear 1758 m
+    lead = 1758.0 - 1732.8
+    assert (SITE.s_start + SITE.length - 1770.0) / v_r > P.horizon_s  # by its own speed: beyond
+    assert lead / (v_f - v_r) < P.horizon_s
+    (d,), cap = _decide(ramp, lane)
+    g = P.min_gap_m + 1.0 * v_f
+    assert d == CLEAR
+    assert cap == pytest.approx(max(K_GAP * (lead - g) + K_REL * (v_r - v_f), -P.a_comfort_mps2))
+    assert cap == -P.a_comfort_mps2
+    far = lane._replace(s_front=1600.0, s_rear=1595.5)  # 153 m behind it: 20 s away, beyond
+    assert _decide(ramp, far)[0][0] == OUTSIDE
+    before = _ramp(dist=20.0, v=v_r, length=12.0)  # still on the ramp before the join: its own T
+    assert _decide(before, lane)[0][0] == OUTSIDE

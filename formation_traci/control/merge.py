@@ -36,6 +36,13 @@ rear-most rear bumper at ``s_R``. The ramp vehicle of length ``L_r`` and time ga
   switching back and forth at the threshold; a ramp vehicle that slows down beside the
   formation is let go).
 
+A ramp vehicle on the acceleration lane that is slower than the formation and ahead of its front
+member (a queue at the lane's end in stop-and-go) may merge into the first gap, long before its
+own ``T``: its ``T`` is then the time the formation's front takes to reach its rear, ``lead / (v_F
+- v_r)`` with ``lead = s_r - L_r - s_F``, when that is shorter. Without it a vehicle standing at
+the lane's end was never within the horizon, and when it pushed into the merge lane a few metres
+ahead of a member the member braked as in an emergency.
+
 Only ramp vehicles within ``horizon_s`` of the merge (``T <= horizon_s``) are considered. Pure functions of (state, input, params), compiled.
 """
 from __future__ import annotations
@@ -112,12 +119,14 @@ def yield_to_ramp(site, ramp, lane, p, decision):
         s_r = site.s_start - ramp.dist[j]
         s_to = s_m if s_r < s_m else site.s_start + site.length  # past s_m: by the lane's end
         t = max((s_to - s_r) / v_r, p.min_time_s)
+        lead = s_r - ramp.length[j] - lane.s_front
+        if t > p.horizon_s and s_r > site.s_start and lead > 0.0 and lane.v_front > v_r:
+            t = max(lead / (lane.v_front - v_r), p.min_time_s)  # slow on the lane: reached first
         if t > p.horizon_s:
             continue
         decision[j] = CLEAR
         g_front = p.min_gap_m + max(ramp.tau[j], p.follow_gap_s) * lane.v_front
         g_rear = p.min_gap_m + ramp.tau[j] * ramp.v[j]
-        lead = s_r - ramp.length[j] - lane.s_front
         if s_r <= lane.s_rear - g_rear:
             continue
         if lead >= g_front:  # clear ahead: followed like a leader in the merge lane (a yield goes on)

@@ -84,9 +84,10 @@ def road_reference_step(plan, t, s, v, a_limit, members, nbs, a_vc_prev, has_pre
         m_s + d_front, m_d, slot_s + d_front, slot_d, plan.half_w, v_m, active, v, v_set,
         v_set_dot, nbs, lim)
     v_cap, a_cap_req = column_caps(slot_s, slot_d, plan.half_w, active, v_cap, a_cap_req)
+    a_profile = free_road_accel(v, v_set, v_set_dot, lim[ACCEL_MAX], lim[DECEL_EMERGENCY],
+                                lim[DECEL_FOLLOW], lim[DECEL_MAX])  # the set speed's own law
     if lim[TRAFFIC_AWARE] == 0.0:  # not traffic-aware: the free-road law on the profile alone
-        a_gov = free_road_accel(v, v_set, v_set_dot, lim[ACCEL_MAX], lim[DECEL_EMERGENCY],
-                                lim[DECEL_FOLLOW], lim[DECEL_MAX])
+        a_gov = a_profile
     a_request = a_limit if a_limit < a_gov else a_gov  # Python's min(a_gov, a_limit)
     dt = dt_c * vc.shape[0]
     a_cap_in = a_cap_req.copy()
@@ -102,8 +103,8 @@ def road_reference_step(plan, t, s, v, a_limit, members, nbs, a_vc_prev, has_pre
     v_prev[:] = v_m
     a_cap = np.empty(n)
     a_cap_from[:] = a_cap_prev
-    a_vc, emergency_vc = plan_step(a_vc_prev, a_request, a_cap_prev, v_cap, a_cap_in, v_m, a_m,
-                                   dt, plan.pp, a_cap, planner.emergency)
+    a_vc, emergency_vc = plan_step(a_vc_prev, a_request, a_profile, a_cap_prev, v_cap, a_cap_in,
+                                   v_m, a_m, dt, plan.pp, a_cap, planner.emergency)
     for i in range(n):
         if not active[i]:  # a cap being eased out goes with its member
             a_cap[i] = np.inf
@@ -185,6 +186,7 @@ class StepTiming:
     ramp: bool = True  # leader.accel_within_step == "ramp" (docs/model.md)
     release: bool = True  # leader.emergency_release
     jerk_max: float = 0.8  # leader.jerk_max: the planner's jerk outside emergencies [m/s^3]
+    jerk_brake: float = 2.0  # leader.jerk_brake: its jerk while firm braking sets in [m/s^3]
 
 
 class RoadReference:
@@ -215,7 +217,8 @@ class RoadReference:
         self.dt_c, self.n_ctrl = float(dt_c), int(n_ctrl)
         self._next = None
         self.longitudinal = LongitudinalPlanner(len(self.frame), PlannerParams(
-            jerk_max=float(timing.jerk_max), decel_comfort=limits.decel_max,
+            jerk_max=float(timing.jerk_max), jerk_brake=float(timing.jerk_brake),
+            decel_comfort=limits.decel_max,
             jerk_release=PlannerParams.jerk_release if release else 0.0))
         self._v_prev = np.zeros(len(self.frame))  # members' speed at the previous step [m/s]
         self._has_prev = False

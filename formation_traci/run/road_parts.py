@@ -110,7 +110,7 @@ def formation_parts(sc: Scenario, plan: RoadPlan, cfg, gains, world: SumoWorld, 
                         np.array([v.cog_to_front_bumper for v in plan.vehicles]))
     args = (world.line.G, world.line.length, layout, s0, v0, speed_profile, limits,
             sc.road.end_margin, StepTiming(run.step / n_ctrl, n_ctrl, ramp, release,
-                                            sc.leader.jerk_max))
+                                            sc.leader.jerk_max, sc.leader.jerk_brake))
     shift = sc.cooperation.merge == "shift"  # moves away from merge lanes with the planner's lane change
     if not sc.maneuvers and not shift:
         return RoadReference(*args), [], state

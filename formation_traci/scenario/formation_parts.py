@@ -184,6 +184,12 @@ class LeaderSpec(Strict):
         "planner's bound, docs/model.md 'Smooth longitudinal references'); at most 2.5, ISO "
         "15622's comfort bound. Larger values follow a braking leader sooner (fewer emergency "
         "brakes in dense merges: docs/maneuvers.md) at the cost of a higher jerk p95"))
+    jerk_brake: PosFloat = Field(2.0, le=2.5, description=(
+        "road: largest jerk while the longitudinal references' braking grows towards a request of "
+        "more than 2 m/s^2 from a vehicle ahead (braking firmly; the speed profile's own braking "
+        "keeps jerk_max) [m/s^3]; at most 2.5, ISO 15622's "
+        "comfort bound. Set it to jerk_max for one bound throughout (docs/model.md 'Smooth "
+        "longitudinal references')"))
     bound_by_members: bool = Field(
         True, description="road: the virtual car's acceleration and its braking outside emergencies "
         "at most 90 % of the weakest member's speed law (a truck's Table 3.6 gains: 0.46 m/s^2); "
