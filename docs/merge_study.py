@@ -6,7 +6,7 @@ column in the merge lane):
     formation-traci sweep scenarios/studies/merge_column.toml --out runs/merge_column --workers 1
     python docs/merge_study.py runs/merge runs/merge_column
 
-and the ten-seed studies of the speed loss at 900 veh/h (scenarios/studies/merge_seeds.toml,
+and the twenty-seed studies of the speed loss at 900 veh/h (scenarios/studies/merge_seeds.toml,
 merge_column_seeds.toml, no twins):
 
     python docs/merge_study.py --figure merge_seeds.png runs/merge_seeds runs/merge_column_seeds

@@ -64,15 +64,15 @@ def test_the_table_pairs_each_mode_with_the_same_seeds_none(tmp_path):
 
 
 @pytest.mark.parametrize("name, lane", [("merge_seeds.toml", 1), ("merge_column_seeds.toml", 0)])
-def test_the_ten_seed_studies_cross_mode_and_seed_at_900_veh_h(name, lane, tmp_path):
+def test_the_twenty_seed_studies_cross_mode_and_seed_at_900_veh_h(name, lane, tmp_path):
     sw = load_sweep(STUDIES / name)
-    assert len(sw.cases) == 3 * 10
+    assert len(sw.cases) == 3 * 20
     seen = set()
     for case in sw.cases:
         sc = load_scenario(sw.base, **case.overrides)
         assert sc.road.net == "onramp" and sc.road.lane == lane and sc.run.duration == 60.0
         seen.add((sc.traffic.flows[1].veh_per_hour, sc.cooperation.merge, sc.run.seed))
-    assert seen == {(900.0, m, s) for m in ("none", "open_gap", "shift") for s in range(1, 11)}
+    assert seen == {(900.0, m, s) for m in ("none", "open_gap", "shift") for s in range(1, 21)}
     # the table takes the one ramp demand from the study's overrides (no grid column for it)
     rows = [{"seed": s, "cooperation.merge": m, "status": "completed", "ramp_vehicles": 10,
              "ramp_merged_before_lane_end": 10, "ramp_speed_loss_mps": 2.0 + (m == "none"),
