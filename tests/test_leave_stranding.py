@@ -19,7 +19,7 @@ import pandas as pd
 import pytest
 
 from formation_traci.control.governor import K_GAP, K_REL, member_caps, mate_caps
-from formation_traci.control.longitudinal import plan_accel
+from formation_traci.control.longitudinal import PlannerParams, plan_accel
 from formation_traci.control.reference_road import mate_rears
 from formation_traci.scenario import load_scenario
 from formation_traci.runner import run_scenario
@@ -63,15 +63,21 @@ veh_per_hour_per_lane = 400
 """
 
 
+def _pp(jerk_release: float):
+    """The planner with lag 0.5 s, jerk 0.8, emergency jerk 20 m/s^3 below -3 m/s^2."""
+    return PlannerParams(tau=0.5, jerk_max=0.8, jerk_emergency=20.0, decel_comfort=3.0,
+                         jerk_release=jerk_release).packed()
+
+
 def test_braking_beyond_comfort_is_released_fast_after_the_emergency():
     """From -8 m/s^2 with the request back at -1 m/s^2: up to -decel_comfort at jerk_release
     in one step (20 m/s^3 x 0.05 s = 1 m/s^2), then as before; jerk_release 0: jerk_max."""
-    a, em = plan_accel(-8.0, -1.0, 0.05, 0.5, 0.8, 20.0, 3.0, 20.0)
+    a, em = plan_accel(-8.0, -1.0, 0.05, _pp(20.0), False)
     assert (a, em) == (pytest.approx(-7.0), False)
-    a, _ = plan_accel(-3.2, -1.0, 0.05, 0.5, 0.8, 20.0, 3.0, 20.0)
+    a, _ = plan_accel(-3.2, -1.0, 0.05, _pp(20.0), False)
     assert a == pytest.approx(-3.0)
-    assert plan_accel(-8.0, -1.0, 0.05, 0.5, 0.8, 20.0, 3.0, 0.0)[0] == pytest.approx(-8.0 + 0.04)
-    assert plan_accel(-8.0, -5.0, 0.05, 0.5, 0.8, 20.0, 3.0, 20.0)[1]  # still an emergency
+    assert plan_accel(-8.0, -1.0, 0.05, _pp(0.0), False)[0] == pytest.approx(-8.0 + 0.04)
+    assert plan_accel(-8.0, -5.0, 0.05, _pp(20.0), False)[1]  # still an emergency
 
 
 def test_a_released_member_inside_the_column_is_kept_at_the_slots_spacing_not_the_time_gap():

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -14,9 +15,11 @@ DT = 0.05
 
 
 def _run(requests, a0=0.0, p=P):
+    """The planner's virtual car on its own profile (no firm braking, no release)."""
     a, out, em = a0, [], []
+    pp = replace(p, jerk_release=0.0).packed()
     for r in requests:
-        a, e = plan_accel(a, r, DT, p.tau, p.jerk_max, p.jerk_emergency, p.decel_comfort)
+        a, e = plan_accel(a, r, DT, pp, False)
         out.append(a)
         em.append(e)
     return np.array(out), np.array(em)
@@ -48,7 +51,7 @@ def test_an_emergency_request_brakes_at_the_emergency_jerk_and_is_flagged():
     assert em.all()
     assert abs(a[0] - (-P.jerk_emergency * DT)) < 1e-12  # 1 m/s^2 in the first step
     assert abs(a[5] - (-6.0)) < 1e-12  # -6 reached after 0.3 s (6 / 20 m/s^3)
-    inf, em_inf = plan_accel(-1.0, math.inf, DT, P.tau, P.jerk_max, P.jerk_emergency, P.decel_comfort)
+    inf, em_inf = plan_accel(-1.0, math.inf, DT, P.packed(), True)
     assert inf == -1.0 and not em_inf
 
 
@@ -110,8 +113,7 @@ def test_firm_braking_sets_in_at_jerk_brake_and_everything_else_at_jerk_max():
     assert (pp.jerk_max, pp.jerk_brake, pp.brake_firm) == (0.8, 2.0, 2.0)
 
     def step(a_prev, req, p=pp):
-        return plan_accel(a_prev, req, DT, p.tau, p.jerk_max, p.jerk_emergency, p.decel_comfort,
-                          p.jerk_release, p.jerk_brake, p.brake_firm)[0]
+        return plan_accel(a_prev, req, DT, p.packed(), True)[0]
 
     assert DT == 0.05
     assert step(0.0, -2.5) == pytest.approx(-2.0 * DT, abs=1e-15)

@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from formation_traci.control.governor import column_caps, free_road_accel, governor_step
+from formation_traci.control.governor import (ACCEL_MAX, DECEL_EMERGENCY, DECEL_FOLLOW, DECEL_MAX,
+                                              column_caps, free_road_accel, governor_step)
 from formation_traci.control.longitudinal import LongitudinalPlanner, PlannerParams, plan_accel, plan_caps
 from formation_traci.control.reference_records import (MemberPlanner, MemberRows, NeighbourRows,
                                                        RoadPlan)
@@ -47,11 +48,10 @@ def composed(G, prof, t, s, v, a_limit, along, slot_d_road, is_road, d_front, ha
     p = planner.p  # the planner's step before it was fused (plan_accel, then plan_caps)
     a_vc0, a_cap_from = planner.a_vc, planner.a_cap.copy()
     lim = LIM.packed()  # the set speed's own request: firm braking only for traffic's
-    a_profile = free_road_accel(v, v_set, v_set_dot, lim[2], lim[3], lim[4], lim[5])
-    jerk_brake = p.jerk_brake if a_request < a_profile else 0.0
-    a_vc, planner.emergency_vc = plan_accel(planner.a_vc, float(a_request), dt, p.tau, p.jerk_max,
-                                            p.jerk_emergency, p.decel_comfort, p.jerk_release,
-                                            jerk_brake, p.brake_firm)
+    a_profile = free_road_accel(v, v_set, v_set_dot, lim[ACCEL_MAX], lim[DECEL_EMERGENCY],
+                                lim[DECEL_FOLLOW], lim[DECEL_MAX])
+    a_vc, planner.emergency_vc = plan_accel(planner.a_vc, float(a_request), dt, p.packed(),
+                                            a_request < a_profile)
     planner.a_vc = a_vc
     a_cap = np.empty_like(planner.a_cap)
     plan_caps(planner.a_cap, v_c, a_c, v_m, a_m, dt, p.packed(), a_cap, planner.emergency)

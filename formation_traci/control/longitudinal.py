@@ -88,30 +88,35 @@ class PlannerParams:
 
 
 @kernel
-def plan_accel(a_prev, a_request, dt, tau, jerk_max, jerk_emergency, decel_comfort,
-               jerk_release=0.0, jerk_brake=0.0, brake_firm=np.inf):
-    """Next acceleration [m/s^2] from ``a_prev`` towards ``a_request`` over ``dt`` [s].
+def plan_accel(a_prev, a_request, dt, pp, firm):
+    """Next acceleration [m/s^2] from ``a_prev`` towards ``a_request`` over ``dt`` [s] (``pp``:
+    the :class:`PlannerParams` as :meth:`PlannerParams.packed`; ``firm``: the request is
+    traffic's, a vehicle's or a maneuver's room, not the virtual car's own speed profile).
 
     Returns ``(a, emergency)``. Outside emergencies the change is the first-order lag
-    ``(a_request - a_prev) (1 - exp(-dt / tau))`` bounded by ``jerk_max dt``, and a fall
-    towards a request below ``-brake_firm`` by ``max(jerk_max, jerk_brake) dt``; in an emergency
-    (``a_request < -decel_comfort``) the change is the whole difference bounded by
-    ``jerk_emergency dt``. An infinite request (no constraint) leaves ``a_prev`` unchanged.
-    With ``jerk_release`` > 0, braking harder than ``decel_comfort`` that the request no
-    longer asks is released at that rate up to -decel_comfort (the end of an emergency).
+    ``(a_request - a_prev) (1 - exp(-dt / tau))`` bounded by ``jerk_max dt``, and with
+    ``firm`` a fall towards a request below ``-brake_firm`` by ``max(jerk_max, jerk_brake)
+    dt``; in an emergency (``a_request < -decel_comfort``) the change is the whole difference
+    bounded by ``jerk_emergency dt``. An infinite request (no constraint) leaves ``a_prev``
+    unchanged. With ``jerk_release`` > 0, braking harder than ``decel_comfort`` that the
+    request no longer asks is released at that rate up to -decel_comfort (the end of an
+    emergency).
     """
     if not math.isfinite(a_request):
         return a_prev, False
+    decel_comfort, jerk_release = pp[DECEL_COMFORT], pp[JERK_RELEASE]
     emergency = a_request < -decel_comfort
     if jerk_release > 0.0 and not emergency and a_prev < -decel_comfort:
         return a_prev + min(-decel_comfort - a_prev, jerk_release * dt), False
     if emergency:
-        da, lim = a_request - a_prev, jerk_emergency * dt
+        da, lim = a_request - a_prev, pp[JERK_EMERGENCY] * dt
+        fall = lim
     else:
-        da, lim = (a_request - a_prev) * (1.0 - math.exp(-dt / tau)), jerk_max * dt
-        if a_request < -brake_firm and jerk_brake > jerk_max:  # firm braking: sets in faster
-            return a_prev + min(max(da, -jerk_brake * dt), lim), emergency
-    return a_prev + min(max(da, -lim), lim), emergency
+        da, lim = (a_request - a_prev) * (1.0 - math.exp(-dt / pp[TAU])), pp[JERK_MAX] * dt
+        fall = lim
+        if firm and a_request < -pp[BRAKE_FIRM] and pp[JERK_BRAKE] > pp[JERK_MAX]:
+            fall = pp[JERK_BRAKE] * dt  # firm braking sets in faster
+    return a_prev + min(max(da, -fall), lim), emergency
 
 
 @kernel
@@ -119,15 +124,14 @@ def plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, pp, a_out, emerg
     """Smoothed acceleration caps [m/s^2] of every member, in place (``pp``: the
     :class:`PlannerParams` as :meth:`PlannerParams.packed`, slots :data:`TAU` ..).
 
-    The request is ``min(a_cap, (v_cap - v_member) / tau_speed_cap)`` (inf: no cap). A cap
-    that appears (previous value inf) starts from the member's acceleration ``a_member`` (or
-    the request if that is higher); ``emergency[i]`` is set where the request asks for more
-    than ``decel_comfort`` of braking. A cap whose request lifts rises by ``jerk_max dt`` per
-    step while it is less than ``lift_margin`` above ``a_member`` (it still binds), and is
-    dropped (inf) after that."""
-    tau, jerk_max, jerk_emergency = pp[TAU], pp[JERK_MAX], pp[JERK_EMERGENCY]
-    decel_comfort, tau_speed_cap, lift_margin = pp[DECEL_COMFORT], pp[TAU_SPEED_CAP], pp[LIFT_MARGIN]
-    jerk_release, jerk_brake, brake_firm = pp[JERK_RELEASE], pp[JERK_BRAKE], pp[BRAKE_FIRM]
+    The request is ``min(a_cap, (v_cap - v_member) / tau_speed_cap)`` (inf: no cap), always
+    traffic's (:func:`plan_accel`'s ``firm``). A cap that appears (previous value inf) starts
+    from the member's acceleration ``a_member`` (or the request if that is higher);
+    ``emergency[i]`` is set where the request asks for more than ``decel_comfort`` of braking.
+    A cap whose request lifts rises by ``jerk_max dt`` per step while it is less than
+    ``lift_margin`` above ``a_member`` (it still binds), and is dropped (inf) after that."""
+    jerk_max, decel_comfort, jerk_release = pp[JERK_MAX], pp[DECEL_COMFORT], pp[JERK_RELEASE]
+    tau_speed_cap, lift_margin = pp[TAU_SPEED_CAP], pp[LIFT_MARGIN]
     for i in range(v_cap.shape[0]):
         req = min(a_cap[i], (v_cap[i] - v_member[i]) / tau_speed_cap)
         if not math.isfinite(req):
@@ -139,9 +143,7 @@ def plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, pp, a_out, emerg
             a_out[i], emergency[i] = rise if binds else np.inf, False
         else:
             start = a_cap_prev[i] if math.isfinite(a_cap_prev[i]) else max(req, a_member[i])
-            a_out[i], emergency[i] = plan_accel(start, req, dt, tau, jerk_max, jerk_emergency,
-                                                decel_comfort, jerk_release, jerk_brake,
-                                                brake_firm)
+            a_out[i], emergency[i] = plan_accel(start, req, dt, pp, True)
 
 
 @kernel
@@ -151,13 +153,10 @@ def plan_step(a_vc_prev, a_request, a_profile, a_cap_prev, v_cap, a_cap, v_membe
     returned with its emergency flag) and the members' caps (:func:`plan_caps` into ``a_out``
     and ``emergency``). ``pp``: the :class:`PlannerParams` as :meth:`PlannerParams.packed`.
     ``a_profile`` [m/s^2]: what the virtual car's set speed alone asks (the governor's free-road
-    law); firm braking sets in at ``jerk_brake`` only where a vehicle (or a maneuver's room)
-    asks more than that, ``a_request < a_profile``: braking the speed profile asks is the
-    profile's own, at ``jerk_max``. The members' caps are always traffic's."""
-    jerk_brake = pp[JERK_BRAKE] if a_request < a_profile else 0.0
-    a_vc, emergency_vc = plan_accel(a_vc_prev, a_request, dt, pp[TAU], pp[JERK_MAX],
-                                    pp[JERK_EMERGENCY], pp[DECEL_COMFORT], pp[JERK_RELEASE],
-                                    jerk_brake, pp[BRAKE_FIRM])
+    law); the virtual car's request is firm (:func:`plan_accel`) only where a vehicle (or a
+    maneuver's room) asks more than that, ``a_request < a_profile``: braking the speed profile
+    asks is the profile's own, at ``jerk_max``."""
+    a_vc, emergency_vc = plan_accel(a_vc_prev, a_request, dt, pp, a_request < a_profile)
     plan_caps(a_cap_prev, v_cap, a_cap, v_member, a_member, dt, pp, a_out, emergency)
     return a_vc, emergency_vc
 

@@ -182,8 +182,8 @@ class LeaderSpec(Strict):
     jerk_max: PosFloat = Field(0.8, le=2.5, description=(
         "road: largest jerk of the longitudinal references outside emergencies [m/s^3] (the "
         "planner's bound, docs/model.md 'Smooth longitudinal references'); at most 2.5, ISO "
-        "15622's comfort bound. Larger values follow a braking leader sooner (fewer emergency "
-        "brakes in dense merges: docs/maneuvers.md) at the cost of a higher jerk p95"))
+        "15622's comfort bound. Braking towards a request of more than 2 m/s^2 from a vehicle "
+        "ahead sets in at jerk_brake instead"))
     jerk_brake: PosFloat = Field(2.0, le=2.5, description=(
         "road: largest jerk while the longitudinal references' braking grows towards a request of "
         "more than 2 m/s^2 from a vehicle ahead (braking firmly; the speed profile's own braking "
