@@ -297,14 +297,11 @@ def test_attach_to_a_running_sumo_over_traci(tmp_path):
     assert sorted(p.name for p in user_cwd.iterdir()) == []
 
 
-def test_members_carry_a_window_of_a_long_route_of_many_edges(tmp_path):
-    """A 3 km motorway split into 15 edges of 200 m: each member's route in SUMO reaches
-    ROUTE_AHEAD_M beyond its current edge and no farther (moveToXY searches the whole route),
-    and the members still cross every edge boundary exactly where the model puts them."""
+def _segmented_motorway(tmp_path, n_edges: int, edge_m: float) -> list[str]:
+    """A straight 3-lane motorway of ``n_edges`` edges of ``edge_m`` [m] (seg.net.xml in
+    ``tmp_path``): its edges' ids in order."""
     import subprocess
     import sumolib
-    from formation_traci.sumo.adapter import ROUTE_AHEAD_M
-    n_edges, edge_m = 15, 200.0
     (tmp_path / "seg.nod.xml").write_text("<nodes>" + "".join(
         f'<node id="n{i}" x="{i * edge_m}" y="0"/>' for i in range(n_edges + 1)) + "</nodes>")
     (tmp_path / "seg.edg.xml").write_text("<edges>" + "".join(
@@ -313,19 +310,62 @@ def test_members_carry_a_window_of_a_long_route_of_many_edges(tmp_path):
     subprocess.run([sumolib.checkBinary("netconvert"), "-n", "seg.nod.xml", "-e", "seg.edg.xml",
                     "-o", "seg.net.xml", "--offset.disable-normalization", "true", "--no-turnarounds",
                     "true", "--default.lanewidth", "3.5"], cwd=tmp_path, check=True, capture_output=True)
-    edges = [f"e{i}" for i in range(n_edges)]
-    routes = {}
+    return [f"e{i}" for i in range(n_edges)]
 
+
+def _route_hook(routes: dict):
+    """A step hook that appends each member's (SUMO edge, SUMO route) to ``routes``."""
     def hook(k, t, adapter):
         for vid in ("right", "centre", "left"):
             if vid in adapter.api.vehicle.getIDList():
                 routes.setdefault(vid, []).append((adapter.api.vehicle.getRoadID(vid),
                                                    tuple(adapter.api.vehicle.getRoute(vid))))
+    return hook
 
+
+def test_members_entering_far_along_a_route_carry_none_of_it_behind(tmp_path):
+    """Members that enter 1.5 km along a route of 200 m edges get it in SUMO from the edge
+    before their own on, not from the route's first edge: moveToXY searches every edge of the
+    route behind the vehicle too, so a member entering 50 km along a 100 km route of 1 km
+    edges paid ~15 us a move for the 50 edges behind it. On the former code the members'
+    routes began with e0."""
+    from formation_traci.sumo.adapter import ROUTE_AHEAD_M
+    edge_m = 200.0
+    edges = _segmented_motorway(tmp_path, 15, edge_m)
+    routes = {}
+    sc = load_scenario(ROOT / "scenarios" / "highway" / "straight_3lane_light.toml",
+                       **{"road.net": str(tmp_path / "seg.net.xml"), "road.route": edges,
+                          "road.start": 1500.0, "run.duration": 20.0, "traffic.warmup": 20.0, **NO_DRAIN})
+    res = run_scenario(sc, tmp_path / "run", progress=False, step_hook=_route_hook(routes))
+    assert res.status == "completed", res.reason
+    traj = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
+    members = traj[(traj.vehicle_id != "vc") & (traj.t > 0)]
+    assert members.sumo_gap.max() < 0.01  # m: placed where the model puts them
+    max_window = int(ROUTE_AHEAD_M // edge_m) + 1
+    for vid, seen in routes.items():
+        first = edges.index(seen[0][1][0])
+        entry = min(edges.index(e) for e, _ in seen if not e.startswith(":"))
+        assert first == entry - 1 and entry >= 7, (vid, seen[0])  # the CoG's edge: 1.5 km in
+        on_edges = [(edge, route) for (edge, _), (_, route) in zip(seen[1:-1], seen[2:])
+                    if not edge.startswith(":")]
+        assert len({edge for edge, _ in on_edges}) >= 2, vid
+        for edge, route in on_edges:
+            last = min(edges.index(edge) + max_window, n_edges := len(edges)) - 1
+            assert list(route) == edges[first:last + 1], (vid, edge, route)
+
+
+def test_members_carry_a_window_of_a_long_route_of_many_edges(tmp_path):
+    """A 3 km motorway split into 15 edges of 200 m: each member's route in SUMO reaches
+    ROUTE_AHEAD_M beyond its current edge and no farther (moveToXY searches the whole route),
+    and the members still cross every edge boundary exactly where the model puts them."""
+    from formation_traci.sumo.adapter import ROUTE_AHEAD_M
+    n_edges, edge_m = 15, 200.0
+    edges = _segmented_motorway(tmp_path, n_edges, edge_m)
+    routes = {}
     sc = load_scenario(ROOT / "scenarios" / "highway" / "straight_3lane_light.toml",
                        **{"road.net": str(tmp_path / "seg.net.xml"), "road.route": edges,
                           "road.start": 100.0, "run.duration": 60.0, "traffic.warmup": 60.0, **NO_DRAIN})
-    res = run_scenario(sc, tmp_path / "run", progress=False, step_hook=hook)
+    res = run_scenario(sc, tmp_path / "run", progress=False, step_hook=_route_hook(routes))
     assert res.status == "completed", res.reason
     traj = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
     members = traj[(traj.vehicle_id != "vc") & (traj.t > 0)]

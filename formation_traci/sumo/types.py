@@ -31,7 +31,8 @@ ROUTE_AHEAD_M = 1000.0
 ``moveToXY`` with keepRoute=1 searches every edge of the vehicle's route (ahead of it and
 behind it) for the nearest lane, so on a route of many edges a member carries only the part of
 the formation's route up to here, moved on whenever it enters the next edge (SUMO keeps the
-edges already driven in the route; docs/sumo.md)."""
+edges already driven in the route; a member starts its route at the edge before its own when
+it enters: docs/sumo.md)."""
 
 SPEED_MODE_DEFAULT = 31
 SPEED_MODE_DRIVEN = 23

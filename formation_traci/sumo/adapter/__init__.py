@@ -209,8 +209,23 @@ class SumoAdapter(MemberReads, NeighbourReads, VehicleSetup, LaneEnds, RampReads
         self.api.vehicle.setLaneChangeMode(vid, 0)
         self.api.vehicle.subscribe(vid, self._member_vars())
         self._subscribed.add(vid)
-        self._window[vid] = (route_id, -1)
+        self._window[vid] = (route_id, self._route_from_entry(vid, route_id, x, y))
         self._move(vid, x, y, psi)
+
+    def _route_from_entry(self, vid: str, route_id: str, x: float, y: float) -> int:
+        """Before its insertion, member ``vid`` gets the route ``route_id`` from the edge
+        before the one at its CoG (x, y) [m] on (SUMO keeps no edge of it behind then): the
+        index of its first edge in ``route_id``, or -1 when it keeps the whole route (its
+        edge is the route's first or second, or not on the route)."""
+        edges = self._routes[route_id][0]
+        if len(edges) < 3:
+            return -1
+        edge = self.api.simulation.convertRoad(float(x), float(y))[0]
+        start = edges.index(edge) - 1 if edge in edges else -1
+        if start < 1:
+            return -1
+        self.api.vehicle.setRoute(vid, edges[start:])
+        return start
 
     def add_twin_vehicle(self, vid: str, route_id: str, mt: MemberType, x, y, psi, v) -> None:
         """A member as the same-demand twin has it: a vehicle of the member's type ``mt`` (its
