@@ -137,3 +137,37 @@ def test_the_group_step_equals_the_per_formation_path(grouped, tmp_path, monkeyp
     meta = [json.loads((d / "run.json").read_text()) for d in (group, tmp_path / "each")]
     assert meta[0]["formations"] == meta[1]["formations"]
     assert any(f["left_s"] is not None for f in meta[0]["formations"].values())  # some retired
+
+
+def test_a_waiting_formations_room_check_answers_as_a_full_check(tmp_path, monkeypatch):
+    """A formation that found no room keeps the vehicle that blocked it, and while that vehicle
+    still overlaps its zones the check reads nothing else (sumo/flow_inserts.py RoomCheck):
+    at every check of a run where formations wait in dense traffic, the answer equals a fresh
+    check's over every vehicle on the edges around the formation."""
+    from formation_traci.sumo.flow_inserts import RoomCheck
+    from formation_traci.sumo.world import SumoWorld
+
+    seen = {"calls": 0, "kept": 0, "no": 0, "differ": []}
+
+    def has_room(self, t, rows, state):
+        if self._room is None:
+            self._room = RoomCheck(self)
+        kept = rows.start in self._room._blocked_by
+        got = self._room(t, rows, state)
+        full = RoomCheck(self)(t, rows, state)
+        seen["calls"] += 1
+        seen["kept"] += kept and not got
+        seen["no"] += not got
+        if got != full:
+            seen["differ"].append((t, rows.start, got, full))
+        return got
+
+    monkeypatch.setattr(SumoWorld, "has_room", has_room)
+    p = tmp_path / "s.toml"
+    p.write_text(SC.replace("veh_per_hour_per_lane = 1000", "veh_per_hour_per_lane = 1900")
+                 .replace("penetration = 0.1", "penetration = 0.2").replace("start = 3500.0", "start = 700.0"))
+    sc = load_scenario(p, **{**NO_DRAIN, "run.duration": 40.0})
+    res = run_scenario(sc, tmp_path / "run", scenario_path=p, force=True, progress=False)
+    assert res.status in ("completed", "completed_with_incidents"), res.reason
+    assert seen["differ"] == []
+    assert seen["no"] >= 50 and seen["kept"] >= 0.5 * seen["no"], seen  # formations waited

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .zone import has_room
+from .zone import blocker, insertion_zones
 
 LOOK_BEHIND_M, LOOK_AHEAD_M = 150.0, 250.0
 """The stretch around a due formation's members whose vehicles may block its entry [m]."""
@@ -15,7 +15,9 @@ class RoomCheck:
     """Is there room for a due formation (:meth:`__call__`)? The members' kinematics and each
     edge's vehicles with their poses are read once per step and state, however many
     formations of flows are due in it (their checks share a step's reads: SUMO's vehicles do
-    not move between them)."""
+    not move between them). A formation that found no room keeps the vehicle that blocked it:
+    while that vehicle still overlaps its zones from an edge the check reads, the answer is
+    no without reading the others (the same answer: any overlap blocks)."""
 
     def __init__(self, world):
         self.world = world
@@ -25,6 +27,8 @@ class RoomCheck:
         self._edges = [g.edge for g in segs]
         self._key = None  # (t, the state) of the reads below
         self._kin = self._on = None
+        self._zones: dict[int, tuple] = {}  # first row -> (poses' bytes, near edges, zones)
+        self._blocked_by: dict[int, str] = {}  # first row -> the vehicle that blocked it last
 
     def _step(self, t: float, state) -> None:
         key = (t, id(state))
@@ -35,18 +39,48 @@ class RoomCheck:
             self._on = {}
 
     def _bodies(self, edges):
-        """x, y, heading, length, width of the vehicles on ``edges`` (sumo/adapter
+        """ids, x, y, heading, length, width of the vehicles on ``edges`` (sumo/adapter
         vehicle_bodies' rows; each edge read once per step)."""
         ad, on = self.world.adapter, self._on
         parts = []
         for e in edges:
             got = on.get(e)
             if got is None:
-                got = on[e] = ad.vehicle_bodies(ad.vehicles_on((e,)))[1:]
+                got = on[e] = ad.vehicle_bodies(ad.vehicles_on((e,)))
             parts.append(got)
         if not parts:
-            return (np.empty(0),) * 5
-        return tuple(np.concatenate(c) for c in zip(*parts))
+            return [], *((np.empty(0),) * 5)
+        return [vid for p in parts for vid in p[0]], *(np.concatenate(c) for c in list(zip(*parts))[1:])
+
+    def _zones_of(self, rows: slice):
+        """The edges to read and the insertion zones (sumo/zone.py ``insertion_zones``) of the
+        members ``rows`` at their state's poses (kept while the poses and speeds stay)."""
+        world = self.world
+        pos, heading, v_all = self._kin
+        idx = np.arange(rows.start, rows.stop)
+        key = pos[idx].tobytes() + heading[idx].tobytes() + v_all[idx].tobytes()
+        got = self._zones.get(rows.start)
+        if got is not None and got[0] == key:
+            return got[1], got[2]
+        s = world.line.to_frenet(pos[idx])[0]
+        lo, hi = float(np.min(s)) - LOOK_BEHIND_M, float(np.max(s)) + LOOK_AHEAD_M
+        near = [self._edges[i] for i in np.flatnonzero((self._s1 >= lo) & (self._s0 <= hi))]
+        ld, v = world.sc.leader, v_all[idx]
+        zones = insertion_zones(pos[idx], heading[idx], v, [world.plan.vehicles[i] for i in idx],
+                                ld.min_gap + ld.time_gap * v)
+        self._zones[rows.start] = (key, near, zones)
+        return near, zones
+
+    def _still_blocks(self, vid: str, near, zones) -> bool:
+        """Does vehicle ``vid`` still overlap ``zones`` from one of the edges ``near``?"""
+        ad = self.world.adapter
+        try:
+            edge = ad.api.vehicle.getRoadID(vid)
+        except ad.api.TraCIException:
+            return False  # SUMO no longer has it
+        if edge not in near:
+            return False
+        return blocker(zones, ad.vehicle_bodies([vid])[1:]) >= 0
 
     def __call__(self, t: float, rows: slice, state) -> bool:
         """Are the insertion zones (sumo/zone.py ``insertion_zone``) of the members ``rows``
@@ -54,26 +88,26 @@ class RoomCheck:
         does not have yet?"""
         world = self.world
         self._step(t, state)
-        pos, heading, v_all = self._kin
-        idx = np.arange(rows.start, rows.stop)
-        s = world.line.to_frenet(pos[idx])[0]
-        lo, hi = float(np.min(s)) - LOOK_BEHIND_M, float(np.max(s)) + LOOK_AHEAD_M
-        near = np.flatnonzero((self._s1 >= lo) & (self._s0 <= hi))
-        x, y, psi, length, width = self._bodies([self._edges[i] for i in near])
+        near, zones = self._zones_of(rows)
+        last = self._blocked_by.pop(rows.start, None)
+        if last is not None and self._still_blocks(last, near, zones):
+            self._blocked_by[rows.start] = last
+            return False
+        ids, x, y, psi, length, width = self._bodies(near)
+        j = blocker(zones, (x, y, psi, length, width))
+        if j >= 0:
+            self._blocked_by[rows.start] = ids[j]
+            return False
         own = np.flatnonzero(world.active & ~world.in_sumo)  # spawned, not inserted yet
         own = own[(own < rows.start) | (own >= rows.stop)]
-        if len(own):
-            mt = [world.mtypes[i] for i in own]
-            shift = np.array([m.d_front - m.length / 2 for m in mt])  # CoG -> body centre [m]
-            x = np.append(x, pos[own, 0] + shift * np.cos(heading[own]))
-            y = np.append(y, pos[own, 1] + shift * np.sin(heading[own]))
-            psi = np.append(psi, heading[own])
-            length = np.append(length, [m.length for m in mt])
-            width = np.append(width, [m.width for m in mt])
-        ld = world.sc.leader
-        v = v_all[idx]
-        return has_room(pos[idx], heading[idx], v, [world.plan.vehicles[i] for i in idx],
-                        ld.min_gap + ld.time_gap * v, (x, y, psi, length, width))
+        if not len(own):
+            return True
+        pos, heading, _ = self._kin
+        mt = [world.mtypes[i] for i in own]
+        shift = np.array([m.d_front - m.length / 2 for m in mt])  # CoG -> body centre [m]
+        return blocker(zones, (pos[own, 0] + shift * np.cos(heading[own]),
+                               pos[own, 1] + shift * np.sin(heading[own]), heading[own],
+                               np.array([m.length for m in mt]), np.array([m.width for m in mt]))) < 0
 
 
 def counted_entry(plan, inserted: dict, rows) -> None:

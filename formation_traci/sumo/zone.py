@@ -75,35 +75,45 @@ def clear_insertion_zone(adapter, rec, t, pos, heading, v, vehicles, front):
                 break
 
 
+def insertion_zones(pos, heading, v, vehicles, front):
+    """Every member's :func:`insertion_zone` as :func:`first_overlap` takes them: centres
+    (n, 2) [m], headings (n,) [rad], lengths and widths (n, 2) [m]."""
+    zones = [insertion_zone(pos[i], heading[i], v[i], vehicles[i], front[i]) for i in range(len(pos))]
+    zc = np.array([z[0] for z in zones], dtype=float).reshape(-1, 2)
+    zone_lw = np.array([(z[1], z[2]) for z in zones], dtype=float).reshape(-1, 2)
+    return zc, np.asarray(heading, dtype=float), zone_lw
+
+
 def has_room(pos, heading, v, vehicles, front, bodies) -> bool:
     """Is every member's :func:`insertion_zone` free of the ``bodies`` (x, y, heading, length,
     width arrays [m, rad] of the vehicles that could be there)?"""
-    x, y, psi, length, width = bodies
-    zones = [insertion_zone(pos[i], heading[i], v[i], vehicles[i], front[i]) for i in range(len(pos))]
-    if not zones or not len(x):
-        return True
-    zc = np.array([z[0] for z in zones], dtype=float).reshape(-1, 2)
-    zone_lw = np.array([(z[1], z[2]) for z in zones], dtype=float)
-    return not any_overlap(zc, np.asarray(heading, dtype=float), zone_lw,
-                           np.ascontiguousarray(np.array([x, y, psi, length, width], dtype=float)))
+    return blocker(insertion_zones(pos, heading, v, vehicles, front), bodies) < 0
+
+
+def blocker(zones, bodies) -> int:
+    """The first of the ``bodies`` (x, y, heading, length, width arrays [m, rad]) that
+    overlaps one of the ``zones`` (:func:`insertion_zones`), or -1 when none does."""
+    if not len(zones[0]) or not len(bodies[0]):
+        return -1
+    return first_overlap(*zones, np.ascontiguousarray(np.array(bodies, dtype=float)))
 
 
 @kernel
-def any_overlap(zc, zh, zone_lw, bodies) -> bool:
-    """Does some zone (centres ``zc`` (n, 2) [m], headings ``zh`` [rad], lengths and widths
-    ``zone_lw`` (n, 2) [m]) overlap some body (``bodies`` (5, m): x, y [m], heading [rad],
-    length, width [m])? :func:`_near`'s circle pre-test, then road_setup.py
+def first_overlap(zc, zh, zone_lw, bodies) -> int:
+    """The first body (``bodies`` (5, m): x, y [m], heading [rad], length, width [m]) that
+    overlaps some zone (centres ``zc`` (n, 2) [m], headings ``zh`` [rad], lengths and widths
+    ``zone_lw`` (n, 2) [m]), or -1: :func:`_near`'s circle pre-test, then road_setup.py
     ``rectangles_overlap``'s separating-axis test, pair by pair."""
-    for i in range(zc.shape[0]):
-        r_zone = math.hypot(zone_lw[i, 0], zone_lw[i, 1]) / 2.0
-        for j in range(bodies.shape[1]):
-            r_body = math.hypot(bodies[3, j], bodies[4, j]) / 2.0
+    for j in range(bodies.shape[1]):
+        r_body = math.hypot(bodies[3, j], bodies[4, j]) / 2.0
+        for i in range(zc.shape[0]):
+            r_zone = math.hypot(zone_lw[i, 0], zone_lw[i, 1]) / 2.0
             dist = math.hypot(zc[i, 0] - bodies[0, j], zc[i, 1] - bodies[1, j])
             if dist <= r_zone + r_body + NEAR_MARGIN_M and _overlap(
                     (zc[i, 0], zc[i, 1], zh[i], zone_lw[i, 0], zone_lw[i, 1]),
                     (bodies[0, j], bodies[1, j], bodies[2, j], bodies[3, j], bodies[4, j])):
-                return True
-    return False
+                return j
+    return -1
 
 
 @kernel
