@@ -67,6 +67,8 @@ class StepReference(NamedTuple):
     v_cap: np.ndarray  # (n,) speed caps [m/s] (inf: none)
     a_cap: np.ndarray  # (n,) acceleration caps at the step's end [m/s^2]
     a_cap_from: np.ndarray  # (n,) at its start [m/s^2] (control/reference.py cap_at)
+    moving: np.ndarray  # (n,) bool: rows stepped (the others keep their state in step_members:
+    # the members of a formation not running, which the caller holds)
 
 
 class RoadPlan(NamedTuple):

@@ -106,7 +106,8 @@ def step_members(fleet, state, ref, comfort, t0, table, table_ids, at):
     [m/s^2] at the start of period j go to comfort[j, i] (the values :func:`member_signals`
     records for that period); with ``at`` >= 0 too, periods 1 .. n_ctrl - 1 also as comfort
     table rows at columns at, at + 1, ... of ``table`` (t = t0 + j dt_c [s], speed, a_lon,
-    a_lat) and ``table_ids`` (code i), period by period."""
+    a_lat) and ``table_ids`` (code i), period by period. Rows not ``ref.moving`` are left as
+    they are (no law, no integration, no comfort values: the caller holds them)."""
     kind, P, dt_c, vc = fleet.kind, fleet.P, fleet.dt_c, ref.vc
     x = state.x.copy()
     n = x.shape[0]
@@ -122,6 +123,8 @@ def step_members(fleet, state, ref, comfort, t0, table, table_ids, at):
     h = dt_c / fleet.n_sub
     for j in range(vc.shape[0]):
         for i in range(n):
+            if not ref.moving[i]:
+                continue
             res = law_input_at(fleet, now, i, target_at(fleet, now, ref, j, i), ref.v_cap[i],
                                cap_at(ref.a_cap_from[i], ref.a_cap[i], j, vc.shape[0]))
             U0[i] = res[0]
@@ -130,6 +133,8 @@ def step_members(fleet, state, ref, comfort, t0, table, table_ids, at):
             if kind == KINEMATIC and comfort.shape[0] == vc.shape[0]:
                 _comfort_values(kind, x, i, P, res, comfort, j)
         for i in range(n):
+            if not ref.moving[i]:
+                continue
             theta_star[i] = theta_star[i] + tsd[i] * dt_c
             k1 = kind != KINEMATIC and comfort.shape[0] == vc.shape[0]
             if k1:  # the period's accelerations from RK4's first stage: its own numbers
@@ -140,10 +145,9 @@ def step_members(fleet, state, ref, comfort, t0, table, table_ids, at):
             rk4_row_from(kind, x[i], U0[i], U1[i], P, i, h, fleet.n_sub, w, HELD, k1)
             if kind == KINEMATIC:
                 speed_in[i] = maximum(U0[i], 0.0)
-        for i in range(n):
-            u_prev[i] = U0[i]
+            u_prev[i] = U0[i]  # the laws of the next period read it; none runs in this loop
     if at >= 0 and comfort.shape[0] == vc.shape[0]:
-        period_table_rows(comfort, t0, dt_c, table, table_ids, at, np.ones(n, dtype=np.bool_))
+        period_table_rows(comfort, t0, dt_c, table, table_ids, at, ref.moving)
     return x, theta_star, speed_in, u_prev
 
 
@@ -385,7 +389,7 @@ class Fleet:
     def reference(ref: Reference) -> StepReference:
         """The step's reference as the kernels take it."""
         return StepReference(ref.line, ref.frame, ref.vc, ref.slots, _f64(ref.v_cap),
-                             _f64(ref.a_cap), _cap_from(ref))
+                             _f64(ref.a_cap), _cap_from(ref), np.ones(len(ref.frame), dtype=np.bool_))
 
     def kinematics(self, state: FleetState):
         """Position (n, 2) [m], velocity (n, 2) [m/s], heading (n,) [rad]."""

@@ -129,7 +129,8 @@ def free_step(run, state, at):
     fleet, plan, out = run.fleet, run.plan, run.out
     t = at.t
     _references(plan, out, t, fleet.dt_c)
-    targets = StepReference(plan.G, plan.frame, out.vc, plan.slots, plan.cap, plan.cap, plan.cap)
+    targets = StepReference(plan.G, plan.frame, out.vc, plan.slots, plan.cap, plan.cap, plan.cap,
+                            np.ones(plan.cap.shape[0], dtype=np.bool_))
     flags, worst = _record(fleet, plan, targets, run.tables, run.inc, out, state, at)
     tables = run.tables
     x1, ts1, sp1, ul1 = step_members(fleet, state, targets, out.periods, t, tables.comfort,

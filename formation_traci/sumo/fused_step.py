@@ -142,7 +142,7 @@ def fused_step(run, state, held, sensed, at):
                     (nb_v, nb[:, 4].copy(), nb_length, nb_width), (s_all[n:], d_all[n:]),
                     sensed.bg_codes, sensed.nb_lane_index)
     targets = StepReference(road.G, plan.frame, ref.vc, plan.slots, np.full(n, np.inf),
-                            ref.a_cap, ref.a_cap_from)
+                            ref.a_cap, ref.a_cap_from, ~at.parked)
     rec_flags, n_act, worst = _record(fleet, road, targets, tables, inc, out, state, sensed, at,
                                       (s_all, d_all), ref.truth)
     flags |= rec_flags
