@@ -313,33 +313,38 @@ def _segmented_motorway(tmp_path, n_edges: int, edge_m: float) -> list[str]:
     return [f"e{i}" for i in range(n_edges)]
 
 
-def _route_hook(routes: dict):
-    """A step hook that appends each member's (SUMO edge, SUMO route) to ``routes``."""
+def _run_on_segments(tmp_path, edges: list[str], start: float, duration: float):
+    """straight_3lane_light on seg.net.xml's ``edges`` from ``start`` [m] for ``duration`` [s]
+    (as long a warm-up): the members' trajectory rows after t = 0 and, per member, its (SUMO
+    edge, SUMO route) at every step."""
+    routes = {}
+
     def hook(k, t, adapter):
         for vid in ("right", "centre", "left"):
             if vid in adapter.api.vehicle.getIDList():
                 routes.setdefault(vid, []).append((adapter.api.vehicle.getRoadID(vid),
                                                    tuple(adapter.api.vehicle.getRoute(vid))))
-    return hook
+
+    sc = load_scenario(ROOT / "scenarios" / "highway" / "straight_3lane_light.toml",
+                       **{"road.net": str(tmp_path / "seg.net.xml"), "road.route": edges,
+                          "road.start": start, "run.duration": duration, "traffic.warmup": duration,
+                          **NO_DRAIN})
+    res = run_scenario(sc, tmp_path / "run", progress=False, step_hook=hook)
+    assert res.status == "completed", res.reason
+    traj = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
+    return traj[(traj.vehicle_id != "vc") & (traj.t > 0)], routes
 
 
 def test_members_entering_far_along_a_route_carry_none_of_it_behind(tmp_path):
     """Members that enter 1.5 km along a route of 200 m edges get it in SUMO from the edge
     before their own on, not from the route's first edge: moveToXY searches every edge of the
-    route behind the vehicle too, so a member entering 50 km along a 100 km route of 1 km
-    edges paid ~15 us a move for the 50 edges behind it. On the former code the members'
-    routes began with e0."""
+    route behind the vehicle too (on motorway100 a member entering ~50 km along the route paid
+    30 us a move, 14 us without the edges behind it). On the former code the members' routes
+    began with e0."""
     from formation_traci.sumo.adapter import ROUTE_AHEAD_M
     edge_m = 200.0
     edges = _segmented_motorway(tmp_path, 15, edge_m)
-    routes = {}
-    sc = load_scenario(ROOT / "scenarios" / "highway" / "straight_3lane_light.toml",
-                       **{"road.net": str(tmp_path / "seg.net.xml"), "road.route": edges,
-                          "road.start": 1500.0, "run.duration": 20.0, "traffic.warmup": 20.0, **NO_DRAIN})
-    res = run_scenario(sc, tmp_path / "run", progress=False, step_hook=_route_hook(routes))
-    assert res.status == "completed", res.reason
-    traj = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
-    members = traj[(traj.vehicle_id != "vc") & (traj.t > 0)]
+    members, routes = _run_on_segments(tmp_path, edges, 1500.0, 20.0)
     assert members.sumo_gap.max() < 0.01  # m: placed where the model puts them
     max_window = int(ROUTE_AHEAD_M // edge_m) + 1
     for vid, seen in routes.items():
@@ -350,7 +355,7 @@ def test_members_entering_far_along_a_route_carry_none_of_it_behind(tmp_path):
                     if not edge.startswith(":")]
         assert len({edge for edge, _ in on_edges}) >= 2, vid
         for edge, route in on_edges:
-            last = min(edges.index(edge) + max_window, n_edges := len(edges)) - 1
+            last = min(edges.index(edge) + max_window, len(edges)) - 1
             assert list(route) == edges[first:last + 1], (vid, edge, route)
 
 
@@ -361,14 +366,7 @@ def test_members_carry_a_window_of_a_long_route_of_many_edges(tmp_path):
     from formation_traci.sumo.adapter import ROUTE_AHEAD_M
     n_edges, edge_m = 15, 200.0
     edges = _segmented_motorway(tmp_path, n_edges, edge_m)
-    routes = {}
-    sc = load_scenario(ROOT / "scenarios" / "highway" / "straight_3lane_light.toml",
-                       **{"road.net": str(tmp_path / "seg.net.xml"), "road.route": edges,
-                          "road.start": 100.0, "run.duration": 60.0, "traffic.warmup": 60.0, **NO_DRAIN})
-    res = run_scenario(sc, tmp_path / "run", progress=False, step_hook=_route_hook(routes))
-    assert res.status == "completed", res.reason
-    traj = pd.read_parquet(tmp_path / "run" / "trajectories.parquet")
-    members = traj[(traj.vehicle_id != "vc") & (traj.t > 0)]
+    members, routes = _run_on_segments(tmp_path, edges, 100.0, 60.0)
     assert members.x.max() - members.x.min() > 1500.0  # crossed at least 7 edge boundaries
     assert members.sumo_gap.max() < 0.01  # m
     events_dir = tmp_path / "run" / "events.parquet"
