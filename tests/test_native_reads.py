@@ -216,6 +216,49 @@ def test_a_member_that_left(sim):
     assert mod.member_table([])[0].shape == (0, 5) and mod.neighbour_table([], None) is None
 
 
+def swig_all(exclude):
+    """sumo/adapter/neighbours.py's SWIG extraction of every vehicle's variable subscription."""
+    rows = {vid: r for vid, r in _ls.vehicle_getAllSubscriptionResults().items() if r}
+    ids = sorted(vid for vid in rows if vid not in exclude)
+    if not ids:
+        return None
+    for vid in ids:
+        if vid not in BODIES:
+            BODIES[vid] = (_ls.vehicle_getLength(vid), _ls.vehicle_getWidth(vid), _ls.vehicle_getTypeID(vid))
+    recs, bods = [rows[vid] for vid in ids], [BODIES[vid] for vid in ids]
+    tb = np.array([(*r[POS], r[ANG], r[SPD], r[ACC], b[0], b[1]) for r, b in zip(recs, bods)], dtype=float)
+    return (ids, [b[2] for b in bods], [r[LANE] for r in recs], tb,
+            np.array([r[LIDX] for r in recs], dtype=np.int64))
+
+
+def test_every_vehicles_table_equals_swig_at_every_step(sim):
+    """all_table(exclude): every vehicle subscribed with the neighbours' variables (a twin, or a
+    run that records every vehicle), as neighbour_table's rows, bit for bit against the SWIG
+    extraction at every step while vehicles enter, members are excluded and one leaves."""
+    mod = sim
+    seen, subscribed = [], set()
+    for k in range(60):
+        for vid in set(_ls.vehicle_getIDList()) - set(MEMBERS) - subscribed:
+            _ls.vehicle_subscribe(vid, [POS, ANG, SPD, ACC, LANE, LIDX])
+            subscribed.add(vid)
+        libsumo.simulationStep() if k % 2 == 0 else mod.step()
+        exclude = set(MEMBERS) if k % 3 else dict.fromkeys(MEMBERS, True)
+        want = swig_all(exclude)
+        assert_same_neighbours(mod.all_table(exclude), want)
+        if k % 10 == 5:
+            mod.use_store(False)
+            assert_same_neighbours(mod.all_table(exclude), want)
+            mod.use_store(True)
+        if k == 30:  # one leaves, as sumo/adapter/__init__.py removes a vehicle
+            _ls.vehicle_unsubscribe(want[0][0])
+            libsumo.vehicle.remove(want[0][0])
+            subscribed.discard(want[0][0])
+        seen.append(0 if want is None else len(want[0]))
+    for vid in subscribed & set(_ls.vehicle_getIDList()):  # the other tests read no such rows
+        _ls.vehicle_unsubscribe(vid)
+    assert min(seen) >= 10 and max(seen) > min(seen), seen  # vehicles read; some entered
+
+
 def test_poses_are_the_getters_values(sim):
     """poses(ids): every vehicle's getPosition, getAngle, getLength, getWidth, bit for bit (the
     insertion room check's reads); an unknown vehicle is SUMO's error, as through SWIG."""

@@ -5,7 +5,10 @@ kernel a formation alone runs, for every running formation of a group over its o
 the joined arrays, each formation seeing as its neighbours every vehicle of the joined table
 (SUMO's vehicles and every member, sumo/peers.py) but its own members; a formation that
 is not running (waiting to depart, or retired) gets its virtual car standing at its s and no
-virtual-car row. The numbers are those of the formations' references computed one by one.
+virtual-car row. The numbers are those of the formations' references computed one by one. With
+many rows, a formation's governor is given only the rows that can lead one of its members or
+slots (:func:`_candidates`: the table ordered by arc length once a step), not every row; its
+leaders, gaps and leader indices are the same (tests/test_group_candidates.py).
 """
 from __future__ import annotations
 

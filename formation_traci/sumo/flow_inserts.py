@@ -100,8 +100,14 @@ class RoomCheck:
             return False
         own = np.flatnonzero(world.active & ~world.in_sumo)  # spawned, not inserted yet
         own = own[(own < rows.start) | (own >= rows.stop)]
-        if not len(own):
-            return True
+        room = not len(own) or self._own_room(own, zones)
+        if room:  # it enters: its zones are not asked for again
+            self._zones.pop(rows.start, None)
+        return room
+
+    def _own_room(self, own, zones) -> bool:
+        """Are ``zones`` free of the run's members ``own`` (not in SUMO yet)?"""
+        world = self.world
         pos, heading, _ = self._kin
         mt = [world.mtypes[i] for i in own]
         shift = np.array([m.d_front - m.length / 2 for m in mt])  # CoG -> body centre [m]

@@ -92,8 +92,12 @@ class NeighbourReads:
         [m], angle [deg], speed [m/s], acceleration [m/s^2], length, width [m], lane index
         (m,)); one conversion of the subscription rows (sumo/fused_path.py, with ``native``
         through the C++ reads of sumo/adapter/native_reads.py when they are there: the same rows),
-        None when no vehicle is near."""
-        if native and not all_vehicles and self.native is not None:
+        None when no vehicle is near. Every vehicle (``all_vehicles``: a twin, or a run that
+        records every vehicle) is read through the C++ reads whenever they are there, on every
+        path (tests/test_native_reads.py compares them with this SWIG extraction)."""
+        if self.native is not None and (all_vehicles or native):
+            if all_vehicles:
+                return self.native.all_table(self.members)
             return self.native.neighbour_table(sorted(self._context), self.members)
         if all_vehicles:
             rows = {vid: r for vid, r in self.api.vehicle.getAllSubscriptionResults().items() if r}

@@ -245,6 +245,10 @@ static Body* body_of(const std::string& vid, Ref& id_str) {
     return nullptr;
 }
 
+typedef std::map<std::string_view, const TraCIResults*> Rows;  // in byte order = sorted()
+
+static PyObject* table_of(const Rows& rows, PyObject* exclude);
+
 // ---- neighbour_table(owners, exclude) -> (ids, types, lanes, table (m, 7), lane_index) | None
 static PyObject* neighbour_table(PyObject*, PyObject* args) {
     PyObject *owners_o, *exclude;
@@ -255,7 +259,7 @@ static PyObject* neighbour_table(PyObject*, PyObject* args) {
     GUARD_BEGIN
     ContextSubscriptionResults copy;
     const ContextSubscriptionResults& ctx = (g_use_store && p_ctxStore) ? *p_ctxStore : (copy = p_getAllCtx(), copy);
-    std::map<std::string_view, const TraCIResults*> rows;  // the union, in byte order = sorted()
+    Rows rows;  // the union of the owners' contexts
     std::string key;
     for (Py_ssize_t i = 0; i < PySequence_Fast_GET_SIZE(owners.p); ++i) {
         if (!to_std(PySequence_Fast_GET_ITEM(owners.p, i), key)) return nullptr;
@@ -263,6 +267,27 @@ static PyObject* neighbour_table(PyObject*, PyObject* args) {
         if (it == ctx.end()) continue;
         for (const auto& kv : it->second) rows[kv.first] = &kv.second;  // the last owner's row
     }
+    return table_of(rows, exclude);
+    GUARD_END
+}
+
+// ---- all_table(exclude) -> neighbour_table's result over every vehicle's variable subscription
+// (recording every vehicle: each subscribed with the neighbours' variables; empty rows skipped)
+static PyObject* all_table(PyObject*, PyObject* exclude) {
+    if (exclude == Py_None) exclude = nullptr;
+    GUARD_BEGIN
+    SubscriptionResults copy;
+    const SubscriptionResults& all = (g_use_store && p_store) ? *p_store : (copy = p_getAll(), copy);
+    Rows rows;
+    for (const auto& kv : all)
+        if (!kv.second.empty()) rows[kv.first] = &kv.second;
+    return table_of(rows, exclude);
+    GUARD_END
+}
+
+// the table of neighbour_table and all_table: the rows not in ``exclude``
+static PyObject* table_of(const Rows& rows, PyObject* exclude) {
+    std::string key;
     std::vector<std::pair<const Body*, const TraCIResults*>> keep;
     keep.reserve(rows.size());
     for (const auto& kv : rows) {
@@ -308,7 +333,6 @@ static PyObject* neighbour_table(PyObject*, PyObject* args) {
     }
     return Py_BuildValue("(NNNNN)", ids.release(), types.release(), lanes.release(), table.release(),
                          index.release());
-    GUARD_END
 }
 
 // ---- body(id) -> (length, width, vType): the cached body (read on first sight by either path) -
@@ -524,6 +548,8 @@ static PyMethodDef methods[] = {
     {"neighbour_table", neighbour_table, METH_VARARGS,
      "neighbour_table(owners, exclude) -> (ids, types, lanes, table (m,7), lane_index) | None"},
     {"move_all", move_all, METH_VARARGS, "move_all(ids, x, y, angle, keep_route, threshold, v=None) -> [(id, message)]"},
+    {"all_table", all_table, METH_O,
+     "all_table(exclude) -> neighbour_table's result over every vehicle's variable subscription"},
     {"body", body, METH_O, "body(id) -> (length, width, vType), read once and cached (as neighbour_table's)"},
     {"poses", poses, METH_O, "poses(ids) -> table (n, 5): front bumper x, y, angle [deg], length, width"},
     {"set_previous_speeds", set_previous_speeds, METH_VARARGS, "set_previous_speeds(ids, v, a)"},
