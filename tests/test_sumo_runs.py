@@ -338,9 +338,7 @@ def _run_on_segments(tmp_path, edges: list[str], start: float, duration: float):
 def test_members_entering_far_along_a_route_carry_none_of_it_behind(tmp_path):
     """Members that enter 1.5 km along a route of 200 m edges get it in SUMO from the edge
     before their own on, not from the route's first edge: moveToXY searches every edge of the
-    route behind the vehicle too (on motorway100 a member entering ~50 km along the route paid
-    30 us a move, 14 us without the edges behind it). On the former code the members' routes
-    began with e0."""
+    route behind the vehicle too, so edges it never drove would make every move dearer."""
     from formation_traci.sumo.adapter import ROUTE_AHEAD_M
     edge_m = 200.0
     edges = _segmented_motorway(tmp_path, 15, edge_m)
