@@ -1,4 +1,4 @@
-"""The insertion zone's room check (sumo/zone.py has_room, also behind the clearing at
+"""The insertion zone's room check (sumo/zone.py insertion_zones and blocker, also behind the clearing at
 insertion): the circle pre-test skips only pairs the exact separating-axis test finds apart,
 so the answer is the exact test's for every pair, touching bodies included."""
 import math
@@ -6,7 +6,12 @@ import math
 import numpy as np
 
 from formation_traci.sumo.road_setup import rectangles_overlap
-from formation_traci.sumo.zone import has_room, insertion_zone
+from formation_traci.sumo.zone import blocker, insertion_zone, insertion_zones
+
+
+def has_room(pos, heading, v, vehicles, front, bodies) -> bool:
+    """Is every member's insertion zone free of ``bodies``? (sumo/flow_inserts.py RoomCheck's test)"""
+    return blocker(insertion_zones(pos, heading, v, vehicles, front), bodies) < 0
 
 
 class Car:

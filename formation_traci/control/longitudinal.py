@@ -110,12 +110,11 @@ def plan_accel(a_prev, a_request, dt, pp, firm):
         return a_prev + min(-decel_comfort - a_prev, jerk_release * dt), False
     if emergency:
         da, lim = a_request - a_prev, pp[JERK_EMERGENCY] * dt
-        fall = lim
     else:
         da, lim = (a_request - a_prev) * (1.0 - math.exp(-dt / pp[TAU])), pp[JERK_MAX] * dt
-        fall = lim
-        if firm and a_request < -pp[BRAKE_FIRM] and pp[JERK_BRAKE] > pp[JERK_MAX]:
-            fall = pp[JERK_BRAKE] * dt  # firm braking sets in faster
+    fall = lim
+    if not emergency and firm and a_request < -pp[BRAKE_FIRM] and pp[JERK_BRAKE] > pp[JERK_MAX]:
+        fall = pp[JERK_BRAKE] * dt  # firm braking sets in faster
     return a_prev + min(max(da, -fall), lim), emergency
 
 

@@ -39,9 +39,9 @@ rear-most rear bumper at ``s_R``. The ramp vehicle of length ``L_r`` and time ga
 A ramp vehicle on the acceleration lane that is slower than the formation and ahead of its front
 member (a queue at the lane's end in stop-and-go) may merge into the first gap, long before its
 own ``T``: its ``T`` is then the time the formation's front takes to reach its rear, ``lead / (v_F
-- v_r)`` with ``lead = s_r - L_r - s_F``, when that is shorter. Without it a vehicle standing at
-the lane's end was never within the horizon, and when it pushed into the merge lane a few metres
-ahead of a member the member braked as in an emergency.
+- v_r)`` with ``lead = s_r - L_r - s_F``, when that is shorter: a vehicle standing at the lane's
+end is otherwise never within the horizon, and may push into the merge lane a few metres ahead of
+a member.
 
 Only ramp vehicles within ``horizon_s`` of the merge (``T <= horizon_s``) are considered. Pure functions of (state, input, params), compiled.
 """

@@ -74,11 +74,7 @@ class RoomCheck:
     def _still_blocks(self, vid: str, near, zones) -> bool:
         """Does vehicle ``vid`` still overlap ``zones`` from one of the edges ``near``?"""
         ad = self.world.adapter
-        try:
-            edge = ad.api.vehicle.getRoadID(vid)
-        except ad.api.TraCIException:
-            return False  # SUMO no longer has it
-        if edge not in near:
+        if ad.road_of(vid) not in near:  # not on them, or SUMO no longer has it
             return False
         return blocker(zones, ad.vehicle_bodies([vid])[1:]) >= 0
 

@@ -84,12 +84,6 @@ def insertion_zones(pos, heading, v, vehicles, front):
     return zc, np.asarray(heading, dtype=float), zone_lw
 
 
-def has_room(pos, heading, v, vehicles, front, bodies) -> bool:
-    """Is every member's :func:`insertion_zone` free of the ``bodies`` (x, y, heading, length,
-    width arrays [m, rad] of the vehicles that could be there)?"""
-    return blocker(insertion_zones(pos, heading, v, vehicles, front), bodies) < 0
-
-
 def blocker(zones, bodies) -> int:
     """The first of the ``bodies`` (x, y, heading, length, width arrays [m, rad]) that
     overlaps one of the ``zones`` (:func:`insertion_zones`), or -1 when none does."""

@@ -139,6 +139,13 @@ class NeighbourReads:
         x, y, psi = sumo_to_cog(xf, yf, ang, length / 2.0)
         return ids, x, y, psi, length, width
 
+    def road_of(self, vid: str) -> str | None:
+        """The edge vehicle ``vid`` is on (``""``: off the road; None: SUMO no longer has it)."""
+        try:
+            return self.api.vehicle.getRoadID(vid)
+        except self.api.TraCIException:
+            return None
+
     def vehicles_on(self, edges) -> list[str]:
         """The vehicles on ``edges`` after the last step (ids)."""
         get = self.api.edge.getLastStepVehicleIDs
